@@ -1,0 +1,1 @@
+"""ROS-free numerical core: numpy/scipy only, one module per method."""
