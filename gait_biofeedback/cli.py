@@ -1,3 +1,193 @@
-"""placeholder"""
-def main():
-    print("cli")
+"""``gait-biofeedback``: the project's command line (see ``gait-biofeedback --help``)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+DEMO_BAG = Path("bags/demo_walk.mcap")
+DEMO_OUTPUT = Path("output/demo_session")
+
+DESCRIPTION = """\
+Wearable-IMU gait biofeedback (ROS 2 Jazzy). Typical use:
+
+  gait-biofeedback demo                        simulate a session, replay it through the graph, summarise
+  gait-biofeedback simulate -o bags/walk.mcap  make a synthetic recording with ground truth
+  gait-biofeedback import csv my.csv --mapping map.yaml -o bags/mine
+                                               convert your own IMU data to the project's MCAP layout
+  gait-biofeedback replay bags/mine --record output/mine
+                                               run a recording through the node graph, record outputs
+  gait-biofeedback info output/mine            what is in a recording
+  gait-biofeedback repair output/mine          make a recording cut off by a crash readable again
+
+Run `gait-biofeedback COMMAND --help` for the options of one command.
+"""
+
+
+def _progress(total: int, desc: str):
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc=desc, unit="msg", unit_scale=True, leave=False,
+                disable=not sys.stderr.isatty())
+
+
+def cmd_simulate(args: argparse.Namespace) -> int:
+    from gait_biofeedback.core.simulator import SCENARIOS, simulate
+    from gait_biofeedback.io.session_bag import write_simulated_bag
+
+    if args.scenario not in SCENARIOS:
+        print(f"unknown scenario {args.scenario!r}; choose one of {sorted(SCENARIOS)}", file=sys.stderr)
+        return 2
+    config = SCENARIOS[args.scenario]()
+    config.rate_hz = args.rate
+    config.seed = args.seed
+    if args.no_mag:
+        config.with_magnetometer = False
+    session = simulate(config)
+    path = write_simulated_bag(args.output, session, overwrite=args.overwrite)
+    n = len(next(iter(session.imu.values())))
+    print(f"wrote {path}: scenario {args.scenario}, {len(session.imu)} sensors x {n} samples "
+          f"at {config.rate_hz:g} Hz ({n / config.rate_hz:.1f} s), seed {config.seed}")
+    return 0
+
+
+def cmd_import(args: argparse.Namespace) -> int:
+    from gait_biofeedback.io.bag import write_imu_bag
+    from gait_biofeedback.io.importers import import_recording
+
+    options = {}
+    if args.mapping:
+        options["mapping"] = args.mapping
+    if args.units:
+        options["units"] = dict(u.split("=", 1) for u in args.units)
+    if args.rate:
+        options["rate_hz"] = args.rate
+    recording = import_recording(args.kind, args.path, **options)
+    for warning in recording.warnings:
+        print(f"warning: {warning}", file=sys.stderr)
+    path = write_imu_bag(args.output, recording.imu)
+    print(f"wrote {path}: {len(recording.imu)} sensors ({', '.join(recording.imu)}) from {args.path}")
+    return 0
+
+
+def cmd_replay(args: argparse.Namespace) -> int:
+    from gait_biofeedback.graph import replay_through_graph
+    from gait_biofeedback.io.bag import BagReader
+
+    total = BagReader(args.bag).message_count
+    with _progress(total, "replay") as bar:
+        result = replay_through_graph(args.bag, args.record, speed=args.speed, start_offset=args.start,
+                                      stop_offset=args.stop, progress=bar.update)
+    print(f"replayed {result.published} messages in {result.wall_time:.1f} s"
+          + (f"; recorded {result.recorded} to {result.output}" if result.output else ""))
+    return 0
+
+
+def cmd_record(args: argparse.Namespace) -> int:
+    from gait_biofeedback.nodes.recorder import main
+
+    ros_args = ["--ros-args", "-p", f"output:={args.output}"]
+    if args.topics:
+        ros_args += ["-p", "topics:=[" + ",".join(args.topics) + "]"]
+    return main(["gait-biofeedback-record", *ros_args])
+
+
+def cmd_info(args: argparse.Namespace) -> int:
+    from gait_biofeedback.io.bag import BagReader
+
+    reader = BagReader(args.bag)
+    counts = reader.message_counts()
+    duration = reader.duration_ns * 1e-9
+    print(f"{args.bag}: {sum(counts.values())} messages, {duration:.2f} s, {len(counts)} topics")
+    for topic, type_name in sorted(reader.topics().items()):
+        n = counts.get(topic, 0)
+        rate = n / duration if duration > 0 else 0.0
+        print(f"  {topic:42s} {type_name:42s} {n:8d}  {rate:7.1f} Hz")
+    return 0
+
+
+def cmd_repair(args: argparse.Namespace) -> int:
+    from gait_biofeedback.io.bag import repair
+
+    report = repair(args.bag)
+    for key, value in report.items():
+        print(f"{key}: {value}")
+    return 0
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    from gait_biofeedback.demo import run_demo
+
+    return run_demo(bag=Path(args.bag), output=Path(args.output), speed=args.speed)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="gait-biofeedback", description=DESCRIPTION,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+
+    p = sub.add_parser("demo", help="simulate (or reuse) the demo recording, replay it through the "
+                       "whole graph, record the outputs and print a summary")
+    p.add_argument("--bag", default=str(DEMO_BAG), help="demo recording (made if missing) [%(default)s]")
+    p.add_argument("--output", default=str(DEMO_OUTPUT), help="where the outputs are recorded [%(default)s]")
+    p.add_argument("--speed", type=float, default=4.0, help="replay speed factor [%(default)s]")
+    p.set_defaults(func=cmd_demo)
+
+    p = sub.add_parser("simulate", help="synthetic session with ground truth → MCAP recording")
+    p.add_argument("-o", "--output", required=True, help="output: a folder (rosbag2) or a .mcap file")
+    p.add_argument("--scenario", default="demo", help="what the subject does [%(default)s]")
+    p.add_argument("--rate", type=float, default=100.0, help="IMU sampling rate, Hz [%(default)s]")
+    p.add_argument("--seed", type=int, default=0, help="random seed (same seed, same file) [%(default)s]")
+    p.add_argument("--no-mag", action="store_true", help="sensors without magnetometer")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output")
+    p.set_defaults(func=cmd_simulate)
+
+    p = sub.add_parser("import", help="real recording (CSV/MAT) → the project's MCAP layout")
+    p.add_argument("kind", help="qmt_fullbody, gaitmap, broad, csv, or auto")
+    p.add_argument("path", help="the file to import")
+    p.add_argument("-o", "--output", required=True, help="output recording (folder or .mcap)")
+    p.add_argument("--mapping", help="csv: YAML file mapping segments to columns")
+    p.add_argument("--units", nargs="*", help="csv: e.g. acc=g gyr=deg/s mag=uT time=ms")
+    p.add_argument("--rate", type=float, help="csv without a time column: sampling rate, Hz")
+    p.set_defaults(func=cmd_import)
+
+    p = sub.add_parser("replay", help="run a recording through the node graph in this process")
+    p.add_argument("bag", help="recording: rosbag2 folder or .mcap file")
+    p.add_argument("--record", help="record every topic of the graph to this folder")
+    p.add_argument("--speed", type=float, default=1.0, help="speed factor, 0 = as fast as possible")
+    p.add_argument("--start", type=float, default=0.0, help="start at this many s into the recording")
+    p.add_argument("--stop", type=float, default=0.0, help="stop at this many s (0 = the end)")
+    p.set_defaults(func=cmd_replay)
+
+    p = sub.add_parser("record", help="record live topics to a crash-safe MCAP bag until Ctrl-C")
+    p.add_argument("-o", "--output", required=True, help="bag folder to create")
+    p.add_argument("topics", nargs="*", help="topics to record (default: all)")
+    p.set_defaults(func=cmd_record)
+
+    p = sub.add_parser("info", help="topics, types, counts and rates of a recording")
+    p.add_argument("bag")
+    p.set_defaults(func=cmd_info)
+
+    p = sub.add_parser("repair", help="rebuild the index and metadata.yaml of a recording cut off by a crash")
+    p.add_argument("bag")
+    p.set_defaults(func=cmd_repair)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``gait-biofeedback`` console script."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 1
+    try:
+        return int(args.func(args) or 0)
+    except (ValueError, FileNotFoundError, FileExistsError) as err:
+        print(f"gait-biofeedback {args.command}: {err}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

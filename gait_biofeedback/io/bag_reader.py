@@ -1,0 +1,147 @@
+"""Read a rosbag2 bag folder (MCAP storage) or a bare .mcap file, damaged ones included."""
+
+from __future__ import annotations
+
+import heapq
+import re
+import warnings
+from collections.abc import Iterable, Iterator
+from pathlib import Path
+from types import TracebackType
+from typing import Any
+
+from rclpy.serialization import deserialize_message
+
+from gait_biofeedback.io.mcap_file import McapFile
+from gait_biofeedback.io.schemas import message_class
+
+
+class BagRecoveryWarning(UserWarning):
+    """A file of the bag is damaged; only its complete chunks are read."""
+
+
+def bag_files(path: Path) -> list[Path]:
+    """The .mcap files of a bag folder, by split index (``<name>_<i>.mcap``); metadata.yaml is not
+    consulted, so a stale or missing one does not hide files."""
+    return sorted(path.glob("*.mcap"), key=_split_index)
+
+
+def _split_index(path: Path) -> tuple[int, str]:
+    match = re.search(r"_(\d+)\.mcap$", path.name)
+    return (int(match.group(1)) if match else -1, path.name)
+
+
+class BagReader:
+    """Messages of a bag folder or .mcap file, in log-time order across its split files.
+
+    A file without a valid summary (recording cut off) is read up to its last complete chunk; a
+    :class:`BagRecoveryWarning` names the file and the number of messages recovered.
+    """
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        if not self.path.exists():
+            raise FileNotFoundError(f"no bag at {self.path}: expected a rosbag2 folder or an .mcap file")
+        if self.path.is_dir():
+            paths = bag_files(self.path)
+            if not paths:
+                raise ValueError(f"{self.path} is a folder without .mcap files, so it is not an MCAP bag")
+        else:
+            paths = [self.path]
+        self.files: list[McapFile] = []
+        self.warnings: list[str] = []
+        try:
+            for p in paths:
+                self.files.append(McapFile.open(p))
+        except BaseException:
+            self.close()
+            raise
+        for f in self.files:
+            if not f.complete:
+                text = (
+                    f"{f.path}: damaged or unfinished MCAP file ({f.damage}); recovered "
+                    f"{f.message_count} messages from {len(f.chunks)} complete chunks"
+                )
+                self.warnings.append(text)
+                warnings.warn(text, BagRecoveryWarning, stacklevel=2)
+
+    def topics(self) -> dict[str, str]:
+        """``{topic: type name}``, e.g. ``{"/left_foot/imu/data_raw": "sensor_msgs/msg/Imu"}``."""
+        out: dict[str, str] = {}
+        for f in self.files:
+            out.update(f.topic_types())
+        return out
+
+    @property
+    def message_count(self) -> int:
+        """Messages in the bag (for damaged files: the recoverable ones)."""
+        return sum(f.message_count for f in self.files)
+
+    def message_counts(self) -> dict[str, int]:
+        """``{topic: number of messages}``."""
+        counts: dict[str, int] = {}
+        for f in self.files:
+            for channel_id, n in f.channel_counts.items():
+                channel = f.channels.get(channel_id)
+                if channel is not None:
+                    counts[channel.topic] = counts.get(channel.topic, 0) + n
+        return counts
+
+    @property
+    def start_time_ns(self) -> int:
+        """Log time of the first message (0 for an empty bag)."""
+        return min((f.start_time for f in self.files if f.start_time is not None), default=0)
+
+    @property
+    def end_time_ns(self) -> int:
+        """Log time of the last message (0 for an empty bag)."""
+        return max((f.end_time for f in self.files if f.end_time is not None), default=0)
+
+    @property
+    def duration_ns(self) -> int:
+        """Last minus first log time."""
+        return self.end_time_ns - self.start_time_ns
+
+    def raw_messages(
+        self, topics: Iterable[str] | None = None, start_ns: int | None = None, stop_ns: int | None = None
+    ) -> Iterator[tuple[str, str, bytes, int]]:
+        """``(topic, type name, CDR bytes, log_time_ns)`` with ``start_ns <= log_time < stop_ns``."""
+        wanted = None if topics is None else set(topics)
+        types = self.topics()
+        streams = [self._file_stream(f, wanted, start_ns, stop_ns) for f in self.files]
+        for log_time, topic, data in heapq.merge(*streams, key=lambda item: item[0]):
+            yield topic, types[topic], data, log_time
+
+    def _file_stream(
+        self, f: McapFile, wanted: set[str] | None, start_ns: int | None, stop_ns: int | None
+    ) -> Iterator[tuple[int, str, bytes]]:
+        topic_of = {c.id: c.topic for c in f.channels.values() if wanted is None or c.topic in wanted}
+        ids = frozenset(topic_of) if wanted is not None else None
+        for m in f.messages(ids, start_ns, stop_ns):
+            topic = topic_of.get(m.channel_id)
+            if topic is not None:
+                yield m.log_time, topic, m.data
+
+    def messages(
+        self, topics: Iterable[str] | None = None, start_ns: int | None = None, stop_ns: int | None = None
+    ) -> Iterator[tuple[str, Any, int]]:
+        """``(topic, rclpy message, log_time_ns)``; the message class is imported from the type name."""
+        classes: dict[str, type] = {}
+        for topic, type_name, data, log_time in self.raw_messages(topics, start_ns, stop_ns):
+            cls = classes.get(topic)
+            if cls is None:
+                cls = classes[topic] = message_class(type_name)
+            yield topic, deserialize_message(data, cls), log_time
+
+    def close(self) -> None:
+        """Release the files."""
+        for f in self.files:
+            f.close()
+
+    def __enter__(self) -> BagReader:
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        self.close()

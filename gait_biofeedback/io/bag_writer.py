@@ -1,0 +1,240 @@
+"""Crash-safe rosbag2/MCAP writer: a bag folder with ``metadata.yaml`` and ``<name>_<i>.mcap`` files.
+
+Each file is an MCAP file with profile ``ros2``: schema encoding ``ros2msg`` (full .msg text with
+dependencies), message encoding ``cdr``. The open chunk is written out and the file flushed to the
+OS at least every ``flush_period`` seconds of wall-clock time, so after a kill -9 the file is
+readable (and :func:`gait_biofeedback.io.bag.repair`-able) up to its last complete chunk. Flushing
+does not fsync: data survive a process crash, not a power cut.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import TracebackType
+from typing import Any, BinaryIO
+
+from mcap.writer import CompressionType, Writer
+from rclpy.serialization import serialize_message
+
+from gait_biofeedback.io.bag_metadata import (
+    FileRecord,
+    TopicRecord,
+    bag_metadata,
+    qos_profile,
+    qos_to_text,
+    write_metadata,
+)
+from gait_biofeedback.io.schemas import schema_text, type_description_hash, type_name_of
+
+COMPRESSIONS = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
+LIBRARY = "gait_biofeedback"
+
+
+def finish_open_chunk(writer: Writer) -> None:
+    """Write the chunk in progress to the stream and flush the stream (the crash-safety point).
+
+    ``mcap`` 1.6 does this in its public ``Writer.flush()``. This is the one place that relies on
+    it; test_bag_io.test_open_chunk_reaches_disk_on_flush fails if a library change breaks it.
+    """
+    writer.flush()
+
+
+@dataclass
+class _McapPart:
+    """One open .mcap file of the bag and what has gone into it."""
+
+    path: Path
+    stream: BinaryIO
+    writer: Writer
+    schema_ids: dict[str, int] = field(default_factory=dict)
+    channel_ids: dict[str, int] = field(default_factory=dict)
+    record: FileRecord = field(default_factory=lambda: FileRecord(""))
+    pending_bytes: int = 0
+
+    def size_estimate(self) -> int:
+        """Bytes on disk plus the open chunk uncompressed (an upper bound of the final size)."""
+        return self.stream.tell() + self.pending_bytes
+
+
+class BagWriter:
+    """Write ROS 2 messages to a rosbag2 bag folder (MCAP storage).
+
+    ``path`` is the bag folder; files are ``<path>/<path.name>_0.mcap``, ``_1.mcap`` … (a new one
+    when ``split_size`` bytes or ``split_duration`` seconds of log time are exceeded).
+    ``flush_period`` (s, wall clock) bounds how much a crash can lose; call :meth:`maybe_flush` from
+    a timer when messages may stop arriving. Use as a context manager or call :meth:`close`.
+    Not thread-safe: call it from one thread.
+    """
+
+    def __init__(
+        self,
+        path: str | Path,
+        *,
+        compression: str = "zstd",
+        flush_period: float = 1.0,
+        split_size: int | None = None,
+        split_duration: float | None = None,
+        overwrite: bool = False,
+        chunk_size: int = 1024 * 1024,
+    ) -> None:
+        if compression not in COMPRESSIONS:
+            raise ValueError(f"compression {compression!r} unknown; use one of {sorted(COMPRESSIONS)}")
+        if flush_period <= 0:
+            raise ValueError(f"flush_period must be > 0 s, got {flush_period}")
+        self.path = Path(path)
+        self._prepare_folder(overwrite)
+        self._compression = COMPRESSIONS[compression]
+        self._flush_period = flush_period
+        self._split_size = split_size
+        self._split_ns = None if split_duration is None else round(split_duration * 1e9)
+        self._chunk_size = chunk_size
+        self._topics: dict[str, TopicRecord] = {}
+        self._sequence: dict[str, int] = {}
+        self._records: list[FileRecord] = []
+        self._last_flush = time.monotonic()
+        self._closed = False
+        self.files: list[Path] = []
+        self.message_count = 0
+        self._part = self._open_part()
+
+    def _prepare_folder(self, overwrite: bool) -> None:
+        if self.path.exists() and not self.path.is_dir():
+            raise FileExistsError(f"{self.path} exists and is not a folder; a bag is written as a folder")
+        if self.path.is_dir() and any(self.path.iterdir()):
+            if not overwrite:
+                raise FileExistsError(f"bag folder {self.path} exists and is not empty; pass overwrite=True")
+            leftovers = [p for p in self.path.iterdir() if p.suffix != ".mcap" and p.name != "metadata.yaml"]
+            if leftovers:
+                raise FileExistsError(
+                    f"{self.path} holds files that are not part of a bag ({leftovers[0].name}); "
+                    "refusing to overwrite it"
+                )
+            for p in self.path.iterdir():
+                p.unlink()
+        self.path.mkdir(parents=True, exist_ok=True)
+
+    def _open_part(self) -> _McapPart:
+        path = self.path / f"{self.path.name}_{len(self.files)}.mcap"
+        stream = open(path, "wb")  # noqa: SIM115 - closed in _close_part
+        writer = Writer(stream, chunk_size=self._chunk_size, compression=self._compression)
+        writer.start(profile="ros2", library=LIBRARY)
+        self.files.append(path)
+        part = _McapPart(path, stream, writer, record=FileRecord(path.name))
+        self._records.append(part.record)
+        return part
+
+    def _close_part(self) -> None:
+        self._part.writer.finish()
+        self._part.stream.close()
+
+    # -- writing --------------------------------------------------------------------------------
+
+    def add_topic(
+        self, topic: str, type_name: str, offered_qos: list[dict[str, Any]] | None = None
+    ) -> TopicRecord:
+        """Declare ``topic`` (done implicitly on its first message) with its offered QoS profiles."""
+        if topic in self._topics:
+            existing = self._topics[topic]
+            if existing.type_name != type_name:
+                raise ValueError(f"topic {topic} already carries {existing.type_name}, not {type_name}")
+            return existing
+        schema_text(type_name)  # fails early, with the search path, if the definition is missing
+        record = TopicRecord(topic, type_name, offered_qos or qos_profile(), type_description_hash(type_name))
+        self._topics[topic] = record
+        self._sequence[topic] = 0
+        return record
+
+    def write(self, topic: str, msg: Any, log_time_ns: int, publish_time_ns: int | None = None) -> None:
+        """Serialise the rclpy message ``msg`` and write it at ``log_time_ns``."""
+        self.write_serialized(topic, type_name_of(msg), serialize_message(msg), log_time_ns, publish_time_ns)
+
+    def write_serialized(
+        self, topic: str, type_name: str, data: bytes, log_time_ns: int, publish_time_ns: int | None = None
+    ) -> None:
+        """Write a CDR-serialised message of ``type_name`` (``pkg/msg/Type``)."""
+        if self._closed:
+            raise ValueError(f"bag {self.path} is closed; open a new BagWriter to write more")
+        record = self._topics.get(topic) or self.add_topic(topic, type_name)
+        if record.type_name != type_name:
+            raise ValueError(f"topic {topic} carries {record.type_name}; cannot write {type_name} to it")
+        log_time_ns = int(log_time_ns)
+        self._split_if_due(log_time_ns)
+        part = self._part
+        channel_id = part.channel_ids.get(topic) or self._register(part, record)
+        self._sequence[topic] += 1
+        part.writer.add_message(
+            channel_id,
+            log_time=log_time_ns,
+            data=data,
+            publish_time=log_time_ns if publish_time_ns is None else int(publish_time_ns),
+            sequence=self._sequence[topic] & 0xFFFFFFFF,
+        )
+        part.pending_bytes += len(data) + 31
+        file_record = part.record
+        if file_record.message_count == 0 or log_time_ns < file_record.start_time:
+            file_record.start_time = log_time_ns
+        file_record.end_time = max(file_record.end_time, log_time_ns)
+        file_record.message_count += 1
+        record.message_count += 1
+        self.message_count += 1
+        if part.pending_bytes > self._chunk_size:
+            part.pending_bytes = 0  # the mcap writer has closed the chunk by itself
+        self.maybe_flush()
+
+    def _register(self, part: _McapPart, record: TopicRecord) -> int:
+        schema_id = part.schema_ids.get(record.type_name)
+        if schema_id is None:
+            data = schema_text(record.type_name).encode("utf-8")
+            schema_id = part.writer.register_schema(record.type_name, "ros2msg", data)
+            part.schema_ids[record.type_name] = schema_id
+        metadata = {"offered_qos_profiles": qos_to_text(record.offered_qos)}
+        if record.type_hash:
+            metadata["topic_type_hash"] = record.type_hash
+        channel_id = part.writer.register_channel(record.name, "cdr", schema_id, metadata)
+        part.channel_ids[record.name] = channel_id
+        return channel_id
+
+    def _split_if_due(self, log_time_ns: int) -> None:
+        record = self._part.record
+        if record.message_count == 0:
+            return
+        too_big = self._split_size is not None and self._part.size_estimate() >= self._split_size
+        too_long = self._split_ns is not None and log_time_ns - record.start_time >= self._split_ns
+        if too_big or too_long:
+            self._close_part()
+            self._part = self._open_part()
+            self._write_metadata()
+
+    def flush(self) -> None:
+        """Write the open chunk to the file now and flush the file to the OS."""
+        if self._closed:
+            return
+        finish_open_chunk(self._part.writer)
+        self._part.pending_bytes = 0
+        self._last_flush = time.monotonic()
+
+    def maybe_flush(self) -> None:
+        """:meth:`flush` if ``flush_period`` seconds have passed since the last flush."""
+        if time.monotonic() - self._last_flush >= self._flush_period:
+            self.flush()
+
+    def _write_metadata(self) -> None:
+        write_metadata(self.path, bag_metadata(self._records, list(self._topics.values())))
+
+    def close(self) -> None:
+        """Finish the open file (summary and indexes) and write metadata.yaml. Idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        self._close_part()
+        self._write_metadata()
+
+    def __enter__(self) -> BagWriter:
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        self.close()

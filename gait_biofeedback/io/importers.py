@@ -1,0 +1,579 @@
+"""Importers of real IMU recordings (MAT/CSV files) into the project's in-memory form.
+
+Every importer returns a :class:`Recording`: one :class:`~gait_biofeedback.core.segments.ImuSeries` per
+segment in SI units (acc m/s², gyr rad/s, mag tesla or ``None``, t in s), plus whatever ground truth the
+file carries in ``Recording.reference`` and human-readable ``warnings`` (NaN samples, suspicious units).
+
+Supported sources:
+
+- ``qmt_fullbody``: the qmt full-body walking example (``full_body_example_data.mat``, 16 IMUs, 100 Hz).
+- ``gaitmap``: the gaitmap foot-IMU example (``imu_sample*.csv``, 204.8 Hz, gyr in deg/s) and its
+  mocap stride events (``stride_events_sample.csv``).
+- ``broad``: one trial of the BROAD orientation benchmark (``NN_*.mat``, 285.7 Hz, mag in µT).
+- ``csv``: any CSV with a time column (or a known rate) and per-segment acc/gyr/mag columns, described by
+  a mapping (dict or YAML file).
+
+Use :func:`import_recording` with ``kind="auto"`` to pick the importer from the file name.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import re
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from gait_biofeedback.core.segments import GRAVITY, ImuSeries
+
+DEG_TO_RAD = math.pi / 180.0
+MICROTESLA_TO_TESLA = 1e-6
+GAUSS_TO_TESLA = 1e-4
+GAITMAP_RATE_HZ = 204.8
+QMT_FULLBODY_RATE_HZ = 100.0
+
+# qmt struct name -> project segment (DESIGN.md segments).
+QMT_SEGMENT_OF_STRUCT: dict[str, str] = {
+    "hip": "pelvis",
+    "upper_back": "chest",
+    "upper_leg_left": "left_thigh",
+    "upper_leg_right": "right_thigh",
+    "lower_leg_left": "left_shank",
+    "lower_leg_right": "right_shank",
+    "foot_left": "left_foot",
+    "foot_right": "right_foot",
+}
+
+# Conversion factors to SI per quantity; keys are the accepted unit spellings.
+UNIT_FACTORS: dict[str, dict[str, float]] = {
+    "acc": {"m/s2": 1.0, "m/s^2": 1.0, "m/s²": 1.0, "g": GRAVITY},
+    "gyr": {"rad/s": 1.0, "deg/s": DEG_TO_RAD, "dps": DEG_TO_RAD},
+    "mag": {"T": 1.0, "uT": MICROTESLA_TO_TESLA, "µT": MICROTESLA_TO_TESLA, "gauss": GAUSS_TO_TESLA},
+    "time": {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "ns": 1e-9},
+}
+DEFAULT_UNITS: dict[str, str] = {"acc": "m/s2", "gyr": "rad/s", "mag": "T", "time": "s"}
+DEFAULT_TIME_COLUMNS: tuple[str, ...] = ("time", "t")
+_VECTOR_QUANTITIES: tuple[str, ...] = ("acc", "gyr", "mag")
+
+
+@dataclass
+class Recording:
+    """One imported recording.
+
+    ``imu``: segment name -> samples in SI units. ``source``: what was read (importer kind and path).
+    ``reference``: optional ground truth or vendor output, importer-specific (documented per importer),
+    e.g. ``events``, ``opt_quat``, ``movement``, ``vendor_quat``. ``warnings``: things a user should know
+    about the data (NaN samples kept, suspicious magnitudes), one sentence each.
+    """
+
+    imu: dict[str, ImuSeries]
+    source: str
+    reference: dict[str, Any] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def segments(self) -> list[str]:
+        """Names of the segments with IMU data, in import order."""
+        return list(self.imu)
+
+
+# --------------------------------------------------------------------------------------------------
+# qmt full-body example
+# --------------------------------------------------------------------------------------------------
+
+
+def import_qmt_fullbody(path: str | Path, include_unmapped: bool = False) -> Recording:
+    """Read qmt's ``full_body_example_data.mat`` (16 IMUs at 100 Hz, acc m/s², gyr rad/s, no mag).
+
+    The sensors on the project's segments are renamed (``hip`` -> ``pelvis``, ``upper_back`` -> ``chest``,
+    ``upper_leg_*`` -> ``*_thigh``, ``lower_leg_*`` -> ``*_shank``, ``foot_*`` -> ``*_foot``). The other
+    sensors (``lower_back``, ``head``, arms, hands) are kept under their own names only when
+    ``include_unmapped`` is true.
+
+    The file's time starts at 40 s (an excerpt of a longer take); ``t`` is shifted to start at 0 and the
+    shift is kept in ``reference["t_offset_s"]``. ``reference["vendor_quat"]``: segment -> (N, 4) vendor
+    orientation (w, x, y, z, sensor -> the vendor's world frame, not necessarily ENU-aligned in heading).
+    """
+    path = Path(path)
+    data = _load_mat(path, struct_as_record=False)
+    if "t" not in data:
+        raise ValueError(f"{path}: no 't' variable; is this qmt's full_body_example_data.mat? "
+                         f"It has: {_mat_keys(data)}")
+    t_file = np.asarray(data["t"], dtype=float).reshape(-1)
+    missing = [name for name in QMT_SEGMENT_OF_STRUCT if name not in data]
+    if missing:
+        raise ValueError(f"{path}: sensor struct(s) {missing} missing; the file has {_mat_keys(data)}")
+
+    struct_names = list(QMT_SEGMENT_OF_STRUCT)
+    if include_unmapped:
+        struct_names += [
+            k for k in _mat_keys(data) if k not in QMT_SEGMENT_OF_STRUCT and _is_imu_struct(data[k])
+        ]
+
+    t = t_file - t_file[0]
+    imu: dict[str, ImuSeries] = {}
+    vendor_quat: dict[str, np.ndarray] = {}
+    warnings: list[str] = []
+    for struct_name in struct_names:
+        sensor = data[struct_name]
+        if not _is_imu_struct(sensor):
+            raise ValueError(f"{path}: '{struct_name}' lacks acc/gyr fields (has {_struct_fields(sensor)})")
+        segment = QMT_SEGMENT_OF_STRUCT.get(struct_name, struct_name)
+        imu[segment] = ImuSeries(segment=segment, t=t, acc=sensor.acc, gyr=sensor.gyr)
+        if hasattr(sensor, "quat"):
+            vendor_quat[segment] = np.asarray(sensor.quat, dtype=float)
+        warnings += _nan_warnings(imu[segment])
+
+    reference: dict[str, Any] = {
+        "vendor_quat": vendor_quat,
+        "t_offset_s": float(t_file[0]),
+        "struct_of_segment": {QMT_SEGMENT_OF_STRUCT.get(s, s): s for s in struct_names},
+    }
+    return Recording(imu=imu, source=f"qmt_fullbody:{path}", reference=reference, warnings=warnings)
+
+
+def _is_imu_struct(value: Any) -> bool:
+    return hasattr(value, "acc") and hasattr(value, "gyr")
+
+
+def _struct_fields(value: Any) -> list[str]:
+    return list(getattr(value, "_fieldnames", []) or [])
+
+
+# --------------------------------------------------------------------------------------------------
+# gaitmap example
+# --------------------------------------------------------------------------------------------------
+
+_GAITMAP_AXES: tuple[str, ...] = ("acc_x", "acc_y", "acc_z", "gyr_x", "gyr_y", "gyr_z")
+_GAITMAP_EVENT_COLUMNS: tuple[str, ...] = ("start", "end", "ic", "tc", "min_vel", "pre_ic")
+
+
+def import_gaitmap(path_csv: str | Path, rotated: bool = True, rate_hz: float = GAITMAP_RATE_HZ) -> Recording:
+    """Read a gaitmap foot-IMU CSV (two header rows: sensor, axis; acc m/s², gyr deg/s) -> left/right_foot.
+
+    ``path_csv`` is the CSV or the ``gaitmap_example`` folder. ``rotated`` selects the frame: ``True``
+    gaitmap's foot frame (``imu_sample.csv``), ``False`` the raw sensor axes
+    (``imu_sample_not_rotated.csv``). Given a folder, the file is chosen by ``rotated``; given
+    ``imu_sample.csv`` with ``rotated=False``, its sibling ``imu_sample_not_rotated.csv`` is read; a
+    ``*not_rotated*`` file with ``rotated=True`` is an error (the data would not be in the asked frame).
+
+    The first column is either a sample index (``t = index / rate_hz``) or a time in s (the stair files).
+    When the file is ``imu_sample.csv`` or ``imu_sample_not_rotated.csv`` and ``stride_events_sample.csv``
+    lies next to it, ``reference["events"]`` holds its mocap events (see :func:`load_gaitmap_events`).
+    ``reference["frame"]`` is ``"gaitmap_foot"`` or ``"sensor"``.
+    """
+    path = _resolve_gaitmap_path(Path(path_csv), rotated)
+    with path.open(newline="") as handle:
+        reader = csv.reader(handle)
+        try:
+            sensor_row = next(reader)
+            axis_row = next(reader)
+        except StopIteration:
+            raise ValueError(f"{path}: fewer than two header rows; a gaitmap IMU CSV has a sensor row "
+                             "and an axis row") from None
+    data = np.genfromtxt(path, delimiter=",", skip_header=2, dtype=float)
+    data = np.atleast_2d(data)
+    if data.shape[1] != len(sensor_row):
+        raise ValueError(f"{path}: {data.shape[1]} data columns but {len(sensor_row)} header columns")
+
+    column_of: dict[tuple[str, str], int] = {}
+    for index, (sensor, axis) in enumerate(zip(sensor_row, axis_row, strict=True)):
+        if index > 0:
+            column_of[(sensor.strip(), axis.strip())] = index
+    sensors = sorted({sensor for sensor, _ in column_of})
+    feet = {"left_foot": "left_sensor", "right_foot": "right_sensor"}
+    for sensor in feet.values():
+        absent = [axis for axis in _GAITMAP_AXES if (sensor, axis) not in column_of]
+        if absent:
+            raise ValueError(f"{path}: columns {sensor}/{absent} missing; the file has sensors {sensors} "
+                             f"and axes {sorted({a for _, a in column_of})}. Expected gaitmap's two-row "
+                             "header (sensor, axis)")
+
+    t = _gaitmap_time(data[:, 0], rate_hz)
+    imu: dict[str, ImuSeries] = {}
+    warnings: list[str] = []
+    for segment, sensor in feet.items():
+        acc = data[:, [column_of[(sensor, a)] for a in ("acc_x", "acc_y", "acc_z")]]
+        gyr_deg_s = data[:, [column_of[(sensor, a)] for a in ("gyr_x", "gyr_y", "gyr_z")]]
+        imu[segment] = ImuSeries(segment=segment, t=t, acc=acc, gyr=gyr_deg_s * DEG_TO_RAD)
+        warnings += _nan_warnings(imu[segment])
+
+    reference: dict[str, Any] = {"frame": "sensor" if "not_rotated" in path.name else "gaitmap_foot"}
+    events_path = path.with_name("stride_events_sample.csv")
+    if path.name in ("imu_sample.csv", "imu_sample_not_rotated.csv") and events_path.is_file():
+        reference["events"] = load_gaitmap_events(events_path, rate_hz=rate_hz)
+    return Recording(imu=imu, source=f"gaitmap:{path}", reference=reference, warnings=warnings)
+
+
+def _resolve_gaitmap_path(path: Path, rotated: bool) -> Path:
+    wanted = "imu_sample.csv" if rotated else "imu_sample_not_rotated.csv"
+    if path.is_dir():
+        path = path / wanted
+    elif not rotated and path.name == "imu_sample.csv":
+        path = path.with_name(wanted)
+    elif rotated and "not_rotated" in path.name:
+        raise ValueError(f"{path} holds raw sensor axes, but rotated=True asks for gaitmap's foot frame; "
+                         "pass rotated=False, or give imu_sample.csv")
+    if not path.is_file():
+        raise FileNotFoundError(f"{path} not found (rotated={rotated} reads {wanted} in a folder)")
+    return path
+
+
+def _gaitmap_time(first_column: np.ndarray, rate_hz: float) -> np.ndarray:
+    """Sample index -> s, or time in s kept (shifted to start at 0)."""
+    if np.any(~np.isfinite(first_column)):
+        raise ValueError("gaitmap CSV: the first column (sample index or time) has empty/non-numeric rows")
+    if np.all(first_column == np.round(first_column)) and first_column.size > 1 and np.all(
+        np.diff(first_column) == 1
+    ):
+        return (first_column - first_column[0]) / rate_hz
+    return first_column - first_column[0]
+
+
+def load_gaitmap_events(
+    path: str | Path, rate_hz: float = GAITMAP_RATE_HZ
+) -> dict[str, dict[str, np.ndarray]]:
+    """Read gaitmap's ``stride_events_sample.csv`` (sample indices at ``rate_hz``) -> events in s.
+
+    Returns ``{"left": {"ic": (n,), "tc": (n,), "start": ..., "end": ..., "min_vel": ..., "pre_ic": ...},
+    "right": {...}}``: per foot, arrays aligned by stride (element i belongs to stride i) in stride order,
+    times in s on the IMU file's time base (index 0 = 0 s). ``ic``/``tc`` are the mocap initial/terminal
+    contacts; ``start``/``end``/``min_vel`` the stride borders at the minimum foot velocity; ``pre_ic``
+    the previous stride's IC.
+    """
+    path = Path(path)
+    with path.open(newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    if not rows:
+        raise ValueError(f"{path}: no strides (empty or header only)")
+    columns = list(rows[0])
+    absent = [c for c in ("foot", *_GAITMAP_EVENT_COLUMNS) if c not in columns]
+    if absent:
+        raise ValueError(f"{path}: column(s) {absent} missing; the file has {columns}")
+    events: dict[str, dict[str, np.ndarray]] = {}
+    for foot in ("left", "right"):
+        foot_rows = sorted((r for r in rows if r["foot"].strip() == foot), key=lambda r: float(r["start"]))
+        events[foot] = {
+            name: np.array([_float_or_nan(r[name]) for r in foot_rows], dtype=float) / rate_hz
+            for name in _GAITMAP_EVENT_COLUMNS
+        }
+    return events
+
+
+def _float_or_nan(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        return math.nan
+
+
+# --------------------------------------------------------------------------------------------------
+# BROAD
+# --------------------------------------------------------------------------------------------------
+
+
+def import_broad(path_mat: str | Path, segment: str = "board") -> Recording:
+    """Read one BROAD trial (``NN_*.mat``: acc m/s², gyr rad/s, mag µT -> T, 285.7 Hz) as ``segment``.
+
+    ``reference``: ``opt_quat`` (N, 4) optical orientation (w, x, y, z, IMU -> ENU, aligned to the IMU
+    frame; NaN where the markers were lost), ``movement`` (N,) bool: the samples to score, ``opt_pos``
+    (N, 3) m, ``rate_hz``, ``trial`` (file stem). ``t`` = sample index / sampling_rate.
+    """
+    path = Path(path_mat)
+    data = _load_mat(path, struct_as_record=True)
+    required = ("imu_acc", "imu_gyr", "imu_mag", "sampling_rate")
+    absent = [k for k in required if k not in data]
+    if absent:
+        raise ValueError(f"{path}: variable(s) {absent} missing; is this a BROAD trial? It has "
+                         f"{_mat_keys(data)}")
+    rate_hz = float(data["sampling_rate"])
+    acc = np.asarray(data["imu_acc"], dtype=float)
+    t = np.arange(acc.shape[0]) / rate_hz
+    series = ImuSeries(segment=segment, t=t, acc=acc, gyr=data["imu_gyr"],
+                       mag=np.asarray(data["imu_mag"], dtype=float) * MICROTESLA_TO_TESLA)
+    warnings = _nan_warnings(series)
+    reference: dict[str, Any] = {"rate_hz": rate_hz, "trial": path.stem}
+    if "opt_quat" in data:
+        opt_quat = np.asarray(data["opt_quat"], dtype=float)
+        reference["opt_quat"] = opt_quat
+        lost = int(np.any(np.isnan(opt_quat), axis=1).sum())
+        if lost:
+            warnings.append(f"{segment}: opt_quat is NaN in {lost} of {len(opt_quat)} samples "
+                            "(optical markers lost); skip them when scoring")
+    if "movement" in data:
+        reference["movement"] = np.asarray(data["movement"]).astype(bool).reshape(-1)
+    if "opt_pos" in data:
+        reference["opt_pos"] = np.asarray(data["opt_pos"], dtype=float)
+    return Recording(imu={segment: series}, source=f"broad:{path}", reference=reference, warnings=warnings)
+
+
+# --------------------------------------------------------------------------------------------------
+# Generic CSV
+# --------------------------------------------------------------------------------------------------
+
+
+def import_generic_csv(
+    path: str | Path,
+    mapping: Mapping[str, Any] | str | Path,
+    units: Mapping[str, str] | None = None,
+    rate_hz: float | None = None,
+) -> Recording:
+    """Read a CSV (one header row; ``,`` ``;`` or tab separated) with a time column and IMU columns.
+
+    ``mapping``: segment -> ``{"acc": [col_x, col_y, col_z], "gyr": [...], "mag": [...]}`` (``mag``
+    optional), plus two optional reserved keys: ``"time"``: the time column (default: a column named
+    ``time`` or ``t``), and ``"units"``: the units, as in ``units``. Or the path of a YAML file holding the
+    same mapping, for example::
+
+        time: timestamp_ms          # optional; default "time" or "t"
+        units: {acc: g, gyr: deg/s, mag: uT, time: ms}   # optional
+        left_foot:
+          acc: [lf_ax, lf_ay, lf_az]
+          gyr: [lf_gx, lf_gy, lf_gz]
+          mag: [lf_mx, lf_my, lf_mz]  # optional
+        pelvis:
+          acc: [p_ax, p_ay, p_az]
+          gyr: [p_gx, p_gy, p_gz]
+
+    ``units`` (overrides the mapping's): ``acc`` ``m/s2`` (default) | ``g`` (× 9.81); ``gyr`` ``rad/s``
+    (default) | ``deg/s``; ``mag`` ``T`` (default) | ``uT`` | ``gauss``; ``time`` ``s`` (default) | ``ms``
+    | ``us``. ``rate_hz``: when the file has no time column, ``t = row / rate_hz``; given ``rate_hz``, a
+    default-named time column is ignored, and naming a time column as well is an error.
+
+    Times are kept as in the file (converted to s; absolute stamps stay absolute) and must increase
+    strictly. Rows with NaN/empty IMU values are kept (downstream filters skip them) and counted in
+    ``warnings``. Raises ValueError naming a missing column (and listing the file's columns) or an
+    unknown unit (and listing the allowed ones).
+    """
+    path = Path(path)
+    mapping_dict = _load_mapping(mapping)
+    segment_map = {k: v for k, v in mapping_dict.items() if k not in ("time", "units")}
+    if not segment_map:
+        raise ValueError(f"mapping for {path} names no segment; "
+                         "give segment -> {'acc': [...], 'gyr': [...]}")
+    merged_units = {**DEFAULT_UNITS, **dict(mapping_dict.get("units") or {}), **dict(units or {})}
+    factors = _unit_factors(merged_units)
+
+    header, delimiter = _read_header(path)
+    data = np.genfromtxt(path, delimiter=delimiter, skip_header=1, dtype=float, invalid_raise=True)
+    data = np.atleast_2d(data)
+    if data.size == 0:
+        raise ValueError(f"{path}: no data rows after the header")
+    if data.shape[1] != len(header):
+        raise ValueError(f"{path}: {data.shape[1]} data columns but {len(header)} header names")
+    column_index = {name: i for i, name in enumerate(header)}
+
+    def column(name: str, what: str) -> np.ndarray:
+        if name not in column_index:
+            raise ValueError(f"{path}: column '{name}' ({what}) not in the file; the file has {header}")
+        return data[:, column_index[name]]
+
+    t = _csv_time(path, data.shape[0], mapping_dict.get("time"), header, column, rate_hz,
+                  factors["time"])
+    imu: dict[str, ImuSeries] = {}
+    warnings: list[str] = []
+    for segment, columns in segment_map.items():
+        if not isinstance(columns, Mapping):
+            raise ValueError(f"mapping['{segment}'] must be {{'acc': [3 columns], 'gyr': [3 columns]}}, "
+                             f"got {columns!r}")
+        unknown = [k for k in columns if k not in _VECTOR_QUANTITIES]
+        if unknown:
+            raise ValueError(f"mapping['{segment}'] has unknown key(s) {unknown}; "
+                             f"allowed: {list(_VECTOR_QUANTITIES)}")
+        vectors: dict[str, np.ndarray | None] = {}
+        for quantity in _VECTOR_QUANTITIES:
+            names = columns.get(quantity)
+            if names is None:
+                if quantity != "mag":
+                    raise ValueError(f"mapping['{segment}'] lacks '{quantity}' (3 column names)")
+                vectors[quantity] = None
+                continue
+            if isinstance(names, str) or len(names) != 3:
+                raise ValueError(f"mapping['{segment}']['{quantity}'] must list 3 column names (x, y, z), "
+                                 f"got {names!r}")
+            vectors[quantity] = np.column_stack(
+                [column(n, f"{segment} {quantity}") for n in names]) * factors[quantity]
+        series = ImuSeries(segment=segment, t=t, acc=vectors["acc"], gyr=vectors["gyr"], mag=vectors["mag"])
+        imu[segment] = series
+        warnings += _nan_warnings(series)
+        warnings += _unit_plausibility_warnings(series, merged_units)
+    return Recording(imu=imu, source=f"csv:{path}", reference={}, warnings=warnings)
+
+
+def _load_mapping(mapping: Mapping[str, Any] | str | Path) -> dict[str, Any]:
+    if isinstance(mapping, str | Path):
+        import yaml
+
+        mapping_path = Path(mapping)
+        if not mapping_path.is_file():
+            raise FileNotFoundError(f"mapping file {mapping_path} not found")
+        with mapping_path.open() as handle:
+            loaded = yaml.safe_load(handle)
+        if not isinstance(loaded, Mapping):
+            raise ValueError(f"{mapping_path}: expected a YAML mapping of segment -> {{acc, gyr, mag}} "
+                             f"columns, got {type(loaded).__name__}")
+        return dict(loaded)
+    if not isinstance(mapping, Mapping):
+        raise ValueError(f"mapping must be a dict or a YAML file path, got {type(mapping).__name__}")
+    return dict(mapping)
+
+
+def _unit_factors(units: Mapping[str, str]) -> dict[str, float]:
+    factors: dict[str, float] = {}
+    for quantity, unit in units.items():
+        if quantity not in UNIT_FACTORS:
+            raise ValueError(f"unknown quantity '{quantity}' in units; allowed: {list(UNIT_FACTORS)}")
+        allowed = UNIT_FACTORS[quantity]
+        if unit not in allowed:
+            raise ValueError(f"unknown {quantity} unit '{unit}'; allowed: {list(allowed)}")
+        factors[quantity] = allowed[unit]
+    return factors
+
+
+def _read_header(path: Path) -> tuple[list[str], str]:
+    with path.open(newline="") as handle:
+        first_line = handle.readline()
+    if not first_line.strip():
+        raise ValueError(f"{path}: empty file or empty header line; expected one row of column names")
+    delimiter = max((",", ";", "\t"), key=first_line.count)
+    header = [name.strip() for name in next(csv.reader([first_line], delimiter=delimiter))]
+    return header, delimiter
+
+
+def _csv_time(
+    path: Path,
+    n_rows: int,
+    time_column: str | None,
+    header: list[str],
+    column: Callable[[str, str], np.ndarray],
+    rate_hz: float | None,
+    time_factor: float,
+) -> np.ndarray:
+    if rate_hz is not None:
+        if time_column is not None:
+            raise ValueError(f"{path}: both rate_hz={rate_hz} and time column '{time_column}' given; "
+                             "pass one of them")
+        if not rate_hz > 0:
+            raise ValueError(f"rate_hz must be > 0, got {rate_hz}")
+        return np.arange(n_rows) / float(rate_hz)
+    if time_column is None:
+        found = [name for name in DEFAULT_TIME_COLUMNS if name in header]
+        if not found:
+            raise ValueError(f"{path}: no time column named {list(DEFAULT_TIME_COLUMNS)}; the file has "
+                             f"{header}. Name it with mapping['time'] or give rate_hz")
+        time_column = found[0]
+    t = column(time_column, "time") * time_factor
+    if np.any(~np.isfinite(t)):
+        row = int(np.flatnonzero(~np.isfinite(t))[0])
+        raise ValueError(f"{path}: time column '{time_column}' is empty/NaN at data row {row}; fix the file "
+                         "or give rate_hz")
+    steps = np.diff(t)
+    if np.any(steps <= 0):
+        row = int(np.flatnonzero(steps <= 0)[0]) + 1
+        raise ValueError(f"{path}: time column '{time_column}' does not increase at data row {row} "
+                         f"({t[row - 1]} s -> {t[row]} s); times must increase strictly")
+    return t
+
+
+def _unit_plausibility_warnings(series: ImuSeries, units: Mapping[str, str]) -> list[str]:
+    """Warn when magnitudes suggest a wrong unit (checked on median norms; silent when unsure)."""
+    warnings: list[str] = []
+    acc_norm = np.nanmedian(np.linalg.norm(series.acc, axis=1)) if len(series) else math.nan
+    if np.isfinite(acc_norm) and acc_norm < 0.3 * GRAVITY:
+        warnings.append(f"{series.segment}: median |acc| is {acc_norm:.3g} m/s² with acc unit "
+                        f"'{units['acc']}'; if the file is in g, pass units={{'acc': 'g'}}")
+    if series.mag is not None and len(series):
+        mag_norm = np.nanmedian(np.linalg.norm(series.mag, axis=1))
+        if np.isfinite(mag_norm) and not 1e-6 <= mag_norm <= 1e-3:
+            warnings.append(f"{series.segment}: median |mag| is {mag_norm:.3g} T with mag unit "
+                            f"'{units['mag']}' (Earth: 25-65 µT); check units['mag']")
+    return warnings
+
+
+# --------------------------------------------------------------------------------------------------
+# Shared helpers and dispatch
+# --------------------------------------------------------------------------------------------------
+
+
+def _load_mat(path: Path, struct_as_record: bool) -> dict[str, Any]:
+    from scipy.io import loadmat
+
+    if not path.is_file():
+        raise FileNotFoundError(f"{path} not found")
+    return loadmat(path, squeeze_me=True, struct_as_record=struct_as_record)
+
+
+def _mat_keys(data: Mapping[str, Any]) -> list[str]:
+    return [k for k in data if not k.startswith("__")]
+
+
+def _nan_warnings(series: ImuSeries) -> list[str]:
+    parts = [series.acc, series.gyr] + ([series.mag] if series.mag is not None else [])
+    bad = np.any(np.isnan(np.hstack(parts)), axis=1)
+    count = int(bad.sum())
+    if not count:
+        return []
+    return [f"{series.segment}: {count} of {len(series)} samples contain NaN (kept; downstream filters "
+            "skip them)"]
+
+
+IMPORTERS: dict[str, Callable[..., Recording]] = {
+    "qmt_fullbody": import_qmt_fullbody,
+    "gaitmap": import_gaitmap,
+    "broad": import_broad,
+    "csv": import_generic_csv,
+}
+
+_BROAD_NAME = re.compile(r"^\d\d_.+\.mat$")
+
+
+def detect_kind(path: str | Path, **options: Any) -> str:
+    """Importer kind from the file name (and, for an unknown .mat name, the variables it holds).
+
+    ``full_body*.mat`` -> ``qmt_fullbody``; ``NN_*.mat`` or a .mat with ``imu_gyr``/``opt_quat`` ->
+    ``broad``; ``imu_sample*.csv`` or a ``gaitmap_example`` folder -> ``gaitmap``; any other ``.csv`` ->
+    ``csv`` when a ``mapping`` option is given. Raises ValueError otherwise.
+    """
+    path = Path(path)
+    name = path.name.lower()
+    if path.is_dir() and (path / "imu_sample.csv").is_file():
+        return "gaitmap"
+    if name.endswith(".mat"):
+        if name.startswith("full_body"):
+            return "qmt_fullbody"
+        if _BROAD_NAME.match(name):
+            return "broad"
+        if path.is_file():
+            from scipy.io import whosmat
+
+            variables = {entry[0] for entry in whosmat(path)}
+            if {"imu_gyr", "opt_quat"} <= variables:
+                return "broad"
+            if {"t", "hip", "foot_left"} <= variables:
+                return "qmt_fullbody"
+    if name.endswith(".csv"):
+        if name.startswith("imu_sample"):
+            return "gaitmap"
+        if "mapping" in options:
+            return "csv"
+        raise ValueError(f"cannot tell the kind of {path}: a generic CSV needs a column mapping; call "
+                         "import_recording('csv', path, mapping={segment: {'acc': [...], 'gyr': [...]}})")
+    raise ValueError(f"cannot tell the kind of {path} from its name; pass kind= one of {list(IMPORTERS)} "
+                     "(known names: full_body*.mat, NN_*.mat (BROAD), imu_sample*.csv (gaitmap))")
+
+
+def import_recording(kind: str, path: str | Path, **options: Any) -> Recording:
+    """Import ``path`` with the importer ``kind`` (a key of :data:`IMPORTERS`, or ``"auto"``).
+
+    ``options`` go to the importer (e.g. ``include_unmapped`` for qmt_fullbody, ``rotated`` for gaitmap,
+    ``segment`` for broad, ``mapping``/``units``/``rate_hz`` for csv).
+    """
+    if kind == "auto":
+        kind = detect_kind(path, **options)
+    if kind not in IMPORTERS:
+        raise ValueError(f"unknown recording kind '{kind}'; known: {[*IMPORTERS, 'auto']}")
+    return IMPORTERS[kind](path, **options)

@@ -1,0 +1,1 @@
+"""Thin rclpy nodes: messages <-> core objects, parameters, diagnostics."""

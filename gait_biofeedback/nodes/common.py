@@ -1,0 +1,141 @@
+"""What every node shares: QoS profiles, time conversion, executors, diagnostics, `main`.
+
+Nodes stay thin: they convert messages, hold parameters and call the core. Executor choice is
+measured (ROS_FROM_PYPI.md): an ``EventsExecutor`` driven by ``spin_once`` in a loop is about 3×
+cheaper than the ``SingleThreadedExecutor``; its ``spin()`` is broken in rclpy 7.1.6, so it is never
+called. ``GAIT_EXECUTOR=single`` selects the fallback.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from collections.abc import Callable, Iterable, Sequence
+
+import rclpy
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rclpy.context import Context
+from rclpy.executors import Executor, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+)
+
+SENSOR_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=100,
+    reliability=ReliabilityPolicy.BEST_EFFORT,
+    durability=DurabilityPolicy.VOLATILE,
+)
+"""Raw sensor streams (DESIGN.md: best effort, depth 100)."""
+
+RELIABLE_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=100,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+"""Derived streams: orientations, joint states, events, cues."""
+
+LATCHED_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+"""State a late subscriber must still get: the calibration in force."""
+
+DIAGNOSTICS_TOPIC = "/diagnostics"
+
+
+def stamp_to_ns(stamp: Time) -> int:
+    """builtin_interfaces/Time → integer nanoseconds."""
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+def ns_to_stamp(ns: int) -> Time:
+    """Integer nanoseconds → builtin_interfaces/Time (floor division keeps nanosec in range)."""
+    sec, nanosec = divmod(int(ns), 1_000_000_000)
+    return Time(sec=sec, nanosec=nanosec)
+
+
+def stamp_to_s(stamp: Time) -> float:
+    """builtin_interfaces/Time → float seconds."""
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+def s_to_stamp(t: float) -> Time:
+    """Float seconds → builtin_interfaces/Time, rounded to the nanosecond."""
+    return ns_to_stamp(round(t * 1e9))
+
+
+def diagnostic_status(
+    name: str, level: int, message: str, hardware_id: str = "", values: dict | None = None
+) -> DiagnosticStatus:
+    """One DiagnosticStatus with ``values`` rendered as strings (floats with 4 significant digits)."""
+    status = DiagnosticStatus(name=name, level=bytes([level]), message=message, hardware_id=hardware_id)
+    for key, value in (values or {}).items():
+        text = f"{value:.4g}" if isinstance(value, float) else str(value)
+        status.values.append(KeyValue(key=str(key), value=text))
+    return status
+
+
+def diagnostic_array(node: Node, statuses: Iterable[DiagnosticStatus]) -> DiagnosticArray:
+    """DiagnosticArray stamped with the node clock."""
+    msg = DiagnosticArray()
+    msg.header.stamp = node.get_clock().now().to_msg()
+    msg.status = list(statuses)
+    return msg
+
+
+def make_executor(context: Context | None = None) -> Executor:
+    """The project's executor: EventsExecutor (driven by spin_once) unless GAIT_EXECUTOR=single."""
+    if os.environ.get("GAIT_EXECUTOR", "events") == "single":
+        return SingleThreadedExecutor(context=context)
+    from rclpy.experimental import EventsExecutor
+
+    return EventsExecutor(context=context)
+
+
+def spin_until(
+    executor: Executor,
+    done: Callable[[], bool],
+    timeout: float | None = None,
+    period: float = 0.05,
+) -> bool:
+    """Drive ``executor`` with ``spin_once`` until ``done()`` or ``timeout`` s; True if done."""
+    deadline = None if timeout is None else time.monotonic() + timeout
+    context = executor.context
+    while context.ok() and not done():
+        if deadline is not None and time.monotonic() > deadline:
+            return False
+        executor.spin_once(timeout_sec=period)
+    return done()
+
+
+def run_nodes(node_factories: Sequence[Callable[[Context], Node]], args: list[str] | None = None) -> int:
+    """Console-script body: init rclpy with ``args`` (``--ros-args`` work), spin the nodes until
+    Ctrl-C / SIGTERM, destroy them (each node's ``destroy_node`` closes its files) and shut down."""
+    context = Context()
+    rclpy.init(args=sys.argv if args is None else args, context=context)
+    nodes: list[Node] = []
+    executor = make_executor(context)
+    try:
+        for factory in node_factories:
+            nodes.append(factory(context))
+            executor.add_node(nodes[-1])
+        spin_until(executor, lambda: False)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        for node in nodes:
+            node.destroy_node()
+        executor.shutdown()
+        if context.ok():
+            rclpy.shutdown(context=context)
+    return 0

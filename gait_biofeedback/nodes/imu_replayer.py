@@ -1,0 +1,163 @@
+"""Node ``imu_replayer``: a recording (MCAP / rosbag2 folder) → its topics, with original stamps.
+
+Messages are published as the recorded CDR bytes (no deserialisation), each at
+``start_wall + (log_time - first_log_time) / speed`` from a dedicated thread, so the executor
+thread stays free for the rest of the graph and timing does not depend on its load.
+Topics are published under the node's namespace: a recorded ``/left_foot/imu/data_raw`` goes out
+as ``left_foot/imu/data_raw`` (relative), so ``-r __ns:=/patient1`` works unchanged.
+
+Parameters: ``bag`` (path, required), ``speed`` (1.0; 0 = as fast as possible), ``loop`` (false;
+on each loop the stamps jump back, which downstream filters treat as a reset), ``start_offset`` /
+``stop_offset`` (s from the recording start; stop 0 = to the end), ``publish_clock`` (false:
+``/clock`` follows the recording time), ``topics`` (empty = all), ``wait_for_subscribers``
+(seconds to wait for every topic to have a subscriber before starting; 0 = start at once).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from pathlib import Path
+
+from rclpy.context import Context
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rosgraph_msgs.msg import Clock
+
+from gait_biofeedback.io.bag import BagReader, message_class
+from gait_biofeedback.nodes.common import RELIABLE_QOS, SENSOR_QOS, ns_to_stamp
+
+SENSOR_TOPIC_SUFFIXES = ("/imu/data_raw", "/imu/mag")
+
+
+class ImuReplayer(Node):
+    """Publishes a recording's messages at their recorded pace (see module docstring)."""
+
+    def __init__(self, context: Context | None = None, **overrides: object) -> None:
+        super().__init__("imu_replayer", context=context,
+                         parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()])
+        self.declare_parameter("bag", "")
+        self.declare_parameter("speed", 1.0)
+        self.declare_parameter("loop", False)
+        self.declare_parameter("start_offset", 0.0)
+        self.declare_parameter("stop_offset", 0.0)
+        self.declare_parameter("publish_clock", False)
+        self.declare_parameter("topics", [""])
+        self.declare_parameter("wait_for_subscribers", 0.0)
+        p = self.get_parameters_by_prefix("")
+        bag = str(p["bag"].value)
+        if not bag or not Path(bag).exists():
+            raise ValueError(f"imu_replayer: parameter 'bag' must name a recording; got {bag!r}")
+        self.speed = float(p["speed"].value)
+        if self.speed < 0:
+            raise ValueError(f"imu_replayer: speed must be >= 0 (0 = as fast as possible), got {self.speed}")
+        self.loop = bool(p["loop"].value)
+        self.start_offset = float(p["start_offset"].value)
+        self.stop_offset = float(p["stop_offset"].value)
+        self.wait_for_subscribers = float(p["wait_for_subscribers"].value)
+        wanted = [t for t in p["topics"].value if t]
+
+        self.reader = BagReader(bag)
+        available = self.reader.topics()
+        missing = [t for t in wanted if t not in available]
+        if missing:
+            raise ValueError(f"imu_replayer: topics {missing} are not in {bag}; it has {sorted(available)}")
+        self.topics = {t: available[t] for t in (wanted or available)}
+        self._topic_publishers = {
+            topic: self.create_publisher(
+                message_class(type_name), topic.lstrip("/"),
+                SENSOR_QOS if topic.endswith(SENSOR_TOPIC_SUFFIXES) else RELIABLE_QOS)
+            for topic, type_name in self.topics.items()
+        }
+        self._clock_pub = (self.create_publisher(Clock, "/clock", 10)
+                           if p["publish_clock"].value else None)
+        self.published = 0
+        self.loops_done = 0
+        self.finished = threading.Event()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="imu_replayer", daemon=True)
+        self._thread.start()
+        self.get_logger().info(
+            f"replaying {bag}: {len(self.topics)} topics at {self.speed or 'max'}x"
+            + (", looping" if self.loop else ""))
+
+    def _wait_for_subscribers(self) -> None:
+        deadline = time.monotonic() + self.wait_for_subscribers
+        while time.monotonic() < deadline and not self._stop.is_set():
+            if all(pub.get_subscription_count() > 0 for pub in self._topic_publishers.values()):
+                return
+            time.sleep(0.01)
+        lonely = [t for t, pub in self._topic_publishers.items() if pub.get_subscription_count() == 0]
+        self.get_logger().warning(f"starting without subscribers on {lonely}")
+
+    def _window_ns(self) -> tuple[int | None, int | None]:
+        first = self.reader.start_time_ns
+        start = first + round(self.start_offset * 1e9) if self.start_offset > 0 else None
+        stop = first + round(self.stop_offset * 1e9) if self.stop_offset > 0 else None
+        return start, stop
+
+    def _run(self) -> None:
+        if self.wait_for_subscribers > 0:
+            self._wait_for_subscribers()
+        start_ns, stop_ns = self._window_ns()
+        while not self._stop.is_set():
+            wall0 = time.perf_counter()
+            first_ns = None
+            for topic, _type, data, log_ns in self.reader.raw_messages(
+                    list(self.topics), start_ns=start_ns, stop_ns=stop_ns):
+                if self._stop.is_set():
+                    break
+                if first_ns is None:
+                    first_ns = log_ns
+                if self.speed > 0:
+                    delay = wall0 + (log_ns - first_ns) * 1e-9 / self.speed - time.perf_counter()
+                    if delay > 0:
+                        time.sleep(delay)
+                if self._clock_pub is not None:
+                    self._clock_pub.publish(Clock(clock=ns_to_stamp(log_ns)))
+                self._topic_publishers[topic].publish(data)
+                self.published += 1
+            self.loops_done += 1
+            if not self.loop or first_ns is None:
+                break
+        self.finished.set()
+        self.get_logger().info(f"replay finished: {self.published} messages, {self.loops_done} pass(es)")
+
+    def destroy_node(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=2.0)
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> int:
+    """Console script: replay until the recording ends (or forever with loop:=true)."""
+    import rclpy
+
+    from gait_biofeedback.nodes.common import make_executor, spin_until
+
+    context = Context()
+    rclpy.init(args=args, context=context)
+    executor = make_executor(context)
+    node = None
+    try:
+        node = ImuReplayer(context)
+        executor.add_node(node)
+        spin_until(executor, node.finished.is_set)
+    except KeyboardInterrupt:
+        pass
+    except ValueError as err:
+        print(err)
+        return 2
+    finally:
+        if node is not None:
+            node.destroy_node()
+        executor.shutdown()
+        if context.ok():
+            rclpy.shutdown(context=context)
+    return 0
+
+
+if __name__ == "__main__":
+    import sys
+
+    sys.exit(main())

@@ -1,0 +1,157 @@
+"""Node ``recorder``: topics → a rosbag2 folder (metadata.yaml + MCAP), crash-safe.
+
+Subscriptions are raw (the CDR bytes, no deserialisation); a callback only appends to a queue, and a
+writer thread does all file work, so no callback ever waits for the disk. The writer closes a chunk
+at least every ``flush_period`` s, so a killed session still leaves a readable file
+(``gait-biofeedback repair`` restores its index and metadata.yaml).
+
+QoS per topic follows its publishers, as ``ros2 bag record`` does: reliable only if every publisher
+is reliable, transient-local (latched) only if every publisher is, so latched state such as the
+calibration is recorded even when it was published before the recorder started.
+
+Parameters: ``output`` (bag folder; default ``recordings/session_<time>``), ``topics`` (empty = every
+topic, discovered every ``discovery_period`` s), ``exclude`` (topics never recorded),
+``split_size`` (bytes, 0 = never), ``split_duration`` (s, 0 = never), ``flush_period`` (s, 1.0),
+``compression`` (``zstd``, ``lz4`` or ``none``).
+"""
+
+from __future__ import annotations
+
+import queue
+import threading
+import time
+from pathlib import Path
+
+from rclpy.context import Context
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+from gait_biofeedback.io.bag import BagWriter, message_class
+from gait_biofeedback.nodes.common import RELIABLE_QOS, SENSOR_QOS
+
+ALWAYS_EXCLUDED = ("/parameter_events", "/rosout")
+
+
+class Recorder(Node):
+    """Records topics to a rosbag2/MCAP folder (see module docstring)."""
+
+    def __init__(self, context: Context | None = None, **overrides: object) -> None:
+        super().__init__("recorder", context=context,
+                         parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()])
+        self.declare_parameter("output", "")
+        self.declare_parameter("topics", [""])
+        self.declare_parameter("exclude", [""])
+        self.declare_parameter("split_size", 0)
+        self.declare_parameter("split_duration", 0.0)
+        self.declare_parameter("flush_period", 1.0)
+        self.declare_parameter("compression", "zstd")
+        self.declare_parameter("discovery_period", 0.5)
+        p = self.get_parameters_by_prefix("")
+        output = str(p["output"].value) or time.strftime("recordings/session_%Y%m%d_%H%M%S")
+        self.output = Path(output)
+        self.requested = [t if t.startswith("/") else self.resolve_topic_name(t)
+                          for t in p["topics"].value if t]
+        self.excluded = {*ALWAYS_EXCLUDED, *(t for t in p["exclude"].value if t)}
+        self.writer = BagWriter(
+            self.output,
+            compression=str(p["compression"].value),
+            flush_period=float(p["flush_period"].value),
+            split_size=int(p["split_size"].value) or None,
+            split_duration=float(p["split_duration"].value) or None,
+        )
+        self.received = 0
+        self.dropped_by_writer = 0
+        self._recorded_topics: dict[str, object] = {}
+        self._queue: queue.SimpleQueue = queue.SimpleQueue()
+        self._closed = threading.Event()
+        self._thread = threading.Thread(target=self._write_loop, name="recorder_writer", daemon=True)
+        self._thread.start()
+        self._discover()
+        self.create_timer(float(p["discovery_period"].value), self._discover)
+        self.get_logger().info(f"recording to {self.output}")
+
+    def subscribe(self, topic: str, type_name: str) -> None:
+        """Record ``topic`` of ``type_name`` from now on (idempotent)."""
+        if topic in self._recorded_topics or topic in self.excluded:
+            return
+        qos = self._qos_for(topic)
+        self._recorded_topics[topic] = self.create_subscription(
+            message_class(type_name), topic,
+            lambda data, topic=topic, type_name=type_name: self._on_message(topic, type_name, data),
+            qos, raw=True)
+
+    def _qos_for(self, topic: str) -> QoSProfile:
+        infos = self.get_publishers_info_by_topic(topic)
+        if not infos:
+            return RELIABLE_QOS if topic == "/diagnostics" else SENSOR_QOS
+        reliable = all(i.qos_profile.reliability == ReliabilityPolicy.RELIABLE for i in infos)
+        latched = all(i.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for i in infos)
+        base = RELIABLE_QOS if reliable else SENSOR_QOS
+        durability = DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE
+        return QoSProfile(history=base.history, depth=base.depth, reliability=base.reliability,
+                          durability=durability)
+
+    def _discover(self) -> None:
+        for topic, types in self.get_topic_names_and_types():
+            if self.requested and topic not in self.requested:
+                continue
+            if topic not in self._recorded_topics and topic not in self.excluded and types:
+                self.subscribe(topic, types[0])
+
+    def _on_message(self, topic: str, type_name: str, data: bytes) -> None:
+        self.received += 1
+        self._queue.put((topic, type_name, data, self.get_clock().now().nanoseconds))
+
+    def _write_loop(self) -> None:
+        while True:
+            try:
+                item = self._queue.get(timeout=0.2)
+            except queue.Empty:
+                item = None
+            if item is None:
+                if self._closed.is_set():
+                    break
+                self.writer.maybe_flush()
+                continue
+            try:
+                self.writer.write_serialized(*item)
+            except Exception as err:
+                self.dropped_by_writer += 1
+                self.get_logger().error(f"could not record a message on {item[0]}: {err}")
+
+    @property
+    def written(self) -> int:
+        """Messages handed to the file so far."""
+        return self.writer.message_count
+
+    def wait_until_written(self, count: int, timeout: float = 5.0) -> bool:
+        """Block (not from a callback) until ``count`` messages are in the file or ``timeout``."""
+        deadline = time.monotonic() + timeout
+        while self.written + self.dropped_by_writer < count and time.monotonic() < deadline:
+            time.sleep(0.01)
+        return self.written + self.dropped_by_writer >= count
+
+    def destroy_node(self) -> None:
+        for sub in self._recorded_topics.values():
+            self.destroy_subscription(sub)
+        self._recorded_topics.clear()
+        self._closed.set()
+        self._queue.put(None)
+        self._thread.join(timeout=30.0)
+        self.writer.close()
+        self.get_logger().info(f"recording closed: {self.written} messages in {self.output}")
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> int:
+    """Console script: record until Ctrl-C / SIGTERM, then close the bag."""
+    from gait_biofeedback.nodes.common import run_nodes
+
+    return run_nodes([Recorder], args)
+
+
+if __name__ == "__main__":
+    import sys
+
+    sys.exit(main())

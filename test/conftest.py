@@ -1,0 +1,50 @@
+"""Shared fixtures: data locations, a fresh ROS context per test, small synthetic recordings."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+SHARED_DATA = REPO.parent / "shared" / "data"
+
+
+def shared_data(*parts: str) -> Path:
+    """Path under ../shared/data, or skip the test with the reason when it is not there."""
+    path = SHARED_DATA.joinpath(*parts)
+    if not path.exists():
+        pytest.skip(f"real data not found: {path} (../shared/data is not part of a user's clone)")
+    return path
+
+
+@pytest.fixture
+def ros_context():
+    """A fresh rclpy Context for one test, shut down afterwards whatever happens."""
+    import rclpy
+    from rclpy.context import Context
+
+    context = Context()
+    rclpy.init(args=[], context=context, domain_id=int(os.environ.get("ROS_DOMAIN_ID", "42")))
+    try:
+        yield context
+    finally:
+        if context.ok():
+            rclpy.shutdown(context=context)
+
+
+def synthetic_imu(segments: list[str], duration: float = 2.0, rate_hz: float = 100.0,
+                  with_mag: bool = True, seed: int = 0, t0: float = 1000.0) -> dict:
+    """Random-valued ImuSeries per segment (for I/O and transport tests, not physics)."""
+    from gait_biofeedback.core.segments import ImuSeries
+
+    rng = np.random.default_rng(seed)
+    n = round(duration * rate_hz)
+    t = t0 + np.arange(n) / rate_hz
+    return {
+        s: ImuSeries(s, t, rng.normal(0, 3, (n, 3)) + np.array([0, 0, 9.81]), rng.normal(0, 1, (n, 3)),
+                     rng.normal(0, 2e-5, (n, 3)) if with_mag else None)
+        for s in segments
+    }

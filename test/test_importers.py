@@ -1,0 +1,293 @@
+"""Importers: the generic CSV on small hand-written files, the real-data importers on ../shared/data."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gait_biofeedback.core.segments import GRAVITY, SEGMENTS
+from gait_biofeedback.io.importers import (
+    IMPORTERS,
+    Recording,
+    detect_kind,
+    import_broad,
+    import_gaitmap,
+    import_generic_csv,
+    import_qmt_fullbody,
+    import_recording,
+    load_gaitmap_events,
+)
+
+DATA_DIR = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+
+LEFT_FOOT_MAPPING = {
+    "left_foot": {
+        "acc": ["lf_ax", "lf_ay", "lf_az"],
+        "gyr": ["lf_gx", "lf_gy", "lf_gz"],
+        "mag": ["lf_mx", "lf_my", "lf_mz"],
+    }
+}
+CSV_UNITS = {"acc": "g", "gyr": "deg/s", "mag": "uT", "time": "ms"}
+
+
+@pytest.fixture
+def small_csv(tmp_path: Path) -> Path:
+    """Three samples, 10 ms apart, in g, deg/s, µT; the middle row has an empty magnetometer."""
+    path = tmp_path / "walk.csv"
+    path.write_text(
+        "time,lf_ax,lf_ay,lf_az,lf_gx,lf_gy,lf_gz,lf_mx,lf_my,lf_mz,label\n"
+        "1000,0,0,1,180,0,-90,20,0,-40,stand\n"
+        "1010,0.5,-1,0,0,360,0,,,,walk\n"
+        "1020,0,2,0,-45,0,0,0,50,0,walk\n"
+    )
+    return path
+
+
+# ---------------------------------------------------------------- generic CSV
+
+
+def test_generic_csv_converts_g_deg_s_ut_ms_to_si(small_csv: Path) -> None:
+    recording = import_generic_csv(small_csv, LEFT_FOOT_MAPPING, units=CSV_UNITS)
+    foot = recording.imu["left_foot"]
+    # time in ms kept absolute, converted to s
+    np.testing.assert_allclose(foot.t, [1.0, 1.01, 1.02])
+    # 1 g = 9.81 m/s², 0.5 g = 4.905, -1 g = -9.81, 2 g = 19.62
+    np.testing.assert_allclose(foot.acc[0], [0.0, 0.0, 9.81])
+    np.testing.assert_allclose(foot.acc[1], [4.905, -9.81, 0.0])
+    np.testing.assert_allclose(foot.acc[2], [0.0, 19.62, 0.0])
+    # 180 deg/s = π rad/s, -90 = -π/2, 360 = 2π, -45 = -π/4
+    np.testing.assert_allclose(foot.gyr[0], [math.pi, 0.0, -math.pi / 2])
+    np.testing.assert_allclose(foot.gyr[1], [0.0, 2 * math.pi, 0.0])
+    np.testing.assert_allclose(foot.gyr[2], [-math.pi / 4, 0.0, 0.0])
+    # 20 µT = 2e-5 T, -40 µT = -4e-5 T, 50 µT = 5e-5 T
+    np.testing.assert_allclose(foot.mag[0], [2e-5, 0.0, -4e-5])
+    np.testing.assert_allclose(foot.mag[2], [0.0, 5e-5, 0.0])
+    assert recording.source.startswith("csv:")
+
+
+def test_generic_csv_keeps_nan_rows_and_counts_them(small_csv: Path) -> None:
+    recording = import_generic_csv(small_csv, LEFT_FOOT_MAPPING, units=CSV_UNITS)
+    foot = recording.imu["left_foot"]
+    assert len(foot) == 3
+    assert np.all(np.isnan(foot.mag[1]))
+    nan_warnings = [w for w in recording.warnings if "NaN" in w]
+    assert len(nan_warnings) == 1
+    assert "left_foot" in nan_warnings[0] and "1 of 3" in nan_warnings[0]
+
+
+def test_generic_csv_missing_column_names_it_and_lists_the_file_columns(small_csv: Path) -> None:
+    mapping = {"left_foot": {"acc": ["lf_ax", "lf_ay", "lf_AZ"], "gyr": ["lf_gx", "lf_gy", "lf_gz"]}}
+    with pytest.raises(ValueError, match="lf_AZ") as error:
+        import_generic_csv(small_csv, mapping, units=CSV_UNITS)
+    assert "lf_az" in str(error.value)  # the columns the file does have
+
+
+@pytest.mark.parametrize(("quantity", "unit"), [("gyr", "rpm"), ("acc", "ft/s2"), ("time", "min")])
+def test_generic_csv_unknown_unit_is_named_with_the_allowed_ones(
+    small_csv: Path, quantity: str, unit: str
+) -> None:
+    with pytest.raises(ValueError, match=unit) as error:
+        import_generic_csv(small_csv, LEFT_FOOT_MAPPING, units={**CSV_UNITS, quantity: unit})
+    assert "allowed" in str(error.value)
+
+
+def test_generic_csv_mapping_from_yaml_with_time_column_and_units(tmp_path: Path) -> None:
+    csv_path = tmp_path / "pelvis.csv"
+    csv_path.write_text("stamp_us;ax;ay;az;gx;gy;gz\n0;0;0;9.81;1;2;3\n5000;0;0;9.81;0;0;0\n")
+    yaml_path = tmp_path / "mapping.yaml"
+    yaml_path.write_text(
+        "time: stamp_us\n"
+        "units: {time: us}\n"
+        "pelvis:\n"
+        "  acc: [ax, ay, az]\n"
+        "  gyr: [gx, gy, gz]\n"
+    )
+    recording = import_recording("csv", csv_path, mapping=yaml_path)
+    pelvis = recording.imu["pelvis"]
+    np.testing.assert_allclose(pelvis.t, [0.0, 0.005])
+    np.testing.assert_allclose(pelvis.gyr[0], [1.0, 2.0, 3.0])  # rad/s default: unchanged
+    assert pelvis.mag is None
+    assert pelvis.rate_hz == pytest.approx(200.0)
+
+
+def test_generic_csv_rate_without_time_column_and_error_without_either(tmp_path: Path) -> None:
+    path = tmp_path / "no_time.csv"
+    path.write_text("ax,ay,az,gx,gy,gz\n0,0,9.81,0,0,0\n0,0,9.81,0,0,0\n0,0,9.81,0,0,0\n")
+    mapping = {"chest": {"acc": ["ax", "ay", "az"], "gyr": ["gx", "gy", "gz"]}}
+    recording = import_generic_csv(path, mapping, rate_hz=50.0)
+    np.testing.assert_allclose(recording.imu["chest"].t, [0.0, 0.02, 0.04])
+    with pytest.raises(ValueError, match="rate_hz"):
+        import_generic_csv(path, mapping)
+
+
+def test_generic_csv_time_that_goes_back_is_an_error(tmp_path: Path) -> None:
+    path = tmp_path / "jump.csv"
+    path.write_text("t,ax,ay,az,gx,gy,gz\n0.0,0,0,9.81,0,0,0\n0.02,0,0,9.81,0,0,0\n0.01,0,0,9.81,0,0,0\n")
+    mapping = {"chest": {"acc": ["ax", "ay", "az"], "gyr": ["gx", "gy", "gz"]}}
+    with pytest.raises(ValueError, match="increase"):
+        import_generic_csv(path, mapping)
+
+
+def test_generic_csv_warns_when_acc_looks_like_g(tmp_path: Path) -> None:
+    path = tmp_path / "g.csv"
+    path.write_text("t,ax,ay,az,gx,gy,gz\n0.0,0,0,1,0,0,0\n0.01,0,0,1,0,0,0\n")
+    mapping = {"chest": {"acc": ["ax", "ay", "az"], "gyr": ["gx", "gy", "gz"]}}
+    recording = import_generic_csv(path, mapping)
+    assert any("'g'" in w for w in recording.warnings)
+
+
+# ---------------------------------------------------------------- dispatch
+
+
+def test_import_recording_rejects_an_unknown_kind(small_csv: Path) -> None:
+    with pytest.raises(ValueError, match="unknown recording kind 'xsens'") as error:
+        import_recording("xsens", small_csv)
+    for kind in IMPORTERS:
+        assert kind in str(error.value)
+
+
+def test_detect_kind_from_file_names(tmp_path: Path, small_csv: Path) -> None:
+    assert detect_kind("somewhere/full_body_example_data.mat") == "qmt_fullbody"
+    assert detect_kind("broad/07_undisturbed_fast_rotation_B.mat") == "broad"
+    assert detect_kind("gaitmap_example/imu_sample_not_rotated.csv") == "gaitmap"
+    assert detect_kind(small_csv, mapping=LEFT_FOOT_MAPPING) == "csv"
+    with pytest.raises(ValueError, match="mapping"):
+        detect_kind(small_csv)
+    with pytest.raises(ValueError, match="cannot tell"):
+        detect_kind(tmp_path / "session.h5")
+    recording = import_recording("auto", small_csv, mapping=LEFT_FOOT_MAPPING, units=CSV_UNITS)
+    assert isinstance(recording, Recording) and recording.segments == ["left_foot"]
+
+
+# ---------------------------------------------------------------- real data (../shared/data)
+
+
+def _real_file(*parts: str) -> Path:
+    path = DATA_DIR.joinpath(*parts)
+    if not path.exists():
+        pytest.skip(f"real recording {path} absent (the shared data folder is not part of a fresh clone)")
+    return path
+
+
+def _static_acc_norm(acc: np.ndarray, gyr: np.ndarray) -> float:
+    """Median |acc| over the quietest 5 % of samples (by |gyr|): ≈ g when acc is in m/s²."""
+    gyr_norm = np.linalg.norm(gyr, axis=1)
+    quiet = gyr_norm <= np.nanpercentile(gyr_norm, 5)
+    return float(np.nanmedian(np.linalg.norm(acc[quiet], axis=1)))
+
+
+@pytest.fixture(scope="module")
+def qmt_recording() -> Recording:
+    return import_qmt_fullbody(_real_file("qmt_fullbody", "full_body_example_data.mat"))
+
+
+@pytest.fixture(scope="module")
+def gaitmap_recording() -> Recording:
+    return import_gaitmap(_real_file("gaitmap_example", "imu_sample.csv"))
+
+
+@pytest.fixture(scope="module")
+def broad_recording() -> Recording:
+    return import_broad(_real_file("broad", "01_undisturbed_slow_rotation_A.mat"))
+
+
+@pytest.mark.realdata
+def test_qmt_fullbody_has_the_eight_segments_at_100_hz_in_si(qmt_recording: Recording) -> None:
+    assert sorted(qmt_recording.imu) == sorted(SEGMENTS)
+    for segment, series in qmt_recording.imu.items():
+        assert series.acc.shape == series.gyr.shape == (len(series), 3)
+        assert len(series) > 5000
+        assert series.t[0] == 0.0
+        assert series.rate_hz == pytest.approx(100.0, rel=1e-6)
+        assert np.all(np.diff(series.t) > 0)
+        assert series.mag is None
+        assert _static_acc_norm(series.acc, series.gyr) == pytest.approx(GRAVITY, abs=0.6), segment
+        gyr_norm = np.linalg.norm(series.gyr, axis=1)
+        assert 0.5 < np.percentile(gyr_norm, 99) < 35.0, segment  # rad/s, not deg/s
+        quat = qmt_recording.reference["vendor_quat"][segment]
+        assert quat.shape == (len(series), 4)
+        np.testing.assert_allclose(np.linalg.norm(quat, axis=1), 1.0, atol=1e-3)
+    assert qmt_recording.reference["struct_of_segment"]["pelvis"] == "hip"
+    assert qmt_recording.reference["struct_of_segment"]["chest"] == "upper_back"
+
+
+@pytest.mark.realdata
+def test_qmt_fullbody_keeps_other_sensors_only_when_asked(qmt_recording: Recording) -> None:
+    assert "head" not in qmt_recording.imu
+    everything = import_qmt_fullbody(_real_file("qmt_fullbody", "full_body_example_data.mat"),
+                                     include_unmapped=True)
+    assert {"head", "lower_back", "hand_left"} <= set(everything.imu)
+    assert len(everything.imu) == 16
+    assert "hip" not in everything.imu  # mapped sensors appear only under their segment name
+
+
+@pytest.mark.realdata
+def test_gaitmap_feet_at_204_8_hz_with_gyr_in_rad_s(gaitmap_recording: Recording) -> None:
+    assert sorted(gaitmap_recording.imu) == ["left_foot", "right_foot"]
+    for segment, series in gaitmap_recording.imu.items():
+        assert series.acc.shape == (7928, 3)
+        assert series.rate_hz == pytest.approx(204.8, rel=1e-6)
+        assert _static_acc_norm(series.acc, series.gyr) == pytest.approx(GRAVITY, abs=0.6), segment
+        gyr_norm = np.linalg.norm(series.gyr, axis=1)
+        assert 2.0 < np.percentile(gyr_norm, 99) < 35.0, segment  # walking foot, rad/s
+    assert gaitmap_recording.reference["frame"] == "gaitmap_foot"
+
+
+@pytest.mark.realdata
+def test_gaitmap_not_rotated_is_the_same_motion_in_other_axes(gaitmap_recording: Recording) -> None:
+    raw = import_gaitmap(_real_file("gaitmap_example", "imu_sample.csv"), rotated=False)
+    assert raw.reference["frame"] == "sensor"
+    rotated_foot, raw_foot = gaitmap_recording.imu["left_foot"], raw.imu["left_foot"]
+    np.testing.assert_allclose(np.linalg.norm(raw_foot.gyr, axis=1), np.linalg.norm(rotated_foot.gyr, axis=1),
+                               rtol=1e-6, atol=1e-9)
+    assert not np.allclose(raw_foot.acc, rotated_foot.acc)
+
+
+@pytest.mark.realdata
+def test_gaitmap_events_in_seconds_inside_their_strides(gaitmap_recording: Recording) -> None:
+    events = load_gaitmap_events(_real_file("gaitmap_example", "stride_events_sample.csv"))
+    assert set(events) == {"left", "right"}
+    assert len(events["left"]["ic"]) + len(events["right"]["ic"]) == 57  # README: 57 strides
+    duration = gaitmap_recording.imu["left_foot"].t[-1]
+    for foot in ("left", "right"):
+        ic, tc = events[foot]["ic"], events[foot]["tc"]
+        start, end = events[foot]["start"], events[foot]["end"]
+        assert np.all((start < tc) & (tc < ic) & (ic <= end))
+        assert np.all(ic < duration)
+        stride_time = end - start
+        assert np.all((stride_time > 0.5) & (stride_time < 3.0))  # seconds (in samples: > 100)
+    np.testing.assert_array_equal(gaitmap_recording.reference["events"]["left"]["ic"], events["left"]["ic"])
+
+
+@pytest.mark.realdata
+def test_broad_board_at_285_7_hz_with_mag_in_tesla(broad_recording: Recording) -> None:
+    board = broad_recording.imu["board"]
+    n = len(board)
+    assert board.rate_hz == pytest.approx(285.714, rel=1e-4)
+    assert board.mag is not None and board.mag.shape == (n, 3)
+    mag_norm = np.median(np.linalg.norm(board.mag, axis=1))
+    assert 20e-6 < mag_norm < 70e-6
+    assert _static_acc_norm(board.acc, board.gyr) == pytest.approx(GRAVITY, abs=0.6)
+    assert np.percentile(np.linalg.norm(board.gyr, axis=1), 99) < 35.0
+    reference = broad_recording.reference
+    assert reference["opt_quat"].shape == (n, 4)
+    finite = np.all(np.isfinite(reference["opt_quat"]), axis=1)
+    np.testing.assert_allclose(np.linalg.norm(reference["opt_quat"][finite], axis=1), 1.0, atol=1e-6)
+    assert reference["movement"].dtype == bool and reference["movement"].shape == (n,)
+    assert 0.2 < reference["movement"].mean() < 1.0
+    if not finite.all():
+        assert any("opt_quat" in w for w in broad_recording.warnings)
+
+
+@pytest.mark.realdata
+def test_auto_kind_reads_each_real_file() -> None:
+    qmt = _real_file("qmt_fullbody", "full_body_example_data.mat")
+    broad = _real_file("broad", "01_undisturbed_slow_rotation_A.mat")
+    gaitmap = _real_file("gaitmap_example")
+    assert detect_kind(qmt) == "qmt_fullbody"
+    assert detect_kind(broad) == "broad"
+    assert detect_kind(gaitmap) == "gaitmap"
+    assert import_recording("auto", broad, segment="chest").segments == ["chest"]
