@@ -1,0 +1,545 @@
+"""Chest activity monitor: posture, transitions, walking modality and steps (thesis ch. 7).
+
+Spec: gait.md §3 (thesis §7.2.3–7.2.6, Fig 27). One chest accelerometer only.
+
+Pipeline per sample (``ActivityMonitor.update``), all on Python floats:
+  raw acc → ×scale, rotate into the body frame (x forward, y up, z right) → GA = 0.25 Hz elliptic
+  low-pass per axis → trunk inclination θ = arccos(GA_v/g) (Eq 54) → three detectors:
+  A) lying: θ crossing 70° confirmed by a static second lying (§7.2.4);
+  B) sit/stand: a θ excursion peaking above 20°, bounded by θ minima, ΔY gate, ∫SVM sign (§7.2.5);
+  C) walking: ≥ 3 successive SVM peaks within a step duration, trunk upright; level vs stairs from
+     the variance of GA_v, up vs down from the mean forward lean (∫GA_f) (§7.2.6).
+
+Delay: every state describes the sample ``DELAY_S`` = 3 s before the newest input, and labels are
+final when emitted (walking needs 3 steps, ≤ 2.6 s, before it is confirmed; the level/stairs window
+is centred on the emitted sample). Transition *events* are appended when confirmed, about 1 s
+after the trunk settles (typically 2–4 s after the instant); their time is the estimated instant
+and the posture label switches at the instant when that is still inside the delay line, otherwise
+at confirmation.
+
+Units: m/s² are assumed (``units="g"`` accepted). The input is rescaled so that the static norm of
+the reference period is 1 g (gait.md §3.7 "g: the sensor's static norm"); a norm far from 1 g in
+the declared unit raises ``UnitMismatchWarning``. Mounting: the mean acceleration of an upright
+standing reference period defines "up" (Eq 14); without one, the first ``reference_s`` seconds are
+used (during them the monitor outputs its initial posture and no locomotion).
+
+Numbers the thesis does not give (gait.md §3.7) are chosen here; each constant says where from.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from .activity_signal import (
+    STANDARD_GRAVITY,
+    Biquad,
+    UnitMismatchWarning,
+    clip_acos,
+    gravity_lowpass_ba,
+    group_delay_s,
+    mounting_from_reference,
+    scale_to_si,
+    step_lowpass_ba,
+)
+from .activity_transition import analyse_sit_stand
+
+__all__ = [
+    "LOCOMOTIONS",
+    "POSTURES",
+    "TRANSITIONS",
+    "ActivityMonitor",
+    "ActivityState",
+    "UnitMismatchWarning",
+    "classify_activity",
+]
+
+POSTURES = ("standing", "sitting", "lying")
+LOCOMOTIONS = ("none", "level", "upstairs", "downstairs")
+TRANSITIONS = ("sit_to_stand", "stand_to_sit", "sit_to_lie", "lie_to_sit")
+
+DELAY_S = 3.0  # label delay: ≥ 3 steps at the slowest step duration (2 × 1.3 s) + peak latency
+# --- given by the thesis --------------------------------------------------------------------------
+LYING_THRESHOLD_RAD = math.radians(70.0)  # [T §7.2.4]
+SIT_STAND_CANDIDATE_RAD = math.radians(20.0)  # [T §7.2.5]
+THIGH_FRACTION = 0.5  # reject |ΔY| < 50 % of thigh length [T §7.2.5]
+MIN_SUCCESSIVE_PEAKS = 3  # [T §7.2.6]
+# --- chosen (not given by the thesis, gait.md §3.7) -----------------------------------------------
+DEFAULT_THIGH_LENGTH_M = 0.42  # adult thigh (greater trochanter–knee) when the user gives none
+EXCURSION_HYSTERESIS_RAD = math.radians(5.0)  # θ peak/valley confirmation (well above GA noise)
+VALLEY_FLAT_S = 1.0  # a θ valley is also confirmed when θ stops falling (by 0.5°) for 1 s
+VALLEY_FLAT_STEP_RAD = math.radians(0.5)
+MAX_EXCURSION_S = 10.0  # longer "transitions" are not analysed (buffer is 14 s)
+MAX_SIT_STAND_S = 5.0  # [t1, t2] longer than this is not a StSi/SiSt (healthy 1.5–3.5 s; slow ≤ ~5 s);
+# chosen on UCI: longer windows gave |ΔY| of 0.7–1.4 m from integration drift while standing
+MAX_HEIGHT_FRACTION = 2.0  # |ΔY| > 2 thigh lengths is integration drift, not a transition (choice)
+STEP_LOWPASS_HZ = 3.0  # step SVM from raw |a| (READING gait.md §6 item 26), cadence < 180/min kept
+STEP_PEAK_THRESHOLD = 1.0  # m/s² (≈ 0.1 g): "low" SVM peak threshold; slow walking peaks ≈ 2 m/s²
+STEP_PEAK_RELEASE = 0.0  # m/s²: an SVM peak ends when the signal falls back below 0
+MIN_STEP_S = 0.25  # successive peaks closer than this are one step (≤ 240 steps/min)
+MAX_STEP_S = 1.3  # "pre-defined step duration": slow (stroke) gait has steps ≤ ~1.2 s
+UPRIGHT_WALKING_RAD = math.radians(30.0)  # "small threshold" rejecting peaks of a non-upright trunk
+STATIC_WINDOW_S = 1.0  # lying confirmation: one static second ...
+STATIC_STD = 0.5  # ... with std(|a|) < 0.5 m/s² (≈ 0.05 g) ...
+LYING_STATIC_BEFORE_S = 10.0  # ... at most 10 s before a lie-to-sit crossing
+STAIRS_WINDOW_S = 2 * DELAY_S  # level/stairs window, centred on the emitted sample
+STAIRS_GA_V_STD = 0.12  # m/s², std of g·GA_v/|GA| → stairs; first guess, NOT tuned (UCI: 83 %)
+UPSTAIRS_LEAN_RAD = math.radians(8.0)  # mean forward lean above this → upstairs (not validated)
+HISTORY_S = 14.0
+
+
+@dataclass(frozen=True)
+class ActivityState:
+    """What the ``activity_monitor`` node publishes (posture, modality, last transition, steps, θ)."""
+
+    t: float  # s, the time this state describes (input time − DELAY_S)
+    posture: str  # standing | sitting | lying
+    locomotion: str  # none | level | upstairs | downstairs
+    trunk_inclination: float  # rad, θ of Eq 54 (causal GA; READING: GA_v/|GA|, see update)
+    step_count: int  # steps with a time ≤ t since start
+    last_transition: str | None  # sit_to_stand | stand_to_sit | sit_to_lie | lie_to_sit
+    last_transition_t: float | None  # s, estimated instant of last_transition
+    calibrated: bool  # False during the first reference_s seconds without a given reference
+
+
+class _Ring:
+    """Fixed-size history of (t, f, v, l) body-frame samples for the window analysis."""
+
+    def __init__(self, size: int) -> None:
+        self.size = size
+        self.data = np.zeros((size, 4))
+        self.count = 0
+
+    def push(self, t: float, f: float, v: float, lat: float) -> None:
+        self.data[self.count % self.size] = (t, f, v, lat)
+        self.count += 1
+
+    def since(self, t_start: float) -> np.ndarray:
+        n = min(self.count, self.size)
+        idx = (np.arange(self.count - n, self.count)) % self.size
+        rows = self.data[idx]
+        return rows[rows[:, 0] >= t_start]
+
+
+class ActivityMonitor:
+    """Streaming chest activity monitor: ``update(t, acc) -> ActivityState | None``.
+
+    ``acc``: one 3-vector (sensor axes, any mounting). Returns the state of time ``t − DELAY_S``
+    (``None`` until the delay line is full); call ``flush()`` at the end for the remaining states.
+    """
+
+    def __init__(
+        self,
+        rate_hz: float,
+        *,
+        units: str = "m/s2",
+        reference_acc: np.ndarray | None = None,
+        reference_s: float = 2.0,
+        align: bool = True,
+        forward_axis: np.ndarray | None = None,
+        thigh_length_m: float = DEFAULT_THIGH_LENGTH_M,
+        initial_posture: str = "standing",
+    ) -> None:
+        if not 20.0 <= rate_hz <= 200.0:
+            raise ValueError(f"rate_hz must be in [20, 200], got {rate_hz}")
+        if initial_posture not in POSTURES:
+            raise ValueError(f"initial_posture must be one of {POSTURES}")
+        self.rate_hz = float(rate_hz)
+        self.units = units
+        self.align = align
+        self.forward_axis = forward_axis
+        self.min_height_change = THIGH_FRACTION * thigh_length_m
+        self.max_height_change = MAX_HEIGHT_FRACTION * thigh_length_m
+        self.posture = initial_posture
+        self._n_reference = max(1, round(reference_s * rate_hz))
+        self._ref_sum = [0.0, 0.0, 0.0]
+        self._ref_count = 0
+        self._rot: list[float] | None = None
+        self._gb, self._ga = gravity_lowpass_ba(rate_hz)
+        self._gravity = [Biquad(self._gb, self._ga) for _ in range(3)]
+        step_b, step_a = step_lowpass_ba(rate_hz, STEP_LOWPASS_HZ)
+        self._step_filter = Biquad(step_b, step_a)
+        # event times are corrected by the causal filters' group delays (GA near DC ≈ 0.27 s; step
+        # low-pass at a typical 1.8 Hz step frequency ≈ 0.08 s)
+        self._ga_delay = group_delay_s(self._gb, self._ga, 0.05, rate_hz)
+        self._step_delay = group_delay_s(step_b, step_a, 1.8, rate_hz)
+        self._history = _Ring(int(HISTORY_S * rate_hz))
+        self._delay_n = round(DELAY_S * rate_hz)
+        self._pending: deque[list] = deque()  # [t, posture, walking, theta]
+        self._stairs_n = round(STAIRS_WINDOW_S * rate_hz)
+        self._stairs_ring: deque[tuple[float, float]] = deque()
+        self._stairs_sum = [0.0, 0.0, 0.0]  # Σ(gv−g), Σ(gv−g)², Σ lean
+        self._static_n = round(STATIC_WINDOW_S * rate_hz)
+        self._static_ring: deque[float] = deque()
+        self._static_sum = [0.0, 0.0]
+        self.transitions: list[tuple[float, str]] = []
+        self.steps: list[float] = []
+        self._emitted_steps = 0
+        self._emitted_transitions = 0
+        self._last_emitted_transition: tuple[float, str] | None = None
+        self._theta_prev = 0.0
+        # θ excursion tracker (zig-zag with hysteresis and a flat-valley rule)
+        self._rising = True
+        self._ext_value = 0.0
+        self._ext_t = 0.0
+        self._flat_ref = 0.0
+        self._flat_t = 0.0
+        self._valley: tuple[float, float] = (0.0, 0.0)  # (θ, t) of the last confirmed valley
+        self._candidate: tuple[float, float, float] | None = None  # (t_valley, θ_peak, t_peak)
+        # lying
+        self._lying_crossing_t: float | None = None
+        self._static_lying_t = -math.inf
+        self._above_lying_since = math.inf
+        # steps / walking
+        self._in_peak = False
+        self._peak_value = 0.0
+        self._peak_t = 0.0
+        self._peak_theta = 0.0
+        self._last_peak_t = -math.inf
+        self._run: list[float] = []
+        self.walking = False
+        if reference_acc is not None:
+            ref = np.asarray(reference_acc, dtype=float)
+            self._calibrate(ref.reshape(-1, 3).mean(axis=0))
+
+    # ---------------------------------------------------------------- calibration
+    def _calibrate(self, mean_acc: np.ndarray) -> None:
+        scale = scale_to_si(float(np.linalg.norm(mean_acc)), self.units)
+        rot = mounting_from_reference(mean_acc, self.forward_axis) if self.align else np.eye(3)
+        self._rot = [float(v) for v in (rot * scale).ravel()]
+        body = (rot * scale) @ mean_acc
+        for biquad, value in zip(self._gravity, body, strict=True):
+            biquad.reset_steady(float(value))
+        self._theta_prev = clip_acos(body[1] / float(np.linalg.norm(body)))
+        self._ext_value = self._flat_ref = self._theta_prev
+        self._valley = (self._theta_prev, 0.0)
+
+    @property
+    def calibrated(self) -> bool:
+        return self._rot is not None
+
+    # ---------------------------------------------------------------- per sample
+    def update(self, t: float, acc) -> ActivityState | None:
+        """Feed one sample (time in s, acceleration 3-vector); return the state of t − DELAY_S.
+
+        READING of Eq 54: θ = arccos(GA_v/|GA|) rather than GA_v/g. Both are the angle between the
+        trunk's vertical axis and gravity when still; dividing by |GA| removes the step-frequency
+        ripple the weak 2nd-order GA filter leaves on GA_v (−16 dB at 2 Hz: ±0.6 m/s² → ±20° of
+        spurious θ with /g while walking briskly).
+        """
+        ax, ay, az = float(acc[0]), float(acc[1]), float(acc[2])
+        rot = self._rot
+        if rot is None:
+            self._ref_sum[0] += ax
+            self._ref_sum[1] += ay
+            self._ref_sum[2] += az
+            self._ref_count += 1
+            if self._ref_count >= self._n_reference:
+                self._calibrate(np.array(self._ref_sum) / self._ref_count)
+                self._flat_t = self._ext_t = t
+                self._valley = (self._theta_prev, t)
+            theta = self._theta_prev
+            self._pending.append([t, self.posture, False, theta])
+            return self._emit()
+        f = rot[0] * ax + rot[1] * ay + rot[2] * az
+        v = rot[3] * ax + rot[4] * ay + rot[5] * az
+        lat = rot[6] * ax + rot[7] * ay + rot[8] * az
+        gf = self._gravity[0].step(f)
+        gv = self._gravity[1].step(v)
+        gl = self._gravity[2].step(lat)
+        inv_norm = 1.0 / math.sqrt(gf * gf + gv * gv + gl * gl)
+        theta = clip_acos(gv * inv_norm)
+        self._history.push(t, f, v, lat)
+        magnitude = math.sqrt(f * f + v * v + lat * lat)
+        self._update_static(magnitude)
+        self._update_stairs_window(gv * inv_norm, gf * inv_norm)
+        self._update_steps(t, self._step_filter.step(magnitude - STANDARD_GRAVITY), theta)
+        self._update_lying(t, theta)
+        self._update_excursion(t, theta)
+        self._theta_prev = theta
+        self._pending.append([t, self.posture, self.walking, theta])
+        return self._emit()
+
+    def flush(self) -> list[ActivityState]:
+        """States of the samples still in the delay line (end of a recording)."""
+        out = []
+        while self._pending:
+            out.append(self._make_state(self._pending.popleft()))
+        return out
+
+    # ---------------------------------------------------------------- output
+    def _emit(self) -> ActivityState | None:
+        if len(self._pending) <= self._delay_n:
+            return None
+        return self._make_state(self._pending.popleft())
+
+    def _make_state(self, rec: list) -> ActivityState:
+        t, posture, walking, theta = rec
+        while self._emitted_steps < len(self.steps) and self.steps[self._emitted_steps] <= t:
+            self._emitted_steps += 1
+        while (
+            self._emitted_transitions < len(self.transitions)
+            and self.transitions[self._emitted_transitions][0] <= t
+        ):
+            self._last_emitted_transition = self.transitions[self._emitted_transitions]
+            self._emitted_transitions += 1
+        last = self._last_emitted_transition
+        return ActivityState(
+            t=t,
+            posture=posture,
+            locomotion=self._modality() if walking else "none",
+            trunk_inclination=theta,
+            step_count=self._emitted_steps,
+            last_transition=last[1] if last else None,
+            last_transition_t=last[0] if last else None,
+            calibrated=self.calibrated,
+        )
+
+    def _modality(self) -> str:
+        """Level vs stairs (variance of GA_v) and up vs down (mean forward lean) [T §7.2.6].
+
+        READING: the thesis integrates GA_f over the bout and uses one threshold; the mean over the
+        centred window is that integral divided by the window length. With x forward, a forward
+        lean gives GA_f = −g·sin(lean) (gait.md §3.2), so we test the lean −GA_f/g: upstairs = the
+        trunk leans further forward than the upright reference.
+        """
+        n = len(self._stairs_ring)
+        if n == 0:
+            return "level"
+        s1, s2, sl = self._stairs_sum
+        variance = max(0.0, s2 / n - (s1 / n) ** 2)
+        if variance <= STAIRS_GA_V_STD**2:
+            return "level"
+        return "upstairs" if sl / n > math.sin(UPSTAIRS_LEAN_RAD) else "downstairs"
+
+    def _relabel(self, t_from: float, *, posture: str | None = None, walking: bool | None = None) -> None:
+        for rec in reversed(self._pending):
+            if rec[0] < t_from:
+                break
+            if posture is not None:
+                rec[1] = posture
+            if walking is not None:
+                rec[2] = walking
+
+    # ---------------------------------------------------------------- running windows
+    def _update_static(self, magnitude: float) -> None:
+        ring, sums = self._static_ring, self._static_sum
+        m = magnitude - STANDARD_GRAVITY
+        ring.append(m)
+        sums[0] += m
+        sums[1] += m * m
+        if len(ring) > self._static_n:
+            old = ring.popleft()
+            sums[0] -= old
+            sums[1] -= old * old
+
+    def _is_static(self) -> bool:
+        n = len(self._static_ring)
+        if n < self._static_n:
+            return False
+        mean = self._static_sum[0] / n
+        return self._static_sum[1] / n - mean * mean < STATIC_STD**2
+
+    def _update_stairs_window(self, up_v: float, up_f: float) -> None:
+        """Running sums of g·(GA_v/|GA|) − g and of the forward lean −GA_f/|GA| (unit direction).
+
+        READING: the thesis's variance of GA_v is meant to capture trunk-inclination changes; the
+        2nd-order GA filter lets the step bounce leak into GA_v, so we use the GA *direction*.
+        """
+        ring, sums = self._stairs_ring, self._stairs_sum
+        dv, lean = STANDARD_GRAVITY * (up_v - 1.0), -up_f
+        ring.append((dv, lean))
+        sums[0] += dv
+        sums[1] += dv * dv
+        sums[2] += lean
+        if len(ring) > self._stairs_n:
+            old_v, old_lean = ring.popleft()
+            sums[0] -= old_v
+            sums[1] -= old_v * old_v
+            sums[2] -= old_lean
+
+    # ---------------------------------------------------------------- detectors
+    def _add_transition(self, t: float, kind: str, posture: str) -> None:
+        self.transitions.append((t, kind))
+        self.posture = posture
+        self._relabel(t, posture=posture)
+
+    def _update_lying(self, t: float, theta: float) -> None:
+        """Sit-to-lie / lie-to-sit: θ crossing 70°, direction from dθ/dt, static check [T §7.2.4].
+
+        READINGs: θ rising through 70° is sit-to-lie (GA_v falling), θ falling is lie-to-sit. The
+        static period must show gravity on the trunk's horizontal plane: we accept the frontal axis
+        (supine/prone, as the thesis) and also the lateral axis (side-lying), i.e. θ > 70° while
+        static. The instant is the crossing minus the GA filter's group delay.
+        """
+        lying_now = theta > LYING_THRESHOLD_RAD
+        prev_lying = self._theta_prev > LYING_THRESHOLD_RAD
+        if lying_now and not prev_lying:
+            self._above_lying_since = t
+        if lying_now and t - self._above_lying_since >= STATIC_WINDOW_S and self._is_static():
+            self._static_lying_t = t
+        if lying_now and not prev_lying and self.posture != "lying":
+            self._lying_crossing_t = t
+            self._candidate = None
+        elif not lying_now and self._lying_crossing_t is not None:
+            self._lying_crossing_t = None  # never static while above 70°: unknown movement
+        if self._lying_crossing_t is not None and self._static_lying_t >= self._lying_crossing_t:
+            self._add_transition(self._lying_crossing_t - self._ga_delay, "sit_to_lie", "lying")
+            self._lying_crossing_t = None
+        if (
+            prev_lying
+            and not lying_now
+            and self.posture == "lying"
+            and t - self._static_lying_t <= LYING_STATIC_BEFORE_S
+        ):
+            self._add_transition(t - self._ga_delay, "lie_to_sit", "sitting")
+            self._reset_excursion(t, theta)
+
+    def _reset_excursion(self, t: float, theta: float) -> None:
+        self._rising = False
+        self._ext_value = self._flat_ref = theta
+        self._ext_t = self._flat_t = t
+        self._candidate = None
+
+    def _update_excursion(self, t: float, theta: float) -> None:
+        """Peaks and valleys of θ; a peak in [20°, 70°) is a stand/sit candidate [T §7.2.5].
+
+        READING: the thesis's candidate is θ crossing 20°; we take any excursion whose peak exceeds
+        20°, so that a transition starting from a forward-leaning sitting posture (θ already
+        > 20°) is also a candidate. ΔY and the walking check reject the rest.
+        """
+        if self.posture == "lying" or theta > LYING_THRESHOLD_RAD:
+            self._reset_excursion(t, theta)
+            return
+        if self._rising:
+            if theta > self._ext_value:
+                self._ext_value, self._ext_t = theta, t
+            elif theta < self._ext_value - EXCURSION_HYSTERESIS_RAD:
+                if self._ext_value >= SIT_STAND_CANDIDATE_RAD:
+                    self._candidate = (self._valley[1], self._ext_value, self._ext_t)
+                self._rising = False
+                self._ext_value = self._flat_ref = theta
+                self._ext_t = self._flat_t = t
+            return
+        if theta < self._ext_value:
+            self._ext_value, self._ext_t = theta, t
+        if theta < self._flat_ref - VALLEY_FLAT_STEP_RAD:
+            self._flat_ref, self._flat_t = theta, t
+        if theta > self._ext_value + EXCURSION_HYSTERESIS_RAD or t - self._flat_t > VALLEY_FLAT_S:
+            self._valley = (self._ext_value, self._ext_t)
+            if self._candidate is not None:
+                self._analyse_candidate(t)
+            self._rising = True
+            self._ext_value = self._flat_ref = theta
+            self._ext_t = self._flat_t = t
+
+    def _analyse_candidate(self, t: float) -> None:
+        t_valley, _, t_peak = self._candidate
+        self._candidate = None
+        if t - t_valley > MAX_EXCURSION_S:
+            t_valley = t - MAX_EXCURSION_S
+        rows = self._history.since(t_valley - 1.0)
+        window = analyse_sit_stand(rows[:, 0], rows[:, 1:], self.rate_hz, t_peak)
+        if window is None or window.t2 - window.t1 > MAX_SIT_STAND_S:
+            return
+        if not self.min_height_change <= abs(window.delta_height_m) <= self.max_height_change:
+            return
+        if (window.svm_score < 0.0) != (window.delta_height_m < 0.0):
+            return  # choice: ∫SVM (thesis) and the sign of ΔY (its "alternative method") must agree
+        steps_inside = sum(1 for s in self._run if window.t1 <= s <= window.t2)
+        steps_inside += sum(1 for s in self.steps[-8:] if window.t1 <= s <= window.t2)
+        if steps_inside >= MIN_SUCCESSIVE_PEAKS:
+            return  # a walking bout, not a postural transition
+        if window.svm_score < 0.0:
+            self._add_transition(window.instant, "stand_to_sit", "sitting")
+        else:
+            self._add_transition(window.instant, "sit_to_stand", "standing")
+
+    def _update_steps(self, t: float, svm: float, theta: float) -> None:
+        """SVM peaks → steps and walking bouts [T §7.2.6, Table 16(b) "low threshold + rejection"]."""
+        if self.walking and t - self._last_peak_t > MAX_STEP_S:
+            self.walking = False
+            self._relabel(self._last_peak_t + 0.5 * MIN_STEP_S, walking=False)
+            self._run = []
+        if not self._in_peak:
+            if svm > STEP_PEAK_THRESHOLD:
+                self._in_peak = True
+                self._peak_value, self._peak_t, self._peak_theta = svm, t, theta
+            return
+        if svm > self._peak_value:
+            self._peak_value, self._peak_t, self._peak_theta = svm, t, theta
+        if svm >= STEP_PEAK_RELEASE:
+            return
+        self._in_peak = False
+        t_peak = self._peak_t - self._step_delay
+        if t_peak - self._last_peak_t < MIN_STEP_S:
+            return
+        if self._peak_theta > UPRIGHT_WALKING_RAD:
+            self._run = []
+            self._last_peak_t = t_peak
+            return
+        if t_peak - self._last_peak_t > MAX_STEP_S:
+            self._run = []
+        self._last_peak_t = t_peak
+        self._run.append(t_peak)
+        if self.walking:
+            self.steps.append(t_peak)
+        elif len(self._run) >= MIN_SUCCESSIVE_PEAKS:
+            self.walking = True
+            self.steps.extend(self._run)
+            start = self._run[0] - 0.5 * MIN_STEP_S
+            self._relabel(start, walking=True)
+            if self.posture != "standing":
+                self.posture = "standing"  # walking implies upright (Fig 27); no event is invented
+                self._relabel(start, posture="standing")
+
+
+def classify_activity(
+    acc: np.ndarray,
+    rate_hz: float,
+    *,
+    units: str = "m/s2",
+    reference: slice | tuple[int, int] | None = None,
+    align: bool = True,
+    forward_axis: np.ndarray | None = None,
+    thigh_length_m: float = DEFAULT_THIGH_LENGTH_M,
+    initial_posture: str = "standing",
+) -> dict:
+    """Batch entry point: the streaming monitor run over ``acc`` (N×3), labels per sample.
+
+    ``reference``: sample range of an upright standing period (re-orients any mounting); ``None``
+    uses the first 2 s. Returns ``{"posture": (N,) str, "locomotion": (N,) str,
+    "transitions": [(t, kind)], "steps": [t], "trunk_inclination": (N,) rad}``, t from 0 at sample 0.
+    """
+    acc = np.asarray(acc, dtype=float)
+    reference_acc = None
+    if reference is not None:
+        sl = reference if isinstance(reference, slice) else slice(*reference)
+        reference_acc = acc[sl].mean(axis=0)
+    monitor = ActivityMonitor(
+        rate_hz,
+        units=units,
+        reference_acc=reference_acc,
+        align=align,
+        forward_axis=forward_axis,
+        thigh_length_m=thigh_length_m,
+        initial_posture=initial_posture,
+    )
+    states: list[ActivityState] = []
+    update = monitor.update
+    dt = 1.0 / rate_hz
+    for k, sample in enumerate(acc.tolist()):
+        state = update(k * dt, sample)
+        if state is not None:
+            states.append(state)
+    states.extend(monitor.flush())
+    return {
+        "posture": np.array([s.posture for s in states]),
+        "locomotion": np.array([s.locomotion for s in states]),
+        "transitions": list(monitor.transitions),
+        "steps": list(monitor.steps),
+        "trunk_inclination": np.array([s.trunk_inclination for s in states]),
+    }

@@ -1,0 +1,258 @@
+"""Chest activity monitor (thesis ch. 7, gait.md §3) on synthetic chest templates.
+
+The templates are built here (not by the project simulator): a sagittal trunk model with a lean
+angle θ(t), a vertical chest displacement z(t) and a forward acceleration, turned into the
+specific force a chest accelerometer reads, then rotated into an arbitrary sensor mounting.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+from gait_biofeedback.core.activity import (
+    DELAY_S,
+    ActivityMonitor,
+    UnitMismatchWarning,
+    classify_activity,
+)
+
+G = 9.80665
+# sensor ← body rotation of an awkward mounting (sensor axes are a permutation + tilt of body axes)
+_tilt = np.radians(25.0)
+MOUNTING = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]) @ np.array(
+    [[1.0, 0.0, 0.0], [0.0, math.cos(_tilt), -math.sin(_tilt)], [0.0, math.sin(_tilt), math.cos(_tilt)]]
+)
+FORWARD_IN_SENSOR = MOUNTING @ np.array([1.0, 0.0, 0.0])
+
+
+class Template:
+    """Accumulates body kinematics (lean θ, chest height z, forward acc) sample by sample."""
+
+    def __init__(self, rate_hz: float, lean_deg: float = 0.0) -> None:
+        self.rate = rate_hz
+        self.lean: list[float] = []
+        self.height: list[float] = []
+        self.forward: list[float] = []
+        self.lateral_lean: list[float] = []
+        self.events: list[tuple[float, str]] = []
+        self.steps: list[float] = []
+        self._lean = math.radians(lean_deg)
+        self._z = 0.0
+
+    @property
+    def t(self) -> float:
+        return len(self.lean) / self.rate
+
+    def hold(self, seconds: float, lean_deg: float | None = None, side_deg: float = 0.0) -> Template:
+        if lean_deg is not None:
+            self._lean = math.radians(lean_deg)
+        n = round(seconds * self.rate)
+        self.lean += [self._lean] * n
+        self.height += [self._z] * n
+        self.forward += [0.0] * n
+        self.lateral_lean += [math.radians(side_deg)] * n
+        return self
+
+    def transition(
+        self, kind: str, duration: float, lean_end_deg: float, dz: float, peak_deg: float
+    ) -> Template:
+        """Lean from the current θ through a peak to lean_end while the chest moves by dz."""
+        n = round(duration * self.rate)
+        s = np.arange(1, n + 1) / n
+        start, end, peak = self._lean, math.radians(lean_end_deg), math.radians(peak_deg)
+        base = start + (end - start) * (s - np.sin(2 * np.pi * s) / (2 * np.pi))
+        lean = base + (peak - 0.5 * (start + end)) * np.sin(np.pi * s) ** 2
+        z = self._z + dz * (s - np.sin(2 * np.pi * s) / (2 * np.pi))
+        self.events.append((self.t + 0.5 * duration, kind))
+        self.lean += lean.tolist()
+        self.height += z.tolist()
+        self.forward += (0.8 * np.sin(2 * np.pi * s)).tolist()
+        self.lateral_lean += [0.0] * n
+        self._lean, self._z = end, float(z[-1])
+        return self
+
+    def walk(self, n_steps: int, step_s: float = 0.55, amplitude: float = 2.5) -> Template:
+        """Level walking: one vertical acceleration peak per step (chest bounce)."""
+        n = round(n_steps * step_s * self.rate)
+        tt = np.arange(n) / self.rate
+        omega = 2 * np.pi / step_s
+        # z = A/ω²·(ωt − sin ωt) has acceleration A·sin(ωt): one peak per step at (k + ¼)·step_s,
+        # zero at both ends of the bout
+        z = self._z + amplitude / omega**2 * (omega * tt - np.sin(omega * tt))
+        t0 = self.t
+        self.steps += [t0 + (k + 0.25) * step_s for k in range(n_steps)]
+        self.lean += (self._lean + math.radians(2.0) * np.sin(omega * tt / 2)).tolist()
+        self.height += z.tolist()
+        self.forward += (0.8 * np.sin(omega * tt)).tolist()
+        self.lateral_lean += (math.radians(1.5) * np.sin(omega * tt / 2)).tolist()
+        self._z = float(z[-1])  # z and z' (= 0 after whole cycles) continuous at the end
+        return self
+
+    def acc(self, seed: int = 0, noise: float = 0.05) -> np.ndarray:
+        """Specific force in the sensor frame (m/s²), N×3."""
+        dt = 1.0 / self.rate
+        z = np.asarray(self.height)
+        a_up = np.gradient(np.gradient(z, dt), dt)
+        a_fwd = np.asarray(self.forward)
+        lean, side = np.asarray(self.lean), np.asarray(self.lateral_lean)
+        # world specific force (forward, up, right) rotated into the body frame (lean about z, side about x)
+        fw, up = a_fwd, a_up + G
+        bx = fw * np.cos(lean) - up * np.sin(lean)
+        by_ = fw * np.sin(lean) + up * np.cos(lean)
+        by = by_ * np.cos(side)
+        bz = by_ * np.sin(side)
+        body = np.column_stack([bx, by, bz])
+        rng = np.random.default_rng(seed)
+        return body @ MOUNTING.T + noise * rng.standard_normal(body.shape)
+
+
+RATE = 100.0
+
+
+def _run(template: Template, rate: float = RATE, **kw) -> dict:
+    kw.setdefault("forward_axis", FORWARD_IN_SENSOR)
+    return classify_activity(template.acc(), rate, **kw)
+
+
+def test_inclination_of_static_poses_any_mounting() -> None:
+    tpl = Template(RATE).hold(3.0, 0.0)
+    for lean in (10.0, 30.0, 50.0, 80.0):
+        tpl.hold(6.0, lean)
+    out = _run(tpl)
+    theta = np.degrees(out["trunk_inclination"])
+    for k, lean in enumerate((10.0, 30.0, 50.0, 80.0)):
+        end = round((3.0 + 6.0 * (k + 1)) * RATE) - 1  # last sample of the pose (filter settled)
+        assert theta[end] == pytest.approx(lean, abs=1.0)
+
+
+def test_inclination_includes_lateral_lean() -> None:
+    out = _run(Template(RATE).hold(3.0, 0.0).hold(8.0, 0.0, side_deg=40.0))
+    assert np.degrees(out["trunk_inclination"][-1]) == pytest.approx(40.0, abs=1.0)
+
+
+def _posture_sequence(rate: float) -> Template:
+    tpl = Template(rate).hold(4.0, 0.0)
+    tpl.transition("stand_to_sit", 2.4, 8.0, -0.45, 45.0).hold(8.0)
+    tpl.transition("sit_to_lie", 2.5, 92.0, -0.15, 50.0).hold(8.0)
+    tpl.transition("lie_to_sit", 2.5, 8.0, 0.15, 50.0).hold(8.0)
+    tpl.transition("sit_to_stand", 2.0, 0.0, 0.45, 40.0).hold(8.0)
+    return tpl
+
+
+@pytest.mark.parametrize("rate", [20.0, 100.0, 200.0])
+def test_each_transition_detected_and_timed(rate: float) -> None:
+    tpl = _posture_sequence(rate)
+    out = _run(tpl, rate)
+    assert [k for _, k in out["transitions"]] == [k for _, k in tpl.events]
+    for (t_est, _), (t_true, _) in zip(out["transitions"], tpl.events, strict=True):
+        assert abs(t_est - t_true) < 0.5
+    t = np.arange(len(out["posture"])) / rate
+    expected = {3.0: "standing", 10.0: "sitting", 17.0: "lying", 27.0: "sitting", 40.0: "standing"}
+    for when, posture in expected.items():
+        assert out["posture"][int(when * rate)] == posture, when
+    assert out["posture"].shape == (len(t),)
+
+
+def test_bowing_without_height_change_is_rejected() -> None:
+    tpl = Template(RATE).hold(4.0, 0.0).transition("bow", 2.5, 0.0, 0.0, 50.0).hold(6.0)
+    out = _run(tpl)
+    assert out["transitions"] == []
+    assert set(out["posture"]) == {"standing"}
+
+
+def test_lean_beyond_70_without_static_period_is_not_lying() -> None:
+    tpl = Template(RATE).hold(4.0, 5.0).transition("reach", 2.0, 5.0, 0.0, 85.0).hold(6.0)
+    out = _run(tpl, initial_posture="sitting")
+    assert "lying" not in set(out["posture"])
+    assert all(k not in ("sit_to_lie", "lie_to_sit") for _, k in out["transitions"])
+
+
+@pytest.mark.parametrize(("rate", "step_s"), [(20.0, 0.6), (52.0, 0.5), (100.0, 0.55), (200.0, 0.9)])
+def test_step_count_of_synthetic_walk(rate: float, step_s: float) -> None:
+    tpl = Template(rate).hold(4.0, 0.0).walk(60, step_s=step_s).hold(5.0)
+    out = _run(tpl, rate)
+    assert len(out["steps"]) == pytest.approx(len(tpl.steps), abs=1)
+    matched = [min(abs(s - t) for t in tpl.steps) for s in out["steps"]]
+    assert max(matched) < 0.1
+    walking = out["locomotion"] != "none"
+    t = np.arange(len(walking)) / rate
+    inside = (t > tpl.steps[0] + 0.1) & (t < tpl.steps[-1] - 0.1)
+    assert walking[inside].mean() > 0.97
+    assert not walking[t < 3.5].any() and not walking[t > tpl.steps[-1] + 1.5].any()
+    assert set(out["locomotion"][walking]) == {"level"}
+
+
+def test_no_transition_while_walking() -> None:
+    tpl = Template(RATE).hold(4.0, 0.0).walk(80, step_s=0.5, amplitude=4.0).hold(4.0)
+    out = _run(tpl)
+    assert out["transitions"] == []
+    assert set(out["posture"]) == {"standing"}
+
+
+def test_walking_after_sitting_sets_standing() -> None:
+    tpl = Template(RATE).hold(4.0, 0.0).walk(20).hold(3.0)
+    out = _run(tpl, initial_posture="sitting")
+    assert out["posture"][-1] == "standing"
+    assert out["posture"][int(3.0 * RATE)] == "sitting"
+
+
+def test_isolated_peaks_are_not_steps() -> None:
+    tpl = Template(RATE).hold(4.0, 0.0).walk(2, step_s=0.55, amplitude=4.0).hold(3.0)
+    tpl.walk(2, step_s=0.55, amplitude=4.0).hold(3.0)
+    out = _run(tpl)
+    assert out["steps"] == []
+    assert set(out["locomotion"]) == {"none"}
+
+
+def test_unit_mismatch_warns_and_still_works() -> None:
+    tpl = _posture_sequence(RATE)
+    acc_g = tpl.acc() / G
+    with pytest.warns(UnitMismatchWarning, match="looks like g"):
+        out = classify_activity(acc_g, RATE, units="m/s2", forward_axis=FORWARD_IN_SENSOR)
+    assert [k for _, k in out["transitions"]] == [k for _, k in tpl.events]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UnitMismatchWarning)
+        classify_activity(acc_g[:500], RATE, units="g")  # declared correctly: no warning
+
+
+def test_streaming_equals_batch_and_delay_is_bounded() -> None:
+    tpl = _posture_sequence(RATE).walk(30).hold(4.0)
+    acc = tpl.acc()
+    batch = classify_activity(acc, RATE, forward_axis=FORWARD_IN_SENSOR)
+    monitor = ActivityMonitor(RATE, forward_axis=FORWARD_IN_SENSOR)
+    states = []
+    for k, sample in enumerate(acc):
+        t = k / RATE
+        state = monitor.update(t, sample)
+        if state is not None:
+            assert state.t == pytest.approx(t - DELAY_S, abs=1e-9)
+            states.append(state)
+    states += monitor.flush()
+    assert [s.posture for s in states] == batch["posture"].tolist()
+    assert [s.locomotion for s in states] == batch["locomotion"].tolist()
+    assert monitor.transitions == batch["transitions"]
+    assert states[-1].step_count == len(batch["steps"]) == 30
+    assert states[-1].last_transition == "sit_to_stand"
+    # the state carries what the node publishes, consistent with the events
+    t_sit = batch["transitions"][0][0]
+    after = next(s for s in states if s.t >= t_sit + 0.1)
+    assert after.last_transition == "stand_to_sit"
+    assert after.last_transition_t == pytest.approx(t_sit)
+
+
+def test_reference_period_reorients_mounting() -> None:
+    tpl = Template(RATE).hold(6.0, 0.0).hold(6.0, 30.0)
+    acc = tpl.acc()
+    out = classify_activity(acc, RATE, reference=(0, 400))
+    assert np.degrees(out["trunk_inclination"][-1]) == pytest.approx(30.0, abs=1.0)
+    raw = classify_activity(acc, RATE, reference=(0, 400), align=False)
+    assert np.degrees(raw["trunk_inclination"][-1]) > 45.0  # without re-orientation θ is meaningless
+
+
+def test_rate_out_of_range_is_rejected() -> None:
+    with pytest.raises(ValueError, match="rate_hz"):
+        ActivityMonitor(10.0)
