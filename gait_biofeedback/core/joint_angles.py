@@ -1,0 +1,122 @@
+"""Joint angles from segment orientations: the joint coordinate system (JCS) convention.
+
+gait.md §1.8 (thesis §3.3 and Ch. 8 step 4 cite Grood & Suntay 1983 / ISB; the sequence and signs are a
+READING, EXT: Wu et al. 2002). Segment anatomical frames: x anterior, y superior/proximal, z right-lateral on
+BOTH legs (foot: y vertical in standing, x toward the toes, so a standing foot has the shank's frame).
+
+Relative rotation ``q_rel = conj(q_proximal) ⊗ q_distal`` (segment→world orientations; hip: pelvis→thigh,
+knee: thigh→shank, ankle: shank→foot) is decomposed as the Cardan sequence Z-X'-Y''
+``R_rel = R_z(a) R_x(b) R_y(c)`` with ``b = asin(R32)``, ``a = atan2(-R12, R22)``, ``c = atan2(-R31, R33)``
+(e1 = proximal z, e2 floating, e3 = distal y). Clinical signs (READING, chosen here and tested):
+
+* flexion: ``a`` for hip flexion and ankle dorsiflexion, ``-a`` for knee flexion (a positive rotation about
+  +z is knee *extension*);
+* adduction (hip/knee adduction = varus, ankle inversion): ``b`` on the right, ``-b`` on the left;
+* internal rotation (toes/anterior face turned medially): ``c`` on the right, ``-c`` on the left.
+
+So adduction, inversion and internal rotation are positive on both sides: the left side's AA and IE are
+mirrored because its z axis points laterally-right = medially. Gimbal lock at |b| = 90° (not met in gait).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from gait_biofeedback.core import quaternion as quat
+from gait_biofeedback.core.segments import SIDES
+
+JOINTS: tuple[str, ...] = ("hip", "knee", "ankle")
+_ANGLE_KINDS: dict[str, tuple[str, str, str]] = {
+    "hip": ("flexion", "adduction", "internal_rotation"),
+    "knee": ("flexion", "adduction", "internal_rotation"),
+    "ankle": ("dorsiflexion", "inversion", "internal_rotation"),
+}
+JOINT_NAMES: tuple[str, ...] = tuple(
+    f"{side}_{joint}_{kind}" for side in SIDES for joint in JOINTS for kind in _ANGLE_KINDS[joint]
+)
+# (proximal, distal) segment of each joint; segment names as in segments.SEGMENTS
+JOINT_SEGMENTS: dict[str, tuple[str, str]] = {
+    "hip": ("pelvis", "thigh"),
+    "knee": ("thigh", "shank"),
+    "ankle": ("shank", "foot"),
+}
+
+_X = np.array([1.0, 0.0, 0.0])
+_Y = np.array([0.0, 1.0, 0.0])
+_Z = np.array([0.0, 0.0, 1.0])
+
+
+def joint_angle_names(side: str, joint: str) -> tuple[str, str, str]:
+    """JointState names (flexion, adduction, internal rotation) of one joint of one side."""
+    _check(joint, side)
+    return tuple(f"{side}_{joint}_{kind}" for kind in _ANGLE_KINDS[joint])  # type: ignore[return-value]
+
+
+def segment_pair(side: str, joint: str) -> tuple[str, str]:
+    """(proximal, distal) segment names of ``joint`` on ``side``, e.g. ('pelvis', 'left_thigh')."""
+    _check(joint, side)
+    prox, dist = JOINT_SEGMENTS[joint]
+    return (prox if prox == "pelvis" else f"{side}_{prox}", f"{side}_{dist}")
+
+
+def _signs(joint: str, side: str) -> tuple[float, float, float]:
+    _check(joint, side)
+    s_fe = -1.0 if joint == "knee" else 1.0
+    s_mirror = 1.0 if side == "right" else -1.0
+    return s_fe, s_mirror, s_mirror
+
+
+def _check(joint: str, side: str) -> None:
+    if joint not in JOINTS:
+        raise ValueError(f"unknown joint {joint!r}; expected one of {JOINTS}")
+    if side not in SIDES:
+        raise ValueError(f"unknown side {side!r}; expected one of {SIDES}")
+
+
+def relative_rotation_from_angles(
+    joint: str,
+    side: str,
+    flexion: np.ndarray | float,
+    adduction: np.ndarray | float,
+    internal_rotation: np.ndarray | float,
+) -> np.ndarray:
+    """``q_rel = conj(q_prox) ⊗ q_dist`` (..., 4) of clinical joint angles (rad), ``R_z(a) R_x(b) R_y(c)``."""
+    s_fe, s_aa, s_ie = _signs(joint, side)
+    a = s_fe * np.asarray(flexion, dtype=float)
+    b = s_aa * np.asarray(adduction, dtype=float)
+    c = s_ie * np.asarray(internal_rotation, dtype=float)
+    a, b, c = np.broadcast_arrays(a, b, c)
+    return quat.multiply(
+        quat.multiply(quat.from_axis_angle(_Z, a), quat.from_axis_angle(_X, b)), quat.from_axis_angle(_Y, c)
+    )
+
+
+def angles_from_relative_rotation(
+    joint: str, side: str, q_rel: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Clinical (flexion, adduction, internal_rotation) in rad of ``q_rel`` (..., 4), gait.md §1.8."""
+    s_fe, s_aa, s_ie = _signs(joint, side)
+    m = quat.as_matrix(q_rel)
+    b = np.arcsin(np.clip(m[..., 2, 1], -1.0, 1.0))
+    a = np.arctan2(-m[..., 0, 1], m[..., 1, 1])
+    c = np.arctan2(-m[..., 2, 0], m[..., 2, 2])
+    return s_fe * a, s_aa * b, s_ie * c
+
+
+def joint_angles_from_segments(orientations: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """All ``JOINT_NAMES`` angles (rad) from segment→world orientations keyed by segment name.
+
+    Joints whose proximal or distal segment is missing are skipped.
+    """
+    out: dict[str, np.ndarray] = {}
+    for side in SIDES:
+        for joint in JOINTS:
+            prox, dist = segment_pair(side, joint)
+            if prox not in orientations or dist not in orientations:
+                continue
+            q_rel = quat.multiply(quat.conjugate(orientations[prox]), orientations[dist])
+            for name, value in zip(
+                joint_angle_names(side, joint), angles_from_relative_rotation(joint, side, q_rel), strict=True
+            ):
+                out[name] = value
+    return out

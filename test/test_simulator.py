@@ -1,0 +1,276 @@
+"""Physical consistency and ground truth of core/simulator.py."""
+
+import time
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from gait_biofeedback.core import quaternion as quat
+from gait_biofeedback.core.joint_angles import JOINT_NAMES, angles_from_relative_rotation
+from gait_biofeedback.core.segments import GRAVITY, SEGMENTS
+from gait_biofeedback.core.simulator import (
+    SCENARIOS,
+    Phase,
+    SimulationConfig,
+    simulate,
+)
+
+DEG = np.pi / 180.0
+
+
+@pytest.fixture(scope="module")
+def walk_clean():
+    return simulate(SCENARIOS["walk"](duration=20.0).without_errors())
+
+
+@pytest.fixture(scope="module")
+def activity_clean():
+    return simulate(SCENARIOS["activity"]().without_errors())
+
+
+def _idx(truth, t):
+    return int(np.argmin(np.abs(truth.t - t)))
+
+
+@pytest.mark.parametrize("segment", ["pelvis", "left_thigh", "right_shank", "left_foot", "chest"])
+def test_strapdown_of_noise_free_gyro_follows_true_orientation(walk_clean, segment):
+    tr, imu = walk_clean.truth, walk_clean.imu[segment]
+    i0, i1 = _idx(tr, 8.0), _idx(tr, 18.0)  # 10 s of walking at 100 Hz
+    q = tr.sensor_orientation[segment][i0]
+    for k in range(i0, i1):
+        q = quat.integrate_gyro(q, 0.5 * (imu.gyr[k] + imu.gyr[k + 1]), 0.01)
+    assert quat.angle_between(q, tr.sensor_orientation[segment][i1]) < 1.0 * DEG
+
+
+def test_static_accelerometer_reads_gravity_in_sensor_frame(walk_clean):
+    tr = walk_clean.truth
+    k = _idx(tr, 2.0)  # quiet standing (only a tiny sway)
+    for seg in SEGMENTS:
+        expected = quat.rotate_inverse(tr.sensor_orientation[seg][k], [0.0, 0.0, GRAVITY])
+        np.testing.assert_allclose(walk_clean.imu[seg].acc[k], expected, atol=0.05)
+
+
+@pytest.mark.parametrize("segment", ["pelvis", "right_thigh", "left_shank", "right_foot"])
+def test_double_integration_of_acc_follows_true_position(walk_clean, segment):
+    tr, imu, dt = walk_clean.truth, walk_clean.imu[segment], 0.01
+    i0 = _idx(tr, 10.0)
+    p = tr.sensor_position[segment]
+    acc_world = quat.rotate(tr.sensor_orientation[segment], imu.acc) - [0.0, 0.0, GRAVITY]
+    pos, vel = p[i0].copy(), (p[i0 + 1] - p[i0 - 1]) / (2 * dt)
+    for k in range(i0, i0 + 100):
+        vel_next = vel + 0.5 * (acc_world[k] + acc_world[k + 1]) * dt
+        pos = pos + 0.5 * (vel + vel_next) * dt
+        vel = vel_next
+    assert np.linalg.norm(pos - p[i0 + 100]) < 0.01
+
+
+def test_deterministic_with_seed_and_seed_matters():
+    cfg = SCENARIOS["calibration_walking"](seed=4)
+    a, b = simulate(cfg), simulate(cfg)
+    for seg in SEGMENTS:
+        assert np.array_equal(a.imu[seg].acc, b.imu[seg].acc)
+        assert np.array_equal(a.imu[seg].gyr, b.imu[seg].gyr)
+        assert np.array_equal(a.imu[seg].mag, b.imu[seg].mag)
+    c = simulate(replace(cfg, seed=5))
+    assert not np.array_equal(a.imu["pelvis"].gyr, c.imu["pelvis"].gyr)
+    assert not np.allclose(a.truth.mounting["pelvis"], c.truth.mounting["pelvis"])
+
+
+def test_gait_events_match_cadence_and_stance_fraction(walk_clean):
+    cfg, tr = walk_clean.config, walk_clean.truth
+    stride = 2.0 / cfg.cadence
+    for side in ("left", "right"):
+        ic, tc = tr.initial_contacts[side], tr.terminal_contacts[side]
+        steady = ic[(ic > 8.0) & (ic < 20.0)]
+        assert len(steady) >= 8
+        np.testing.assert_allclose(np.diff(steady), stride, atol=1e-3)
+        for t_ic in steady[:-1]:
+            t_tc = tc[(tc > t_ic) & (tc < t_ic + stride)][0]
+            assert (t_tc - t_ic) / stride == pytest.approx(cfg.stance_fraction, abs=2e-3)
+    left, right = tr.initial_contacts["left"], tr.initial_contacts["right"]
+    nxt = right[right > left[5]][0]
+    assert nxt - left[5] == pytest.approx(stride / 2, abs=1e-3)
+    assert np.array_equal(tr.steps, np.sort(np.concatenate([left, right])))
+
+
+def test_foot_pitch_and_contact_are_coherent(walk_clean):
+    tr = walk_clean.truth
+    stride = 2.0 / walk_clean.config.cadence
+    for side in ("left", "right"):
+        foot_x = quat.rotate(tr.segment_orientation[f"{side}_foot"], [1.0, 0.0, 0.0])
+        pitch = np.arcsin(foot_x[:, 2])
+        origin = tr.segment_position[f"{side}_foot"]
+        for t_ic in tr.initial_contacts[side][3:8]:
+            assert pitch[_idx(tr, t_ic)] > 8 * DEG  # toe up at IC
+            k_mid = _idx(tr, t_ic + 0.2 * stride)
+            assert abs(pitch[k_mid]) < 0.5 * DEG  # flat in mid stance
+            assert np.linalg.norm(origin[k_mid + 1] - origin[k_mid - 1]) / 0.02 < 1e-3  # not moving
+        for t_tc in tr.terminal_contacts[side][3:8]:
+            assert pitch[_idx(tr, t_tc)] < -30 * DEG  # toe down at TC
+
+
+def test_walking_speed_and_sagittal_ranges(walk_clean):
+    tr = walk_clean.truth
+    p = tr.segment_position["pelvis"]
+    i0, i1 = _idx(tr, 9.0), _idx(tr, 9.0 + 4 * 2.0 / walk_clean.config.cadence)
+    assert np.linalg.norm(p[i1, :2] - p[i0, :2]) / (tr.t[i1] - tr.t[i0]) == pytest.approx(1.2, abs=0.03)
+    m = (tr.t > 9.0) & (tr.t < 18.0)
+    ja = {k: v[m] / DEG for k, v in tr.joint_angles.items()}
+    assert 25 < ja["left_hip_flexion"].max() < 38 and -15 < ja["left_hip_flexion"].min() < -3
+    assert 55 < ja["right_knee_flexion"].max() < 66 and ja["right_knee_flexion"].min() < 8
+    assert -22 < ja["left_ankle_dorsiflexion"].min() < -10 and 5 < ja["left_ankle_dorsiflexion"].max() < 20
+    assert 0.02 < np.ptp(p[m, 2]) < 0.07  # vertical pelvis oscillation
+
+
+def test_truth_joint_angles_equal_jcs_of_true_segment_orientations(walk_clean):
+    tr = walk_clean.truth
+    assert set(tr.joint_angles) == set(JOINT_NAMES)
+    q = tr.segment_orientation
+    for side in ("left", "right"):
+        rel = quat.multiply(quat.conjugate(q[f"{side}_shank"]), q[f"{side}_foot"])
+        dp, inv, _ = angles_from_relative_rotation("ankle", side, rel)
+        np.testing.assert_allclose(tr.joint_angles[f"{side}_ankle_dorsiflexion"], dp, atol=1e-12)
+        np.testing.assert_allclose(tr.joint_angles[f"{side}_ankle_inversion"], inv, atol=1e-12)
+        rel = quat.multiply(quat.conjugate(q["pelvis"]), q[f"{side}_thigh"])
+        fe, _, _ = angles_from_relative_rotation("hip", side, rel)
+        np.testing.assert_allclose(tr.joint_angles[f"{side}_hip_flexion"], fe, atol=1e-12)
+
+
+def test_mounting_relation_and_aligned_mounting(walk_clean):
+    tr = walk_clean.truth
+    for seg in SEGMENTS:
+        composed = quat.multiply(tr.sensor_orientation[seg], tr.mounting[seg])
+        assert np.max(quat.angle_between(composed, tr.segment_orientation[seg])) < 1e-6
+    aligned = simulate(SCENARIOS["calibration_walking"](mounting="aligned"))
+    for seg in SEGMENTS:
+        np.testing.assert_allclose(aligned.truth.mounting[seg], quat.IDENTITY)
+    given = quat.from_axis_angle([0.0, 1.0, 0.0], 0.7)
+    custom = simulate(SCENARIOS["calibration_walking"](mounting={"left_foot": given}))
+    np.testing.assert_allclose(custom.truth.mounting["left_foot"], given)
+
+
+def test_activity_labels_transitions_and_postures(activity_clean):
+    tr = activity_clean.truth
+    kinds = [k for _, k in tr.transitions]
+    assert kinds == ["stand_to_sit", "sit_to_lie", "lie_to_sit", "sit_to_stand", "stand_to_sit",
+                     "sit_to_stand"]
+    for t0, t1, kind in tr.phases:
+        mid = _idx(tr, 0.5 * (t0 + t1))
+        expected = {"sit": "sitting", "lie": "lying", "stand": "standing", "walk": "standing"}.get(kind)
+        if expected:
+            assert tr.posture[mid] == expected
+        k = _idx(tr, 0.5 * (t0 + t1))
+        chest_up = quat.rotate(tr.segment_orientation["chest"][k], [0.0, 1.0, 0.0])
+        inclination = np.arccos(np.clip(chest_up[2], -1, 1))
+        if kind == "lie":
+            assert inclination > 70 * DEG
+        if kind == "sit":
+            assert inclination < 15 * DEG
+            assert tr.joint_angles["left_knee_flexion"][k] == pytest.approx(90 * DEG, abs=3 * DEG)
+            assert tr.joint_angles["right_hip_flexion"][k] == pytest.approx(90 * DEG, abs=3 * DEG)
+        if kind == "walk":
+            assert tr.locomotion[k] == "level"
+        else:
+            assert tr.locomotion[k] == "none"
+    assert set(np.unique(tr.posture)) == {"standing", "sitting", "lying"}
+
+
+def test_transitions_lean_forward_and_are_continuous(activity_clean):
+    tr = activity_clean.truth
+    for seg in SEGMENTS:
+        steps = quat.angle_between(tr.segment_orientation[seg][1:], tr.segment_orientation[seg][:-1])
+        assert np.max(steps) < 6 * DEG  # no orientation jumps between 10 ms samples
+        assert np.max(np.abs(activity_clean.imu[seg].gyr)) < 12.0
+    t_mid, _ = next(x for x in tr.transitions if x[1] == "sit_to_stand")
+    chest_up = quat.rotate(tr.segment_orientation["chest"][_idx(tr, t_mid)], [0.0, 1.0, 0.0])
+    assert np.arccos(chest_up[2]) > 25 * DEG  # trunk leans forward mid-transition
+
+
+def test_hip_flexion_calibration_moves():
+    s = simulate(SCENARIOS["calibration_hip_flexion"]().without_errors())
+    tr = s.truth
+    for side, (t0, t1) in (("left", (5.0, 19.0)), ("right", (19.0, 33.0))):
+        m = (tr.t >= t0) & (tr.t < t1)
+        hip = tr.joint_angles[f"{side}_hip_flexion"][m]
+        crossings = np.sum(np.diff(np.sign(hip - 10 * DEG)) > 0)
+        assert crossings >= 10
+        assert np.max(tr.joint_angles[f"{side}_knee_flexion"][m]) < 25 * DEG
+        other = "right" if side == "left" else "left"
+        assert np.max(np.abs(tr.joint_angles[f"{other}_hip_flexion"][m])) < 2 * DEG
+
+
+def test_demo_duration_turn_and_speed_of_simulation():
+    start = time.perf_counter()
+    s = simulate(SCENARIOS["demo"]())
+    elapsed = time.perf_counter() - start
+    tr = s.truth
+    assert 90.0 <= tr.t[-1] <= 120.0 and elapsed < 5.0
+    fwd = quat.rotate(tr.segment_orientation["pelvis"], [1.0, 0.0, 0.0])
+    heading = np.unwrap(np.arctan2(fwd[:, 1], fwd[:, 0]))
+    assert heading[_idx(tr, 70.0)] - heading[_idx(tr, 40.0)] == pytest.approx(np.pi, abs=0.15)
+    assert len(tr.steps) >= 40
+    assert set(s.imu) == set(SEGMENTS)
+
+
+@pytest.mark.parametrize("rate", [100.0, 200.0])
+def test_rates(rate):
+    s = simulate(SCENARIOS["calibration_walking"](rate_hz=rate).without_errors())
+    imu = s.imu["right_shank"]
+    assert imu.rate_hz == pytest.approx(rate)
+    assert len(imu) == round(14.0 * rate)
+    q, dt = s.truth.sensor_orientation["right_shank"][0], 1.0 / rate
+    for k in range(len(imu) - 1):
+        q = quat.integrate_gyro(q, 0.5 * (imu.gyr[k] + imu.gyr[k + 1]), dt)
+    assert quat.angle_between(q, s.truth.sensor_orientation["right_shank"][-1]) < 1.0 * DEG
+
+
+def test_noise_bias_and_magnetometer():
+    cfg = SCENARIOS["calibration_walking"](
+        gyr_noise_std=0.01, gyr_bias_std=0.02, mag_disturbances=[(2.0, 3.0, "chest", (20e-6, 0.0, 0.0))])
+    noisy, clean = simulate(cfg), simulate(cfg.without_errors())
+    err = noisy.imu["pelvis"].gyr - clean.imu["pelvis"].gyr
+    np.testing.assert_allclose(err.mean(axis=0), noisy.truth.gyr_bias["pelvis"][0], atol=0.002)
+    assert np.std(err - noisy.truth.gyr_bias["pelvis"]) == pytest.approx(0.01, rel=0.1)
+    mag, tr = clean.imu["left_foot"].mag, clean.truth
+    assert np.allclose(np.linalg.norm(mag, axis=1), 50e-6)
+    down = quat.rotate(tr.sensor_orientation["left_foot"], mag)
+    assert np.degrees(np.arctan2(-down[:, 2], np.hypot(down[:, 0], down[:, 1]))).mean() == pytest.approx(60.0)
+    chest = np.linalg.norm(simulate(replace(cfg, mag_noise_std=0.0)).imu["chest"].mag, axis=1)
+    assert chest[_idx(tr, 2.5)] == pytest.approx(np.hypot(50e-6, 20e-6), rel=1e-6)  # east offset ⟂ field
+    assert chest[_idx(tr, 1.0)] == pytest.approx(50e-6, rel=1e-6)
+    assert simulate(replace(cfg, with_magnetometer=False)).imu["chest"].mag is None
+
+
+def test_slow_gait_is_slower_with_longer_stance():
+    s = simulate(SCENARIOS["slow_gait"]().without_errors())
+    tr, cfg = s.truth, s.config
+    ic, tc = tr.initial_contacts["left"], tr.terminal_contacts["left"]
+    stride = 2.0 / cfg.cadence
+    t_ic = ic[3]
+    assert (tc[tc > t_ic][0] - t_ic) / stride == pytest.approx(0.68, abs=2e-3)
+    m = (tr.t > 12.0) & (tr.t < 30.0)
+    assert np.max(tr.joint_angles["left_knee_flexion"][m]) < 45 * DEG
+    p = tr.segment_position["pelvis"]
+    i0, i1 = _idx(tr, 12.0), _idx(tr, 12.0 + 4 * stride)
+    assert np.linalg.norm(p[i1, :2] - p[i0, :2]) / (4 * stride) == pytest.approx(0.45, abs=0.03)
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"phases": [Phase("stand", 5.0), Phase("sit", 5.0)]}, "insert a transition"),
+        ({"phases": [Phase("jump", 5.0)]}, "unknown kind"),
+        ({"phases": [Phase("stand", -1.0)]}, "shorter than the minimum"),
+        ({"phases": []}, "phases is empty"),
+        ({"stance_fraction": 0.9}, "stance_fraction"),
+        ({"pathology": "limp"}, "unknown pathology"),
+        ({"rate_hz": 0.0}, "rate_hz"),
+        ({"mounting": "glued"}, "mounting"),
+        ({"segments": ("pelvis", "head")}, "unknown segments"),
+        ({"phases": [Phase("stand", 1.0), Phase("walk", 2.5)]}, "too short for one stride"),
+    ],
+)
+def test_bad_config_raises_clear_value_error(change, message):
+    with pytest.raises(ValueError, match=message):
+        simulate(replace(SimulationConfig(), **change))
