@@ -8,6 +8,7 @@ PACKAGE = "gait_biofeedback"
 NODES = {
     "imu_replayer": "gait_biofeedback.nodes.imu_replayer:main",
     "recorder": "gait_biofeedback.nodes.recorder:main",
+    "orientation_filter": "gait_biofeedback.nodes.orientation_filter:main",
 }
 
 setup(

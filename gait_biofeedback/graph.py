@@ -25,7 +25,30 @@ NodeFactory = Callable[[Context], Node]
 
 def processing_nodes() -> dict[str, NodeFactory]:
     """The processing nodes that exist in this build, by name, in data-flow order."""
-    return {}
+    from gait_biofeedback.nodes.orientation_filter import OrientationFilterNode
+
+    return {"orientation_filter": OrientationFilterNode}
+
+
+def _wait_until_recorded(recorder: Recorder, nodes: Sequence[Node], timeout: float = 5.0) -> None:
+    """Block until the recorder subscribes to every topic the processing nodes publish, so the first
+    outputs (e.g. the start-up burst of the orientation filter) are not published into the void."""
+    wanted = {
+        topic
+        for node in nodes
+        for topic, _ in node.get_publisher_names_and_types_by_node(node.get_name(), node.get_namespace())
+        if topic not in recorder.excluded
+    }
+    publishers = [p for node in nodes for p in node.publishers if p.topic_name in wanted]
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        recorder.discover()
+        if all(recorder.recording(t) for t in wanted) and all(
+                p.get_subscription_count() > 0 for p in publishers):
+            return
+        time.sleep(0.02)
+    missing = sorted(t for t in wanted if not recorder.recording(t))
+    raise TimeoutError(f"the recorder did not discover {missing} within {timeout} s")
 
 
 @dataclass
@@ -69,8 +92,10 @@ def replay_through_graph(
         if output is not None:
             recorder = Recorder(context, output=str(output), **params.get("recorder", {}))
             started.append(recorder)
-        for name in chosen:
-            started.append(factories[name](context, **params.get(name, {})))
+        processing = [factories[name](context, **params.get(name, {})) for name in chosen]
+        started += processing
+        if recorder is not None:
+            _wait_until_recorded(recorder, processing)
         replayer = ImuReplayer(context, bag=str(bag), speed=float(speed), start_offset=float(start_offset),
                                stop_offset=float(stop_offset), wait_for_subscribers=5.0)
         started.append(replayer)

@@ -36,7 +36,7 @@ def _assert_same_imu(a: dict, b: dict) -> None:
 def test_replayer_to_recorder_delivers_every_message(tmp_path):
     imu = synthetic_imu(list(SEGMENTS), duration=1.0)
     bag = write_imu_bag(tmp_path / "in", imu)
-    result = replay_through_graph(bag, tmp_path / "out", speed=5.0, timeout=30)
+    result = replay_through_graph(bag, tmp_path / "out", speed=5.0, nodes=[], timeout=30)
     assert result.published == 8 * 100 * 2
     assert result.recorded == result.published
     _assert_same_imu(imu, read_imu_bag(tmp_path / "out"))

@@ -53,9 +53,9 @@ def truth_messages(session) -> Iterator[tuple[str, object, int]]:
         yield f"{TRUTH_PREFIX}/joint_states", msg, int(tk)
 
     events = []
-    for side, kinds in truth.events.items():
-        for kind, times in kinds.items():
-            for index, t in enumerate(times):
+    for kind, per_side in (("ic", truth.initial_contacts), ("tc", truth.terminal_contacts)):
+        for side, times in per_side.items():
+            for index, t in enumerate(np.asarray(times).tolist()):
                 events.append((round(t * 1e9), side, kind, index))
     for ev_ns, side, kind, index in sorted(events):
         msg = GaitEvent(side=SIDE_CODES[side], type=EVENT_CODES[kind], event_index=index)

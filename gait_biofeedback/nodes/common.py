@@ -8,6 +8,7 @@ called. ``GAIT_EXECUTOR=single`` selects the fallback.
 
 from __future__ import annotations
 
+import math
 import os
 import sys
 import time
@@ -36,11 +37,13 @@ SENSOR_QOS = QoSProfile(
 
 RELIABLE_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
-    depth=100,
+    depth=300,
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE,
 )
-"""Derived streams: orientations, joint states, events, cues."""
+"""Derived streams: orientations, joint states, events, cues. Depth 300, not DESIGN.md's 100: the
+orientation filter releases its start-up window (1 s = 100 samples at 100 Hz, 200 at 200 Hz) in one
+burst, and a KEEP_LAST history as deep as the burst drops its first samples."""
 
 LATCHED_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
@@ -65,20 +68,25 @@ def ns_to_stamp(ns: int) -> Time:
 
 
 def stamp_to_s(stamp: Time) -> float:
-    """builtin_interfaces/Time → float seconds."""
-    return stamp.sec + stamp.nanosec * 1e-9
+    """builtin_interfaces/Time → the float nearest to its exact value in seconds (the same number
+    :func:`gait_biofeedback.io.imu_messages.ns_to_seconds` gives, so live and offline agree)."""
+    return stamp_to_ns(stamp) / 1_000_000_000
 
 
 def s_to_stamp(t: float) -> Time:
     """Float seconds → builtin_interfaces/Time, rounded to the nanosecond."""
-    return ns_to_stamp(round(t * 1e9))
+    whole = math.floor(t)
+    return ns_to_stamp(int(whole) * 1_000_000_000 + round((t - whole) * 1e9))
 
 
 def diagnostic_status(
-    name: str, level: int, message: str, hardware_id: str = "", values: dict | None = None
+    name: str, level: int | bytes, message: str, hardware_id: str = "", values: dict | None = None
 ) -> DiagnosticStatus:
-    """One DiagnosticStatus with ``values`` rendered as strings (floats with 4 significant digits)."""
-    status = DiagnosticStatus(name=name, level=bytes([level]), message=message, hardware_id=hardware_id)
+    """One DiagnosticStatus with ``values`` rendered as strings (floats with 4 significant digits);
+    ``level`` is DiagnosticStatus.OK/WARN/ERROR/STALE (bytes) or the same as an int."""
+    if isinstance(level, int):
+        level = bytes([level])
+    status = DiagnosticStatus(name=name, level=level, message=message, hardware_id=hardware_id)
     for key, value in (values or {}).items():
         text = f"{value:.4g}" if isinstance(value, float) else str(value)
         status.values.append(KeyValue(key=str(key), value=text))

@@ -92,6 +92,14 @@ class Recorder(Node):
         return QoSProfile(history=base.history, depth=base.depth, reliability=base.reliability,
                           durability=durability)
 
+    def recording(self, topic: str) -> bool:
+        """True once ``topic`` (absolute name) has a recording subscription."""
+        return topic in self._recorded_topics
+
+    def discover(self) -> None:
+        """Subscribe to every matching topic that exists now (also runs on a timer)."""
+        self._discover()
+
     def _discover(self) -> None:
         for topic, types in self.get_topic_names_and_types():
             if self.requested and topic not in self.requested:

@@ -1,0 +1,122 @@
+"""orientation_filter node: raw topics in → orientations out; same numbers as the offline path;
+NaN samples, duplicates and time going backwards handled as issue 3 says."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gait_biofeedback.core import quaternion as quat
+from gait_biofeedback.core.orientation_stream import SegmentOrientationTracker, track_orientation
+from gait_biofeedback.core.simulator import SCENARIOS, simulate
+from gait_biofeedback.graph import replay_through_graph
+from gait_biofeedback.io.bag import BagReader, read_imu_bag
+from gait_biofeedback.io.session_bag import write_simulated_bag
+
+pytestmark = [pytest.mark.ros, pytest.mark.timeout(90)]
+SEGMENTS = ["left_foot", "pelvis"]
+
+
+@pytest.fixture(scope="module")
+def walk_bag(tmp_path_factory):
+    config = SCENARIOS["walk"](duration=4.0)
+    config.segments = tuple(SEGMENTS)
+    session = simulate(config)
+    return write_simulated_bag(tmp_path_factory.mktemp("walk") / "in", session), session
+
+
+def _recorded_orientations(path, segment):
+    stamps, quats = [], []
+    for _, msg, _ in BagReader(path).messages([f"/{segment}/imu/data"]):
+        stamps.append(msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
+        o = msg.orientation
+        quats.append((o.w, o.x, o.y, o.z))
+    return np.array(stamps), np.array(quats)
+
+
+def test_live_graph_equals_offline_tracker(walk_bag, tmp_path):
+    bag, session = walk_bag
+    out = tmp_path / "out"
+    replay_through_graph(bag, out, speed=2.0, nodes=["orientation_filter"], timeout=60,
+                         node_parameters={"orientation_filter": {"segments": SEGMENTS}})
+    recorded = read_imu_bag(bag)
+    for segment in SEGMENTS:
+        stamps, live = _recorded_orientations(out, segment)
+        _, offline, _ = track_orientation(recorded[segment])
+        assert len(live) == len(recorded[segment].t), "one orientation per raw sample"
+        np.testing.assert_array_equal(stamps, np.round(recorded[segment].t * 1e9).astype(np.int64))
+        np.testing.assert_array_equal(live, offline)
+        # and it is the right attitude: within 5 deg of the truth after the start-up second
+        err = np.degrees(quat.angle_between(live, session.truth.sensor_orientation[segment]))
+        assert np.median(err[100:]) < 5.0, f"{segment}: median error {np.median(err[100:]):.1f} deg"
+
+
+def test_tracker_skips_nan_and_duplicates_and_resets_on_backwards_time():
+    tracker = SegmentOrientationTracker("chest", rate_hz=100.0, startup_s=0.5)
+    still = ((0.0, 0.0, 0.0), (0.0, 0.0, 9.81))
+    out = []
+    for k in range(100):
+        out += tracker.update(10.0 + k * 0.01, *still)
+    assert len(out) == 100 and tracker.startup_quiet
+    assert tracker.update(11.0, (np.nan, 0.0, 0.0), (0.0, 0.0, 9.81)) == []
+    assert tracker.update(10.99, *still) == [], "same stamp as the last sample: a duplicate"
+    assert tracker.counts["nan_skipped"] == 1 and tracker.counts["duplicates"] == 1
+    tracker.pop_messages()
+    assert tracker.update(5.0, *still) == [], "backwards: filter reset, start-up collects again"
+    assert tracker.counts["time_resets"] == 1
+    (level, text), = tracker.pop_messages()
+    assert level == "warn" and "time went back" in text
+    more = []
+    for k in range(1, 60):
+        more += tracker.update(5.0 + k * 0.01, *still)
+    assert len(more) == 60, "the start-up window releases every buffered sample"
+    assert tracker.update(8.0, *still) and tracker.counts["gaps"] == 1
+
+
+def test_node_counts_bad_samples_and_reports_them(ros_context):
+    from rclpy.node import Node
+    from sensor_msgs.msg import Imu
+
+    from gait_biofeedback.nodes.common import (
+        SENSOR_QOS,
+        make_executor,
+        s_to_stamp,
+        spin_until,
+    )
+    from gait_biofeedback.nodes.orientation_filter import OrientationFilterNode
+
+    node = OrientationFilterNode(ros_context, segments=["chest"], startup_s=0.2, diagnostics_period=0.2)
+    source = Node("source", context=ros_context)
+    pub = source.create_publisher(Imu, "chest/imu/data_raw", SENSOR_QOS)
+    outputs, diagnostics = [], []
+    source.create_subscription(Imu, "chest/imu/data", outputs.append, 100)
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    source.create_subscription(DiagnosticArray, "/diagnostics", diagnostics.append, 10)
+    executor = make_executor(ros_context)
+    executor.add_node(node)
+    executor.add_node(source)
+    try:
+        assert spin_until(executor, lambda: pub.get_subscription_count() > 0, timeout=5)
+        stamps = [100.0 + k * 0.01 for k in range(60)] + [50.0 + k * 0.01 for k in range(30)]
+        for k, t in enumerate(stamps):
+            msg = Imu()
+            msg.header.stamp = s_to_stamp(t)
+            msg.header.frame_id = "chest_imu" if k < 70 else "pelvis_imu"
+            msg.linear_acceleration.z = float("nan") if k == 40 else 9.81
+            pub.publish(msg)
+            executor.spin_once(timeout_sec=0.002)
+        assert spin_until(executor, lambda: len(outputs) >= 89, timeout=5)
+        spin_until(executor, lambda: len(diagnostics) >= 2, timeout=3)
+    finally:
+        node.destroy_node()
+        source.destroy_node()
+        executor.shutdown()
+    counts = node.trackers["chest"].counts
+    assert counts["nan_skipped"] == 1 and counts["time_resets"] == 1
+    assert len(outputs) == 89
+    assert node.wrong_frame["chest"] == 20
+    status = diagnostics[-1].status[0]
+    values = {kv.key: kv.value for kv in status.values}
+    assert values["nan_skipped"] == "1" and values["time_resets"] == "1"
+    assert status.level == b"\x01" and "frame_id" in status.message
