@@ -15,11 +15,13 @@ Rules (issue 3):
   (:func:`~gait_biofeedback.core.filters.calibrate_from_rest`); if it moved, a message says so and
   the filter starts from the accelerometer alone. Then the buffered samples are filtered and released
   together, so no sample is lost; only the first ``startup_s`` s come out late, once.
-- Magnetometer: each IMU sample uses the newest magnetometer sample stamped strictly before it and
-  not older than ``mag_max_age`` s; without one the filter runs in 6D mode for that sample. "Strictly
-  before" makes the result independent of the order in which the two topics of the same instant
-  arrive (DDS does not order across topics), so the live graph and the offline path agree exactly;
-  it costs one sample (10 ms) of magnetometer age.
+- Magnetometer: the IMU sample at ``t`` uses the newest magnetometer sample stamped at or before
+  ``t - mag_delay``, if it is not older than ``mag_delay + mag_max_age``; without one the filter runs
+  in 6D mode for that sample. The fixed look-back ``mag_delay`` (50 ms) makes the pairing depend on
+  stamps only, not on whether the magnetometer message of an instant arrives before or after the IMU
+  message (DDS does not order across topics), so the live graph and the offline path agree exactly
+  while the magnetometer stream lags by less than ``mag_delay``. A 50 ms old magnetic field costs
+  nothing measurable: it only corrects the slow heading drift.
 """
 
 from __future__ import annotations
@@ -58,7 +60,7 @@ class SegmentOrientationTracker:
 
     def __init__(self, segment: str, rate_hz: float = 100.0, algorithm: str | None = None,
                  params: dict[str, Any] | None = None, startup_s: float = 1.0, max_gap: float = 0.5,
-                 mag_max_age: float = 0.05) -> None:
+                 mag_max_age: float = 0.05, mag_delay: float = 0.05) -> None:
         self.segment = segment
         self.algorithm = algorithm or DEFAULT_ALGORITHM
         if self.algorithm not in ALGORITHMS:
@@ -69,12 +71,13 @@ class SegmentOrientationTracker:
         self.startup_s = float(startup_s)
         self.max_gap = float(max_gap)
         self.mag_max_age = float(mag_max_age)
+        self.mag_delay = float(mag_delay)
         self.filter = ALGORITHMS[self.algorithm](self.rate_hz, **self.params)
         self.counts = {"samples": 0, "published": 0, "nan_skipped": 0, "duplicates": 0,
                        "time_resets": 0, "gaps": 0, "mag_samples": 0}
         self.startup_quiet: bool | None = None
         self._messages: list[tuple[str, str]] = []
-        self._mag: deque[tuple[float, tuple[float, float, float]]] = deque(maxlen=8)
+        self._mag: deque[tuple[float, tuple[float, float, float]]] = deque(maxlen=64)
         self._restart()
 
     def _restart(self) -> None:
@@ -97,9 +100,10 @@ class SegmentOrientationTracker:
             self.counts["mag_samples"] += 1
 
     def _mag_for(self, t: float) -> tuple | None:
+        newest = t - self.mag_delay
         for t_mag, m in reversed(self._mag):
-            if t_mag < t:
-                return m if t - t_mag <= self.mag_max_age else None
+            if t_mag <= newest:
+                return m if newest - t_mag <= self.mag_max_age else None
         return None
 
     def update(self, t: float, gyr: Any, acc: Any, stamp: Any = None) -> list[OrientationSample]:
@@ -145,7 +149,9 @@ class SegmentOrientationTracker:
         self.startup_quiet = n >= 0.5 * len(samples)
         if self.startup_quiet:
             mags = [s[3] for s in samples[:n]]
-            mag = np.array(mags) if all(v is not None for v in mags) else None
+            have = sum(m is not None for m in mags)
+            mag = (np.array([m if m is not None else (np.nan,) * 3 for m in mags])
+                   if have >= 0.5 * n else None)
             self.filter.calibrate(calibrate_from_rest(gyr[:n], acc[:n], mag))
         else:
             self._say("warn", f"sensor moved during the first {self.startup_s:g} s: gyro bias not "
