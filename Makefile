@@ -11,9 +11,10 @@ setup:
 demo: setup
 	$(PY) -m gait_biofeedback.cli demo
 
+# the outer KILL timeout is the last guard: a hung rclpy process ignores SIGTERM
 test: setup
 	$(PY) -m ruff check gait_biofeedback test benchmarks scripts
-	$(PY) -m pytest -q
+	timeout -s KILL 1200 $(PY) -m pytest -q
 
 lint: setup
 	$(PY) -m ruff check gait_biofeedback test benchmarks scripts

@@ -9,6 +9,7 @@ NODES = {
     "imu_replayer": "gait_biofeedback.nodes.imu_replayer:main",
     "recorder": "gait_biofeedback.nodes.recorder:main",
     "orientation_filter": "gait_biofeedback.nodes.orientation_filter:main",
+    "activity_monitor": "gait_biofeedback.nodes.activity_monitor:main",
 }
 
 setup(

@@ -1,0 +1,151 @@
+"""Node ``activity_monitor``: chest accelerometer → posture, transitions, walking modality, steps.
+
+Subscribes ``chest/imu/data_raw`` (sensor_msgs/Imu; only the accelerometer is used, thesis ch. 7),
+publishes ``activity/state`` (gait_biofeedback_msgs/ActivityState) whenever posture, locomotion or
+the last transition change, and every ``publish_period`` s. The state describes the sample
+``delay`` s before the newest one (:data:`gait_biofeedback.core.activity.DELAY_S`): the monitor
+needs that look-ahead to confirm steps and transitions. Bad input: NaN samples and repeated stamps
+are skipped and counted; a stamp going backwards or a gap > ``max_gap`` s restarts the monitor
+(its upright reference is taken again from the next ``reference_s`` s).
+
+Parameters: ``segment`` (chest), ``rate_hz`` (nominal rate of the chest IMU, 20–200 Hz), ``units``
+(``m/s2`` or ``g``), ``reference_s``, ``thigh_length`` (m), ``initial_posture``, ``max_gap``,
+``publish_period``.
+"""
+
+from __future__ import annotations
+
+import math
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from rclpy.context import Context
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import Imu
+
+from gait_biofeedback.core.activity import ActivityMonitor
+from gait_biofeedback.core.activity import ActivityState as CoreActivityState
+from gait_biofeedback.core.segments import raw_topic
+from gait_biofeedback.nodes.common import (
+    DIAGNOSTICS_TOPIC,
+    RELIABLE_QOS,
+    SENSOR_QOS,
+    diagnostic_array,
+    diagnostic_status,
+    s_to_stamp,
+    stamp_to_s,
+)
+from gait_biofeedback_msgs.msg import ActivityState
+
+POSTURE_CODES = {"standing": ActivityState.POSTURE_STANDING, "sitting": ActivityState.POSTURE_SITTING,
+                 "lying": ActivityState.POSTURE_LYING}
+LOCOMOTION_CODES = {"none": ActivityState.LOCOMOTION_NONE, "level": ActivityState.LOCOMOTION_LEVEL,
+                    "upstairs": ActivityState.LOCOMOTION_UPSTAIRS,
+                    "downstairs": ActivityState.LOCOMOTION_DOWNSTAIRS}
+TRANSITION_CODES = {None: ActivityState.TRANSITION_NONE,
+                    "sit_to_stand": ActivityState.TRANSITION_SIT_TO_STAND,
+                    "stand_to_sit": ActivityState.TRANSITION_STAND_TO_SIT,
+                    "sit_to_lie": ActivityState.TRANSITION_SIT_TO_LIE,
+                    "lie_to_sit": ActivityState.TRANSITION_LIE_TO_SIT}
+
+
+def to_message(state: CoreActivityState, newest_t: float, frame_id: str = "chest") -> ActivityState:
+    """Core state → ActivityState message (stamp = the instant the state describes)."""
+    msg = ActivityState()
+    msg.header.stamp = s_to_stamp(state.t)
+    msg.header.frame_id = frame_id
+    msg.posture = POSTURE_CODES[state.posture]
+    msg.locomotion = LOCOMOTION_CODES[state.locomotion]
+    msg.last_transition = TRANSITION_CODES[state.last_transition]
+    if state.last_transition_t is not None:
+        msg.last_transition_stamp = s_to_stamp(state.last_transition_t)
+    msg.step_count = int(state.step_count)
+    msg.trunk_inclination = float(state.trunk_inclination)
+    msg.delay = float(newest_t - state.t)
+    return msg
+
+
+class ActivityMonitorNode(Node):
+    """Chest activity monitor (see module docstring)."""
+
+    def __init__(self, context: Context | None = None, **overrides: object) -> None:
+        super().__init__("activity_monitor", context=context,
+                         parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()])
+        self.segment = self.declare_parameter("segment", "chest").value
+        self.rate_hz = float(self.declare_parameter("rate_hz", 100.0).value)
+        self.options = {
+            "units": self.declare_parameter("units", "m/s2").value,
+            "reference_s": float(self.declare_parameter("reference_s", 2.0).value),
+            "thigh_length_m": float(self.declare_parameter("thigh_length", 0.42).value),
+            "initial_posture": self.declare_parameter("initial_posture", "standing").value,
+        }
+        self.max_gap = float(self.declare_parameter("max_gap", 0.5).value)
+        self.monitor = ActivityMonitor(self.rate_hz, **self.options)
+        self.counts = {"samples": 0, "nan_skipped": 0, "duplicates": 0, "restarts": 0, "published": 0}
+        self._t_last: float | None = None
+        self._latest: CoreActivityState | None = None
+        self._newest_t = 0.0
+        self._published_key: tuple | None = None
+        self._pub = self.create_publisher(ActivityState, "activity/state", RELIABLE_QOS)
+        self._diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, RELIABLE_QOS)
+        self.create_subscription(Imu, raw_topic(self.segment), self._on_imu, SENSOR_QOS)
+        self.create_timer(float(self.declare_parameter("publish_period", 1.0).value), self._periodic)
+
+    def _restart(self, why: str) -> None:
+        self.counts["restarts"] += 1
+        self.get_logger().warning(f"{self.segment}: {why}: activity monitor restarted")
+        self.monitor = ActivityMonitor(self.rate_hz, **self.options)
+
+    def _on_imu(self, msg: Imu) -> None:
+        self.counts["samples"] += 1
+        t = stamp_to_s(msg.header.stamp)
+        a = msg.linear_acceleration
+        acc = (a.x, a.y, a.z)
+        if not all(math.isfinite(v) for v in acc):
+            self.counts["nan_skipped"] += 1
+            return
+        if self._t_last is not None:
+            dt = t - self._t_last
+            if dt == 0.0:
+                self.counts["duplicates"] += 1
+                return
+            if dt < 0.0:
+                self._restart(f"time went back {-dt:.3f} s")
+            elif dt > self.max_gap:
+                self._restart(f"{dt:.2f} s without data")
+        self._t_last = t
+        self._newest_t = t
+        state = self.monitor.update(t, acc)
+        if state is None:
+            return
+        self._latest = state
+        key = (state.posture, state.locomotion, state.last_transition, state.last_transition_t)
+        if key != self._published_key:
+            self._publish(state)
+
+    def _publish(self, state: CoreActivityState) -> None:
+        self._published_key = (state.posture, state.locomotion, state.last_transition,
+                               state.last_transition_t)
+        self._pub.publish(to_message(state, self._newest_t, self.segment))
+        self.counts["published"] += 1
+
+    def _periodic(self) -> None:
+        if self._latest is not None:
+            self._publish(self._latest)
+        level = DiagnosticStatus.OK if self._latest is not None else DiagnosticStatus.WARN
+        message = "monitoring" if self._latest is not None else "waiting for chest data"
+        self._diagnostics.publish(diagnostic_array(self, [diagnostic_status(
+            "activity_monitor", level, message, f"{self.segment}_imu", self.counts)]))
+
+
+def main(args: list[str] | None = None) -> int:
+    """Console script."""
+    from gait_biofeedback.nodes.common import run_nodes
+
+    return run_nodes([ActivityMonitorNode], args)
+
+
+if __name__ == "__main__":
+    import sys
+
+    sys.exit(main())
