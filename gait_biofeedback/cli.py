@@ -102,7 +102,7 @@ def cmd_info(args: argparse.Namespace) -> int:
     print(f"{args.bag}: {sum(counts.values())} messages, {duration:.2f} s, {len(counts)} topics")
     for topic, type_name in sorted(reader.topics().items()):
         n = counts.get(topic, 0)
-        rate = n / duration if duration > 0 else 0.0
+        rate = (n - 1) / duration if duration > 0 and n > 1 else 0.0
         print(f"  {topic:42s} {type_name:42s} {n:8d}  {rate:7.1f} Hz")
     return 0
 

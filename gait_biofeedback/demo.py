@@ -48,7 +48,7 @@ def summarize(input_bag: Path, output: Path, wall_time: float, published: int) -
         f"{'topic':44s}{'messages':>10s}{'rate Hz':>10s}",
     ]
     for topic in sorted(counts):
-        lines.append(f"{topic:44s}{counts[topic]:10d}{counts[topic] / duration:10.1f}")
+        lines.append(f"{topic:44s}{counts[topic]:10d}{(counts[topic] - 1) / duration:10.1f}")
     lines += [
         "-" * 78,
         f"open {output} in Foxglove (File > Open local file, pick the .mcap) or run "

@@ -54,10 +54,10 @@ def test_generic_csv_converts_g_deg_s_ut_ms_to_si(small_csv: Path) -> None:
     foot = recording.imu["left_foot"]
     # time in ms kept absolute, converted to s
     np.testing.assert_allclose(foot.t, [1.0, 1.01, 1.02])
-    # 1 g = 9.81 m/s², 0.5 g = 4.905, -1 g = -9.81, 2 g = 19.62
-    np.testing.assert_allclose(foot.acc[0], [0.0, 0.0, 9.81])
-    np.testing.assert_allclose(foot.acc[1], [4.905, -9.81, 0.0])
-    np.testing.assert_allclose(foot.acc[2], [0.0, 19.62, 0.0])
+    # 1 g = 9.80665 m/s² (standard gravity), 0.5 g = 4.903325, -1 g = -9.80665, 2 g = 19.6133
+    np.testing.assert_allclose(foot.acc[0], [0.0, 0.0, 9.80665])
+    np.testing.assert_allclose(foot.acc[1], [4.903325, -9.80665, 0.0])
+    np.testing.assert_allclose(foot.acc[2], [0.0, 19.6133, 0.0])
     # 180 deg/s = π rad/s, -90 = -π/2, 360 = 2π, -45 = -π/4
     np.testing.assert_allclose(foot.gyr[0], [math.pi, 0.0, -math.pi / 2])
     np.testing.assert_allclose(foot.gyr[1], [0.0, 2 * math.pi, 0.0])

@@ -23,6 +23,7 @@ SEGMENTS: tuple[str, ...] = (
 SIDES: tuple[str, ...] = ("left", "right")
 WORLD_FRAME = "world"
 GRAVITY = 9.81  # m/s², the simulator's and the filters' nominal value
+STANDARD_GRAVITY = 9.80665  # m/s² per g, for unit conversion (CGPM 1901)
 
 
 def sensor_frame(segment: str) -> str:

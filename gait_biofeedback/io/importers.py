@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from gait_biofeedback.core.segments import GRAVITY, ImuSeries
+from gait_biofeedback.core.segments import GRAVITY, STANDARD_GRAVITY, ImuSeries
 
 DEG_TO_RAD = math.pi / 180.0
 MICROTESLA_TO_TESLA = 1e-6
@@ -50,7 +50,7 @@ QMT_SEGMENT_OF_STRUCT: dict[str, str] = {
 
 # Conversion factors to SI per quantity; keys are the accepted unit spellings.
 UNIT_FACTORS: dict[str, dict[str, float]] = {
-    "acc": {"m/s2": 1.0, "m/s^2": 1.0, "m/s²": 1.0, "g": GRAVITY},
+    "acc": {"m/s2": 1.0, "m/s^2": 1.0, "m/s²": 1.0, "g": STANDARD_GRAVITY},
     "gyr": {"rad/s": 1.0, "deg/s": DEG_TO_RAD, "dps": DEG_TO_RAD},
     "mag": {"T": 1.0, "uT": MICROTESLA_TO_TESLA, "µT": MICROTESLA_TO_TESLA, "gauss": GAUSS_TO_TESLA},
     "time": {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "ns": 1e-9},
@@ -339,7 +339,7 @@ def import_generic_csv(
           acc: [p_ax, p_ay, p_az]
           gyr: [p_gx, p_gy, p_gz]
 
-    ``units`` (overrides the mapping's): ``acc`` ``m/s2`` (default) | ``g`` (× 9.81); ``gyr`` ``rad/s``
+    ``units`` (overrides the mapping's): ``acc`` ``m/s2`` (default) | ``g`` (× 9.80665); ``gyr`` ``rad/s``
     (default) | ``deg/s``; ``mag`` ``T`` (default) | ``uT`` | ``gauss``; ``time`` ``s`` (default) | ``ms``
     | ``us``. ``rate_hz``: when the file has no time column, ``t = row / rate_hz``; given ``rate_hz``, a
     default-named time column is ignored, and naming a time column as well is an error.

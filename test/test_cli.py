@@ -1,0 +1,92 @@
+"""The ``gait-biofeedback`` command: help, simulate, import, info, repair (in-process calls)."""
+
+from __future__ import annotations
+
+import shutil
+
+import numpy as np
+import pytest
+from conftest import shared_data
+
+from gait_biofeedback.cli import main
+from gait_biofeedback.io.bag import BagReader, read_imu_bag
+
+pytestmark = pytest.mark.timeout(120)
+
+
+def test_help_lists_every_command(capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--help"])
+    assert exit_info.value.code == 0
+    text = capsys.readouterr().out
+    for command in ("demo", "simulate", "import", "replay", "record", "info", "repair"):
+        assert command in text
+
+
+def test_simulate_is_deterministic_and_info_reads_it(tmp_path, capsys):
+    for name in ("a", "b"):
+        assert main(["simulate", "--scenario", "calibration_walking", "--seed", "3",
+                     "-o", str(tmp_path / name)]) == 0
+    a, b = read_imu_bag(tmp_path / "a"), read_imu_bag(tmp_path / "b")
+    assert sorted(a) == sorted(b) and len(a) == 8
+    for segment in a:
+        np.testing.assert_array_equal(a[segment].acc, b[segment].acc)
+        np.testing.assert_array_equal(a[segment].mag, b[segment].mag)
+    capsys.readouterr()
+    assert main(["info", str(tmp_path / "a")]) == 0
+    out = capsys.readouterr().out
+    assert "/left_foot/imu/data_raw" in out and "sensor_msgs/msg/Imu" in out and "100.0 Hz" in out
+
+
+def test_simulate_rejects_an_unknown_scenario(tmp_path, capsys):
+    assert main(["simulate", "--scenario", "marathon", "-o", str(tmp_path / "x")]) == 2
+    assert "unknown scenario" in capsys.readouterr().err
+
+
+def test_import_csv_with_mapping_and_units(tmp_path):
+    csv = tmp_path / "walk.csv"
+    rows = ["time_ms,ax,ay,az,gx,gy,gz"] + [f"{10 * k},0,0,1,{k},0,0" for k in range(50)]
+    csv.write_text("\n".join(rows) + "\n")
+    mapping = tmp_path / "mapping.yaml"
+    mapping.write_text("time: time_ms\nleft_foot:\n  acc: [ax, ay, az]\n  gyr: [gx, gy, gz]\n")
+    out = tmp_path / "bag"
+    assert main(["import", "csv", str(csv), "--mapping", str(mapping), "--units", "acc=g", "gyr=deg/s",
+                 "time=ms", "-o", str(out)]) == 0
+    series = read_imu_bag(out)["left_foot"]
+    np.testing.assert_allclose(series.t, np.arange(50) * 0.01)
+    np.testing.assert_allclose(series.acc[:, 2], 9.80665)
+    np.testing.assert_allclose(series.gyr[:, 0], np.radians(np.arange(50)))
+    assert series.mag is None
+
+
+def test_import_reports_a_missing_column(tmp_path, capsys):
+    csv = tmp_path / "bad.csv"
+    csv.write_text("t,ax,ay,az\n0,0,0,1\n")
+    mapping = tmp_path / "mapping.yaml"
+    mapping.write_text("pelvis:\n  acc: [ax, ay, az]\n  gyr: [gx, gy, gz]\n")
+    assert main(["import", "csv", str(csv), "--mapping", str(mapping), "-o", str(tmp_path / "o")]) == 2
+    assert "gx" in capsys.readouterr().err
+
+
+def test_import_qmt_fullbody(tmp_path):
+    source = shared_data("qmt_fullbody", "full_body_example_data.mat")
+    assert main(["import", "auto", str(source), "-o", str(tmp_path / "qmt")]) == 0
+    imu = read_imu_bag(tmp_path / "qmt")
+    assert set(imu) == {"pelvis", "left_thigh", "left_shank", "left_foot", "right_thigh", "right_shank",
+                        "right_foot", "chest"}
+    assert abs(imu["pelvis"].rate_hz - 100.0) < 0.01
+
+
+def test_repair_makes_a_cut_recording_whole(tmp_path, capsys):
+    assert main(["simulate", "--scenario", "calibration_walking", "-o", str(tmp_path / "full")]) == 0
+    cut = tmp_path / "cut"
+    cut.mkdir()
+    source = next((tmp_path / "full").glob("*.mcap"))
+    data = source.read_bytes()
+    (cut / "cut_0.mcap").write_bytes(data[: len(data) * 2 // 3])
+    assert main(["repair", str(cut)]) == 0
+    assert "repaired" in capsys.readouterr().out
+    reader = BagReader(cut)
+    assert 0 < reader.message_count < BagReader(tmp_path / "full").message_count
+    assert (cut / "metadata.yaml").exists()
+    shutil.rmtree(tmp_path / "full")
