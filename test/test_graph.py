@@ -133,3 +133,64 @@ def test_killed_recorder_leaves_a_readable_bag(tmp_path):
     assert len(messages) >= recovered
     stamps = [m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for _, m, _ in messages]
     assert np.all(np.diff(stamps) > 0)
+
+
+
+def _collect(ros_context, bag, topic_type, topic, until=None, **params):
+    """Run a replayer with ``params`` until it ends (or ``until(received)``); the received messages."""
+    from rclpy.node import Node
+
+    from gait_biofeedback.nodes.common import SENSOR_QOS, make_executor, spin_until
+    from gait_biofeedback.nodes.imu_replayer import ImuReplayer
+
+    got = []
+    sink = Node("sink", context=ros_context)
+    sink.create_subscription(topic_type, topic, got.append, SENSOR_QOS)
+    executor = make_executor(ros_context)
+    executor.add_node(sink)
+    replayer = ImuReplayer(ros_context, bag=str(bag), wait_for_subscribers=5.0, **params)
+    executor.add_node(replayer)
+    try:
+        done = replayer.finished.is_set if until is None else (lambda: until(got))
+        assert spin_until(executor, done, timeout=20)
+        if until is None:
+            spin_until(executor, lambda: False, timeout=0.3)
+    finally:
+        replayer.destroy_node()
+        sink.destroy_node()
+        executor.shutdown()
+    return got
+
+
+def test_replayer_start_stop_offsets_loop_and_clock(tmp_path, ros_context):
+    from rosgraph_msgs.msg import Clock
+    from sensor_msgs.msg import Imu
+
+    from gait_biofeedback.nodes.common import stamp_to_s
+
+    bag = write_imu_bag(tmp_path / "in", synthetic_imu(["pelvis"], duration=1.0, with_mag=False, t0=50.0))
+    got = _collect(ros_context, bag, Imu, "pelvis/imu/data_raw", speed=0.0, start_offset=0.2,
+                   stop_offset=0.5)
+    stamps = [stamp_to_s(m.header.stamp) for m in got]
+    assert len(stamps) == 30 and stamps[0] == pytest.approx(50.2) and stamps[-1] == pytest.approx(50.49)
+
+    got = _collect(ros_context, bag, Imu, "pelvis/imu/data_raw", until=lambda g: len(g) >= 150,
+                   speed=4.0, loop=True)
+    stamps = np.array([stamp_to_s(m.header.stamp) for m in got])
+    assert np.sum(np.diff(stamps) < 0) == 1, "one jump back to the start per loop"
+    assert stamps[100] == pytest.approx(50.0)
+
+    clock = _collect(ros_context, bag, Clock, "/clock", speed=0.0, publish_clock=True)
+    assert len(clock) == 100 and stamp_to_s(clock[-1].clock) == pytest.approx(50.99)
+
+
+def test_recorder_splits_by_duration_and_keeps_every_message(tmp_path):
+    imu = synthetic_imu(["left_shank"], duration=2.0, with_mag=False)
+    bag = write_imu_bag(tmp_path / "in", imu)
+    out = tmp_path / "out"
+    result = replay_through_graph(bag, out, speed=1.0, nodes=[], timeout=30,
+                                  node_parameters={"recorder": {"split_duration": 0.6}})
+    files = sorted(out.glob("*.mcap"))
+    assert len(files) >= 3, files
+    assert result.recorded == 200
+    np.testing.assert_array_equal(read_imu_bag(out)["left_shank"].t, imu["left_shank"].t)
