@@ -1,0 +1,94 @@
+"""Start-up step: static gyro bias, reference norms and initial attitude from quiet standing.
+
+Thesis §5.3.1 / §7.2 of orientation.md: the static gyro bias is the mean gyro reading during the quiet
+standing at the start of a trial, and ‖y_A,stat‖, ‖y_M,stat‖ (the references of the VST deviations,
+thesis Eq 23, 48–49) are measured in the same window. The initial attitude comes from the averaged
+accelerometer (+ magnetometer) by TRIAD (thesis Eq 9) with the accelerometer as the exact first vector,
+so a magnetic disturbance never tilts the initial attitude.
+
+World frame: ENU. With a magnetometer the heading is magnetic: the horizontal component of the field
+points along world +y (north). Without one (6D), the heading is free and set to zero yaw (ZYX).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from gait_biofeedback.core import quaternion as quat
+
+
+def attitude_from_vectors(acc: np.ndarray, mag: np.ndarray | None = None) -> np.ndarray:
+    """Orientation (..., 4) from specific force (+ magnetic field) vectors (..., 3), any units.
+
+    TRIAD (thesis Eq 9) in ENU: up = acc/‖acc‖ (a static accelerometer reads +g up), east =
+    mag × up normalised, north = up × east; R(q) has rows (east, north, up) in sensor coordinates.
+    Without ``mag``: tilt only, yaw = 0 (thesis Eq 11 roll/pitch, written with atan2).
+    """
+    acc = np.asarray(acc, dtype=float)
+    up = acc / np.linalg.norm(acc, axis=-1, keepdims=True)
+    if mag is None:
+        pitch = np.arctan2(-up[..., 0], np.hypot(up[..., 1], up[..., 2]))
+        roll = np.arctan2(up[..., 1], up[..., 2])
+        return quat.canonical(quat.from_euler_zyx(np.zeros_like(roll), pitch, roll))
+    east = np.cross(np.asarray(mag, dtype=float), up)
+    east = east / np.linalg.norm(east, axis=-1, keepdims=True)
+    north = np.cross(up, east)
+    return quat.from_matrix(np.stack([east, north, up], axis=-2))
+
+
+def quiet_samples(gyr: np.ndarray, acc: np.ndarray, rate_hz: float, max_s: float = 10.0,
+                  gyr_tol: float = 0.05, acc_tol: float = 0.5) -> int:
+    """Number of leading samples (up to ``max_s`` seconds) during which the sensor is at rest.
+
+    Rest = ‖ω‖ < ``gyr_tol`` rad/s and ‖a‖ within ``acc_tol`` m/s² of the median norm of the window
+    (thresholds loose enough to include the static gyro bias). Returns 0 if the first sample moves.
+    """
+    n = min(len(gyr), round(max_s * rate_hz))
+    if n == 0:
+        return 0
+    g = np.linalg.norm(np.asarray(gyr[:n], dtype=float), axis=1)
+    a = np.linalg.norm(np.asarray(acc[:n], dtype=float), axis=1)
+    moving = ~(g < gyr_tol) | ~(np.abs(a - np.nanmedian(a)) < acc_tol)
+    return np.argmax(moving).item() if moving.any() else n
+
+
+@dataclass(frozen=True)
+class StartupCalibration:
+    """Result of the quiet-standing start-up step (thesis §5.3.1)."""
+
+    gyro_bias: np.ndarray  # rad/s, sensor frame, subtracted from every later gyro sample
+    acc_norm: float  # ‖y_A,stat‖, m/s²
+    mag_norm: float | None  # ‖y_M,stat‖, the magnetometer's own unit (tesla on the wire, µT in BROAD)
+    q0: np.ndarray  # initial attitude (w, x, y, z)
+    acc_mean: np.ndarray
+    mag_mean: np.ndarray | None
+    n_samples: int
+
+
+def calibrate_from_rest(gyr: np.ndarray, acc: np.ndarray,
+                        mag: np.ndarray | None = None) -> StartupCalibration:
+    """Start-up calibration from a window of samples recorded at rest (NaN rows are ignored).
+
+    Raises ValueError if the window holds no valid sample.
+    """
+    gyr = np.asarray(gyr, dtype=float).reshape(-1, 3)
+    acc = np.asarray(acc, dtype=float).reshape(-1, 3)
+    ok = np.isfinite(gyr).all(1) & np.isfinite(acc).all(1)
+    if mag is not None:
+        mag = np.asarray(mag, dtype=float).reshape(-1, 3)
+        ok &= np.isfinite(mag).all(1)
+    if not ok.any():
+        raise ValueError("start-up window holds no finite sample")
+    acc_mean = acc[ok].mean(0)
+    mag_mean = None if mag is None else mag[ok].mean(0)
+    return StartupCalibration(
+        gyro_bias=gyr[ok].mean(0),
+        acc_norm=float(np.linalg.norm(acc[ok], axis=1).mean()),
+        mag_norm=None if mag is None else float(np.linalg.norm(mag[ok], axis=1).mean()),
+        q0=attitude_from_vectors(acc_mean, mag_mean),
+        acc_mean=acc_mean,
+        mag_mean=mag_mean,
+        n_samples=int(ok.sum()),
+    )

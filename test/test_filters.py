@@ -1,0 +1,275 @@
+"""Orientation filters on synthetic data with exact ground truth (no simulator dependency)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gait_biofeedback.core import quaternion as quat
+from gait_biofeedback.core.filters import (
+    ALGORITHMS,
+    DEFAULT_ALGORITHM,
+    attitude_from_vectors,
+    calibrate_from_rest,
+    estimate_orientation,
+    quiet_samples,
+)
+from gait_biofeedback.core.filters import _full_state as fs
+from gait_biofeedback.core.filters.nazarahari_rekf import NazarahariREKF
+
+RATE = 100.0
+G_WORLD = np.array([0.0, 0.0, 9.81])
+M_WORLD = np.array([0.0, 20e-6, -40e-6])  # tesla, north = +y, dip downwards
+ALL = sorted(ALGORITHMS)
+LKF_WEAK = pytest.mark.xfail(
+    strict=True, reason="nazarahari_lkf: slow/unstable bias coupling (known weakness)"
+)
+WITH_ONLINE_BIAS = {
+    "madgwick": {"zeta": 0.02},
+    "mahony": {"ki": 0.05},
+    "nazarahari_rekf": {"sigma_bw": 1e-3, "p0_bias": 1e-4},
+    "nazarahari_lkf": {"sigma_bw": 1e-3, "p0_bias": 1e-4},
+}
+GATING = {"mag_reject_norm": 0.05, "mag_reject_dip": math.radians(3.0)}
+
+
+def synth(seconds: float, rotating: bool, bias=(0.0, 0.0, 0.0), seed: int = 0, q0=None, noise: float = 1.0):
+    """Exact gyro (+bias, noise), acc = Rᵀg, mag = Rᵀm (noise) and the true orientation."""
+    rng = np.random.default_rng(seed)
+    n = int(seconds * RATE)
+    t = np.arange(n) / RATE
+    if rotating:
+        w = np.stack([1.0 * np.sin(0.5 * t), 0.8 * np.sin(0.7 * t + 1.0), 1.2 * np.sin(0.3 * t + 2.0)], 1)
+    else:
+        w = np.zeros((n, 3))
+    q = np.empty((n, 4))
+    q[0] = quat.from_euler_zyx(0.7, 0.2, -0.3) if q0 is None else q0
+    for k in range(1, n):
+        q[k] = quat.integrate_gyro(q[k - 1], w[k], 1.0 / RATE)
+    gyr = w + np.asarray(bias) + noise * rng.normal(0.0, 0.005, (n, 3))
+    acc = quat.rotate_inverse(q, G_WORLD) + noise * rng.normal(0.0, 0.02, (n, 3))
+    mag = quat.rotate_inverse(q, M_WORLD) + noise * rng.normal(0.0, 0.05e-6, (n, 3))
+    return gyr, acc, mag, q
+
+
+def heading_inclination(q_est, q_true):
+    e = quat.canonical(quat.multiply(q_est, quat.conjugate(q_true)))
+    head = np.abs((2.0 * np.arctan2(e[..., 3], e[..., 0]) + np.pi) % (2 * np.pi) - np.pi)
+    incl = 2.0 * np.arccos(np.clip(np.hypot(e[..., 0], e[..., 3]), 0.0, 1.0))
+    return np.degrees(head), np.degrees(incl)
+
+
+def run(name, gyr, acc, mag, **params):
+    return estimate_orientation(gyr, acc, mag, RATE, name, **params)
+
+
+@pytest.mark.parametrize(
+    "name", [pytest.param(n, marks=LKF_WEAK) if n == "nazarahari_lkf" else n for n in ALL]
+)
+def test_static_converges_from_wrong_start(name):
+    gyr, acc, mag, q = synth(60.0, rotating=False)
+    f = ALGORITHMS[name](RATE)
+    f.initialize(acc[0], mag[0])  # sets the reference norms and the world field
+    f.reset(quat.from_euler_zyx(0.2, 0.15, -0.1))  # ~40° away from the truth
+    for k in range(len(gyr)):
+        out = f.update(gyr[k], acc[k], mag[k])
+    # from ~40° off; the full-state EKF/LKF converge slowly from large errors (small P₀, known weakness)
+    assert np.degrees(quat.angle_between(out, q[-1])) < (5.0 if name.startswith("nazarahari") else 2.0)
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_rotating_tracks_truth(name):
+    gyr, acc, mag, q = synth(30.0, rotating=True)
+    est = run(name, gyr, acc, mag)
+    err = np.degrees(quat.angle_between(est, q))
+    assert err[0] < 1.5  # initial attitude from the vectors (TRIAD)
+    assert np.sqrt(np.mean(err**2)) < 3.0
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_six_d_mode_keeps_inclination(name):
+    gyr, acc, _, q = synth(30.0, rotating=True)
+    est = run(name, gyr, acc, None)
+    _, incl = heading_inclination(est, q)
+    assert np.sqrt(np.mean(incl**2)) < 2.0
+
+
+@pytest.mark.parametrize(
+    "name",
+    [pytest.param(n, marks=LKF_WEAK) if n == "nazarahari_lkf" else n for n in sorted(WITH_ONLINE_BIAS)],
+)
+def test_online_gyro_bias_recovered(name):
+    bias = np.array([0.02, -0.015, 0.01])
+    gyr, acc, mag, q = synth(60.0, rotating=False, bias=bias, seed=1)
+    f = ALGORITHMS[name](RATE, **WITH_ONLINE_BIAS[name])
+    for k in range(len(gyr)):
+        out = f.update(gyr[k], acc[k], mag[k])
+    est_bias = f.state()["gyro_bias"]
+    assert np.abs(est_bias - bias).max() < 0.004, est_bias
+    assert np.degrees(quat.angle_between(out, q[-1])) < 2.0
+
+
+def test_startup_step_recovers_static_bias_norms_and_attitude():
+    bias = np.array([0.02, -0.015, 0.01])
+    gyr, acc, mag, q = synth(5.0, rotating=False, bias=bias, seed=2)
+    cal = calibrate_from_rest(gyr, acc, mag)
+    assert np.abs(cal.gyro_bias - bias).max() < 1e-3
+    assert cal.acc_norm == pytest.approx(9.81, rel=1e-3)
+    assert cal.mag_norm == pytest.approx(np.linalg.norm(M_WORLD), rel=1e-3)
+    assert np.degrees(quat.angle_between(cal.q0, q[0])) < 0.5
+    # without a magnetometer: same tilt, yaw 0
+    cal6 = calibrate_from_rest(gyr, acc)
+    yaw, pitch, roll = quat.to_euler_zyx(cal6.q0)
+    assert yaw == pytest.approx(0.0, abs=1e-9)
+    assert (pitch, roll) == pytest.approx((0.2, -0.3), abs=5e-3)
+    with pytest.raises(ValueError):
+        calibrate_from_rest(np.full((3, 3), np.nan), acc[:3])
+
+
+@pytest.mark.parametrize("name", ["yi_cf", "zihajehzadeh_ckf"])
+def test_bias_free_filters_use_startup_bias(name):
+    bias = np.array([0.03, -0.02, 0.02])
+    gyr, acc, mag, q = synth(40.0, rotating=True, bias=bias, seed=3)
+    rest = np.tile(gyr[:1] * 0 + bias, (300, 1)) + np.random.default_rng(4).normal(0, 0.005, (300, 3))
+    g = np.vstack([rest, gyr])
+    a = np.vstack([np.tile(acc[0], (300, 1)), acc])
+    m = np.vstack([np.tile(mag[0], (300, 1)), mag])
+    est = estimate_orientation(g, a, m, RATE, name, startup_s=3.0)[300:]
+    assert np.sqrt(np.mean(np.degrees(quat.angle_between(est, q)) ** 2)) < 3.0
+
+
+def test_quiet_samples_finds_motion_onset():
+    gyr, acc, _, _ = synth(10.0, rotating=False)
+    gyr[400:] += 1.0
+    assert quiet_samples(gyr, acc, RATE, max_s=10.0) == 400
+    assert quiet_samples(gyr, acc, RATE, max_s=2.0) == 200
+
+
+def test_attitude_from_vectors_matches_truth_batch():
+    q = quat.from_euler_zyx(
+        np.array([0.0, 1.0, -2.5]), np.array([0.1, -0.4, 1.2]), np.array([0.3, 2.0, -1.0])
+    )
+    est = attitude_from_vectors(quat.rotate_inverse(q, G_WORLD), quat.rotate_inverse(q, M_WORLD))
+    assert np.degrees(quat.angle_between(est, q)).max() < 1e-6
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_magnetic_disturbance_rejected(name):
+    gyr, acc, mag, q = synth(30.0, rotating=True, seed=5)
+    disturbed = mag.copy()
+    sl = slice(500, 1500)  # 10 s next to a magnet fixed in the world: 60 % of the field, sideways
+    disturbed[sl] += quat.rotate_inverse(q[sl], np.array([0.6 * 44.7e-6, 0.0, 0.0]))
+    est = run(name, gyr, acc, disturbed, **GATING)
+    head, _ = heading_inclination(est, q)
+    assert head[sl].max() < 5.0
+    assert head[1500:].max() < 5.0
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_batch_equals_streaming(name):
+    gyr, acc, mag, _ = synth(5.0, rotating=True, seed=6)
+    batch = run(name, gyr, acc, mag)
+    f = ALGORITHMS[name](RATE)
+    stream = np.array([f.update(gyr[k], acc[k], mag[k]) for k in range(len(gyr))])
+    np.testing.assert_array_equal(batch, stream)
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_nan_sample_keeps_last_good_state(name):
+    gyr, acc, mag, _ = synth(3.0, rotating=True, seed=7)
+    ref = ALGORITHMS[name](RATE)
+    f = ALGORITHMS[name](RATE)
+    for k in range(len(gyr)):
+        expected = ref.update(gyr[k], acc[k], mag[k])
+        if k == 150:
+            held = f.update([np.nan, 0.0, 0.0], acc[k], mag[k])
+            np.testing.assert_array_equal(held, f.q)
+            f.update(gyr[k], [0.0, np.inf, 1.0], mag[k])
+        got = f.update(gyr[k], acc[k], mag[k])
+        np.testing.assert_array_equal(got, expected)
+    assert f.state()["skipped_samples"] == 2
+
+
+def test_nan_before_first_valid_sample_gives_nan_rows():
+    gyr, acc, mag, _ = synth(1.0, rotating=False)
+    acc[:10] = np.nan
+    est = estimate_orientation(gyr, acc, mag, RATE, DEFAULT_ALGORITHM)
+    assert np.isnan(est[:10]).all() and np.isfinite(est[10:]).all()
+
+
+def test_bad_inputs_raise():
+    with pytest.raises(ValueError):
+        ALGORITHMS[DEFAULT_ALGORITHM](0.0)
+    with pytest.raises(TypeError):
+        ALGORITHMS["madgwick"](RATE, not_a_parameter=1.0)
+    with pytest.raises(ValueError):
+        estimate_orientation(np.zeros((5, 3)), np.zeros((5, 3)), None, RATE, "no_such_filter")
+    with pytest.raises(ValueError):
+        estimate_orientation(np.zeros((5, 3)), np.zeros((4, 3)), None, RATE)
+
+
+def test_state_reports_disturbance_and_rest():
+    gyr, acc, mag, _ = synth(2.0, rotating=False)
+    f = ALGORITHMS["mahony"](RATE, **GATING)
+    for k in range(100):
+        f.update(gyr[k], acc[k], mag[k])
+    assert f.state()["rest"] and not f.state()["mag_disturbed"]
+    f.update(gyr[100], acc[100], mag[100] * 1.5)
+    assert f.state()["mag_disturbed"]
+
+
+def _num_jac(fun, x, eps=1e-7):
+    return np.stack([(fun(x + eps * e) - fun(x - eps * e)) / (2 * eps) for e in np.eye(len(x))], 1)
+
+
+def test_full_state_jacobians_match_finite_differences():
+    q = quat.normalize(np.array([0.8, 0.1, -0.3, 0.5]))
+    m = np.array([0.2, 0.4, -0.9])
+    np.testing.assert_allclose(fs.jacobian_acc(q), _num_jac(fs.predicted_acc, q), atol=1e-6)
+    np.testing.assert_allclose(
+        fs.jacobian_mag(q, m), _num_jac(lambda v: fs.predicted_mag(v, m), q), atol=1e-6
+    )
+    w, ts = np.array([1.0, -2.0, 0.5]), 0.01
+    _, dq_db = fs.transition(q, w, ts)
+    np.testing.assert_allclose(
+        dq_db, _num_jac(lambda b: fs.transition(q, w - b, ts)[0] @ q, np.zeros(3)), atol=1e-9
+    )
+
+
+def test_robust_covariance_tends_to_ekf_for_large_gamma():
+    rng = np.random.default_rng(8)
+    a = rng.normal(size=(13, 13))
+    P = a @ a.T * 1e-3 + np.eye(13) * 1e-4
+    H = rng.normal(size=(6, 13))
+    r = np.full(6, 0.01)
+    ekf = P - P @ H.T @ np.linalg.solve(H @ P @ H.T + np.diag(r), H @ P)
+    robust = NazarahariREKF._robust_covariance(P, H, r, 1e6)
+    np.testing.assert_allclose(robust, ekf, atol=1e-12)
+    # finite γ inflates the posterior covariance (worst-case bound)
+    assert np.trace(NazarahariREKF._robust_covariance(P, H, r, 0.5)) > np.trace(ekf)
+
+
+def test_yi_cf_literal_stability_rule_follows_fqa():
+    gyr, acc, mag, q = synth(10.0, rotating=True, seed=9, noise=0.0)
+    est = run("yi_cf", gyr, acc, mag, propagate_from="fqa", A=0.0, B=1.0)
+    assert np.degrees(quat.angle_between(est, q)).max() < 0.5  # k = 1: pure FQA, exact without noise
+
+
+@pytest.mark.realdata
+def test_default_algorithm_accuracy_floor_on_broad():
+    data = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "broad"
+    path = data / "05_undisturbed_slow_rotation_with_breaks_B.mat"
+    if not path.is_file():
+        pytest.skip(f"BROAD trial not found at {path} (shared data absent in this checkout)")
+    import scipy.io
+
+    d = scipy.io.loadmat(path, squeeze_me=True)
+    est = estimate_orientation(
+        d["imu_gyr"], d["imu_acc"], d["imu_mag"], float(d["sampling_rate"]), startup_s=5.0
+    )
+    ok = d["movement"].astype(bool) & np.isfinite(d["opt_quat"]).all(1)
+    err = np.degrees(quat.angle_between(est[ok], d["opt_quat"][ok]))
+    assert np.sqrt(np.mean(err**2)) < 4.0
