@@ -10,6 +10,9 @@ NODES = {
     "recorder": "gait_biofeedback.nodes.recorder:main",
     "orientation_filter": "gait_biofeedback.nodes.orientation_filter:main",
     "activity_monitor": "gait_biofeedback.nodes.activity_monitor:main",
+    "gait_events": "gait_biofeedback.nodes.gait_events:main",
+    "calibration": "gait_biofeedback.nodes.calibration:main",
+    "joint_angles": "gait_biofeedback.nodes.joint_angles:main",
 }
 
 setup(

@@ -26,9 +26,18 @@ NodeFactory = Callable[[Context], Node]
 def processing_nodes() -> dict[str, NodeFactory]:
     """The processing nodes that exist in this build, by name, in data-flow order."""
     from gait_biofeedback.nodes.activity_monitor import ActivityMonitorNode
+    from gait_biofeedback.nodes.calibration import CalibrationNode
+    from gait_biofeedback.nodes.gait_events import GaitEventsNode
+    from gait_biofeedback.nodes.joint_angles import JointAnglesNode
     from gait_biofeedback.nodes.orientation_filter import OrientationFilterNode
 
-    return {"orientation_filter": OrientationFilterNode, "activity_monitor": ActivityMonitorNode}
+    return {
+        "orientation_filter": OrientationFilterNode,
+        "calibration": CalibrationNode,
+        "joint_angles": JointAnglesNode,
+        "gait_events": GaitEventsNode,
+        "activity_monitor": ActivityMonitorNode,
+    }
 
 
 def _wait_until_recorded(recorder: Recorder, nodes: Sequence[Node], timeout: float = 5.0) -> None:

@@ -9,6 +9,9 @@ import numpy as np
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
+# One DDS domain per test process (1..100), inherited by the subprocesses the tests start: test runs
+# side by side on one machine must not hear each other's topics.
+os.environ["ROS_DOMAIN_ID"] = os.environ.get("GAIT_TEST_DOMAIN_ID", str(1 + os.getpid() % 100))
 SHARED_DATA = REPO.parent / "shared" / "data"
 
 

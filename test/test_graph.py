@@ -194,3 +194,50 @@ def test_recorder_splits_by_duration_and_keeps_every_message(tmp_path):
     assert len(files) >= 3, files
     assert result.recorded == 200
     np.testing.assert_array_equal(read_imu_bag(out)["left_shank"].t, imu["left_shank"].t)
+
+
+def test_recorder_start_and_stop_services_make_one_bag_each(tmp_path, ros_context):
+    from rclpy.node import Node
+    from std_msgs.msg import String
+    from std_srvs.srv import Trigger
+
+    from gait_biofeedback.nodes.common import RELIABLE_QOS, make_executor, spin_until
+    from gait_biofeedback.nodes.recorder import Recorder
+
+    recorder = Recorder(ros_context, output=str(tmp_path / "session"), autostart=False,
+                        topics=["/note"])
+    client_node = Node("clinician", context=ros_context)
+    pub = client_node.create_publisher(String, "/note", RELIABLE_QOS)
+    start = client_node.create_client(Trigger, "recorder/start")
+    stop = client_node.create_client(Trigger, "recorder/stop")
+    executor = make_executor(ros_context)
+    executor.add_node(recorder)
+    executor.add_node(client_node)
+
+    def call(client):
+        future = client.call_async(Trigger.Request())
+        assert spin_until(executor, future.done, timeout=10)
+        return future.result()
+
+    try:
+        assert spin_until(executor, lambda: pub.get_subscription_count() > 0, timeout=5)
+        pub.publish(String(data="before start: not recorded"))
+        spin_until(executor, lambda: recorder.received >= 1, timeout=5)
+        for session, count in ((0, 3), (1, 5)):
+            reply = call(start)
+            assert reply.success and "recording to" in reply.message
+            for k in range(count):
+                pub.publish(String(data=f"session {session} note {k}"))
+            assert spin_until(executor, lambda n=recorder.written + count: recorder.written >= n, timeout=5)
+            reply = call(stop)
+            assert reply.success and "saved" in reply.message
+        assert not call(stop).success, "stopping twice says it is not recording"
+    finally:
+        recorder.destroy_node()
+        client_node.destroy_node()
+        executor.shutdown()
+    assert recorder.dropped_while_stopped == 1
+    first = [m.data for _, m, _ in BagReader(tmp_path / "session").messages()]
+    second = [m.data for _, m, _ in BagReader(tmp_path / "session_1").messages()]
+    assert first == [f"session 0 note {k}" for k in range(3)]
+    assert second == [f"session 1 note {k}" for k in range(5)]

@@ -20,6 +20,8 @@ mirrored because its z axis points laterally-right = medially. Gimbal lock at |b
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from gait_biofeedback.core import quaternion as quat
@@ -120,3 +122,86 @@ def joint_angles_from_segments(orientations: dict[str, np.ndarray]) -> dict[str,
             ):
                 out[name] = value
     return out
+
+
+# ----------------------------------------------------------------------------------------------------
+# Calibrated joint angles (issue 4): sensor orientations + sensor-to-segment calibration → JOINT_NAMES
+
+
+def _rotations_of(calibration: Any) -> dict[str, np.ndarray]:
+    if hasattr(calibration, "rotations"):
+        return calibration.rotations()
+    return {s: np.asarray(r, dtype=float) for s, r in dict(calibration).items()}
+
+
+def segment_orientations(segment_quats: dict[str, np.ndarray], calibration: Any) -> dict[str, np.ndarray]:
+    """Segment→world ``q_segment = q_sensor ⊗ r`` (thesis Eq 17) of the calibrated segments present."""
+    rotations = _rotations_of(calibration)
+    return {s: quat.multiply(np.asarray(q, dtype=float), rotations[s])
+            for s, q in segment_quats.items() if s in rotations}
+
+
+def compute_joint_angles(
+    segment_quats: dict[str, np.ndarray],
+    calibration: Any,
+    standing: slice | None = None,
+) -> dict[str, np.ndarray]:
+    """Batch: clinical JCS angles (rad, (N,)) of every joint whose two segments are calibrated.
+
+    ``segment_quats``: segment → (N, 4) sensor→world; ``calibration``: a
+    :class:`~gait_biofeedback.core.calibration.SessionCalibration` (its valid segments) or segment → r.
+    ``standing``: samples of quiet standing; READING gait.md §1.9: each angle's mean over it is
+    subtracted (thesis ch. 8 step 4), so standing reads 0.
+    """
+    angles = joint_angles_from_segments(segment_orientations(segment_quats, calibration))
+    if standing is not None:
+        angles = {k: v - float(np.mean(v[standing])) for k, v in angles.items()}
+    return angles
+
+
+class JointAngleCalculator:
+    """Streaming form of :func:`compute_joint_angles` (same code, one sample at a time).
+
+    Standing offset: :meth:`collect_offset` starts a collection of ``duration_s`` of still samples
+    (``update(..., still=False)`` restarts it); when a sample at or past ``first + duration_s``
+    arrives, the mean of the collected angles becomes the offset (that sample and later ones are
+    corrected; earlier ones were published uncorrected).
+    """
+
+    def __init__(self, calibration: Any) -> None:
+        self.rotations = _rotations_of(calibration)
+        self.offset: dict[str, float] = {}
+        self._collect_s: float | None = None
+        self._first: float | None = None
+        self._sums: dict[str, float] = {}
+        self._counts: dict[str, int] = {}
+
+    def collect_offset(self, duration_s: float) -> None:
+        """Start (or restart) the standing-offset collection."""
+        self._collect_s = float(duration_s)
+        self._first, self._sums, self._counts = None, {}, {}
+
+    @property
+    def offset_pending(self) -> bool:
+        return self._collect_s is not None
+
+    def raw(self, segment_quats: dict[str, np.ndarray]) -> dict[str, float]:
+        """Angles without offset removal of one instant (segment → (4,) sensor→world)."""
+        return {k: float(v) for k, v in compute_joint_angles(segment_quats, self.rotations).items()}
+
+    def update(self, stamp: float, segment_quats: dict[str, np.ndarray],
+               still: bool = True) -> dict[str, float]:
+        """Angles (rad) of the joints whose segments are present and calibrated, offset removed."""
+        angles = self.raw(segment_quats)
+        if self._collect_s is not None:
+            if not still:
+                self._first, self._sums, self._counts = None, {}, {}
+            elif self._first is not None and stamp >= self._first + self._collect_s - 1e-9:
+                self.offset = {k: self._sums[k] / self._counts[k] for k in self._sums}
+                self._collect_s = None
+            else:
+                self._first = stamp if self._first is None else self._first
+                for k, v in angles.items():
+                    self._sums[k] = self._sums.get(k, 0.0) + v
+                    self._counts[k] = self._counts.get(k, 0) + 1
+        return {k: v - self.offset.get(k, 0.0) for k, v in angles.items()}

@@ -12,7 +12,9 @@ calibration is recorded even when it was published before the recorder started.
 Parameters: ``output`` (bag folder; default ``recordings/session_<time>``), ``topics`` (empty = every
 topic, discovered every ``discovery_period`` s), ``exclude`` (topics never recorded),
 ``split_size`` (bytes, 0 = never), ``split_duration`` (s, 0 = never), ``flush_period`` (s, 1.0),
-``compression`` (``zstd``, ``lz4`` or ``none``).
+``compression`` (``zstd``, ``lz4`` or ``none``), ``autostart`` (true: record from the start).
+Services ``recorder/start`` and ``recorder/stop`` (std_srvs/Trigger) open a new bag folder
+(``<output>_1``, ``<output>_2``, … after the first) and close it, e.g. from the dashboard.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from std_srvs.srv import Trigger
 
 from gait_biofeedback.io.bag import BagWriter, message_class
 from gait_biofeedback.nodes.common import RELIABLE_QOS, SENSOR_QOS
@@ -47,29 +50,78 @@ class Recorder(Node):
         self.declare_parameter("flush_period", 1.0)
         self.declare_parameter("compression", "zstd")
         self.declare_parameter("discovery_period", 0.5)
+        self.declare_parameter("autostart", True)
         p = self.get_parameters_by_prefix("")
-        output = str(p["output"].value) or time.strftime("recordings/session_%Y%m%d_%H%M%S")
-        self.output = Path(output)
+        self._base_output = str(p["output"].value)
         self.requested = [t if t.startswith("/") else self.resolve_topic_name(t)
                           for t in p["topics"].value if t]
         self.excluded = {*ALWAYS_EXCLUDED, *(t for t in p["exclude"].value if t)}
-        self.writer = BagWriter(
-            self.output,
-            compression=str(p["compression"].value),
-            flush_period=float(p["flush_period"].value),
-            split_size=int(p["split_size"].value) or None,
-            split_duration=float(p["split_duration"].value) or None,
-        )
+        self._writer_options = {
+            "compression": str(p["compression"].value),
+            "flush_period": float(p["flush_period"].value),
+            "split_size": int(p["split_size"].value) or None,
+            "split_duration": float(p["split_duration"].value) or None,
+        }
+        self.writer: BagWriter | None = None
+        self.output: Path | None = None
+        self.sessions: list[Path] = []
         self.received = 0
+        self.dropped_while_stopped = 0
         self.dropped_by_writer = 0
+        self._written_before = 0
+        self._recording = False
         self._recorded_topics: dict[str, object] = {}
         self._queue: queue.SimpleQueue = queue.SimpleQueue()
         self._closed = threading.Event()
         self._thread = threading.Thread(target=self._write_loop, name="recorder_writer", daemon=True)
         self._thread.start()
+        self.create_service(Trigger, "recorder/start", self._on_start)
+        self.create_service(Trigger, "recorder/stop", self._on_stop)
+        if p["autostart"].value:
+            self.start()
         self._discover()
         self.create_timer(float(p["discovery_period"].value), self._discover)
+
+    def _next_output(self) -> Path:
+        if not self._base_output:
+            return Path(time.strftime("recordings/session_%Y%m%d_%H%M%S"))
+        base = Path(self._base_output)
+        return base if not self.sessions else base.with_name(f"{base.name}_{len(self.sessions)}")
+
+    def start(self) -> Path:
+        """Open a new bag (a new folder per start) and record into it; returns its path."""
+        if self._recording and self.output is not None:
+            return self.output
+        self.output = self._next_output()
+        self.writer = BagWriter(self.output, **self._writer_options)
+        self.sessions.append(self.output)
+        self._recording = True
         self.get_logger().info(f"recording to {self.output}")
+        return self.output
+
+    def stop(self) -> Path | None:
+        """Stop recording and close the bag (the writer thread closes it; this waits for that)."""
+        if not self._recording:
+            return None
+        self._recording = False
+        done = threading.Event()
+        self._queue.put(("__close__", done))
+        done.wait(timeout=30.0)
+        self.get_logger().info(f"recording closed: {self.output}")
+        return self.output
+
+    def _on_start(self, _request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        was = self._recording
+        path = self.start()
+        response.success = True
+        response.message = f"already recording to {path}" if was else f"recording to {path}"
+        return response
+
+    def _on_stop(self, _request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        path = self.stop()
+        response.success = path is not None
+        response.message = f"saved {path}" if path else "not recording"
+        return response
 
     def subscribe(self, topic: str, type_name: str) -> None:
         """Record ``topic`` of ``type_name`` from now on (idempotent)."""
@@ -109,7 +161,16 @@ class Recorder(Node):
 
     def _on_message(self, topic: str, type_name: str, data: bytes) -> None:
         self.received += 1
+        if not self._recording:
+            self.dropped_while_stopped += 1
+            return
         self._queue.put((topic, type_name, data, self.get_clock().now().nanoseconds))
+
+    def _close_writer(self) -> None:
+        if self.writer is not None:
+            self.writer.close()
+            self._written_before += self.writer.message_count
+            self.writer = None
 
     def _write_loop(self) -> None:
         while True:
@@ -120,7 +181,12 @@ class Recorder(Node):
             if item is None:
                 if self._closed.is_set():
                     break
-                self.writer.maybe_flush()
+                if self.writer is not None:
+                    self.writer.maybe_flush()
+                continue
+            if item[0] == "__close__":
+                self._close_writer()
+                item[1].set()
                 continue
             try:
                 self.writer.write_serialized(*item)
@@ -130,8 +196,8 @@ class Recorder(Node):
 
     @property
     def written(self) -> int:
-        """Messages handed to the file so far."""
-        return self.writer.message_count
+        """Messages handed to the files so far, over every start/stop."""
+        return self._written_before + (self.writer.message_count if self.writer is not None else 0)
 
     def wait_until_written(self, count: int, timeout: float = 5.0) -> bool:
         """Block (not from a callback) until ``count`` messages are in the file or ``timeout``."""
@@ -144,10 +210,11 @@ class Recorder(Node):
         for sub in self._recorded_topics.values():
             self.destroy_subscription(sub)
         self._recorded_topics.clear()
+        self._recording = False
         self._closed.set()
         self._queue.put(None)
         self._thread.join(timeout=30.0)
-        self.writer.close()
+        self._close_writer()
         self.get_logger().info(f"recording closed: {self.written} messages in {self.output}")
         super().destroy_node()
 

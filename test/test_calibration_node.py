@@ -1,0 +1,104 @@
+"""calibration node: the service, fed the simulator through imu/data, returns success at once; the latched
+result reaches a late subscriber; the YAML is written and reloaded; a still recording is refused."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gait_biofeedback.core import quaternion as quat
+from gait_biofeedback.core.calibration import helical_angle
+from gait_biofeedback.core.simulator import SCENARIOS, simulate
+
+pytestmark = [pytest.mark.ros, pytest.mark.timeout(90)]
+SEGMENTS = ["pelvis", "left_thigh", "left_shank", "right_thigh"]
+
+
+def _imu_msgs(session, segment):
+    from sensor_msgs.msg import Imu
+
+    from gait_biofeedback.nodes.common import s_to_stamp
+
+    s, q = session.imu[segment], session.truth.sensor_orientation[segment]
+    out = []
+    for k, t in enumerate(s.t):
+        m = Imu()
+        m.header.stamp = s_to_stamp(float(t))
+        m.header.frame_id = f"{segment}_imu"
+        m.orientation.w, m.orientation.x, m.orientation.y, m.orientation.z = (float(v) for v in q[k])
+        m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z = (float(v) for v in s.gyr[k])
+        acc = m.linear_acceleration
+        acc.x, acc.y, acc.z = (float(v) for v in s.acc[k])
+        out.append(m)
+    return out
+
+
+def test_service_calibrates_and_latched_result_reaches_late_subscriber(ros_context, tmp_path):
+    from rclpy.node import Node
+    from sensor_msgs.msg import Imu
+
+    from gait_biofeedback.nodes.calibration import CalibrationNode
+    from gait_biofeedback.nodes.common import LATCHED_QOS, RELIABLE_QOS, make_executor, spin_until
+    from gait_biofeedback_msgs.msg import SegmentCalibrationArray
+    from gait_biofeedback_msgs.srv import Calibrate
+
+    session = simulate(SCENARIOS["calibration_hip_flexion"](seed=4))
+    node = CalibrationNode(ros_context, segments=SEGMENTS, session_dir=str(tmp_path))
+    source = Node("source", context=ros_context)
+    pubs = {s: source.create_publisher(Imu, f"{s}/imu/data", RELIABLE_QOS) for s in SEGMENTS}
+    client = source.create_client(Calibrate, "calibration/calibrate")
+    executor = make_executor(ros_context)
+    executor.add_node(node)
+    executor.add_node(source)
+    late = None
+    try:
+        assert spin_until(executor, lambda: all(p.get_subscription_count() for p in pubs.values()), timeout=5)
+        msgs = {s: _imu_msgs(session, s) for s in SEGMENTS}
+        n = len(session.truth.t)
+        for k in range(n):
+            for s in SEGMENTS:
+                pubs[s].publish(msgs[s][k])
+            if k % 25 == 24 or k == n - 1:  # let the node take each burst (depth 300 per topic)
+                assert spin_until(executor, lambda k=k: all(len(node.buffers[s]) == k + 1 for s in SEGMENTS),
+                                  timeout=5)
+        assert spin_until(executor, client.service_is_ready, timeout=5)
+        future = client.call_async(Calibrate.Request(protocol="hip_flexion"))
+        assert spin_until(executor, future.done, timeout=10)
+        response = future.result()
+        assert response.success, response.message
+        assert [m.segment for m in response.segments] == ["left_thigh", "left_shank", "right_thigh", "pelvis"]
+        for m in response.segments:
+            r = np.array([m.rotation.w, m.rotation.x, m.rotation.y, m.rotation.z])
+            assert helical_angle(r, session.truth.mounting[m.segment]) < np.radians(1.0), m.segment
+        assert (tmp_path / "calibration.yaml").exists()
+
+        received = []
+        late = Node("late", context=ros_context)
+        late.create_subscription(SegmentCalibrationArray, "calibration/sensor_to_segment", received.append,
+                                 LATCHED_QOS)
+        executor.add_node(late)
+        # other tests may share the DDS domain: keep only this node's messages
+        ours = lambda: [m for m in received if [s.segment for s in m.segments] == [  # noqa: E731
+            "left_thigh", "left_shank", "right_thigh", "pelvis"] and m.segments[0].quality_metric]
+        assert spin_until(executor, lambda: len(ours()) == 1, timeout=5)
+        assert ours()[0].protocol == "hip_flexion"
+
+        # refused: nothing moves after the last standing → previous calibration stays, nothing published
+        still = node.calibrate("hip_flexion", standing_duration=40.0)
+        assert not still[0] and "quiet standing" in still[1] and "stays in force" in still[1]
+        assert node.current is not None and node.current.success
+        spin_until(executor, lambda: len(ours()) > 1, timeout=0.5)
+        assert len(ours()) == 1
+    finally:
+        for n in (node, source, late):
+            if n is not None:
+                n.destroy_node()
+        executor.shutdown()
+
+    reloaded = CalibrationNode(ros_context, segments=SEGMENTS, session_dir=str(tmp_path))
+    try:
+        assert reloaded.current is not None
+        np.testing.assert_allclose(quat.canonical(reloaded.current.segments["left_shank"].rotation),
+                                   quat.canonical(node.current.segments["left_shank"].rotation), atol=1e-12)
+    finally:
+        reloaded.destroy_node()

@@ -1,0 +1,198 @@
+"""Gait events (thesis ch. 6 Algorithm 1), the comparator, the foot calibration and the stride parameters."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from gait_biofeedback.core import quaternion as quat
+from gait_biofeedback.core.gait_cycles import GaitCycleTracker
+from gait_biofeedback.core.gait_events import (
+    GaitEvent,
+    GaitEventDetector,
+    detect_gait_events,
+    events_from_signal,
+    foot_pitch_sine,
+)
+from gait_biofeedback.core.gait_events_calibration import foot_calibration
+from gait_biofeedback.core.gait_events_comparator import angular_velocity_events
+from gait_biofeedback.core.orientation_stream import SegmentOrientationTracker
+from gait_biofeedback.core.simulator import SCENARIOS, simulate
+
+
+def _hand_made() -> np.ndarray:
+    """0 until k=29, linear fall to -0.6 at k=49 (TC), rise to +0.2 at k=69 (IC), fall to 0 at 89."""
+    s = np.zeros(120)
+    s[30:50] = -0.6 * np.arange(1, 21) / 20
+    s[50:70] = -0.6 + 0.8 * np.arange(1, 21) / 20
+    s[70:90] = 0.2 - 0.2 * np.arange(1, 21) / 20
+    return s
+
+
+@pytest.fixture(scope="module")
+def walk_session():
+    config = SCENARIOS["walk"](duration=12.0)
+    config.segments = ("left_foot", "right_foot")
+    return simulate(config)
+
+
+def test_algorithm1_on_hand_made_signal_gives_exact_indices_and_one_sample_delay():
+    signal = _hand_made()
+    assert {k: v.tolist() for k, v in events_from_signal(signal, 100.0).items()} == {"ic": [69], "tc": [49]}
+    detector = GaitEventDetector("left", 100.0)
+    emitted = [(k, e) for k, v in enumerate(signal)
+               if (e := detector.update_signal(k / 100, v, k)) is not None]
+    (k_tc, tc), (k_ic, ic) = emitted
+    assert (k_tc, tc.kind, tc.stamp) == (50, "tc", 49) and (k_ic, ic.kind, ic.stamp) == (70, "ic", 69)
+    assert tc.t == pytest.approx(0.49) and tc.latency == pytest.approx(0.01)
+    assert tc.signal == pytest.approx(-0.6)
+    # the same shape at 200 Hz (every sample twice as dense): the same times
+    dense = np.interp(np.arange(240) / 2, np.arange(120), signal)
+    assert {k: (v / 200).tolist() for k, v in events_from_signal(dense, 200.0).items()} == {
+        "ic": [0.69], "tc": [0.49]}
+
+
+def test_threshold_blocks_shallow_minimum():
+    shallow = _hand_made() / 4  # minimum -0.15 > -0.2: no TC, so no IC either (strict alternation)
+    assert all(len(v) == 0 for v in events_from_signal(shallow, 100.0).values())
+
+
+@pytest.mark.parametrize(("reversals", "expected"), [(3, [49]), (4, [])])
+def test_80_percent_trend_rule(reversals: int, expected: list[int]):
+    s = _hand_made()
+    # one-sample upward reversals inside the 15 differences before the minimum (k=49): 12 of 15 must fall
+    for j in range(reversals):
+        k = 36 + 3 * j
+        s[k] = s[k - 1] + 0.005
+    assert events_from_signal(s, 100.0)["tc"].tolist() == expected
+
+
+def test_refractory_period_per_event_type():
+    # triangle wave, period 12 samples, between -0.6 and +0.2; a 5-sample extremum window lets
+    # events come faster than the 150 ms refractory period
+    phase = np.arange(400) % 12
+    s = np.where(phase < 6, 0.2 - 0.8 * phase / 6, -0.6 + 0.8 * (phase - 6) / 6)
+    fast = events_from_signal(s, 100.0, window_s=0.05, refractory_s=0.0)
+    slow = events_from_signal(s, 100.0, window_s=0.05)
+    assert np.all(np.diff(fast["tc"]) == 12)
+    assert np.all(np.diff(slow["tc"]) == 24) and np.all(np.diff(slow["ic"]) == 24), "> 15 samples apart"
+    assert len(slow["tc"]) == pytest.approx(len(fast["tc"]) / 2, abs=1)
+
+
+def test_sample_counts_scale_with_the_rate():
+    for rate, window, min_trend in ((100.0, 15, 12), (200.0, 30, 24), (204.8, 31, 25), (50.0, 8, 7)):
+        d = GaitEventDetector(rate_hz=rate)
+        assert (d.window, d.refractory, d.min_trend) == (window, window, min_trend)
+
+
+def test_signal_is_vertical_component_of_the_anterior_axis():
+    # standing foot facing east: segment x → east, y → up, z (right) → south
+    standing = quat.from_matrix(np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]))
+    assert foot_pitch_sine(standing) == pytest.approx(0.0)
+    toes_up = quat.multiply(standing, quat.from_axis_angle([0.0, 0.0, 1.0], math.radians(20)))
+    assert foot_pitch_sine(toes_up) == pytest.approx(math.sin(math.radians(20)))
+    r = quat.from_axis_angle([1.0, 2.0, 3.0], 1.0)  # any mounting: q_sensor = q_segment ⊗ r*
+    q_sensor = quat.multiply(toes_up, quat.conjugate(r))
+    assert foot_pitch_sine(q_sensor, r) == pytest.approx(math.sin(math.radians(20)))
+    assert GaitEventDetector(mounting=r).signal(q_sensor) == pytest.approx(math.sin(math.radians(20)))
+
+
+def test_no_event_in_quiet_standing_or_turning_on_the_spot():
+    rng = np.random.default_rng(1)
+    t = np.arange(0, 8, 0.01)
+    yaw = np.where(t < 2, 0.0, 2 * np.pi * (t - 2) / 4)  # still 2 s, then 360° on the spot in 4 s
+    pitch = np.radians(4.0) * np.sin(2 * np.pi * 1.5 * t) * (t > 2) + rng.normal(0, 0.002, t.size)
+    roll = np.radians(3.0) * np.sin(2 * np.pi * 1.5 * t + 1.0) * (t > 2)
+    q = quat.from_euler_zyx(yaw, -pitch, roll)
+    detector = GaitEventDetector(rate_hz=100.0)
+    assert [e for k in range(t.size) if (e := detector.update(t[k], q[k])) is not None] == []
+
+
+def test_simulated_walk_true_orientation_events_match_truth(walk_session):
+    truth = walk_session.truth
+    for side in ("left", "right"):
+        s = foot_pitch_sine(truth.segment_orientation[f"{side}_foot"])
+        events = events_from_signal(s, 100.0)
+        for kind, ref in (("ic", truth.initial_contacts[side]), ("tc", truth.terminal_contacts[side])):
+            t = events[kind] / 100.0
+            inside = t[(t > ref[0] - 0.5) & (t < ref[-1] + 0.5)]
+            assert len(inside) == len(ref)
+            err = inside - ref
+            # the simulator's pitch extremes: max 3 % of the cycle before IC, min 6 % after TC (longer
+            # during the cadence ramps at the start and end of the walk)
+            low, high = (0.04, 0.12) if kind == "tc" else (-0.07, 0.0)
+            assert ((low < err) & (err < high)).all(), f"{side} {kind}: {err}"
+        assert not np.any(events["tc"] < 500), "no event during the 5 s of standing"
+
+
+def test_foot_calibration_recovers_the_anterior_axis(walk_session):
+    for side in ("left", "right"):
+        imu = walk_session.imu[f"{side}_foot"]
+        r = foot_calibration(imu.gyr, imu.acc, 100.0)
+        true_r = walk_session.truth.mounting[f"{side}_foot"]
+        ex = np.array([1.0, 0.0, 0.0])
+        angle = math.degrees(math.acos(np.clip(quat.rotate(r, ex) @ quat.rotate(true_r, ex), -1, 1)))
+        assert angle < 10.0, f"{side}: anterior axis off by {angle:.1f} deg"
+
+
+def test_streaming_equals_batch(walk_session):
+    imu = walk_session.imu["left_foot"]
+    batch = detect_gait_events(imu.gyr, imu.acc, 100.0)
+    assert len(batch["ic"]) >= 8
+    tracker = SegmentOrientationTracker("left_foot", rate_hz=100.0)
+    detector = GaitEventDetector("left", 100.0, mounting=foot_calibration(imu.gyr, imu.acc, 100.0))
+    live: dict[str, list[float]] = {"ic": [], "tc": []}
+    for k, t in enumerate(imu.t.tolist()):
+        for sample in tracker.update(t, imu.gyr[k], imu.acc[k]):
+            if (event := detector.update(sample.t, sample.q)) is not None:
+                live[event.kind].append(event.t)
+    assert live == batch
+
+
+def test_comparator_finds_every_simulated_event(walk_session):
+    imu = walk_session.imu["right_foot"]
+    events = angular_velocity_events(imu.gyr, 100.0, walk_session.truth.mounting["right_foot"])
+    for kind, ref in (("ic", walk_session.truth.initial_contacts["right"]),
+                      ("tc", walk_session.truth.terminal_contacts["right"])):
+        t = np.array(events[kind])
+        nearest = np.array([np.min(np.abs(t - r)) for r in ref])
+        assert (nearest < 0.15).all()
+    assert detect_gait_events(imu.gyr, imu.acc, 100.0, method="angular_velocity").keys() == {"ic", "tc"}
+    with pytest.raises(ValueError, match="unknown gait event method"):
+        detect_gait_events(imu.gyr, imu.acc, 100.0, method="nope")
+
+
+def _ev(side: str, kind: str, t: float) -> GaitEvent:
+    return GaitEvent(side, kind, t, t + 0.01, 0.0, 0)
+
+
+def test_stride_parameters_from_hand_made_events():
+    tracker = GaitCycleTracker(symmetry_window=2)
+    # left IC 0.0, right TC 0.1, right IC 0.5, left TC 0.6, left IC 1.0; right TC 1.1, right IC 1.6
+    events = [("left", "ic", 0.0), ("right", "tc", 0.1), ("right", "ic", 0.5), ("left", "tc", 0.6),
+              ("left", "ic", 1.0), ("right", "tc", 1.1), ("left", "tc", 1.6), ("right", "ic", 1.55)]
+    cycles = [c for s, k, t in events if (c := tracker.add(_ev(s, k, t))) is not None]
+    left, right = cycles
+    assert left.side == "left" and left.index == 1
+    assert (left.stride_time, left.stance_time, left.swing_time) == pytest.approx((1.0, 0.6, 0.4))
+    assert (left.stance_fraction, left.swing_fraction, left.cadence) == pytest.approx((0.6, 0.4, 2.0))
+    assert left.step_time == pytest.approx(0.5)
+    assert left.double_support_time == pytest.approx(0.1 + 0.1)  # 0→0.1 and 0.5→0.6
+    assert left.plausible and left.flag == "" and math.isnan(left.step_time_symmetry_index)
+    assert right.step_time == pytest.approx(0.55) and right.stride_time == pytest.approx(1.05)
+    assert right.step_time_symmetry_index == pytest.approx((0.5 - 0.55) / 0.525)
+
+
+def test_implausible_strides_are_flagged_and_reset_forgets():
+    tracker = GaitCycleTracker()
+    tracker.add(_ev("left", "ic", 0.0))
+    tracker.add(_ev("left", "tc", 0.1))
+    short = tracker.add(_ev("left", "ic", 0.3))
+    assert not short.plausible and "outside 0.4-3 s" in short.flag
+    long = tracker.add(_ev("left", "ic", 4.0))
+    assert not long.plausible and "0 terminal contacts" in long.flag and "outside" in long.flag
+    tracker.reset("left")
+    assert tracker.add(_ev("left", "ic", 5.0)) is None, "after a reset the next IC opens a stride"
+    assert tracker.implausible["left"] == 2

@@ -1,0 +1,116 @@
+"""Calibrated joint angles (issue 4): known poses exact through arbitrary sensor mountings, left/right
+mirroring, standing-offset removal, streaming == batch, stick-figure geometry."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gait_biofeedback.core import quaternion as quat
+from gait_biofeedback.core.joint_angles import (
+    JOINT_NAMES,
+    JointAngleCalculator,
+    compute_joint_angles,
+    relative_rotation_from_angles,
+)
+from gait_biofeedback.core.simulator import SCENARIOS, simulate
+from gait_biofeedback.core.skeleton import SegmentLengths, stick_figure
+
+DEG = np.pi / 180.0
+RNG = np.random.default_rng(3)
+MOUNTS = {s: quat.canonical(quat.normalize(RNG.normal(size=4))) for s in
+          ("pelvis", "left_thigh", "left_shank", "left_foot", "right_thigh", "right_shank", "right_foot")}
+
+
+def _sensor_quats(segment_quats):
+    """q_sensor = q_segment ⊗ conj(r) for the random mountings."""
+    return {s: quat.multiply(q, quat.conjugate(MOUNTS[s])) for s, q in segment_quats.items()}
+
+
+def test_known_pose_is_exact_through_the_calibration():
+    pelvis = quat.from_axis_angle([0, 0, 1], 0.7)  # any heading
+    segs = {"pelvis": pelvis}
+    pose = {"hip": (30 * DEG, 5 * DEG, -10 * DEG), "knee": (60 * DEG, 2 * DEG, 8 * DEG),
+            "ankle": (-15 * DEG, 4 * DEG, 3 * DEG)}
+    for side in ("left", "right"):
+        thigh = quat.multiply(pelvis, relative_rotation_from_angles("hip", side, *pose["hip"]))
+        shank = quat.multiply(thigh, relative_rotation_from_angles("knee", side, *pose["knee"]))
+        foot = quat.multiply(shank, relative_rotation_from_angles("ankle", side, *pose["ankle"]))
+        segs.update({f"{side}_thigh": thigh, f"{side}_shank": shank, f"{side}_foot": foot})
+    angles = compute_joint_angles(_sensor_quats(segs), MOUNTS)
+    assert set(angles) == set(JOINT_NAMES)
+    for side in ("left", "right"):
+        for joint, values in pose.items():
+            got = [float(v) for k, v in angles.items() if k.startswith(f"{side}_{joint}_")]
+            np.testing.assert_allclose(got, values, atol=1e-9)
+
+
+def test_left_right_mirroring_of_a_physical_pose():
+    # Both legs abducted by 10° (feet apart, thighs swing laterally) and toes turned out by 15°: both
+    # hips read adduction -10° and internal rotation -15° (ISB signs mirrored on the left).
+    pelvis = quat.IDENTITY
+    x_axis, y_axis = [1, 0, 0], [0, 1, 0]
+    right = quat.multiply(quat.from_axis_angle(x_axis, -10 * DEG), quat.from_axis_angle(y_axis, -15 * DEG))
+    left = quat.multiply(quat.from_axis_angle(x_axis, 10 * DEG), quat.from_axis_angle(y_axis, 15 * DEG))
+    # right thigh: lateral = +z; rotation about +x by -10° moves its distal end (−y) toward +z: abduction;
+    # rotation about +y by -15° turns its x (anterior) toward +z = laterally: external rotation
+    angles = compute_joint_angles(_sensor_quats({"pelvis": pelvis, "right_thigh": right, "left_thigh": left}),
+                                  MOUNTS)
+    for side in ("left", "right"):
+        assert angles[f"{side}_hip_adduction"] == pytest.approx(-10 * DEG, abs=1e-9)
+        assert angles[f"{side}_hip_internal_rotation"] == pytest.approx(-15 * DEG, abs=1e-9)
+        assert angles[f"{side}_hip_flexion"] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_missing_or_uncalibrated_segments_drop_only_their_joints():
+    segs = {s: quat.IDENTITY for s in MOUNTS}
+    partial = {s: r for s, r in MOUNTS.items() if s != "left_shank"}
+    angles = compute_joint_angles(_sensor_quats(segs), partial)
+    assert not any(k.startswith(("left_knee", "left_ankle")) for k in angles)
+    assert "left_hip_flexion" in angles and "right_ankle_dorsiflexion" in angles
+
+
+@pytest.fixture(scope="module")
+def walk():
+    return simulate(SCENARIOS["walk"](duration=6.0, seed=2))
+
+
+def test_truth_orientations_give_true_angles_and_offset_removal(walk):
+    truth = walk.truth
+    sensors = {s: truth.sensor_orientation[s] for s in MOUNTS}
+    plain = compute_joint_angles(sensors, truth.mounting)
+    angles = compute_joint_angles(sensors, truth.mounting, standing=slice(0, 200))
+    for name in JOINT_NAMES:
+        np.testing.assert_allclose(plain[name], truth.joint_angles[name], atol=1e-9)
+        np.testing.assert_allclose(angles[name], plain[name] - np.mean(plain[name][:200]), atol=1e-12)
+        assert abs(np.mean(angles[name][:200])) < 1e-12
+    offset = dict(truth.mounting)
+    offset["right_shank"] = quat.multiply(offset["right_shank"], quat.from_axis_angle([0, 0, 1], 5 * DEG))
+    biased = compute_joint_angles(sensors, offset)  # a 5° shank calibration error about z biases the knee
+    fixed = compute_joint_angles(sensors, offset, standing=slice(0, 200))  # ... the offset removal fixes it
+    k = "right_knee_flexion"
+    assert np.max(np.abs(biased[k] - truth.joint_angles[k])) > 1 * DEG
+    np.testing.assert_allclose(fixed[k], angles[k], atol=0.5 * DEG)
+
+
+def test_streaming_calculator_equals_batch(walk):
+    truth = walk.truth
+    sensors = {s: truth.sensor_orientation[s] for s in MOUNTS}
+    batch = compute_joint_angles(sensors, truth.mounting, standing=slice(0, 150))
+    calc = JointAngleCalculator(truth.mounting)
+    calc.collect_offset(1.5)
+    stream = []
+    for k, t in enumerate(truth.t):
+        stream.append(calc.update(float(t), {s: q[k] for s, q in sensors.items()}))
+    assert not calc.offset_pending
+    for name in JOINT_NAMES:
+        got = np.array([row[name] for row in stream[150:]])
+        np.testing.assert_allclose(got, batch[name][150:], atol=1e-12)
+
+
+def test_stick_figure_of_standing_pose():
+    upright = quat.from_axis_angle([1, 0, 0], np.pi / 2)  # facing east: anatomical z (right) → world -y
+    lines = stick_figure({s: upright for s in MOUNTS}, SegmentLengths())
+    ends = {seg: end for seg, _start, end in lines}
+    np.testing.assert_allclose(ends["right_foot"], [0.14, -0.09, -0.43 - 0.43 - 0.08], atol=1e-12)
+    np.testing.assert_allclose(ends["left_thigh"], [0.0, 0.09, -0.43], atol=1e-12)
