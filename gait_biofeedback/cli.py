@@ -131,7 +131,7 @@ def build_parser() -> argparse.ArgumentParser:
                        "whole graph, record the outputs and print a summary")
     p.add_argument("--bag", default=str(DEMO_BAG), help="demo recording (made if missing) [%(default)s]")
     p.add_argument("--output", default=str(DEMO_OUTPUT), help="where the outputs are recorded [%(default)s]")
-    p.add_argument("--speed", type=float, default=4.0, help="replay speed factor [%(default)s]")
+    p.add_argument("--speed", type=float, default=2.0, help="replay speed factor [%(default)s]")
     p.set_defaults(func=cmd_demo)
 
     p = sub.add_parser("simulate", help="synthetic session with ground truth → MCAP recording")

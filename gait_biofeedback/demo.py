@@ -1,8 +1,10 @@
 """``gait-biofeedback demo``: the main job end to end, with a one-screen summary.
 
 1. Simulate the demo session (seeded, so always the same) unless ``bags/demo_walk.mcap`` exists.
-2. Replay it through every processing node of this build, in one process, recording all topics.
-3. Read the recording back and summarise what the graph produced.
+2. Replay it through every processing node of this build, in one process, recording all topics; one
+   second after the subject's hip flexion/extension moves end, "press Calibrate" (call the
+   calibration node), as the clinician would.
+3. Read the recording back and summarise what the graph produced and how far it is from the truth.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from pathlib import Path
 
 from gait_biofeedback.graph import processing_nodes, replay_through_graph
 from gait_biofeedback.io.bag import BagReader
+from gait_biofeedback.report import format_report, session_report
 
 DEMO_SCENARIO = "demo"
 DEMO_SEED = 0
@@ -32,7 +35,21 @@ def ensure_demo_bag(bag: Path) -> tuple[Path, bool]:
     return write_simulated_bag(bag, simulate(config)), True
 
 
-def summarize(input_bag: Path, output: Path, wall_time: float, published: int) -> str:
+def calibration_time() -> float:
+    """Seconds into the demo session at which the clinician presses Calibrate: 1 s after the hip
+    flexion/extension moves end (the calibration looks back for quiet standing + moves)."""
+    from gait_biofeedback.core.simulator import SCENARIOS
+
+    t = 0.0
+    for phase in SCENARIOS[DEMO_SCENARIO]().phases:
+        t += phase.duration
+        if phase.kind == "hip_flexion":
+            return t + 1.0
+    raise ValueError("the demo scenario has no hip flexion calibration moves")
+
+
+def summarize(input_bag: Path, output: Path, wall_time: float, published: int,
+              calibration_message: str = "") -> str:
     """The one-screen summary of a demo run."""
     source = BagReader(input_bag)
     result = BagReader(output)
@@ -44,11 +61,17 @@ def summarize(input_bag: Path, output: Path, wall_time: float, published: int) -
         f"replayed {published} messages through {len(processing_nodes())} processing node(s) "
         f"in {wall_time:.1f} s ({duration / wall_time:.1f}x real time)",
         f"recorded {sum(counts.values())} messages on {len(counts)} topics to {output}",
-        "-" * 78,
-        f"{'topic':44s}{'messages':>10s}{'rate Hz':>10s}",
     ]
-    for topic in sorted(counts):
-        lines.append(f"{topic:44s}{counts[topic]:10d}{(counts[topic] - 1) / duration:10.1f}")
+    if calibration_message:
+        lines.append(f"calibrate (hip flexion protocol): {calibration_message}")
+    lines += ["-" * 78, *format_report(session_report(output)), "-" * 78]
+    derived = sorted(t for t in counts if not t.startswith("/ground_truth") and "/imu/" not in t)
+    imu = sorted(t for t in counts if "/imu/" in t)
+    lines.append("outputs: " + ", ".join(f"{t} {counts[t]}" for t in derived))
+    raw = sum(counts[t] for t in imu if t.endswith("data_raw"))
+    filtered = sum(counts[t] for t in imu if t.endswith("/imu/data"))
+    lines.append(f"IMU: {raw} raw samples recorded, {filtered} orientations published "
+                 f"({len([t for t in imu if t.endswith('data_raw')])} segments)")
     lines += [
         "-" * 78,
         f"open {output} in Foxglove (File > Open local file, pick the .mcap) or run "
@@ -68,8 +91,20 @@ def run_demo(bag: Path, output: Path, speed: float = 4.0) -> int:
     total = BagReader(bag).message_count
     from tqdm import tqdm
 
+    calibration_dir = output.parent / f"{output.name}_calibration"
+    shutil.rmtree(calibration_dir, ignore_errors=True)
+    said: list[str] = []
+
+    def press_calibrate(nodes: dict) -> None:
+        if "calibration" in nodes:
+            ok, message, _ = nodes["calibration"].calibrate("hip_flexion")
+            said.append(("" if ok else "REFUSED: ") + message)
+
     with tqdm(total=total, desc="replay", unit="msg", unit_scale=True, leave=False,
               disable=not sys.stderr.isatty()) as bar:
-        result = replay_through_graph(bag, output, speed=speed, progress=bar.update)
-    print(summarize(bag, output, result.wall_time, result.published))
+        result = replay_through_graph(
+            bag, output, speed=speed, progress=bar.update,
+            node_parameters={"calibration": {"session_dir": str(calibration_dir)}},
+            actions=[(calibration_time(), press_calibrate)])
+    print(summarize(bag, output, result.wall_time, result.published, " ".join(said)))
     return 0

@@ -21,6 +21,8 @@ from gait_biofeedback.nodes.imu_replayer import ImuReplayer
 from gait_biofeedback.nodes.recorder import Recorder
 
 NodeFactory = Callable[[Context], Node]
+Action = tuple[float, Callable[[dict[str, Node]], object]]
+"""(seconds into the recording, callback given the nodes by name) run once the replay gets there."""
 
 
 def processing_nodes() -> dict[str, NodeFactory]:
@@ -82,10 +84,12 @@ def replay_through_graph(
     timeout: float | None = None,
     progress: Callable[[int], None] | None = None,
     node_parameters: dict[str, dict] | None = None,
+    actions: Sequence[Action] = (),
 ) -> ReplayResult:
     """Replay ``bag`` through the processing ``nodes`` (default: all that exist) and record every
-    topic to ``output`` (None: no recording). Returns when the replay has ended and the graph has
-    settled; ``timeout`` (s) bounds the whole run (TimeoutError)."""
+    topic to ``output`` (None: no recording). ``actions`` run on the executor thread when the replay
+    reaches their time (e.g. the clinician pressing "calibrate"). Returns when the replay has ended
+    and the graph has settled; ``timeout`` (s) bounds the whole run (TimeoutError)."""
     factories = processing_nodes()
     chosen = list(factories) if nodes is None else list(nodes)
     unknown = [n for n in chosen if n not in factories]
@@ -103,6 +107,7 @@ def replay_through_graph(
             recorder = Recorder(context, output=str(output), **params.get("recorder", {}))
             started.append(recorder)
         processing = [factories[name](context, **params.get(name, {})) for name in chosen]
+        by_name = dict(zip(chosen, processing, strict=True))
         started += processing
         if recorder is not None:
             _wait_until_recorded(recorder, processing)
@@ -112,12 +117,15 @@ def replay_through_graph(
         for node in started:
             executor.add_node(node)
         last = 0
+        pending = sorted(actions, key=lambda a: a[0])
 
         def done() -> bool:
             nonlocal last
             if progress is not None and replayer.published != last:
                 progress(replayer.published - last)
                 last = replayer.published
+            while pending and replayer.position_ns - replayer.reader.start_time_ns >= pending[0][0] * 1e9:
+                pending.pop(0)[1](by_name)
             return replayer.finished.is_set()
 
         if not spin_until(executor, done, timeout=timeout):

@@ -659,8 +659,9 @@ def _cfg(phases: list[Phase], **kw) -> SimulationConfig:
 
 
 def demo(**kw) -> SimulationConfig:
-    """~106 s: standing, hip-flexion calibration (both legs), walking with a 180° turn, sit, stand."""
-    return _cfg([Phase("stand", 5.0), Phase("hip_flexion", 26.0, {"side": "both"}), Phase("stand", 5.0),
+    """~103 s: standing, hip-flexion calibration (both legs, ~14 moves each), walking with a 180° turn,
+    sit, stand."""
+    return _cfg([Phase("stand", 5.0), Phase("hip_flexion", 30.0, {"side": "both"}), Phase("stand", 5.0),
                  Phase("walk", 16.0), Phase("turn", 4.0, {"angle": np.pi}), Phase("walk", 20.0),
                  Phase("stand", 3.0), Phase("stand_to_sit", 2.5), Phase("sit", 10.0),
                  Phase("sit_to_stand", 2.5), Phase("stand", 5.0)], **kw)

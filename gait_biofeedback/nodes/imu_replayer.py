@@ -72,6 +72,7 @@ class ImuReplayer(Node):
         self._clock_pub = (self.create_publisher(Clock, "/clock", 10)
                            if p["publish_clock"].value else None)
         self.published = 0
+        self.position_ns = self.reader.start_time_ns  # log time of the newest published message
         self.loops_done = 0
         self.finished = threading.Event()
         self._stop = threading.Event()
@@ -120,6 +121,7 @@ class ImuReplayer(Node):
                     self._clock_pub.publish(Clock(clock=ns_to_stamp(log_ns)))
                 self._topic_publishers[topic].publish(data)
                 self.published += 1
+                self.position_ns = log_ns
             self.loops_done += 1
             if not self.loop or first_ns is None:
                 break
