@@ -18,6 +18,7 @@ Wearable-IMU gait biofeedback (ROS 2 Jazzy). Typical use:
                                                convert your own IMU data to the project's MCAP layout
   gait-biofeedback replay bags/mine --record output/mine
                                                run a recording through the node graph, record outputs
+  gait-biofeedback run --record output/today   process live sensor topics (from your drivers)
   gait-biofeedback info output/mine            what is in a recording
   gait-biofeedback repair output/mine          make a recording cut off by a crash readable again
 
@@ -71,6 +72,26 @@ def cmd_import(args: argparse.Namespace) -> int:
     return 0
 
 
+def _session_parameters(path: str | None) -> dict[str, dict]:
+    from gait_biofeedback.graph import load_session_parameters
+
+    if path is None:
+        return {}
+    if not Path(path).is_file():
+        raise FileNotFoundError(f"parameter file {path} not found (see config/session.yaml)")
+    return load_session_parameters(path)
+
+
+def _node_list(text: str | None) -> list[str] | None:
+    return None if text is None else [n for n in text.split(",") if n]
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from gait_biofeedback.graph import run_live
+
+    return run_live(_node_list(args.nodes), args.record, _session_parameters(args.params))
+
+
 def cmd_replay(args: argparse.Namespace) -> int:
     from gait_biofeedback.graph import replay_through_graph
     from gait_biofeedback.io.bag import BagReader
@@ -78,7 +99,9 @@ def cmd_replay(args: argparse.Namespace) -> int:
     total = BagReader(args.bag).message_count
     with _progress(total, "replay") as bar:
         result = replay_through_graph(args.bag, args.record, speed=args.speed, start_offset=args.start,
-                                      stop_offset=args.stop, progress=bar.update)
+                                      stop_offset=args.stop, progress=bar.update,
+                                      nodes=_node_list(args.nodes),
+                                      node_parameters=_session_parameters(args.params))
     print(f"replayed {result.published} messages in {result.wall_time:.1f} s"
           + (f"; recorded {result.recorded} to {result.output}" if result.output else ""))
     return 0
@@ -158,7 +181,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--speed", type=float, default=1.0, help="speed factor, 0 = as fast as possible")
     p.add_argument("--start", type=float, default=0.0, help="start at this many s into the recording")
     p.add_argument("--stop", type=float, default=0.0, help="stop at this many s (0 = the end)")
+    p.add_argument("--params", default=None, help="ROS 2 parameter file, e.g. config/session.yaml")
+    p.add_argument("--nodes", help="comma-separated processing nodes (default: all)")
     p.set_defaults(func=cmd_replay)
+
+    p = sub.add_parser("run", help="run the processing graph on live sensor topics until Ctrl-C")
+    p.add_argument("--record", help="also record every topic to this bag folder")
+    p.add_argument("--params", default=None, help="ROS 2 parameter file, e.g. config/session.yaml")
+    p.add_argument("--nodes", help="comma-separated processing nodes (default: all)")
+    p.set_defaults(func=cmd_run)
 
     p = sub.add_parser("record", help="record live topics to a crash-safe MCAP bag until Ctrl-C")
     p.add_argument("-o", "--output", required=True, help="bag folder to create")

@@ -8,12 +8,14 @@ developer replays a session without launching processes.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager, suppress
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import rclpy
 from rclpy.context import Context
+from rclpy.executors import Executor
 from rclpy.node import Node
 
 from gait_biofeedback.nodes.common import make_executor, spin_until
@@ -63,6 +65,21 @@ def _wait_until_recorded(recorder: Recorder, nodes: Sequence[Node], timeout: flo
     raise TimeoutError(f"the recorder did not discover {missing} within {timeout} s")
 
 
+def load_session_parameters(path: str | Path) -> dict[str, dict]:
+    """Node parameters from a ROS 2 parameter file (``config/session.yaml``): node name → params.
+    Keys may carry a namespace or ``/**/`` prefix; the node name is the last path component."""
+    import yaml
+
+    document = yaml.safe_load(Path(path).read_text()) or {}
+    params: dict[str, dict] = {}
+    for key, entry in document.items():
+        values = (entry or {}).get("ros__parameters")
+        if values is None:
+            raise ValueError(f"{path}: entry {key!r} has no 'ros__parameters'")
+        params.setdefault(str(key).rstrip("/").split("/")[-1], {}).update(values)
+    return params
+
+
 @dataclass
 class ReplayResult:
     """What one in-process replay did."""
@@ -72,6 +89,58 @@ class ReplayResult:
     recorded: int
     wall_time: float
     nodes: list[str] = field(default_factory=list)
+
+
+@dataclass
+class RunningGraph:
+    """The nodes of one in-process graph on one executor (see :func:`running_graph`)."""
+
+    context: Context
+    executor: Executor
+    nodes: dict[str, Node]
+    recorder: Recorder | None
+    started: list[Node] = field(default_factory=list)
+
+    def add(self, node: Node) -> Node:
+        """Add one more node (e.g. a replayer) to the executor; it is destroyed with the graph."""
+        self.started.append(node)
+        self.executor.add_node(node)
+        return node
+
+
+@contextmanager
+def running_graph(
+    nodes: Sequence[str] | None = None,
+    output: str | Path | None = None,
+    node_parameters: dict[str, dict] | None = None,
+    args: list[str] | None = None,
+) -> Iterator[RunningGraph]:
+    """Context, executor, recorder (when ``output`` is given) and the processing ``nodes`` (default:
+    all), created in data-flow order; the recorder is subscribed to every output before this
+    yields. Everything is destroyed (files closed) and rclpy shut down on exit, whatever happened."""
+    factories = processing_nodes()
+    chosen = list(factories) if nodes is None else list(nodes)
+    unknown = [n for n in chosen if n not in factories]
+    if unknown:
+        raise ValueError(f"unknown node(s) {unknown}; this build has {sorted(factories)}")
+    params = node_parameters or {}
+    context = Context()
+    rclpy.init(args=args or [], context=context)
+    graph = RunningGraph(context, make_executor(context), {}, None)
+    try:
+        if output is not None:
+            graph.recorder = graph.add(Recorder(context, output=str(output), **params.get("recorder", {})))
+        for name in chosen:
+            graph.nodes[name] = graph.add(factories[name](context, **params.get(name, {})))
+        if graph.recorder is not None:
+            _wait_until_recorded(graph.recorder, list(graph.nodes.values()))
+        yield graph
+    finally:
+        for node in reversed(graph.started):
+            node.destroy_node()
+        graph.executor.shutdown()
+        if context.ok():
+            rclpy.shutdown(context=context)
 
 
 def replay_through_graph(
@@ -90,32 +159,11 @@ def replay_through_graph(
     topic to ``output`` (None: no recording). ``actions`` run on the executor thread when the replay
     reaches their time (e.g. the clinician pressing "calibrate"). Returns when the replay has ended
     and the graph has settled; ``timeout`` (s) bounds the whole run (TimeoutError)."""
-    factories = processing_nodes()
-    chosen = list(factories) if nodes is None else list(nodes)
-    unknown = [n for n in chosen if n not in factories]
-    if unknown:
-        raise ValueError(f"unknown node(s) {unknown}; this build has {sorted(factories)}")
-    params = node_parameters or {}
-    context = Context()
-    rclpy.init(args=[], context=context)
-    executor = make_executor(context)
-    started: list[Node] = []
     t0 = time.monotonic()
-    try:
-        recorder = None
-        if output is not None:
-            recorder = Recorder(context, output=str(output), **params.get("recorder", {}))
-            started.append(recorder)
-        processing = [factories[name](context, **params.get(name, {})) for name in chosen]
-        by_name = dict(zip(chosen, processing, strict=True))
-        started += processing
-        if recorder is not None:
-            _wait_until_recorded(recorder, processing)
-        replayer = ImuReplayer(context, bag=str(bag), speed=float(speed), start_offset=float(start_offset),
-                               stop_offset=float(stop_offset), wait_for_subscribers=5.0)
-        started.append(replayer)
-        for node in started:
-            executor.add_node(node)
+    with running_graph(nodes, output, node_parameters) as graph:
+        replayer = graph.add(ImuReplayer(
+            graph.context, bag=str(bag), speed=float(speed), start_offset=float(start_offset),
+            stop_offset=float(stop_offset), wait_for_subscribers=5.0))
         last = 0
         pending = sorted(actions, key=lambda a: a[0])
 
@@ -125,21 +173,26 @@ def replay_through_graph(
                 progress(replayer.published - last)
                 last = replayer.published
             while pending and replayer.position_ns - replayer.reader.start_time_ns >= pending[0][0] * 1e9:
-                pending.pop(0)[1](by_name)
+                pending.pop(0)[1](graph.nodes)
             return replayer.finished.is_set()
 
-        if not spin_until(executor, done, timeout=timeout):
+        if not spin_until(graph.executor, done, timeout=timeout):
             raise TimeoutError(f"replay of {bag} did not finish within {timeout} s")
         # let the last messages travel through the graph
         settle = time.monotonic() + 0.5
-        spin_until(executor, lambda: time.monotonic() > settle)
-        published = replayer.published
-    finally:
-        for node in reversed(started):
-            node.destroy_node()
-        executor.shutdown()
-        if context.ok():
-            rclpy.shutdown(context=context)
+        spin_until(graph.executor, lambda: time.monotonic() > settle)
+        recorder = graph.recorder
     recorded = recorder.written if recorder is not None else 0
-    return ReplayResult(Path(output) if output else None, published, recorded,
-                        time.monotonic() - t0, chosen)
+    return ReplayResult(Path(output) if output else None, replayer.published, recorded,
+                        time.monotonic() - t0, list(graph.nodes))
+
+
+def run_live(nodes: Sequence[str] | None = None, output: str | Path | None = None,
+             node_parameters: dict[str, dict] | None = None, args: list[str] | None = None) -> int:
+    """The processing graph (and the recorder) on live topics until Ctrl-C / SIGTERM."""
+    with running_graph(nodes, output, node_parameters, args) as graph:
+        names = ", ".join(graph.nodes) or "no processing nodes"
+        print(f"running {names}" + (f", recording to {output}" if output else "") + "; Ctrl-C stops")
+        with suppress(KeyboardInterrupt):
+            spin_until(graph.executor, lambda: False)
+    return 0

@@ -19,7 +19,7 @@ def test_help_lists_every_command(capsys):
         main(["--help"])
     assert exit_info.value.code == 0
     text = capsys.readouterr().out
-    for command in ("demo", "simulate", "import", "replay", "record", "info", "repair"):
+    for command in ("demo", "simulate", "import", "replay", "run", "record", "info", "repair"):
         assert command in text
 
 
