@@ -9,9 +9,16 @@
 2. dfjimu_weygers (Weygers & Kok 2020): relative orientation of two sensors from the filters
    (6D, no magnetometer) vs optical truth, RMSE per recording. No magnetometer: each filter's world
    heading is aligned once to the optical one over the first second; the drift after it is counted.
-3. qmt_fullbody: the full chain on a real 100 s walk (vendor orientations, heading consistency not
-   verified; PC8
-   calibration from the first standing + walking): knee flexion peak, ranges, left/right symmetry.
+3. qmt_fullbody (qmt examples, MIT): the full chain on a real 100 s walk. The vendor quaternions are
+   checked and NOT used (their gravity disagrees with the accelerometers by 68–108° in standing and
+   the anatomical x headings of one leg's segments differ by up to 150°); orientations come from the
+   project's 6D filter (no magnetometer in the file) and the sensors' world headings are aligned at the
+   standing right before the walk (``align_headings``). Calibration: quiet standing at the start
+   (0–5 s; the still period 13–39 s is sitting: thighs 83° off) + the walk (55–100 s, PC8; the leg
+   movements at 5–12 s and 39–50 s are not walking). Pelvis: vertical calibration only (no common
+   heading → its anatomical x in the sensor is unknown); the hip angles' sensitivity to that unknown is
+   printed. Per stride (left/right IC from ``detect_gait_events``): knee flexion swing peak and at IC,
+   hip and ankle ranges, left/right symmetry.
 
 Run: ``.venv/bin/python benchmarks/joint_angles.py [--seeds 5]``.
 """
@@ -19,6 +26,7 @@ Run: ``.venv/bin/python benchmarks/joint_angles.py [--seeds 5]``.
 from __future__ import annotations
 
 import argparse
+import itertools
 import time
 from pathlib import Path
 
@@ -26,10 +34,15 @@ import numpy as np
 import scipy.io as sio
 
 from gait_biofeedback.core import quaternion as quat
-from gait_biofeedback.core.calibration import calibrate_session, helical_angle, mean_orientation
-from gait_biofeedback.core.calibration_windows import find_standing_then_motion, still_mask
+from gait_biofeedback.core.calibration import (
+    calibrate_session,
+    helical_angle,
+    mean_orientation,
+    vertical_calibration,
+)
+from gait_biofeedback.core.calibration_windows import find_standing_then_motion
 from gait_biofeedback.core.filters import DEFAULT_ALGORITHM, estimate_orientation
-from gait_biofeedback.core.joint_angles import JOINT_NAMES, compute_joint_angles
+from gait_biofeedback.core.joint_angles import JOINT_NAMES, align_headings, compute_joint_angles
 from gait_biofeedback.core.orientation_stream import track_orientation
 from gait_biofeedback.core.segments import ImuSeries
 from gait_biofeedback.core.simulator import Phase, SimulationConfig, simulate
@@ -96,8 +109,8 @@ def report_simulator(seeds: int, algorithm: str | None) -> None:
                   "left / right:")
             for name in JOINT_NAMES[:9]:
                 base = name.removeprefix("left_")
-                left = np.mean([r[name] for r in rmses])
-                right = np.mean([r["right_" + base] for r in rmses])
+                left = np.mean([r.get(name, np.nan) for r in rmses])
+                right = np.mean([r.get("right_" + base, np.nan) for r in rmses])
                 print(f"    {base:26s} {left:6.2f} / {right:6.2f}")
 
 
@@ -129,51 +142,100 @@ def report_weygers() -> None:
               f"median {np.median(err):6.2f}")
 
 
+def _heading_deg(q: np.ndarray, v: np.ndarray) -> float:
+    w = quat.rotate(q, v)
+    return float(np.degrees(np.arctan2(w[1], w[0])))
+
+
+def _pelvis_vertical(acc: np.ndarray, beta: float) -> np.ndarray:
+    """Pelvis r from the vertical calibration (Eq 14) only, turned by ``beta`` about the anatomical y."""
+    rows = vertical_calibration(acc)
+    r = quat.from_matrix(rows.T)
+    return quat.multiply(r, quat.from_axis_angle([0.0, 1.0, 0.0], beta))
+
+
+def _per_stride(angle: np.ndarray, t: np.ndarray, ics: np.ndarray, lo: float, hi: float):
+    """(max, min, value at IC) of ``angle`` per stride IC→next IC inside [lo, hi] s."""
+    rows = []
+    for a, b in itertools.pairwise(ics):
+        if a < lo or b > hi or not 0.7 < b - a < 1.6:
+            continue
+        sel = (t >= a) & (t < b)
+        rows.append((angle[sel].max(), angle[sel].min(), angle[sel][0]))
+    return np.degrees(np.array(rows))
+
+
 def report_qmt() -> None:
     path = DATA / "qmt_fullbody" / "full_body_example_data.mat"
     if not path.exists():
         print(f"\n[qmt_fullbody] skipped: {path} not found")
         return
+    from gait_biofeedback.core.gait_events import detect_gait_events
     from gait_biofeedback.io.importers import import_qmt_fullbody
 
     rec = import_qmt_fullbody(path)
     segs = [s for s in LEGS if s in rec.imu]
     data = {s: rec.imu[s] for s in segs}
-    ori = {s: quat.normalize(np.asarray(rec.reference["vendor_quat"][s], dtype=float)) for s in segs}
     t = data[segs[0]].t
-    print("\n[qmt_fullbody] full chain on a real walk (vendor orientations, common heading NOT verified; "
-          "PC8 calibration on the first standing + the first walk, angles over all moving samples)")
+    print("\n[qmt_fullbody] (qmt examples, MIT) full chain on a real walk: 6D filter orientations, world "
+          "headings aligned at the standing before the walk, PC8 calibration (start standing + walk)")
     first = {s: ImuSeries(s, d.t[d.t < 20.0], d.acc[d.t < 20.0], d.gyr[d.t < 20.0]) for s, d in data.items()}
     try:
-        standing, motion = find_standing_then_motion(first)
+        cal_standing, _ = find_standing_then_motion(first)
+        walk_standing, walk = find_standing_then_motion(data, standing_duration=2.5)
     except ValueError as exc:
         print(f"    no calibration: {exc}")
         return
-    cal = calibrate_session(first, standing, motion, "walking",
-                            orientations={s: q[: len(first[s])] for s, q in ori.items()})
-    print(f"    standing {standing[0]:.1f}–{standing[1]:.1f} s, motion {motion[0]:.1f}–{motion[1]:.1f} s; "
-          f"{cal.message}")
+    ori = {s: estimate_orientation(d.gyr, d.acc, None, d.rate_hz, startup_s=5.0) for s, d in data.items()}
+    cal = calibrate_session(data, cal_standing, walk, "walking", orientations=ori)
+    print(f"    calibration standing {cal_standing[0]:.1f}–{cal_standing[1]:.1f} s, walk {walk[0]:.1f}–"
+          f"{walk[1]:.1f} s, alignment/offset standing {walk_standing[0]:.1f}–{walk_standing[1]:.1f} s")
+    st_cal = (t >= cal_standing[0]) & (t <= cal_standing[1])
+    st = np.flatnonzero((t >= walk_standing[0]) & (t <= walk_standing[1]))
+    vendor = {s: quat.normalize(np.asarray(rec.reference["vendor_quat"][s], dtype=float)) for s in segs}
+    print("    segment       quality  sign rule                                          heading of "
+          "anat. x in standing: vendor / 6D (deg); vendor gravity vs acc (deg)")
     for s, r in cal.segments.items():
-        print(f"      {s:12s} quality {r.quality:.3f} cycles {r.details.get('cycles')} {r.message}")
-    st = (t >= standing[0]) & (t <= standing[1])
-    angles = compute_joint_angles(ori, cal, standing=np.flatnonzero(st))
-    moving = ~np.ones(len(t), dtype=bool)
-    for s in segs:
-        moving |= ~still_mask(data[s])
-    walk = moving
-    print("    angle (deg), 1st/99th pct     left: min  max  range | right: min  max  range | "
-          "normal-gait range")
-    bands = {"hip_flexion": (35, 55), "knee_flexion": (55, 75), "ankle_dorsiflexion": (20, 40)}
-    for base, band in bands.items():
-        row = []
-        for side in ("left", "right"):
-            v = np.degrees(angles[f"{side}_{base}"][walk])
-            p1, p99 = np.percentile(v, [1, 99])
-            row.append(f"{p1:6.1f} {p99:6.1f} {p99 - p1:6.1f}")
-        print(f"    {base:26s} {row[0]} | {row[1]} | {band[0]}–{band[1]}")
-    lk, rk = (np.degrees(np.percentile(angles[f"{s}_knee_flexion"][walk], 99)) for s in ("left", "right"))
-    print(f"    knee flexion peak (swing, 99th pct): left {lk:.1f}°, right {rk:.1f}°, symmetry index "
-          f"{200 * abs(lk - rk) / (lk + rk):.1f} %")
+        if not r.valid or s == "pelvis":
+            print(f"      {s:12s} {r.message}")
+            continue
+        x_s = quat.rotate(r.rotation, [1.0, 0.0, 0.0])
+        up_vendor = quat.rotate_inverse(mean_orientation(vendor[s][st_cal]), [0.0, 0.0, 1.0])
+        acc_up = data[s].acc[st_cal].mean(axis=0)
+        g_err = np.degrees(np.arccos(np.clip(up_vendor @ acc_up / np.linalg.norm(acc_up), -1, 1)))
+        print(f"      {s:12s} {r.quality:6.3f}  {r.details['sign_rule'][:50]:50s} "
+              f"{_heading_deg(mean_orientation(vendor[s][st]), x_s):6.0f} / "
+              f"{_heading_deg(mean_orientation(ori[s][st]), x_s):6.0f}; {g_err:5.0f}")
+    rotations = {s: r.rotation for s, r in cal.segments.items() if r.valid and s != "pelvis"}
+    feet = {side: data[f"{side}_foot"] for side in ("left", "right")}
+    ics = {side: np.asarray(detect_gait_events(f.gyr, f.acc, f.rate_hz)["ic"]) for side, f in feet.items()}
+    lo, hi = walk[0] + 1.0, walk[1] - 1.0
+    rows = {"knee_flexion": ("swing peak", 0, (55, 70)), "knee_flexion@IC": ("at IC", 2, (0, 10)),
+            "hip_flexion": ("max", 0, (30, 35)), "hip_flexion ": ("min", 1, (-15, -10)),
+            "ankle_dorsiflexion": ("max", 0, (10, 15)), "ankle_dorsiflexion ": ("min", 1, (-20, -15))}
+    for beta_deg in (0, 90, 180, 270):
+        pelvis = _pelvis_vertical(data["pelvis"].acc[st_cal], np.radians(beta_deg))
+        rot = dict(rotations, pelvis=pelvis)
+        angles = compute_joint_angles(align_headings(ori, rot, st), rot, standing=st)
+        if beta_deg == 0:
+            print("    per stride, mean ± SD over strides (deg)      left            right       "
+                  "|L−R|  normal gait")
+            for key, (what, col, band) in rows.items():
+                if key.startswith("hip"):
+                    continue
+                name = key.split("@")[0].strip()
+                vals = [_per_stride(angles[f"{side}_{name}"], t, ics[side], lo, hi)[:, col]
+                        for side in ("left", "right")]
+                print(f"    {key.split('@')[0].strip():20s} {what:10s} {np.mean(vals[0]):6.1f} ± "
+                      f"{np.std(vals[0]):4.1f}  {np.mean(vals[1]):6.1f} ± {np.std(vals[1]):4.1f}  "
+                      f"{abs(np.mean(vals[0]) - np.mean(vals[1])):5.1f}  {band[0]}..{band[1]}")
+            print(f"      strides: left {len(vals[0])}, right {len(vals[1])}")
+            print("    hip flexion per stride (pelvis heading in its sensor unknown: turned by β about "
+                  "vertical):")
+        hip = [_per_stride(angles[f"{side}_hip_flexion"], t, ics[side], lo, hi) for side in ("left", "right")]
+        print(f"      β = {beta_deg:3d}°  max {np.mean(hip[0][:, 0]):5.1f} / {np.mean(hip[1][:, 0]):5.1f}   "
+              f"min {np.mean(hip[0][:, 1]):6.1f} / {np.mean(hip[1][:, 1]):6.1f}  (left / right; normal "
+              "gait max 30..35, min -15..-10)")
 
 
 def main() -> None:

@@ -135,3 +135,115 @@ def test_yaml_round_trip(hip_flexion):
     for seg, res in cal.segments.items():
         np.testing.assert_allclose(back.segments[seg].rotation, res.rotation, atol=1e-12)
         assert back.segments[seg].quality == res.quality
+
+
+# ---- sign rules on real-like signals (module docstring step 3) and on real recordings ----------------
+
+def _real_like_foot_pitch(rate_hz=100.0, strides=12):
+    """Foot pitch (rad) per 1.1 s stride: flat stance, fast push-off to −35°, swing up to +12°, fast
+    fall to flat at IC (foot slap). The push-off is the fastest part, so the largest rate peak is
+    negative, as on real feet."""
+    phase = np.arange(round(1.1 * rate_hz)) / round(1.1 * rate_hz)
+    knots = np.array([[0.0, 0.0], [0.45, 0.0], [0.62, -35.0], [0.90, 12.0], [0.97, 0.0], [1.0, 0.0]])
+    one = np.interp(phase, knots[:, 0], knots[:, 1]) * DEG
+    pitch = np.concatenate([np.zeros(round(2 * rate_hz))] + [one] * strides)
+    kernel = np.hanning(9) / np.hanning(9).sum()
+    return np.convolve(pitch, kernel, mode="same")
+
+
+def test_foot_pitch_rule_right_where_skewness_is_wrong():
+    from gait_biofeedback.core.calibration import foot_pitch_sign
+
+    rate = np.gradient(_real_like_foot_pitch(), 0.01)
+    centred = rate - rate.mean()
+    assert abs(rate.min()) > rate.max() and np.mean(centred**3) < 0  # the former skewness rule fails
+    assert foot_pitch_sign(rate, 100.0)[0] == 1.0
+    assert foot_pitch_sign(-rate, 100.0)[0] == -1.0
+
+
+def test_calibrate_segment_foot_direction_from_pitch_shape():
+    # a foot sensor mounted at 150° about the vertical then tilted: only the pitch shape tells right
+    # from left, the PCA axis alone is ambiguous; the former skewness rule picked the wrong direction
+    r = quat.multiply(quat.from_axis_angle([0, 1, 0], 150 * DEG), quat.from_axis_angle([1, 0, 0], 20 * DEG))
+    to_sensor = quat.as_matrix(r)
+    rate = np.gradient(_real_like_foot_pitch(), 0.01)
+    w_seg = np.column_stack([0.05 * rate, np.zeros_like(rate), rate])
+    res = calibrate_segment("left_foot", np.tile(to_sensor @ [0.0, 9.81, 0.0], (200, 1)), np.zeros((200, 3)),
+                            w_seg @ to_sensor.T, 100.0, "walking")
+    assert res.valid, res.message
+    assert res.details["sign_rule"].startswith("foot pitch shape")
+    assert helical_angle(res.rotation, r) < 3 * DEG
+
+
+def test_knee_shape_rule_picks_the_thigh_direction():
+    from gait_biofeedback.core.calibration import knee_shape_sign
+
+    t = np.arange(3000) / 100.0
+    phase = 2 * np.pi * t / 1.1
+    thigh = (10 + 20 * np.sin(phase)) * DEG  # hip flexion −10..+30°
+    knee = (5 + 55 * np.exp(-((np.mod(phase, 2 * np.pi) - 4.0) ** 2) / 0.5)) * DEG  # swing peak 60°
+    shank = thigh - knee
+    w_thigh, w_shank = np.gradient(thigh, t), np.gradient(shank, t)
+    assert knee_shape_sign(w_thigh, w_shank, 100.0)[0] == 1.0
+    assert knee_shape_sign(-w_thigh, w_shank, 100.0)[0] == -1.0
+
+
+def test_simulated_walking_uses_the_physical_rules(walking):
+    data, ori = _inputs(walking)
+    standing, motion = find_standing_then_motion(data)
+    cal = calibrate_session(data, standing, motion, "walking", orientations=ori)
+    for side in ("left", "right"):
+        assert cal.segments[f"{side}_thigh"].details["sign_rule"].startswith("knee shape")
+        assert cal.segments[f"{side}_foot"].details["sign_rule"].startswith("foot pitch shape")
+        assert cal.segments[f"{side}_foot"].details["reference_agreement"] > 0.8
+        for part in ("thigh", "shank", "foot"):
+            seg = f"{side}_{part}"
+            z_est = quat.rotate(cal.segments[seg].rotation, [0.0, 0.0, 1.0])
+            z_true = quat.rotate(walking.truth.mounting[seg], [0.0, 0.0, 1.0])
+            assert z_est @ z_true > 0.9, seg
+
+
+def test_qmt_real_walk_knee_flexion_plausible():
+    from conftest import shared_data
+
+    from gait_biofeedback.core.filters import estimate_orientation
+    from gait_biofeedback.core.joint_angles import align_headings, compute_joint_angles
+    from gait_biofeedback.io.importers import import_qmt_fullbody
+
+    rec = import_qmt_fullbody(shared_data("qmt_fullbody", "full_body_example_data.mat"))
+    segs = [f"{side}_{p}" for side in ("left", "right") for p in ("thigh", "shank", "foot")]
+    data = {s: rec.imu[s] for s in segs}
+    t = data["left_foot"].t
+    # calibration: the standing at the start (the still 13–39 s is sitting) + the walk after 55 s
+    cal = calibrate_session(data, (2.4, 5.3), (54.9, 99.9), "walking")
+    assert cal.success, cal.message
+    ori = {s: estimate_orientation(d.gyr, d.acc, None, d.rate_hz, startup_s=5.0) for s, d in data.items()}
+    stand = np.flatnonzero((t >= 52.4) & (t <= 54.8))
+    angles = compute_joint_angles(align_headings(ori, cal, stand), cal, standing=stand)
+    walk = (t > 60) & (t < 98)
+    for side in ("left", "right"):
+        knee = angles[f"{side}_knee_flexion"][walk] / DEG
+        peaks = [knee[k:k + 110].max() for k in range(0, len(knee) - 110, 110)]
+        assert 40 < np.median(peaks) < 80, f"{side} knee swing peak {np.median(peaks):.0f} deg"
+        assert np.percentile(knee, 1) > -15, f"{side} knee hyperextension {np.percentile(knee, 1):.0f}"
+        hip = angles.get(f"{side}_hip_flexion")
+        assert hip is None  # no pelvis here: the hip needs a pelvis calibration
+        ankle = angles[f"{side}_ankle_dorsiflexion"][walk] / DEG
+        assert np.percentile(ankle, 1) > -40 and np.percentile(ankle, 99) < 30
+
+
+def test_gaitmap_foot_calibration_events_within_50_ms():
+    from conftest import shared_data
+
+    from gait_biofeedback.core.gait_events import detect_gait_events
+    from gait_biofeedback.io.importers import import_gaitmap
+
+    rec = import_gaitmap(shared_data("gaitmap_example"))
+    ref = rec.reference["events"]
+    for side in ("left", "right"):
+        series = rec.imu[f"{side}_foot"]
+        events = detect_gait_events(series.gyr, series.acc, series.rate_hz)
+        for kind in ("ic", "tc"):
+            detected = np.asarray(events[kind]) + series.t[0]
+            errors = np.array([np.min(np.abs(detected - r)) for r in ref[side][kind]])
+            assert np.mean(errors < 0.05) > 0.9, f"{side} {kind}: {np.mean(errors < 0.05):.2f} within 50 ms"

@@ -12,21 +12,40 @@ Steps (per segment, independently):
    perpendicular to ``y_AF`` (never degenerate), ``z_VF = x_VF × y_VF``.
 2. Heading (thesis Eq 15, convention-free recipe of gait.md §1.5): the first principal axis ``u`` of
    the angular velocity's horizontal components (VF x–z plane, mean removed) during the motion is the
-   mediolateral axis; ``z_AF = ±u``, ``x_AF = y_AF × z_AF``.
+   mediolateral axis; ``z_AF = ±u``, ``x_AF = y_AF × z_AF``. READING (EXT): the motion gyro is first
+   low-passed (2nd-order Butterworth, ``MOTION_LOWPASS_HZ`` = 6 Hz, zero phase; gait and hip flexion
+   have their sagittal content below it). Real thigh sensors vibrate on the soft tissue at each heel
+   strike: on the qmt walk 52–63 % of the thigh gyro's x/y power is above 10 Hz (spikes of ±15 rad/s),
+   which made the raw PCA pick that vibration axis instead of the mediolateral one.
 3. Sign of ``z_AF`` (= the 180° x anterior/posterior ambiguity; the thesis' atan restriction needs
    pre-permuted axes, READING here): ``z_AF`` must point right, so forward (sagittal) rotation is
-   positive about +z on both legs:
+   positive about +z on both legs. Each rule is a physical property of the movement that holds for any
+   walker (simulated and real), evaluated on the low-passed rate ``ω·z``:
 
-   * thigh (both protocols): hip flexion exceeds extension, in the hip flexion/extension moves and in
-     gait (about −10° to +30°), so the thigh's sagittal angle relative to standing (``∫ ω·z dt``,
-     gyro minus its standing mean) has a positive mean;
-   * walking protocol, shank: the mid-swing forward swing is the largest angular-velocity peak
-     (positive skewness of ``ω·z``);
-   * shank and foot in the hip flexion protocol, foot in walking: they swing with the reference
-     segment of the same leg (thigh, resp. shank), so their ``ω·z`` correlates positively with the
-     reference's (simulated: +1.0 and +0.9). In walking the thigh–shank correlation is weak (≈ 0.2),
-     hence the thigh's own rule. Without the reference, a segment falls back to its own rule (the
-     mean-angle rule in hip flexion, skewness in walking), noted in ``details["sign_rule"]``.
+   * hip flexion protocol, thigh: hip flexion exceeds extension, so the thigh's sagittal angle relative
+     to standing (``∫ ω·z dt``, gyro minus its standing mean) has a positive mean; shank and foot swing
+     with the thigh, so their ``ω·z`` correlates positively with the thigh's (simulated: +1.0);
+   * walking protocol, shank: it rotates forward slowly over the planted foot in stance and fast in
+     swing, so its largest rate peak is the forward swing (positive skewness of ``ω·z``; simulated
+     +1.6, qmt ±0.8);
+   * walking protocol, thigh (:func:`knee_shape_sign`, reference = the calibrated shank of the same
+     leg): the knee angle ``∫(ω_thigh − ω_shank)`` flexes far more (≈ 60° in swing) than it
+     hyperextends, so its excursion about its 2 s moving mean is positive-dominant
+     (``p99 + p1 > 0``); with the wrong thigh sign the curve is the sum of the two segment angles,
+     nearly symmetric (simulated +20° vs 0°, qmt +19° vs −3°). The former rule (mean of ``∫ ω·z``
+     over the walk) drifts on a long real walk (qmt right thigh: +21° mean from drift alone, the wrong
+     sign on both thighs); it stays the fallback without a shank;
+   * walking protocol, foot (:func:`foot_pitch_sign`, no reference needed, also used by the batch
+     gait-event calibration): the foot's toes-down minimum at push-off (≈ −37°) is deeper than its
+     toes-up maximum at initial contact (≈ +12°) [T §6.4.2], so the sign whose detrended pitch has the
+     larger negative excursion (``|p1| > p99``) is kept. The skewness of a real foot's rate is ≈ 0
+     (qmt ±0.16: the push-off and swing peaks are equally fast, the largest can be negative), which
+     put every gait event ~300 ms off. ``details["reference_agreement"]`` records whether the foot's
+     rate correlates positively with the shank's (qmt +0.95, simulated +0.92).
+
+   Without the reference, a segment falls back to its own rule (the mean-angle rule in hip flexion,
+   skewness for a walking shank, knee shape impossible → mean angle for a walking thigh), noted in
+   ``details["sign_rule"]``.
 4. Pelvis and chest (gait.md §1.7 option (a), project decision): vertical from standing; heading =
    mean heading of the calibrated thighs' x axes during standing, in the common world frame, so it
    needs the standing orientations (magnetometer-aided filter) of the trunk sensor and the thighs.
@@ -41,6 +60,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from scipy.signal import butter, filtfilt
 
 from gait_biofeedback.core import quaternion as quat
 from gait_biofeedback.core.segments import GRAVITY, SIDES, ImuSeries
@@ -56,6 +76,8 @@ MAX_STANDING_GYRO_RMS = 0.08  # rad/s (4.6 °/s): more is not quiet standing
 MAX_STANDING_ACC_RMS = 0.5  # m/s²
 MAX_THIGH_HEADING_DISAGREEMENT = np.radians(30.0)
 CYCLE_THRESHOLD = 0.35  # rad/s, hysteresis of the cycle counter (20 °/s)
+MOTION_LOWPASS_HZ = 6.0  # READING: low-pass of the motion gyro before PCA and the sign rules
+DETREND_WINDOW_S = 2.0  # moving-mean window removed from integrated angles (about one stride)
 
 
 @dataclass
@@ -196,13 +218,65 @@ def count_cycles(rate: np.ndarray, threshold: float = CYCLE_THRESHOLD) -> int:
     return cycles
 
 
-def _own_sign(segment: str, rate: np.ndarray, protocol: str, rate_hz: float) -> float:
-    """+1 if the segment's own rule says the axis points right (module docstring step 3)."""
+def lowpass_motion(gyr: np.ndarray, rate_hz: float, cutoff_hz: float = MOTION_LOWPASS_HZ) -> np.ndarray:
+    """Zero-phase 2nd-order Butterworth low-pass of (N, 3) angular rates (module docstring step 2).
+
+    Returned unchanged when too short to filter (< 15 samples) or when the cut-off is not below the
+    Nyquist frequency."""
+    gyr = np.asarray(gyr, dtype=float)
+    if gyr.shape[0] < 15 or cutoff_hz >= 0.5 * rate_hz:
+        return gyr
+    b, a = butter(2, cutoff_hz / (0.5 * rate_hz))
+    return filtfilt(b, a, gyr, axis=0)
+
+
+def sagittal_angle(rate: np.ndarray, rate_hz: float, window_s: float = DETREND_WINDOW_S) -> np.ndarray:
+    """Integrated sagittal rate (rad) minus its ``window_s`` moving mean: a drift-free shape of a
+    segment's (or joint's) sagittal angle over a walk, to compare its negative and positive excursions."""
+    angle = np.cumsum(np.asarray(rate, dtype=float)) / rate_hz
+    window = max(1, min(len(angle), round(window_s * rate_hz)))
+    padded = np.pad(angle, (window // 2, window - 1 - window // 2), mode="edge")
+    return angle - np.convolve(padded, np.ones(window) / window, "valid")
+
+
+def foot_pitch_sign(rate: np.ndarray, rate_hz: float) -> tuple[float, float]:
+    """(+1 if ``rate`` is about the right-pointing axis, asymmetry) of a walking foot's sagittal rate.
+
+    Rule (module docstring step 3, READING after [T §6.4.2]): the toes-down minimum at push-off is
+    deeper than the toes-up maximum at IC. ``asymmetry`` = ``|p1| − p99`` (rad) of the detrended pitch
+    for the returned sign (≥ 0)."""
+    pitch = sagittal_angle(rate, rate_hz)
+    p1, p99 = np.percentile(pitch, [1, 99])
+    deeper_down = -p1 - p99
+    return (1.0 if deeper_down >= 0 else -1.0), float(abs(deeper_down))
+
+
+def knee_shape_sign(thigh_rate: np.ndarray, shank_rate: np.ndarray, rate_hz: float) -> tuple[float, float]:
+    """(+1 if ``thigh_rate`` is about the right-pointing axis, asymmetry) of a walking thigh, given the
+    same leg's shank rate about its (already right-pointing) axis.
+
+    Rule (module docstring step 3): the knee angle ``∫(ω_thigh − ω_shank)`` flexes far more than it
+    hyperextends: its detrended excursion has ``p99 + p1 > 0``. Both thigh signs are tried and the one
+    with the more positive-dominant knee curve is returned; ``asymmetry`` = the difference (rad)."""
+    thigh_rate = np.asarray(thigh_rate, dtype=float)
+    shank_rate = np.asarray(shank_rate, dtype=float)
+    score = []
+    for sign in (1.0, -1.0):
+        p1, p99 = np.percentile(sagittal_angle(sign * thigh_rate - shank_rate, rate_hz), [1, 99])
+        score.append(p99 + p1)
+    return (1.0 if score[0] >= score[1] else -1.0), float(abs(score[0] - score[1]))
+
+
+def _own_sign(segment: str, rate: np.ndarray, protocol: str, rate_hz: float) -> tuple[float, str]:
+    """(+1 if the segment's own rule says the axis points right, rule name) (module docstring step 3)."""
+    if protocol == "walking" and segment.endswith("foot"):
+        sign, asym = foot_pitch_sign(rate, rate_hz)
+        return sign, f"foot pitch shape (push-off deeper by {np.degrees(asym):.0f} deg)"
     if protocol == "hip_flexion" or segment.endswith("thigh"):
         angle = np.cumsum(rate) / rate_hz
-        return 1.0 if np.mean(angle) >= 0 else -1.0
+        return (1.0 if np.mean(angle) >= 0 else -1.0), "mean sagittal angle"
     centred = rate - rate.mean()
-    return 1.0 if np.mean(centred**3) >= 0 else -1.0
+    return (1.0 if np.mean(centred**3) >= 0 else -1.0), "skewness"
 
 
 def calibrate_segment(
@@ -217,8 +291,10 @@ def calibrate_segment(
 ) -> SegmentCalibrationResult:
     """Calibrate one leg segment (thigh, shank, foot) with thesis Eq 14–16 (see module docstring).
 
-    ``reference_rate``: the sagittal angular rate of the same leg's reference segment at the motion
-    samples (sign rule by correlation); None = the segment's own rule. ``standing_orientation`` is
+    ``reference_rate``: the sagittal angular rate (about its right-pointing axis, standing bias removed,
+    low-passed with :func:`lowpass_motion`) of the same leg's reference segment at the motion samples:
+    hip flexion thigh for shank/foot (correlation), walking shank for the thigh (knee shape); None = the
+    segment's own rule. A walking foot always uses its own pitch-shape rule. ``standing_orientation`` is
     kept in ``details`` (needed by the trunk heading). Never raises for bad recordings: returns
     ``valid=False`` with a message a clinician can act on.
     """
@@ -239,19 +315,32 @@ def calibrate_segment(
     if motion_gyr.shape[0] < 3:
         result.message = f"{name}: no movement recorded after the quiet standing"
         return result
-    gamma, explained, axis = heading_calibration(motion_gyr - bias, vertical)
-    rate = (motion_gyr - bias) @ axis
+    motion = lowpass_motion(motion_gyr - bias, rate_hz)
+    gamma, explained, axis = heading_calibration(motion, vertical)
+    rate = motion @ axis
     cycles = count_cycles(rate)
-    if reference_rate is not None and len(reference_rate) == len(rate) and np.std(reference_rate) > 0:
-        corr = float(np.corrcoef(rate, reference_rate)[0, 1])
+    usable_ref = (reference_rate is not None and len(reference_rate) == len(rate)
+                  and np.std(reference_rate) > 0)
+    details: dict[str, Any] = {}
+    if usable_ref:
+        ref = np.asarray(reference_rate, dtype=float)
+        corr = float(np.corrcoef(rate, ref)[0, 1])
+    if protocol == "walking" and segment.endswith("foot"):
+        sign, rule = _own_sign(segment, rate, protocol, rate_hz)
+        if usable_ref:
+            details["reference_agreement"] = float(sign * corr)
+    elif protocol == "walking" and segment.endswith("thigh") and usable_ref:
+        sign, asym = knee_shape_sign(rate, ref, rate_hz)
+        rule = f"knee shape with the shank (flexion-dominant by {np.degrees(asym):.0f} deg)"
+    elif usable_ref:
         sign, rule = (1.0 if corr >= 0 else -1.0), f"correlation with reference ({corr:+.2f})"
     else:
-        sign, rule = _own_sign(segment, rate, protocol, rate_hz), "own"
+        sign, rule = _own_sign(segment, rate, protocol, rate_hz)
     z = sign * axis
     x = np.cross(y, z)
     rotation = quat.from_matrix(np.column_stack([x, y, z]))
     result.rotation, result.quality = rotation, explained
-    result.details = {"gamma": gamma, "cycles": cycles, "sign_rule": rule}
+    result.details = {"gamma": gamma, "cycles": cycles, "sign_rule": rule, **details}
     if standing_orientation is not None:
         result.details["standing_orientation"] = [float(v) for v in standing_orientation]
     need = MIN_CYCLES[protocol]
@@ -362,7 +451,7 @@ def calibrate_session(
             s = data[seg]
             st, mo = _window(s.t, standing), _window(s.t, motion)
             rate_ref = None
-            if ref_rate is not None and not seg.endswith("thigh"):
+            if ref_rate is not None and (protocol == "walking" or not seg.endswith("thigh")):
                 rate_ref = np.interp(s.t[mo], *ref_rate)
             q_stand = mean_orientation(orientations[seg][st]) if seg in orientations and st.any() else None
             res = calibrate_segment(seg, s.acc[st], s.gyr[st], s.gyr[mo], rate_hz or s.rate_hz, protocol,
@@ -370,7 +459,8 @@ def calibrate_session(
             results[seg] = res
             if seg == ref and res.valid:
                 z = quat.rotate(res.rotation, [0.0, 0.0, 1.0])
-                ref_rate = (s.t[mo], (s.gyr[mo] - s.gyr[st].mean(axis=0)) @ z)
+                ref_motion = lowpass_motion(s.gyr[mo] - s.gyr[st].mean(axis=0), rate_hz or s.rate_hz)
+                ref_rate = (s.t[mo], ref_motion @ z)
     thighs = [results[f"{side}_thigh"] for side in SIDES if f"{side}_thigh" in results]
     for seg in TRUNK_SEGMENTS:
         if seg in data:

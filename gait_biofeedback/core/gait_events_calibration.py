@@ -2,12 +2,10 @@
 
 The rotation comes from the project calibration (:func:`gait_biofeedback.core.calibration.
 calibrate_segment`, thesis Eq 14–16, walking protocol) on the leading quiet standing and the walking
-after it. One extra guard, READING for the foot: the sign of the mediolateral axis (the 180°
-anterior/posterior ambiguity of the PCA) is checked against the shape of the foot pitch itself. The
-thesis' signal (Eq 52) has a deep toes-down minimum at TC (≈ −0.6) and a small toes-up maximum at IC
-(≈ +0.2) [T §6.4.2], so the sign whose sagittal angle has the larger negative excursion over the walk
-is kept. On both real recordings (gaitmap, qmt) the calibration's own foot rule (skewness of the
-sagittal rate) picks the opposite sign, which puts every event ~300 ms off; this guard fixes it.
+after it. The sign of the foot's mediolateral axis (the 180° anterior/posterior ambiguity of the PCA)
+is resolved there by the shared foot pitch-shape rule (:func:`gait_biofeedback.core.calibration.
+foot_pitch_sign`: the toes-down minimum at push-off is deeper than the toes-up maximum at IC
+[T §6.4.2]), the same rule the live calibration node uses, so the batch and live paths agree.
 """
 
 from __future__ import annotations
@@ -17,7 +15,6 @@ import numpy as np
 from gait_biofeedback.core import quaternion as quat
 
 MIN_STANDING_S = 0.2
-_HALF_TURN_ABOUT_Y = np.array([0.0, 0.0, 1.0, 0.0])  # flips x (anterior) and z (right)
 
 
 def leading_standing(gyr: np.ndarray, acc: np.ndarray, rate_hz: float, max_s: float = 5.0,
@@ -45,22 +42,8 @@ def foot_calibration(gyr: np.ndarray, acc: np.ndarray, rate_hz: float, segment: 
     if n < MIN_STANDING_S * rate_hz:
         raise ValueError(f"foot calibration needs ≥ {MIN_STANDING_S:g} s of quiet standing at the start; "
                          f"found {n / rate_hz:.2f} s: start the recording with the patient standing still")
-    walking = gyr[n:][np.all(np.isfinite(gyr[n:]), axis=1)] - gyr[:n].mean(axis=0)
+    walking = gyr[n:][np.all(np.isfinite(gyr[n:]), axis=1)]
     result = calibrate_segment(segment, acc[:n], gyr[:n], walking, rate_hz, "walking")
     if not result.valid:
         raise ValueError(f"foot calibration failed: {result.message}")
-    r = quat.normalize(result.rotation)
-    lateral = quat.rotate(r, np.array([0.0, 0.0, 1.0]))
-    pitch = sagittal_angle(walking, lateral, rate_hz)
-    if abs(np.percentile(pitch, 1)) < abs(np.percentile(pitch, 99)):
-        r = quat.multiply(r, _HALF_TURN_ABOUT_Y)
-    return r
-
-
-def sagittal_angle(gyr: np.ndarray, lateral: np.ndarray, rate_hz: float) -> np.ndarray:
-    """Angle (rad) about ``lateral`` from integrating the gyro, minus its 2 s moving mean: a drift-free
-    enough shape of the foot pitch over a walk to compare its negative and positive excursions."""
-    angle = np.cumsum(gyr @ lateral) / rate_hz
-    window = max(1, round(2.0 * rate_hz))
-    padded = np.pad(angle, (window // 2, window - 1 - window // 2), mode="edge")
-    return angle - np.convolve(padded, np.ones(window) / window, "valid")
+    return quat.normalize(result.rotation)

@@ -141,6 +141,34 @@ def segment_orientations(segment_quats: dict[str, np.ndarray], calibration: Any)
             for s, q in segment_quats.items() if s in rotations}
 
 
+def align_headings(segment_quats: dict[str, np.ndarray], calibration: Any,
+                   standing: slice | np.ndarray) -> dict[str, np.ndarray]:
+    """Sensor→world orientations re-expressed in one common world heading (batch, EXT/READING).
+
+    Joint angles need the proximal and distal orientations in one world frame, heading included
+    (gait.md §1.6). 6D filters (no magnetometer) and the qmt vendor quaternions give each sensor its own
+    heading (qmt: the calibrated anatomical x axes of one leg's thigh, shank and foot point to world
+    headings up to 150° apart in quiet standing). Assumption: in quiet standing every calibrated
+    segment faces forward, so each sensor's world frame is rotated about the vertical by ``-ψ`` with ψ
+    the world heading of its anatomical x averaged over ``standing`` (samples): all anatomical x axes
+    then point along world +x at standing. Toe-out and similar standing offsets are absorbed, as by
+    the standing offset removal of gait.md §1.9. Heading drift after the standing is not corrected,
+    so use the standing right before the movement. Segments without a calibration are left out.
+    """
+    from gait_biofeedback.core.calibration import mean_orientation
+
+    rotations = _rotations_of(calibration)
+    out: dict[str, np.ndarray] = {}
+    for seg, q in segment_quats.items():
+        if seg not in rotations:
+            continue
+        q = np.asarray(q, dtype=float)
+        x_world = quat.rotate(mean_orientation(q[standing]), quat.rotate(rotations[seg], _X))
+        psi = float(np.arctan2(x_world[1], x_world[0]))
+        out[seg] = quat.multiply(quat.from_axis_angle(_Z, -psi), q)
+    return out
+
+
 def compute_joint_angles(
     segment_quats: dict[str, np.ndarray],
     calibration: Any,
