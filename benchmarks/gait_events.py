@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gait_biofeedback.core.event_matching import MATCH_TOLERANCE_S, match_events
 from gait_biofeedback.core.gait_cycles import GaitCycleTracker
 from gait_biofeedback.core.gait_events import INITIAL_CONTACT, TERMINAL_CONTACT, GaitEvent, detect_gait_events
 from gait_biofeedback.core.gait_events_comparator import sagittal_rate
@@ -30,25 +31,9 @@ from gait_biofeedback.core.simulator import SCENARIOS, simulate
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO.parent / "shared" / "data"
-MATCH_S = 0.5  # thesis §6.2.4 / [T ref 373]
+MATCH_S = MATCH_TOLERANCE_S  # thesis §6.2.4 / [T ref 373]
 METHODS = ("nazarahari", "angular_velocity")
 KINDS = (INITIAL_CONTACT, TERMINAL_CONTACT)
-
-
-def match(detected: np.ndarray, reference: np.ndarray, tolerance: float = MATCH_S) -> tuple[list, list, list]:
-    """Greedy one-to-one matching in reference order → (errors s, missed references, extra detections)."""
-    detected = np.sort(np.asarray(detected, dtype=float))
-    used = np.zeros(len(detected), dtype=bool)
-    errors, missed = [], []
-    for ref in np.sort(np.asarray(reference, dtype=float)):
-        free = np.flatnonzero(~used & (np.abs(detected - ref) <= tolerance))
-        if len(free):
-            best = free[np.argmin(np.abs(detected[free] - ref))]
-            used[best] = True
-            errors.append(detected[best] - ref)
-            continue
-        missed.append(float(ref))
-    return errors, missed, detected[~used].tolist()
 
 
 def score(results: list[tuple[str, np.ndarray, np.ndarray, list[tuple[float, float]]]]) -> dict:
@@ -62,11 +47,11 @@ def score(results: list[tuple[str, np.ndarray, np.ndarray, list[tuple[float, flo
         inside = np.zeros(len(detected), dtype=bool)
         for a, b in intervals:
             inside |= (detected >= a) & (detected <= b)
-        e, missed, extra = match(detected[inside], reference)
-        tp, fn, fp = tp + len(e), fn + len(missed), fp + len(extra)
-        errors += e
-        notes += [f"{label}: missed reference at {t:.2f} s" for t in missed]
-        notes += [f"{label}: extra detection at {t:.2f} s" for t in extra]
+        matched = match_events(detected[inside], reference, MATCH_S)
+        tp, fn, fp = tp + len(matched.errors), fn + len(matched.missed), fp + len(matched.extra)
+        errors += matched.errors
+        notes += [f"{label}: missed reference at {t:.2f} s" for t in matched.missed]
+        notes += [f"{label}: extra detection at {t:.2f} s" for t in matched.extra]
     err = np.array(errors) * 1000.0
     return {"n": tp + fn, "se": 100.0 * tp / max(tp + fn, 1), "pr": 100.0 * tp / max(tp + fp, 1),
             "mean": float(err.mean()) if len(err) else np.nan,
