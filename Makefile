@@ -13,6 +13,7 @@ demo: setup
 
 # the outer KILL timeout is the last guard: a hung rclpy process ignores SIGTERM
 test: setup
+	@bash scripts/setup_browser.sh
 	$(PY) -m ruff check gait_biofeedback test benchmarks scripts
 	timeout -s KILL 1200 $(PY) -m pytest -q
 

@@ -13,6 +13,7 @@ NODES = {
     "gait_events": "gait_biofeedback.nodes.gait_events:main",
     "calibration": "gait_biofeedback.nodes.calibration:main",
     "joint_angles": "gait_biofeedback.nodes.joint_angles:main",
+    "biofeedback": "gait_biofeedback.nodes.biofeedback:main",
 }
 
 setup(

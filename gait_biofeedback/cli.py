@@ -142,7 +142,8 @@ def cmd_repair(args: argparse.Namespace) -> int:
 def cmd_demo(args: argparse.Namespace) -> int:
     from gait_biofeedback.demo import run_demo
 
-    return run_demo(bag=Path(args.bag), output=Path(args.output), speed=args.speed)
+    return run_demo(bag=Path(args.bag), output=Path(args.output), speed=args.speed,
+                    dashboard_port=args.dashboard_port)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -155,6 +156,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--bag", default=str(DEMO_BAG), help="demo recording (made if missing) [%(default)s]")
     p.add_argument("--output", default=str(DEMO_OUTPUT), help="where the outputs are recorded [%(default)s]")
     p.add_argument("--speed", type=float, default=2.0, help="replay speed factor [%(default)s]")
+    p.add_argument("--dashboard-port", type=int, default=0,
+                   help="port of the live dashboard on 127.0.0.1 (0 = any free port; the log says which)")
     p.set_defaults(func=cmd_demo)
 
     p = sub.add_parser("simulate", help="synthetic session with ground truth → MCAP recording")

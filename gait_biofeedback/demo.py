@@ -81,7 +81,7 @@ def summarize(input_bag: Path, output: Path, wall_time: float, published: int,
     return "\n".join(lines)
 
 
-def run_demo(bag: Path, output: Path, speed: float = 4.0) -> int:
+def run_demo(bag: Path, output: Path, speed: float = 2.0, dashboard_port: int = 0) -> int:
     """Run the demo; returns the process exit code."""
     t0 = time.monotonic()
     bag, made = ensure_demo_bag(bag)
@@ -104,7 +104,8 @@ def run_demo(bag: Path, output: Path, speed: float = 4.0) -> int:
               disable=not sys.stderr.isatty()) as bar:
         result = replay_through_graph(
             bag, output, speed=speed, progress=bar.update,
-            node_parameters={"calibration": {"session_dir": str(calibration_dir)}},
+            node_parameters={"calibration": {"session_dir": str(calibration_dir)},
+                             "biofeedback": {"port": dashboard_port}},
             actions=[(calibration_time(), press_calibrate)])
     print(summarize(bag, output, result.wall_time, result.published, " ".join(said)))
     return 0

@@ -30,6 +30,7 @@ Action = tuple[float, Callable[[dict[str, Node]], object]]
 def processing_nodes() -> dict[str, NodeFactory]:
     """The processing nodes that exist in this build, by name, in data-flow order."""
     from gait_biofeedback.nodes.activity_monitor import ActivityMonitorNode
+    from gait_biofeedback.nodes.biofeedback import BiofeedbackNode
     from gait_biofeedback.nodes.calibration import CalibrationNode
     from gait_biofeedback.nodes.gait_events import GaitEventsNode
     from gait_biofeedback.nodes.joint_angles import JointAnglesNode
@@ -41,6 +42,7 @@ def processing_nodes() -> dict[str, NodeFactory]:
         "joint_angles": JointAnglesNode,
         "gait_events": GaitEventsNode,
         "activity_monitor": ActivityMonitorNode,
+        "biofeedback": BiofeedbackNode,
     }
 
 

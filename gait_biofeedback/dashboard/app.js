@@ -1,0 +1,437 @@
+// Clinician dashboard of gait_biofeedback (thesis ch. 8, §9.2.5): stick figure, joint-angle curves over
+// the reference band, IC/TC markers, gait parameters, activity, sensor status, cues and audio beeps.
+// Data arrive over the websocket /ws of the biofeedback node in SI units (rad, s, Hz, fractions);
+// degrees, percent and steps/min are used only for display. No third-party code, no build step.
+"use strict";
+
+const DEG = 180 / Math.PI;
+const SIDES = ["left", "right"];
+const CURVES = ["hip_flexion", "knee_flexion", "ankle_dorsiflexion"];
+const CURVE_TITLES = { hip_flexion: "Hip flexion", knee_flexion: "Knee flexion", ankle_dorsiflexion: "Ankle dorsiflexion" };
+const CURVE_RANGE = { hip_flexion: [-25, 50], knee_flexion: [-10, 75], ankle_dorsiflexion: [-30, 25] };
+const COLORS = { left: "#1f77b4", right: "#e4572e", pelvis: "#555" };
+const STRIDES_KEPT = 5;
+const SAMPLES_KEPT = 600;     // ~6 s at 100 Hz
+const EVENT_WINDOW = 6.0;     // s shown on the IC/TC strip
+const QUANTITY_LABELS = {
+  knee_flexion_peak_swing: "Peak knee flexion (swing)", knee_flexion_at_ic: "Knee flexion at IC",
+  hip_extension_peak_stance: "Hip extension (late stance)", ankle_dorsiflexion_at_ic: "Ankle dorsiflexion at IC",
+  stance_fraction: "Stance", step_time_symmetry: "Step-time symmetry", cadence: "Cadence",
+};
+
+// Everything the page knows; exposed for the browser test.
+const state = {
+  connected: false, hello: false, framesReceived: 0, framesRendered: 0, fps: 0,
+  figureUpdates: 0, figureMotion: 0, curvePoints: 0, strideCurves: 0, samplesReceived: 0,
+  events: 0, cuesReceived: 0, lastCalibration: null, lastReply: null, audio: null, muted: false,
+  lastAngleStamp: null, lastFrameWall: null, feedback: { side: "both", joint: "all" },
+};
+window.dashboardState = state;
+
+const data = {
+  targets: null, figure: null, angles: null, samples: [], strides: { left: [], right: [] },
+  events: [], lastIC: { left: null, right: null }, strideTime: { left: 1.1, right: 1.1 },
+  cycles: { left: null, right: null }, strideCount: { left: 0, right: 0 }, cues: new Map(),
+  activity: null, diagnostics: [], icCount: 0, tcPercent: { left: 60, right: 60 },
+};
+let ws = null;
+let dirty = true;
+
+// ---------------------------------------------------------------------------------------------- socket
+function connect() {
+  const url = (location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/ws";
+  ws = new WebSocket(url);
+  ws.onopen = () => { state.connected = true; setBadge(true); };
+  ws.onclose = () => { state.connected = false; setBadge(false); setTimeout(connect, 1000); };
+  ws.onmessage = (ev) => { try { handle(JSON.parse(ev.data)); } catch (e) { console.error(e); } };
+}
+
+function send(obj) {
+  if (ws && ws.readyState === WebSocket.OPEN) { ws.send(JSON.stringify(obj)); return true; }
+  showReply({ action: obj.action, success: false, message: "not connected to the biofeedback node" });
+  return false;
+}
+
+function setBadge(on) {
+  const b = document.getElementById("connection");
+  b.textContent = on ? "live" : "disconnected";
+  b.className = "badge " + (on ? "on" : "off");
+}
+
+function handle(msg) {
+  if (msg.type === "hello") return onHello(msg);
+  if (msg.type === "error") return showReply({ action: "?", success: false, message: msg.message });
+  if (msg.type !== "frame") return;
+  state.framesReceived += 1;
+  state.lastFrameWall = msg.wall;
+  if (msg.samples) {
+    for (const row of msg.samples) data.samples.push(row);
+    if (data.samples.length > SAMPLES_KEPT) data.samples.splice(0, data.samples.length - SAMPLES_KEPT);
+    state.samplesReceived += msg.samples.length;
+  }
+  if (msg.angles) { data.angles = msg.angles; state.lastAngleStamp = msg.angles.t; }
+  if (msg.figure) onFigure(msg.figure);
+  for (const m of msg.messages || []) onMessage(m);
+  if (msg.activity) data.activity = msg.activity;
+  if (msg.diagnostics) data.diagnostics = msg.diagnostics;
+  dirty = true;
+}
+
+function onHello(msg) {
+  state.hello = true;
+  data.targets = msg.targets;
+  state.feedback = msg.feedback;
+  document.getElementById("side").value = msg.feedback.side;
+  document.getElementById("joint").value = msg.feedback.joint;
+  setMuted(msg.muted, false);
+  data.strides = { left: [], right: [] };
+  for (const s of msg.strides || []) addStride(s);
+  if (msg.audio) state.audio = msg.audio;
+  const src = (msg.targets.reference_sources || []).join(" · ");
+  document.getElementById("sources").textContent = src ?
+    "Reference curves: textbook key values of normal adult gait (" + src + "); band = reference ± tolerance set in config/targets.yaml, not a published SD." : "";
+  dirty = true;
+}
+
+function onFigure(fig) {
+  if (data.figure) {
+    let d = 0;
+    for (let i = 0; i < Math.min(fig.length, data.figure.length); i++) {
+      d += Math.abs(fig[i][3] - data.figure[i][3]) + Math.abs(fig[i][4] - data.figure[i][4]);
+    }
+    state.figureMotion += d;
+  }
+  data.figure = fig;
+  state.figureUpdates += 1;
+}
+
+function onMessage(m) {
+  switch (m.type) {
+    case "event":
+      data.events.push(m); state.events += 1;
+      if (data.events.length > 200) data.events.splice(0, data.events.length - 200);
+      if (m.kind === "IC") { data.lastIC[m.side] = m.t; data.icCount += 1; }
+      break;
+    case "cycle":
+      data.cycles[m.side] = m;
+      if (m.plausible && m.stride_time) data.strideTime[m.side] = m.stride_time;
+      data.strideCount[m.side] += 1;
+      break;
+    case "stride": addStride(m); break;
+    case "cue": data.cues.set(m.quantity + "|" + m.side, m); state.cuesReceived += 1; break;
+    case "audio": state.audio = m; break;
+    case "reply": showReply(m); break;
+  }
+}
+
+function addStride(s) {
+  const list = data.strides[s.side];
+  list.push(s);
+  if (list.length > STRIDES_KEPT) list.shift();
+  data.tcPercent[s.side] = s.tc_percent;
+  state.strideCurves += 1;
+}
+
+function showReply(m) {
+  state.lastReply = m;
+  const text = (m.success ? "✔ " : "✖ ") + m.message;
+  if (m.action === "calibrate") {
+    const el = document.getElementById("calibration-message");
+    el.textContent = "Calibration: " + (m.pending ? m.message : text);
+    el.className = m.pending ? "pending" : (m.success ? "ok" : "fail");
+    if (!m.pending) {
+      state.lastCalibration = { success: m.success, message: m.message, segments: m.segments || [] };
+      document.getElementById("calibrate").disabled = false;
+    }
+  } else {
+    document.getElementById("reply-message").textContent = m.action + ": " + text;
+    if (m.action === "record_start" && m.success) document.getElementById("record-start").classList.add("active");
+    if (m.action === "record_stop" && m.success) document.getElementById("record-start").classList.remove("active");
+    if (m.action === "feedback" && m.feedback) state.feedback = m.feedback;
+  }
+}
+
+// ---------------------------------------------------------------------------------------------- controls
+function setupControls() {
+  document.getElementById("calibrate").addEventListener("click", () => {
+    const protocol = document.getElementById("protocol").value;
+    if (send({ action: "calibrate", protocol })) {
+      document.getElementById("calibrate").disabled = true;
+      const el = document.getElementById("calibration-message");
+      el.textContent = "Calibration: requested (" + protocol + ") …"; el.className = "pending";
+    }
+  });
+  document.getElementById("record-start").addEventListener("click", () => send({ action: "record_start" }));
+  document.getElementById("record-stop").addEventListener("click", () => send({ action: "record_stop" }));
+  const feedback = () => {
+    state.feedback = { side: document.getElementById("side").value, joint: document.getElementById("joint").value };
+    send({ action: "feedback", side: state.feedback.side, joint: state.feedback.joint });
+    dirty = true;
+  };
+  document.getElementById("side").addEventListener("change", feedback);
+  document.getElementById("joint").addEventListener("change", feedback);
+  document.getElementById("mute").addEventListener("click", () => { setMuted(!state.muted, true); });
+  // the browser allows sound only after a user gesture
+  document.addEventListener("click", () => { audio.resume(); }, { capture: true });
+}
+
+function setMuted(muted, tell) {
+  state.muted = muted;
+  document.getElementById("mute").textContent = muted ? "Sound: muted" : "Sound: on";
+  if (tell) send({ action: "mute", muted });
+}
+
+// ---------------------------------------------------------------------------------------------- audio
+// Beeps of the cue the node selected: pitch and rate follow the error (thesis ch. 8); silent in band.
+const audio = {
+  ctx: null, nextBeep: 0,
+  resume() {
+    if (!this.ctx) {
+      const AC = window.AudioContext || window.webkitAudioContext;
+      if (!AC) return;
+      this.ctx = new AC();
+    }
+    if (this.ctx.state === "suspended") this.ctx.resume();
+  },
+  tick() {
+    const a = state.audio;
+    if (!this.ctx || state.muted || !a || !(a.rate > 0) || !(a.frequency > 0)) return;
+    const now = this.ctx.currentTime;
+    if (this.nextBeep < now) this.nextBeep = now + 0.02;
+    while (this.nextBeep < now + 0.2) {
+      this.beep(this.nextBeep, a.frequency, Math.min(0.09, 0.5 / a.rate));
+      this.nextBeep += 1 / a.rate;
+    }
+  },
+  beep(t, f, dur) {
+    const osc = this.ctx.createOscillator();
+    const gain = this.ctx.createGain();
+    osc.frequency.value = f;
+    gain.gain.setValueAtTime(0, t);
+    gain.gain.linearRampToValueAtTime(0.25, t + 0.005);
+    gain.gain.linearRampToValueAtTime(0, t + dur);
+    osc.connect(gain).connect(this.ctx.destination);
+    osc.start(t); osc.stop(t + dur + 0.01);
+  },
+};
+
+// ---------------------------------------------------------------------------------------------- drawing
+function drawFigure() {
+  const c = document.getElementById("figure");
+  const g = c.getContext("2d");
+  g.clearRect(0, 0, c.width, c.height);
+  const scale = c.height / 1.25, ox = c.width * 0.5, oy = c.height * 0.12;
+  g.strokeStyle = "#ccc"; g.lineWidth = 1;
+  g.beginPath(); g.moveTo(0, oy + 0.98 * scale); g.lineTo(c.width, oy + 0.98 * scale); g.stroke();
+  if (!data.figure) {
+    g.fillStyle = "#888"; g.font = "14px sans-serif";
+    g.fillText("waiting for joint angles (calibrate first)", 20, c.height / 2);
+    return;
+  }
+  // far (left) leg first, then pelvis, then the near (right) leg
+  const order = (seg) => (seg.startsWith("left") ? 0 : seg === "pelvis" ? 1 : 2);
+  const segs = data.figure.slice().sort((a, b) => order(a[0]) - order(b[0]));
+  g.lineCap = "round";
+  for (const [seg, x0, y0, x1, y1] of segs) {
+    const side = seg.startsWith("left") ? "left" : seg.startsWith("right") ? "right" : "pelvis";
+    g.strokeStyle = COLORS[side];
+    g.lineWidth = seg === "pelvis" ? 10 : seg.endsWith("foot") ? 6 : 8;
+    g.globalAlpha = side === "left" ? 0.8 : 1;
+    g.beginPath(); g.moveTo(ox + x0 * scale, oy - y0 * scale); g.lineTo(ox + x1 * scale, oy - y1 * scale); g.stroke();
+    g.fillStyle = "#1d2430";
+    g.beginPath(); g.arc(ox + x1 * scale, oy - y1 * scale, 3.5, 0, 2 * Math.PI); g.fill();
+  }
+  g.globalAlpha = 1;
+  // angle read-out
+  const v = data.angles ? data.angles.values : {};
+  g.font = "13px sans-serif";
+  SIDES.forEach((side, k) => {
+    g.fillStyle = COLORS[side];
+    const txt = CURVES.map((n) => {
+      const a = v[side + "_" + n];
+      return n.split("_")[0] + " " + (a === undefined ? "–" : (a * DEG).toFixed(0) + "°");
+    }).join("  ");
+    g.fillText(side + ": " + txt, 10, c.height - 28 + 16 * k);
+  });
+  document.getElementById("figure-time").textContent = data.angles ? "t = " + data.angles.t.toFixed(2) + " s" : "";
+}
+
+function drawEvents() {
+  const c = document.getElementById("events");
+  const g = c.getContext("2d");
+  g.clearRect(0, 0, c.width, c.height);
+  const tNow = data.angles ? data.angles.t : (data.events.length ? data.events[data.events.length - 1].t : 0);
+  const x = (t) => c.width - 10 - (tNow - t) / EVENT_WINDOW * (c.width - 50);
+  g.font = "11px sans-serif";
+  SIDES.forEach((side, k) => {
+    const y = 20 + k * 28;
+    g.fillStyle = COLORS[side]; g.fillText(side[0].toUpperCase(), 6, y + 4);
+    g.strokeStyle = "#ddd"; g.beginPath(); g.moveTo(30, y); g.lineTo(c.width - 5, y); g.stroke();
+    for (const e of data.events) {
+      if (e.side !== side || tNow - e.t > EVENT_WINDOW || e.t > tNow + 0.5) continue;
+      const px = x(e.t);
+      g.beginPath();
+      if (e.kind === "IC") { g.moveTo(px, y - 9); g.lineTo(px - 6, y + 7); g.lineTo(px + 6, y + 7); g.closePath(); g.fillStyle = COLORS[side]; g.fill(); }
+      else { g.moveTo(px, y + 9); g.lineTo(px - 6, y - 7); g.lineTo(px + 6, y - 7); g.closePath(); g.strokeStyle = COLORS[side]; g.lineWidth = 1.5; g.stroke(); g.lineWidth = 1; }
+    }
+  });
+}
+
+function chosenSides() { return state.feedback.side === "both" ? SIDES : [state.feedback.side]; }
+
+function drawCurve(name) {
+  const c = document.getElementById("curve-" + name);
+  const g = c.getContext("2d");
+  g.clearRect(0, 0, c.width, c.height);
+  const [lo, hi] = CURVE_RANGE[name];
+  const L = 38, R = 8, T = 18, B = 18, W = c.width - L - R, H = c.height - T - B;
+  const px = (p) => L + p / 100 * W;
+  const py = (deg) => T + (hi - Math.max(lo, Math.min(hi, deg))) / (hi - lo) * H;
+  // axes
+  g.strokeStyle = "#e3e3e3"; g.fillStyle = "#666"; g.font = "11px sans-serif"; g.lineWidth = 1;
+  for (let d = Math.ceil(lo / 15) * 15; d <= hi; d += 15) {
+    g.beginPath(); g.moveTo(L, py(d)); g.lineTo(L + W, py(d)); g.stroke(); g.fillText(d + "°", 4, py(d) + 4);
+  }
+  for (let p = 0; p <= 100; p += 20) g.fillText(p + "%", px(p) - 8, c.height - 4);
+  g.fillStyle = "#1d2430"; g.font = "bold 12px sans-serif";
+  g.fillText(CURVE_TITLES[name] + " (" + chosenSides().join(" + ") + ")", L + 4, 13);
+  // reference band
+  const ref = data.targets && data.targets.reference ? data.targets.reference[name] : null;
+  if (ref) {
+    g.fillStyle = "rgba(42,157,75,0.16)";
+    g.beginPath();
+    ref.percent.forEach((p, i) => { const f = i ? g.lineTo : g.moveTo; f.call(g, px(p), py(ref.high[i] * DEG)); });
+    for (let i = ref.percent.length - 1; i >= 0; i--) g.lineTo(px(ref.percent[i]), py(ref.low[i] * DEG));
+    g.closePath(); g.fill();
+    g.strokeStyle = "rgba(42,157,75,0.7)"; g.setLineDash([4, 3]); g.beginPath();
+    ref.percent.forEach((p, i) => { const f = i ? g.lineTo : g.moveTo; f.call(g, px(p), py(ref.mean[i] * DEG)); });
+    g.stroke(); g.setLineDash([]);
+  }
+  let points = 0;
+  for (const side of chosenSides()) {
+    // completed strides: older ones fainter
+    const list = data.strides[side];
+    list.forEach((s, k) => {
+      const ys = s.curves[name];
+      if (!ys) return;
+      g.strokeStyle = COLORS[side]; g.globalAlpha = 0.15 + 0.45 * (k + 1) / list.length; g.lineWidth = 1.2;
+      g.beginPath();
+      s.percent.forEach((p, i) => { const f = i ? g.lineTo : g.moveTo; f.call(g, px(p), py(ys[i] * DEG)); });
+      g.stroke();
+      points += ys.length;
+    });
+    g.globalAlpha = 1;
+    // TC marker of the latest stride
+    const tc = data.tcPercent[side];
+    g.strokeStyle = COLORS[side]; g.setLineDash([2, 3]);
+    g.beginPath(); g.moveTo(px(tc), T); g.lineTo(px(tc), T + H); g.stroke(); g.setLineDash([]);
+    g.fillStyle = COLORS[side]; g.font = "10px sans-serif"; g.fillText("TC", px(tc) + 2, T + 9 + (side === "right" ? 10 : 0));
+    // live stride since the last IC of this side
+    const t0 = data.lastIC[side];
+    if (t0 !== null) {
+      const col = 1 + SIDES.indexOf(side) * 3 + CURVES.indexOf(name);
+      const Ts = data.strideTime[side];
+      g.strokeStyle = COLORS[side]; g.lineWidth = 2.6; g.beginPath();
+      let first = true;
+      for (const row of data.samples) {
+        if (row[0] < t0 || row[col] === null) continue;
+        const p = (row[0] - t0) / Ts * 100;
+        if (p > 110) continue;
+        if (first) { g.moveTo(px(p), py(row[col] * DEG)); first = false; } else g.lineTo(px(p), py(row[col] * DEG));
+        points += 1;
+      }
+      g.stroke(); g.lineWidth = 1;
+    }
+  }
+  // IC marker at 0 %
+  g.strokeStyle = "#333"; g.beginPath(); g.moveTo(px(0), T); g.lineTo(px(0), T + H); g.stroke();
+  g.fillStyle = "#333"; g.font = "10px sans-serif"; g.fillText("IC", px(0) + 2, T + H - 3);
+  return points;
+}
+
+function fmtQuantity(unit, v, quantity) {
+  if (v === null || v === undefined) return "–";
+  if (unit === "rad") return (v * DEG).toFixed(1) + "°";
+  if (quantity === "cadence") return (v * 60).toFixed(0) + " /min";
+  if (unit === "1") return (v * 100).toFixed(1) + " %";
+  return v.toFixed(2) + " " + unit;
+}
+
+function updateTables() {
+  // gait parameters
+  const cl = data.cycles.left, cr = data.cycles.right;
+  const latest = [cl, cr].filter(Boolean).sort((a, b) => b.t - a.t)[0];
+  const pct = (c) => (c && c.stance_fraction !== null ? (c.stance_fraction * 100).toFixed(1) + " %" : "–");
+  document.getElementById("stat-cadence").textContent = latest && latest.cadence ? (latest.cadence * 60).toFixed(0) + " steps/min" : "–";
+  document.getElementById("stat-stance").textContent = pct(cl) + " / " + pct(cr);
+  document.getElementById("stat-symmetry").textContent = latest && latest.symmetry !== null ? (latest.symmetry * 100).toFixed(1) + " %" : "–";
+  const steps = data.activity ? data.activity.step_count : data.icCount;
+  document.getElementById("stat-steps").textContent = String(steps);
+  document.getElementById("stat-strides").textContent = data.strideCount.left + " / " + data.strideCount.right;
+  // activity
+  const a = data.activity;
+  document.getElementById("activity").textContent = a ?
+    a.posture + (a.locomotion !== "none" ? ", " + a.locomotion : "") + " · trunk " + (a.trunk_inclination * DEG).toFixed(0) +
+    "° · last transition: " + a.last_transition : "no activity monitor data";
+  // audio
+  const s = state.audio;
+  document.getElementById("audio-state").textContent = !s || !(s.rate > 0) ? "silent (all chosen quantities in band)" :
+    (state.muted ? "[muted] " : "") + QUANTITY_LABELS[s.quantity] + (s.side ? " (" + s.side + ")" : "") + ": " +
+    s.frequency.toFixed(0) + " Hz, " + s.rate.toFixed(1) + " beeps/s";
+  // cues
+  const body = document.querySelector("#cues tbody");
+  const rows = [...data.cues.values()].sort((x, y) => (x.quantity + x.side).localeCompare(y.quantity + y.side));
+  const groups = { knee_flexion_peak_swing: "knee", knee_flexion_at_ic: "knee", hip_extension_peak_stance: "hip",
+    ankle_dorsiflexion_at_ic: "ankle", stance_fraction: "timing", step_time_symmetry: "timing", cadence: "timing" };
+  body.innerHTML = "";
+  for (const c of rows) {
+    const chosen = (state.feedback.side === "both" || c.side === "" || c.side === state.feedback.side) &&
+      (state.feedback.joint === "all" || groups[c.quantity] === state.feedback.joint);
+    const tr = document.createElement("tr");
+    tr.className = "sev" + c.severity + (chosen ? "" : " dim");
+    const span = (c.high - c.low) || 1, lo = c.low - span, hi = c.high + span;
+    const pos = (v) => Math.max(0, Math.min(100, (v - lo) / (hi - lo) * 100));
+    const err = c.error ? (c.error > 0 ? "+" : "") + fmtQuantity(c.unit, c.error, c.quantity) : "in band";
+    tr.innerHTML = "<td>" + (QUANTITY_LABELS[c.quantity] || c.quantity) + "</td><td>" + (c.side || "both") + "</td><td>" +
+      fmtQuantity(c.unit, c.measured, c.quantity) + "</td><td>" + fmtQuantity(c.unit, c.low, c.quantity) + " … " +
+      fmtQuantity(c.unit, c.high, c.quantity) + "</td><td>" + err + "</td><td><div class='bar'><div class='band' style='left:" +
+      pos(c.low) + "%;width:" + (pos(c.high) - pos(c.low)) + "%'></div><div class='dot' style='left:" +
+      (c.measured === null ? 0 : pos(c.measured)) + "%'></div></div></td>";
+    body.appendChild(tr);
+  }
+  // diagnostics
+  const dbody = document.querySelector("#diagnostics tbody");
+  dbody.innerHTML = "";
+  const names = ["OK", "WARN", "ERROR", "STALE"];
+  const interesting = /rate|drop|gap|batter|missing|stale|hz|latency|published/i;
+  for (const d of [...data.diagnostics].sort((x, y) => x.name.localeCompare(y.name))) {
+    const vals = Object.entries(d.values).filter(([k]) => interesting.test(k)).slice(0, 4)
+      .map(([k, v]) => k + " " + v).join(", ");
+    const tr = document.createElement("tr");
+    tr.innerHTML = "<td class='lvl" + d.level + "'>" + (names[d.level] || d.level) + "</td><td>" + d.name +
+      "</td><td>" + d.message + (vals ? "<br><small>" + vals + "</small>" : "") + "</td>";
+    dbody.appendChild(tr);
+  }
+}
+
+// ---------------------------------------------------------------------------------------------- loop
+let lastTables = 0, fpsCount = 0, fpsStart = performance.now();
+function render() {
+  const now = performance.now();
+  audio.tick();
+  drawFigure();
+  drawEvents();
+  let points = 0;
+  for (const name of CURVES) points += drawCurve(name);
+  state.curvePoints = points;
+  if (dirty && now - lastTables > 200) { updateTables(); lastTables = now; dirty = false; }
+  state.framesRendered += 1;
+  fpsCount += 1;
+  if (now - fpsStart > 1000) { state.fps = fpsCount * 1000 / (now - fpsStart); fpsCount = 0; fpsStart = now; }
+}
+
+function loop() { render(); requestAnimationFrame(loop); }
+
+setupControls();
+connect();
+requestAnimationFrame(loop);

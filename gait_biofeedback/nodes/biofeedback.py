@@ -1,0 +1,430 @@
+"""Node ``biofeedback``: per-stride comparison with the therapist's targets, cues, and the live dashboard.
+
+Thesis ch. 8 and §9.2.5 (gait.md §5.3): the stick figure and joint-angle graphs for patient and therapist,
+and the prescriptive layer (measured vs targeted pattern → visual and auditory cues); the rules are in
+:mod:`gait_biofeedback.core.biofeedback`.
+
+Subscribes ``joint_states`` (sensor_msgs/JointState, rad), ``gait/cycles`` (GaitCycle), ``gait/events``
+(GaitEvent), ``activity/state`` (ActivityState) and ``/diagnostics``. At each plausible stride it waits
+until the joint angles reach the closing IC (at most ``stride_wait`` s, then the kinematic quantities are
+left out) and publishes one ``biofeedback/cues`` (BiofeedbackCue) per targeted quantity, in band or not.
+
+Dashboard (``serve_dashboard``): :class:`~gait_biofeedback.nodes.dashboard_server.DashboardServer` on
+``host``:``port`` (127.0.0.1:8080; port 0 = a free port, see :attr:`BiofeedbackNode.port`), page at
+``/``, websocket at ``/ws``, frames at ``frame_rate`` Hz built from the latest state. ROS callbacks only
+replace references and append to bounded deques; the server thread only reads/drains them. Page → node
+messages (queued, handled by a ROS timer, services called with ``call_async``, never blocking):
+``{"action": "calibrate", "protocol": "hip_flexion"|"walking"}`` → ``calibration/calibrate``;
+``{"action": "record_start"}`` / ``"record_stop"`` → ``recorder/start`` / ``recorder/stop``;
+``{"action": "feedback", "side": "left"|"right"|"both", "joint": "hip"|"knee"|"ankle"|"timing"|"all"}``;
+``{"action": "mute", "muted": bool}``. Replies: ``{"type": "reply", "action", "success", "message"}``.
+
+Audio: the cue to sound (largest error of the chosen side/joint among the latest cues, silent when all
+are in band) is sent to the page as ``{"type": "audio", "frequency", "rate", ...}``; the page beeps with
+WebAudio, so the robot side needs no sound hardware.
+
+Parameters: ``targets_file`` ("" = config/targets.yaml), ``serve_dashboard``, ``host``, ``port``,
+``frame_rate``, ``stride_wait``, ``curve_strides`` (strides per side a new page receives),
+``feedback_side``, ``feedback_joint``, ``diagnostics_period``, segment lengths of the stick figure
+(``thigh_length``, ``shank_length``, ``hip_width``, ``foot_length``, ``ankle_height``, m).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections import deque
+from typing import Any
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from rclpy.context import Context
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
+
+from gait_biofeedback.core.biofeedback import (
+    JOINT_GROUPS,
+    BiofeedbackEvaluator,
+    Cue,
+    Stride,
+    StrideResult,
+    default_targets_path,
+    load_targets,
+    sagittal_stick_figure,
+    select_audio_cue,
+)
+from gait_biofeedback.core.segments import SIDES
+from gait_biofeedback.core.skeleton import SegmentLengths
+from gait_biofeedback.nodes.common import (
+    DIAGNOSTICS_TOPIC,
+    RELIABLE_QOS,
+    diagnostic_array,
+    diagnostic_status,
+    s_to_stamp,
+    stamp_to_s,
+)
+from gait_biofeedback_msgs.msg import ActivityState, BiofeedbackCue, GaitCycle, GaitEvent
+from gait_biofeedback_msgs.srv import Calibrate
+
+CUES_TOPIC = "biofeedback/cues"
+CALIBRATE_SERVICE = "calibration/calibrate"
+PROTOCOLS = ("hip_flexion", "walking")
+_SIDE = {GaitCycle.SIDE_LEFT: "left", GaitCycle.SIDE_RIGHT: "right"}
+_POSTURES = {0: "unknown", 1: "standing", 2: "sitting", 3: "lying"}
+_LOCOMOTION = {0: "none", 1: "level walking", 2: "upstairs", 3: "downstairs"}
+_TRANSITIONS = {0: "none", 1: "sit to stand", 2: "stand to sit", 3: "sit to lie", 4: "lie to sit"}
+_SAMPLE_NAMES = tuple(f"{side}_{name}" for side in SIDES
+                      for name in ("hip_flexion", "knee_flexion", "ankle_dorsiflexion"))
+
+
+def _finite(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else None
+
+
+def cue_to_json(c: Cue) -> dict[str, Any]:
+    """A cue for the page (SI; NaN → null)."""
+    return {"type": "cue", "quantity": c.quantity, "side": c.side, "unit": c.unit,
+            "measured": _finite(c.measured), "low": c.band_low, "high": c.band_high,
+            "error": _finite(c.error), "severity": c.severity,
+            "frequency": c.audio_frequency, "rate": c.audio_rate, "stride": c.stride_index, "t": c.stamp}
+
+
+class BiofeedbackNode(Node):
+    """Biofeedback cues and the dashboard server (see module docstring)."""
+
+    def __init__(self, context: Context | None = None, **overrides: object) -> None:
+        super().__init__("biofeedback", context=context,
+                         parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()])
+        p = self.declare_parameter
+        targets_file = str(p("targets_file", "").value) or str(default_targets_path())
+        self.targets = load_targets(targets_file)
+        self.targets_json = self.targets.to_json()
+        self.stride_wait = float(p("stride_wait", 0.5).value)
+        self.curve_strides = int(p("curve_strides", 5).value)
+        self.feedback = {"side": str(p("feedback_side", "both").value),
+                         "joint": str(p("feedback_joint", "all").value)}
+        self.lengths = SegmentLengths(thigh=float(p("thigh_length", 0.43).value),
+                                      shank=float(p("shank_length", 0.43).value),
+                                      hip_width=float(p("hip_width", 0.18).value),
+                                      foot=float(p("foot_length", 0.14).value),
+                                      ankle_height=float(p("ankle_height", 0.08).value))
+        self.evaluator = BiofeedbackEvaluator(self.targets)
+        self.muted = False
+        # state shared with the server thread: references replaced whole, bounded deques
+        self._latest: tuple[float, dict[str, float]] | None = None
+        self._latest_sent: float | None = None
+        self._samples: deque[list[float]] = deque(maxlen=500)
+        self._outbox: deque[dict[str, Any]] = deque(maxlen=5000)
+        self._commands: deque[dict[str, Any]] = deque(maxlen=100)
+        self._recent_strides: deque[dict[str, Any]] = deque(maxlen=2 * max(self.curve_strides, 1))
+        self._activity: dict[str, Any] | None = None
+        self._activity_version = 0
+        self._sent_activity_version = -1
+        self._diag: dict[str, dict[str, Any]] = {}
+        self._diag_version = 0
+        self._sent_diag_version = -1
+        self._last_diag_sent = 0.0
+        self._audio: dict[str, Any] = {"type": "audio", "frequency": 0.0, "rate": 0.0, "severity": 0,
+                                       "quantity": "", "side": ""}
+        self._latest_cues: dict[tuple[str, str], Cue] = {}
+        self._pending: list[tuple[Stride, float]] = []
+        self._seq = 0
+        self.counts = {"joint_states": 0, "strides": 0, "strides_without_angles": 0, "implausible": 0,
+                       "cues": 0, "frames": 0, "commands": 0}
+        self._index_names: tuple[str, ...] = ()
+        self._index: list[int | None] = []
+
+        self.create_subscription(JointState, "joint_states", self._on_joints, RELIABLE_QOS)
+        self.create_subscription(GaitCycle, "gait/cycles", self._on_cycle, RELIABLE_QOS)
+        self.create_subscription(GaitEvent, "gait/events", self._on_event, RELIABLE_QOS)
+        self.create_subscription(ActivityState, "activity/state", self._on_activity, RELIABLE_QOS)
+        self.create_subscription(DiagnosticArray, DIAGNOSTICS_TOPIC, self._on_diagnostics, RELIABLE_QOS)
+        self._cues = self.create_publisher(BiofeedbackCue, CUES_TOPIC, RELIABLE_QOS)
+        self._diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, RELIABLE_QOS)
+        self._calibrate = self.create_client(Calibrate, CALIBRATE_SERVICE)
+        self._record = {"record_start": self.create_client(Trigger, "recorder/start"),
+                        "record_stop": self.create_client(Trigger, "recorder/stop")}
+        self.create_timer(0.05, self._tick)
+        self.create_timer(float(p("diagnostics_period", 1.0).value), self._publish_diagnostics)
+
+        self.server = None
+        self.port: int | None = None
+        if bool(p("serve_dashboard", True).value):
+            from gait_biofeedback.nodes.dashboard_server import DashboardServer
+
+            self.server = DashboardServer(self.build_frame, self._commands.append, self.hello,
+                                          host=str(p("host", "127.0.0.1").value),
+                                          port=int(p("port", 8080).value),
+                                          frame_rate=float(p("frame_rate", 30.0).value),
+                                          logger=self.get_logger())
+            self.port = self.server.start()
+            self.get_logger().info(f"dashboard: http://{self.server.host}:{self.port}/")
+
+    # -- ROS callbacks (executor thread): cheap, never wait ------------------------------------------
+
+    def _on_joints(self, msg: JointState) -> None:
+        names = msg.name
+        if tuple(names) != self._index_names:
+            self._index_names = tuple(names)
+            lookup = {n: i for i, n in enumerate(names)}
+            self._index = [lookup.get(n) for n in _SAMPLE_NAMES]
+        pos = msg.position
+        t = stamp_to_s(msg.header.stamp)
+        self.counts["joint_states"] += 1
+        self._latest = (t, dict(zip(names, pos, strict=False)))
+        row = [t] + [float(pos[i]) if i is not None else math.nan for i in self._index]
+        self._samples.append(row)
+        for k, side in enumerate(SIDES):
+            hip, knee, ankle = row[1 + 3 * k: 4 + 3 * k]
+            if not (math.isnan(hip) or math.isnan(knee) or math.isnan(ankle)):
+                self.evaluator.add_angles(side, t, hip, knee, ankle)
+        if self._pending:
+            self._process_pending()
+
+    def _on_cycle(self, msg: GaitCycle) -> None:
+        stride = Stride(side=_SIDE.get(msg.side, "left"), index=int(msg.stride_index),
+                        t_start=stamp_to_s(msg.start), t_tc=stamp_to_s(msg.terminal_contact),
+                        t_end=stamp_to_s(msg.header.stamp), stance_fraction=float(msg.stance_fraction),
+                        cadence=float(msg.cadence), step_time_symmetry=float(msg.step_time_symmetry_index),
+                        plausible=bool(msg.plausible))
+        self._outbox.append({"type": "cycle", "side": stride.side, "stride": stride.index, "t": stride.t_end,
+                             "stance_fraction": _finite(stride.stance_fraction),
+                             "cadence": _finite(stride.cadence),
+                             "symmetry": _finite(stride.step_time_symmetry),
+                             "stride_time": _finite(float(msg.stride_time)), "plausible": stride.plausible,
+                             "flag": msg.flag})
+        if not stride.plausible:
+            self.counts["implausible"] += 1
+            return
+        self._pending.append((stride, time.monotonic()))
+        self._process_pending()
+
+    def _on_event(self, msg: GaitEvent) -> None:
+        self._outbox.append({"type": "event", "side": _SIDE.get(msg.side, "left"),
+                             "kind": "IC" if msg.type == GaitEvent.INITIAL_CONTACT else "TC",
+                             "t": stamp_to_s(msg.header.stamp), "index": int(msg.event_index)})
+
+    def _on_activity(self, msg: ActivityState) -> None:
+        self._activity = {"posture": _POSTURES.get(msg.posture, "unknown"),
+                          "locomotion": _LOCOMOTION.get(msg.locomotion, "none"),
+                          "last_transition": _TRANSITIONS.get(msg.last_transition, "none"),
+                          "step_count": int(msg.step_count),
+                          "trunk_inclination": float(msg.trunk_inclination),
+                          "t": stamp_to_s(msg.header.stamp)}
+        self._activity_version += 1
+
+    def _on_diagnostics(self, msg: DiagnosticArray) -> None:
+        for s in msg.status:
+            level = s.level[0] if isinstance(s.level, bytes) else int(s.level)
+            self._diag[s.name] = {"name": s.name, "level": int(level), "message": s.message,
+                                  "hardware_id": s.hardware_id,
+                                  "values": {kv.key: kv.value for kv in s.values}}
+        self._diag_version += 1
+
+    def _tick(self) -> None:
+        if self._pending:
+            self._process_pending()
+        while self._commands:
+            try:
+                command = self._commands.popleft()
+            except IndexError:
+                break
+            self.counts["commands"] += 1
+            self._handle(command)
+
+    # -- strides → cues -------------------------------------------------------------------------------
+
+    def _process_pending(self) -> None:
+        now = time.monotonic()
+        keep = []
+        for stride, arrived in self._pending:
+            if self.evaluator.covers(stride) or now - arrived > self.stride_wait:
+                self._evaluate(stride)
+            else:
+                keep.append((stride, arrived))
+        self._pending = keep
+
+    def _evaluate(self, stride: Stride) -> None:
+        result: StrideResult = self.evaluator.evaluate(stride)
+        self.counts["strides"] += 1
+        if not result.curves:
+            self.counts["strides_without_angles"] += 1
+        for c in result.cues:
+            msg = BiofeedbackCue(quantity=c.quantity, side=c.side, unit=c.unit, measured=c.measured,
+                                 band_low=c.band_low, band_high=c.band_high, error=c.error,
+                                 severity=c.severity,
+                                 audio_frequency=c.audio_frequency, audio_rate=c.audio_rate,
+                                 stride_index=c.stride_index)
+            msg.header.stamp = s_to_stamp(c.stamp)
+            msg.header.frame_id = f"{stride.side}_foot"
+            self._cues.publish(msg)
+            self.counts["cues"] += 1
+            self._latest_cues[(c.quantity, c.side)] = c
+            self._outbox.append(cue_to_json(c))
+        if result.curves:
+            entry = {"type": "stride", "side": stride.side, "stride": stride.index, "t": stride.t_end,
+                     "tc_percent": 100.0 * (stride.t_tc - stride.t_start) / (stride.t_end - stride.t_start),
+                     "percent": result.percent.tolist(),
+                     "curves": {k: [round(float(v), 5) for v in arr] for k, arr in result.curves.items()}}
+            self._recent_strides.append(entry)
+            self._outbox.append(entry)
+        self._update_audio()
+
+    def _update_audio(self) -> None:
+        cue = select_audio_cue(self._latest_cues.values(), self.feedback["side"], self.feedback["joint"])
+        audio = {"type": "audio", "frequency": 0.0, "rate": 0.0, "severity": 0, "quantity": "", "side": "",
+                 "error": 0.0, "unit": ""}
+        if cue is not None:
+            audio.update(frequency=cue.audio_frequency, rate=cue.audio_rate, severity=cue.severity,
+                         quantity=cue.quantity, side=cue.side, error=cue.error, unit=cue.unit)
+        if any(audio[k] != self._audio.get(k) for k in ("frequency", "rate", "quantity", "side")):
+            self._audio = audio
+            self._outbox.append(dict(audio))
+
+    # -- page commands (executor thread, via the queue) -----------------------------------------------
+
+    def _reply(self, action: str, success: bool, message: str, **extra: Any) -> None:
+        self._outbox.append({"type": "reply", "action": action, "success": bool(success), "message": message,
+                             **extra})
+
+    def _handle(self, command: dict[str, Any]) -> None:
+        action = str(command.get("action", ""))
+        if action == "calibrate":
+            protocol = str(command.get("protocol", "hip_flexion"))
+            if protocol not in PROTOCOLS:
+                self._reply(action, False, f"unknown protocol {protocol!r}; use one of {list(PROTOCOLS)}")
+                return
+            if not self._calibrate.service_is_ready():
+                self._reply(action, False,
+                            "calibration service not available: is the calibration node running?")
+                return
+            request = Calibrate.Request(protocol=protocol,
+                                        standing_duration=float(command.get("standing_duration", 0.0)),
+                                        motion_duration=float(command.get("motion_duration", 0.0)))
+            self._reply(action, True, f"calibrating ({protocol}) ...", pending=True)
+            future = self._calibrate.call_async(request)
+            future.add_done_callback(lambda f: self._service_done(action, f))
+        elif action in self._record:
+            client = self._record[action]
+            if not client.service_is_ready():
+                self._reply(action, False, "recorder service not available: is the recorder node running?")
+                return
+            future = client.call_async(Trigger.Request())
+            future.add_done_callback(lambda f: self._service_done(action, f))
+        elif action == "feedback":
+            side = str(command.get("side", self.feedback["side"]))
+            joint = str(command.get("joint", self.feedback["joint"]))
+            if side not in (*SIDES, "both") or joint not in (*JOINT_GROUPS, "all"):
+                self._reply(action, False, f"unknown feedback choice side={side!r} joint={joint!r}")
+                return
+            self.feedback = {"side": side, "joint": joint}
+            self._reply(action, True, f"feedback on {side} / {joint}", feedback=dict(self.feedback))
+            self._update_audio()
+        elif action == "mute":
+            self.muted = bool(command.get("muted", not self.muted))
+            self._reply(action, True, "muted" if self.muted else "sound on", muted=self.muted)
+        else:
+            self._reply(action or "?", False, f"unknown action {action!r}")
+
+    def _service_done(self, action: str, future: Any) -> None:
+        try:
+            response = future.result()
+        except Exception as exc:
+            self._reply(action, False, f"{action} failed: {exc}")
+            return
+        if response is None:
+            self._reply(action, False, f"{action}: no response")
+            return
+        extra = {}
+        if action == "calibrate":
+            extra["segments"] = [{"segment": s.segment, "valid": bool(s.valid), "quality": float(s.quality),
+                                  "message": s.message} for s in response.segments]
+        self._reply(action, bool(response.success), response.message, **extra)
+
+    # -- server thread: hello and frames (read/drain only) -------------------------------------------
+
+    def hello(self) -> dict[str, Any]:
+        """First message to a page: targets, reference curves, feedback choice, recent strides."""
+        # the new page gets the full diagnostics and activity with the next frame
+        self._sent_diag_version = -1
+        self._sent_activity_version = -1
+        return {"type": "hello", "targets": self.targets_json, "feedback": dict(self.feedback),
+                "muted": self.muted, "protocols": list(PROTOCOLS), "audio": dict(self._audio),
+                "strides": list(self._recent_strides), "time": time.time()}
+
+    def build_frame(self) -> dict[str, Any] | None:
+        """One websocket frame: new samples, latest angles and stick figure, queued messages, state."""
+        frame: dict[str, Any] = {"type": "frame"}
+        samples = []
+        while True:
+            try:
+                samples.append(self._samples.popleft())
+            except IndexError:
+                break
+        if samples:
+            frame["samples"] = [[round(v, 5) if not math.isnan(v) else None for v in row] for row in samples]
+        latest = self._latest
+        if latest is not None and latest[0] != self._latest_sent:
+            t, angles = latest
+            self._latest_sent = t
+            frame["angles"] = {"t": t, "values": {k: float(v) for k, v in angles.items()}}
+            frame["figure"] = [[seg, round(x0, 4), round(y0, 4), round(x1, 4), round(y1, 4)]
+                               for seg, x0, y0, x1, y1 in sagittal_stick_figure(angles, self.lengths)]
+        messages = []
+        while True:
+            try:
+                messages.append(self._outbox.popleft())
+            except IndexError:
+                break
+        if messages:
+            frame["messages"] = messages
+        if self._activity_version != self._sent_activity_version and self._activity is not None:
+            self._sent_activity_version = self._activity_version
+            frame["activity"] = self._activity
+        now = time.monotonic()
+        if self._diag_version != self._sent_diag_version and now - self._last_diag_sent >= 0.5:
+            self._sent_diag_version = self._diag_version
+            self._last_diag_sent = now
+            frame["diagnostics"] = list(self._diag.values())
+        if len(frame) == 1:
+            return None
+        self._seq += 1
+        self.counts["frames"] += 1
+        frame["seq"] = self._seq
+        frame["wall"] = time.time()
+        return frame
+
+    # -- diagnostics and shutdown --------------------------------------------------------------------
+
+    def _publish_diagnostics(self) -> None:
+        values: dict[str, Any] = dict(self.counts)
+        level, text = DiagnosticStatus.OK, "comparing strides with the targets"
+        if self.server is not None:
+            values.update(port=self.port, clients=self.server.clients, frames_sent=self.server.frames_sent,
+                          frames_skipped=self.server.frames_skipped)
+            if self.server.error is not None:
+                level, text = DiagnosticStatus.ERROR, f"dashboard server failed: {self.server.error}"
+        if level == DiagnosticStatus.OK and self.counts["joint_states"] == 0:
+            level, text = DiagnosticStatus.WARN, "no joint angles yet: calibrate, then walk"
+        self._diagnostics.publish(diagnostic_array(self, [diagnostic_status("biofeedback", level, text,
+                                                                            values=values)]))
+
+    def destroy_node(self) -> None:
+        if self.server is not None:
+            self.server.stop()
+            self.server = None
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> int:
+    """Console script."""
+    from gait_biofeedback.nodes.common import run_nodes
+
+    return run_nodes([BiofeedbackNode], args)
+
+
+if __name__ == "__main__":
+    import sys
+
+    sys.exit(main())
