@@ -100,9 +100,12 @@ def run_ahrs(kind: str, t: dict[str, np.ndarray]) -> np.ndarray:
     return quat.multiply(NWU_TO_ENU, out) if kind == "madgwick" else out
 
 
-def cost_us(name: str, t: dict[str, np.ndarray], n: int, params: dict) -> float:
-    """Median-of-3 µs per update, one sample per call (numpy rows, as from a message callback)."""
-    g, a, m = ([row for row in t[k][:n]] for k in ("gyr", "acc", "mag"))
+def cost_us(name: str, t: dict[str, np.ndarray], n: int, params: dict, method: str = "update",
+            rows: str = "numpy") -> float:
+    """Median-of-3 µs per ``method`` call, one sample per call (numpy rows, as from a message callback;
+    ``rows="tuple"``: tuples of floats, as the ROS node passes them)."""
+    g, a, m = ([row if rows == "numpy" else tuple(row.tolist()) for row in t[k][:n]]
+               for k in ("gyr", "acc", "mag"))
     best = []
     for _ in range(3):
         if name == "vqf":
@@ -121,9 +124,11 @@ def cost_us(name: str, t: dict[str, np.ndarray], n: int, params: dict) -> float:
                 q = f.updateMARG(q, g[i], a[i], m[i])
         else:
             f = ALGORITHMS[name](t["rate"], **params)
+            f.update(g[0], a[0], m[0])  # initialise (and compile, for numba) outside the timing
+            update = getattr(f, method)
             t0 = time.perf_counter()
             for i in range(n):
-                f.update(g[i], a[i], m[i])
+                update(g[i], a[i], m[i])
         best.append((time.perf_counter() - t0) / n * 1e6)
     return float(np.median(best))
 
@@ -180,6 +185,20 @@ def main() -> None:
     print(f"{'update cost, µs/sample':<34}" + "".join(f"{cost[n]:>{width}.1f}" for n in names))
     if "vqf" in cost:
         print(f"{'cost / VQF':<34}" + "".join(f"{cost[n] / cost['vqf']:>{width}.1f}" for n in names))
+    if "inertial_cf" in names:
+        p = tuned.get("inertial_cf", {})
+        extra = {
+            "update, numpy rows (as above)": cost["inertial_cf"],
+            "update, tuples (ROS node)": cost_us("inertial_cf", first, args.cost_samples, p, rows="tuple"),
+            "update_tuple, tuples": cost_us("inertial_cf", first, args.cost_samples, p, "update_tuple",
+                                            "tuple"),
+            "update, pure Python (no numba)": cost_us("inertial_cf", first, args.cost_samples,
+                                                      {**p, "use_numba": False}),
+        }
+        numba_on = ALGORITHMS["inertial_cf"](first["rate"], **p).numba
+        print(f"inertial_cf cost (µs/sample; numba {'on' if numba_on else 'not available'}): "
+              + "; ".join(f"{k} {v:.2f}" + (f" ({v / cost['vqf']:.1f}× VQF)" if "vqf" in cost else "")
+                          for k, v in extra.items()))
 
 
 if __name__ == "__main__":

@@ -18,6 +18,7 @@ from gait_biofeedback.core.filters import (
     quiet_samples,
 )
 from gait_biofeedback.core.filters import _full_state as fs
+from gait_biofeedback.core.filters.inertial_cf import InertialCF
 from gait_biofeedback.core.filters.nazarahari_rekf import NazarahariREKF
 
 RATE = 100.0
@@ -28,6 +29,7 @@ LKF_WEAK = pytest.mark.xfail(
     strict=True, reason="nazarahari_lkf: slow/unstable bias coupling (known weakness)"
 )
 WITH_ONLINE_BIAS = {
+    "inertial_cf": {},  # rest detection: the low-passed gyro at rest is the bias
     "madgwick": {"zeta": 0.02},
     "mahony": {"ki": 0.05},
     "nazarahari_rekf": {"sigma_bw": 1e-3, "p0_bias": 1e-4},
@@ -78,6 +80,19 @@ def test_static_converges_from_wrong_start(name):
         out = f.update(gyr[k], acc[k], mag[k])
     # from ~40° off; the full-state EKF/LKF converge slowly from large errors (small P₀, known weakness)
     assert np.degrees(quat.angle_between(out, q[-1])) < (5.0 if name.startswith("nazarahari") else 2.0)
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_static_at_any_attitude_stays_put(name):
+    """Initialised from the vectors at arbitrary attitudes (large yaw, pitch and roll, as sensors are
+    strapped on a leg), a still sensor must not drift away. Caught a sign slip in inertial_cf's
+    world-frame inclination correction that showed only when the attitude had a large yaw part."""
+    rng = np.random.default_rng(7)
+    for q0 in quat.normalize(rng.normal(size=(6, 4))):
+        gyr, acc, mag, q = synth(5.0, rotating=False, q0=q0)
+        est = run(name, gyr, acc, mag)
+        err = np.degrees(quat.angle_between(est, q))
+        assert err.max() < 2.0, f"{name}: {err.max():.1f} deg from q0={np.round(q0, 2)}"
 
 
 @pytest.mark.parametrize("name", ALL)
@@ -273,3 +288,106 @@ def test_default_algorithm_accuracy_floor_on_broad():
     ok = d["movement"].astype(bool) & np.isfinite(d["opt_quat"]).all(1)
     err = np.degrees(quat.angle_between(est[ok], d["opt_quat"][ok]))
     assert np.sqrt(np.mean(err**2)) < 4.0
+
+
+# ------------------------------------------------------------------ inertial_cf (the default)
+def test_default_is_inertial_cf():
+    assert DEFAULT_ALGORITHM == "inertial_cf"
+
+
+def test_inertial_cf_numba_and_python_give_the_same_numbers():
+    pytest.importorskip("numba")
+    gyr, acc, mag, _ = synth(20.0, rotating=True, seed=11)
+    disturbed = mag.copy()
+    disturbed[600:1200] *= 1.4  # exercise the rejection branch too
+    fast = run("inertial_cf", gyr, acc, disturbed)
+    slow = run("inertial_cf", gyr, acc, disturbed, use_numba=False)
+    assert InertialCF(RATE).numba and not InertialCF(RATE, use_numba=False).numba
+    np.testing.assert_allclose(fast, slow, rtol=0.0, atol=1e-12)
+
+
+def test_inertial_cf_update_tuple_matches_update():
+    gyr, acc, mag, _ = synth(3.0, rotating=True, seed=12)
+    a, b = InertialCF(RATE), InertialCF(RATE)
+    for k in range(len(gyr)):
+        qa = a.update(gyr[k], acc[k], mag[k])
+        qb = b.update_tuple(tuple(gyr[k]), tuple(acc[k]), tuple(mag[k]))
+        assert isinstance(qb, tuple) and len(qb) == 4
+        np.testing.assert_array_equal(qa, np.array(qb, dtype=float))
+    np.testing.assert_array_equal(a.gyro_bias(), a.state()["gyro_bias"])
+
+
+def test_inertial_cf_bias_learned_at_rest_then_used_in_motion():
+    bias = np.array([0.01, -0.02, 0.015])
+    still, acc_s, _, q_s = synth(10.0, rotating=False, bias=bias, seed=13)
+    gyr, acc, _, q = synth(30.0, rotating=True, bias=bias, seed=14, q0=q_s[-1])
+    f = InertialCF(RATE)  # no start-up step: the bias is found by rest detection alone
+    for k in range(len(still)):
+        f.update(still[k], acc_s[k], None)
+    assert f.state()["rest"]
+    np.testing.assert_allclose(f.gyro_bias(), bias, atol=1.5e-3)
+    est = np.array([f.update(gyr[k], acc[k], None) for k in range(len(gyr))])  # 6D: gyro heading
+    e = quat.canonical(quat.multiply(est, quat.conjugate(q)))
+    head = np.degrees(2.0 * np.arctan2(e[:, 3], e[:, 0]))
+    assert np.abs(head - head[0]).max() < 1.5  # 30 s with 0.027 rad/s uncorrected would be ~46°
+    assert not f.state()["rest"]
+
+
+def test_inertial_cf_accelerometer_averaged_in_inertial_frame():
+    """A 2 Hz, 3 m/s² sideways shake barely tilts the estimate (low-pass in the inertial frame)."""
+    gyr, acc, mag, q = synth(20.0, rotating=True, seed=15, noise=0.0)
+    t = np.arange(len(gyr)) / RATE
+    shake_world = np.stack([3.0 * np.sin(2 * np.pi * 2.0 * t), np.zeros_like(t), np.zeros_like(t)], 1)
+    acc_shaken = acc + quat.rotate_inverse(q, shake_world)
+    _, incl = heading_inclination(run("inertial_cf", gyr, acc_shaken, mag), q)
+    _, incl_madgwick = heading_inclination(run("madgwick", gyr, acc_shaken, mag), q)
+    assert incl.max() < 0.5
+    assert incl.max() < incl_madgwick.max()
+
+
+def test_inertial_cf_magnet_never_tilts_and_new_field_becomes_reference():
+    gyr, acc, mag, q = synth(60.0, rotating=False, seed=16)
+    extra = np.array([15e-6, 0.0, 10e-6])
+    mag[1000:] += quat.rotate_inverse(q[1000:], extra)  # a new constant world field from 10 s on
+    f = InertialCF(RATE, mag_new_time=20.0)
+    flags, outs = [], []
+    for k in range(len(gyr)):
+        outs.append(f.update(gyr[k], acc[k], mag[k]))
+        flags.append(f.state()["mag_disturbed"])
+    head, incl = heading_inclination(np.array(outs), q)
+    assert not any(flags[:1000]) and all(flags[1010:2900])  # rejected for mag_new_time …
+    assert head[:3000].max() < 1.0 and incl.max() < 0.5  # … so the heading holds, the tilt never moves
+    assert not any(flags[3100:])  # then the constant new field is the reference again
+    assert f.state()["mag_reference"][0] == pytest.approx(
+        np.linalg.norm(M_WORLD + extra) / np.linalg.norm(M_WORLD), rel=0.02)
+
+
+def test_inertial_cf_defaults_are_the_shipped_tuned_values():
+    from gait_biofeedback.core.filters.config import load_tuned
+
+    tuned = load_tuned()["inertial_cf"]
+    assert tuned and {k: InertialCF.DEFAULTS[k] for k in tuned} == tuned
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_gyro_bias_accessor_matches_state(name):
+    gyr, acc, mag, _ = synth(2.0, rotating=True, seed=17)
+    f = ALGORITHMS[name](RATE, **WITH_ONLINE_BIAS.get(name, {}))
+    for k in range(len(gyr)):
+        f.update(gyr[k], acc[k], mag[k])
+    np.testing.assert_array_equal(f.gyro_bias(), f.state()["gyro_bias"])
+
+
+def test_inertial_cf_rejects_bad_parameters():
+    with pytest.raises(ValueError):
+        InertialCF(RATE, tau_acc=-1.0)
+
+
+def test_importing_filters_does_not_import_numba():
+    import subprocess
+    import sys
+
+    code = "import sys, gait_biofeedback.core.filters; print('numba' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                         cwd=Path(__file__).resolve().parents[1])
+    assert out.stdout.strip() == "False"

@@ -45,9 +45,8 @@ def test_live_graph_equals_offline_tracker(walk_bag, tmp_path):
         _, offline, _ = track_orientation(recorded[segment])
         assert len(live) == len(recorded[segment].t), "one orientation per raw sample"
         np.testing.assert_array_equal(stamps, np.round(recorded[segment].t * 1e9).astype(np.int64))
-        # same core object, same samples, same pairing: the same numbers (numpy's SIMD means in the
-        # start-up step may differ in the last bit between processes, hence 1e-12, not ==)
-        np.testing.assert_allclose(live, offline, rtol=0, atol=1e-12)
+        # same core object, same samples, same pairing, same nominal rate: the same numbers, bit for bit
+        np.testing.assert_array_equal(live, offline)
         # and it is the right attitude: within 5 deg of the truth after the start-up second
         err = np.degrees(quat.angle_between(live, session.truth.sensor_orientation[segment]))
         assert np.median(err[100:]) < 5.0, f"{segment}: median error {np.median(err[100:]):.1f} deg"

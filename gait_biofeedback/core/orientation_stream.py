@@ -167,7 +167,7 @@ class SegmentOrientationTracker:
     def _step(self, t: float, g: tuple, a: tuple, m: tuple | None, dt: float | None,
               stamp: Any) -> OrientationSample:
         q = self.filter.update(g, a, m, dt)
-        bias = self.filter.state()["gyro_bias"]
+        bias = self.filter.gyro_bias()
         self.counts["published"] += 1
         return OrientationSample(t, q, np.array(g) - bias, np.array(a), stamp)
 
@@ -190,9 +190,11 @@ def track_orientation(series: ImuSeries, **options: Any) -> tuple[np.ndarray, np
     """Offline: the same tracker over a whole recording → (t (M,), q (M, 4), gyr (M, 3)).
 
     Magnetometer samples are taken to share the IMU stamps (as the project's recordings do).
-    ``options`` are the tracker's keyword arguments; ``rate_hz`` defaults to the series' rate.
+    ``options`` are the tracker's keyword arguments; ``rate_hz`` defaults to the series' median rate
+    rounded to 1 µHz (so a 100 Hz recording gives exactly the 100.0 the live node is configured with:
+    the filters use 1/rate_hz as the dt of a first sample).
     """
-    options.setdefault("rate_hz", series.rate_hz)
+    options.setdefault("rate_hz", round(series.rate_hz, 6))
     tracker = SegmentOrientationTracker(series.segment, **options)
     out: list[OrientationSample] = []
     mag = series.mag

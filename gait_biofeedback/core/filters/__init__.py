@@ -2,7 +2,8 @@
 
 Every filter: ``cls(rate_hz, **params)``, ``reset(q=None)``, ``initialize(acc, mag=None)``,
 ``calibrate(StartupCalibration)``, ``update(gyr, acc, mag=None, dt=None) -> q`` (w, x, y, z),
-sensor → world ENU, and ``state() -> dict`` for diagnostics. Batch:
+sensor → world ENU, ``gyro_bias()`` (cheap per-sample bias estimate) and ``state() -> dict`` for
+diagnostics; :class:`InertialCF` also has ``update_tuple`` (same numbers, returns a tuple). Batch:
 :func:`estimate_orientation`. ``DEFAULT_ALGORITHM`` is the most accurate one in
 ``benchmarks/orientation.py`` among those within the per-sample cost budget (see README).
 """
@@ -11,6 +12,7 @@ from __future__ import annotations
 
 from gait_biofeedback.core.filters.base import OrientationFilter
 from gait_biofeedback.core.filters.batch import estimate_orientation
+from gait_biofeedback.core.filters.inertial_cf import InertialCF
 from gait_biofeedback.core.filters.madgwick import MadgwickFilter
 from gait_biofeedback.core.filters.mahony import MahonyFilter
 from gait_biofeedback.core.filters.nazarahari_lkf import NazarahariLKF
@@ -25,6 +27,7 @@ from gait_biofeedback.core.filters.yi_cf import YiCF
 from gait_biofeedback.core.filters.zihajehzadeh_ckf import ZihajehzadehCKF
 
 ALGORITHMS: dict[str, type[OrientationFilter]] = {
+    "inertial_cf": InertialCF,
     "madgwick": MadgwickFilter,
     "mahony": MahonyFilter,
     "nazarahari_rekf": NazarahariREKF,
@@ -32,11 +35,12 @@ ALGORITHMS: dict[str, type[OrientationFilter]] = {
     "yi_cf": YiCF,
     "zihajehzadeh_ckf": ZihajehzadehCKF,
 }
-DEFAULT_ALGORITHM = "madgwick"  # lowest mean total RMSE of ours on BROAD (benchmarks/orientation.py)
+DEFAULT_ALGORITHM = "inertial_cf"  # lowest mean total RMSE of ours on BROAD (benchmarks/orientation.py)
 
 __all__ = [
     "ALGORITHMS",
     "DEFAULT_ALGORITHM",
+    "InertialCF",
     "MadgwickFilter",
     "MahonyFilter",
     "NazarahariLKF",

@@ -154,13 +154,18 @@ class OrientationFilter:
         """Current orientation (w, x, y, z), sensor → world ENU."""
         return np.array(self._q)
 
+    def gyro_bias(self) -> np.ndarray:
+        """Total gyro bias estimate (static + online, rad/s): the cheap per-sample form of
+        ``state()["gyro_bias"]`` (no diagnostics dict)."""
+        return np.array(self.static_bias) + self._online_bias()
+
     def state(self) -> dict[str, Any]:
         """Read-only diagnostics: attitude, bias estimate, rest and magnetic-disturbance flags."""
         return {
             "algorithm": self.name,
             "q": np.array(self._q),
             "initialized": self._initialized,
-            "gyro_bias": np.array(self.static_bias) + self._online_bias(),
+            "gyro_bias": self.gyro_bias(),
             "rest": self._rest,
             "mag_disturbed": self._mag_disturbed,
             "skipped_samples": self._skipped,

@@ -12,6 +12,7 @@ points along world +y (north). Without one (6D), the heading is free and set to 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -54,6 +55,20 @@ def quiet_samples(gyr: np.ndarray, acc: np.ndarray, rate_hz: float, max_s: float
     return np.argmax(moving).item() if moving.any() else n
 
 
+def exact_mean(rows: np.ndarray) -> np.ndarray:
+    """Column means (or the mean of a vector) with correctly rounded sums (``math.fsum``).
+
+    numpy's SIMD reductions may round differently depending on memory alignment, so the same samples
+    could give means that differ in the last bit between two runs; the filters amplify such a bit
+    through their discrete decisions (rest, disturbance), and the live graph and the offline path
+    would then disagree. fsum makes the start-up step a function of the samples alone.
+    """
+    rows = np.asarray(rows, dtype=float)
+    if rows.ndim == 1:
+        return np.float64(math.fsum(rows.tolist()) / len(rows))
+    return np.array([math.fsum(col) / len(rows) for col in rows.T.tolist()])
+
+
 @dataclass(frozen=True)
 class StartupCalibration:
     """Result of the quiet-standing start-up step (thesis §5.3.1)."""
@@ -81,12 +96,12 @@ def calibrate_from_rest(gyr: np.ndarray, acc: np.ndarray,
         ok &= np.isfinite(mag).all(1)
     if not ok.any():
         raise ValueError("start-up window holds no finite sample")
-    acc_mean = acc[ok].mean(0)
-    mag_mean = None if mag is None else mag[ok].mean(0)
+    acc_mean = exact_mean(acc[ok])
+    mag_mean = None if mag is None else exact_mean(mag[ok])
     return StartupCalibration(
-        gyro_bias=gyr[ok].mean(0),
-        acc_norm=float(np.linalg.norm(acc[ok], axis=1).mean()),
-        mag_norm=None if mag is None else float(np.linalg.norm(mag[ok], axis=1).mean()),
+        gyro_bias=exact_mean(gyr[ok]),
+        acc_norm=float(exact_mean(np.linalg.norm(acc[ok], axis=1))),
+        mag_norm=None if mag is None else float(exact_mean(np.linalg.norm(mag[ok], axis=1))),
         q0=attitude_from_vectors(acc_mean, mag_mean),
         acc_mean=acc_mean,
         mag_mean=mag_mean,
