@@ -18,6 +18,8 @@ Wearable-IMU gait biofeedback (ROS 2 Jazzy). Typical use:
                                                convert your own IMU data to the project's MCAP layout
   gait-biofeedback replay bags/mine --record output/mine
                                                run a recording through the node graph, record outputs
+  gait-biofeedback analyze bags/mine -o output/mine_offline --calibrate-at 36:hip_flexion
+                                               the same processing offline, straight from the file
   gait-biofeedback run --record output/today   process live sensor topics (from your drivers)
   gait-biofeedback info output/mine            what is in a recording
   gait-biofeedback repair output/mine          make a recording cut off by a crash readable again
@@ -107,6 +109,27 @@ def cmd_replay(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_analyze(args: argparse.Namespace) -> int:
+    from gait_biofeedback.analyze import analyze_recording, parse_calibrate_at
+    from gait_biofeedback.report import format_report, session_report
+
+    requests = [parse_calibrate_at(text) for text in args.calibrate_at or []]
+    result = analyze_recording(args.bag, args.output, calibrate_at=requests,
+                               calibration_file=args.calibration, params=_session_parameters(args.params),
+                               overwrite=args.overwrite)
+    for attempt in result.calibrations:
+        print(f"calibrate ({attempt.protocol}, data up to {attempt.until - result.start_time:.2f} s): "
+              + ("" if attempt.success else "REFUSED: ") + attempt.message)
+    if not requests and args.calibration is None:
+        print("no calibration given (--calibrate-at or --calibration): orientations and activity only")
+    for warning in result.warnings:
+        print(f"warning: {warning}", file=sys.stderr)
+    outputs = ", ".join(f"{t} {n}" for t, n in sorted(result.counts.items()) if "/imu/" not in t)
+    print(f"wrote {result.output}: {outputs or 'orientations only'}")
+    print("\n".join(format_report(session_report(result.output))))
+    return 0
+
+
 def cmd_record(args: argparse.Namespace) -> int:
     from gait_biofeedback.nodes.recorder import main
 
@@ -187,6 +210,24 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--params", default=None, help="ROS 2 parameter file, e.g. config/session.yaml")
     p.add_argument("--nodes", help="comma-separated processing nodes (default: all)")
     p.set_defaults(func=cmd_replay)
+
+    p = sub.add_parser(
+        "analyze", help="process a recording offline (no ROS graph), same numbers as `replay`; report",
+        description="Run a recording's raw IMU data through the same processing as the live node graph "
+        "(orientation, calibration, joint angles, gait events, activity), straight from the file and "
+        "without DDS, write the outputs as a bag with the graph's topics and print the session report. "
+        "Joint angles and gait events need a calibration: say when the subject finished the calibration "
+        "moves (--calibrate-at) or give a calibration.yaml from an earlier session (--calibration).")
+    p.add_argument("bag", help="recording with /<segment>/imu/data_raw topics: rosbag2 folder or .mcap file")
+    p.add_argument("-o", "--output", required=True, help="bag folder to write the outputs to")
+    p.add_argument("--calibrate-at", action="append", metavar="T:PROTOCOL",
+                   help="press Calibrate T seconds into the recording with PROTOCOL (hip_flexion or "
+                   "walking), e.g. 36:hip_flexion = 1 s after the demo's hip moves; repeat to recalibrate")
+    p.add_argument("--calibration", metavar="FILE",
+                   help="calibration.yaml (as the calibration node saves it) in force from the start")
+    p.add_argument("--params", default=None, help="ROS 2 parameter file, e.g. config/session.yaml")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output")
+    p.set_defaults(func=cmd_analyze)
 
     p = sub.add_parser("run", help="run the processing graph on live sensor topics until Ctrl-C")
     p.add_argument("--record", help="also record every topic to this bag folder")

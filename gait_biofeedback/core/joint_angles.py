@@ -20,6 +20,8 @@ mirrored because its z axis points laterally-right = medially. Gimbal lock at |b
 
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -233,3 +235,120 @@ class JointAngleCalculator:
                     self._sums[k] = self._sums.get(k, 0.0) + v
                     self._counts[k] = self._counts.get(k, 0) + 1
         return {k: v - self.offset.get(k, 0.0) for k, v in angles.items()}
+
+
+# ----------------------------------------------------------------------------------------------------
+# The live joint-angle stream (shared by the ``joint_angles`` node and the offline analysis)
+
+STREAM_SEGMENTS: tuple[str, ...] = ("pelvis", "left_thigh", "left_shank", "left_foot", "right_thigh",
+                                    "right_shank", "right_foot")
+"""Segments the joint-angle stream synchronises (the chest takes no part in a joint)."""
+
+
+@dataclass(frozen=True)
+class SyncedAngles:
+    """One emitted instant: stamp (ns), the angles (rad, offset removed; empty when no joint had both
+    segments), the sensor→world orientations present, and the calibration rotations in force."""
+
+    ns: int
+    angles: dict[str, float]
+    sensor_quats: dict[str, np.ndarray]
+    rotations: dict[str, np.ndarray]
+
+
+class JointAngleStream:
+    """Synchronise segment samples by exact stamp, then :class:`JointAngleCalculator` (one per calibration).
+
+    Sync: a stamp is emitted when every calibrated segment has it, when a newer stamp is complete, or
+    (only with a clock, :meth:`flush` ``now``) ``max_wait`` s after its first sample arrived; the
+    missing segments are counted in :attr:`missing_counts`. Stamps are emitted in order.
+    Calibrations: :meth:`set_calibration` with ``from_ns`` > 0 takes effect at the first emitted stamp
+    ``>= from_ns`` (every consumer of a calibration then switches at the same sample, whenever the
+    calibration message arrived); ``from_ns = 0`` takes effect at once and drops the pending stamps.
+    Samples are ignored while no calibration is in force or waiting. Each calibration starts a new
+    calculator and, with ``remove_standing_offset``, a new standing-offset collection of
+    ``offset_window_s`` s of still samples (every segment present with |ω| < ``still_gyro`` rad/s).
+    """
+
+    def __init__(self, segments: tuple[str, ...] = STREAM_SEGMENTS, max_wait: float = 0.1,
+                 remove_standing_offset: bool = True, offset_window_s: float = 2.0,
+                 still_gyro: float = 0.2) -> None:
+        self.segments = tuple(segments)
+        self.max_wait = float(max_wait)
+        self.remove_offset = bool(remove_standing_offset)
+        self.offset_window_s = float(offset_window_s)
+        self.still_gyro = float(still_gyro)
+        self.calculator: JointAngleCalculator | None = None
+        self._waiting: list[tuple[int, JointAngleCalculator]] = []
+        self.pending: dict[int, dict[str, tuple[np.ndarray, float]]] = {}
+        self.first_arrival: dict[int, float] = {}
+        self.missing_counts: dict[str, int] = {s: 0 for s in self.segments}
+
+    def _new_calculator(self, rotations: dict[str, np.ndarray]) -> JointAngleCalculator:
+        calculator = JointAngleCalculator(rotations)
+        if self.remove_offset:
+            calculator.collect_offset(self.offset_window_s)
+        return calculator
+
+    def set_calibration(self, rotations: dict[str, np.ndarray], from_ns: int = 0) -> None:
+        """A new calibration (segment → r, valid segments only), in force from stamp ``from_ns``."""
+        calculator = self._new_calculator(rotations)
+        if from_ns <= 0:
+            self.calculator, self._waiting = calculator, []
+            self.pending.clear()
+            self.first_arrival.clear()
+            return
+        self._waiting = sorted([*self._waiting, (int(from_ns), calculator)], key=lambda item: item[0])
+
+    @property
+    def active(self) -> bool:
+        """A calibration is in force or waiting for its first stamp."""
+        return self.calculator is not None or bool(self._waiting)
+
+    def _wanted(self) -> list[str]:
+        calculator = self.calculator or (self._waiting[0][1] if self._waiting else None)
+        return [] if calculator is None else [s for s in self.segments if s in calculator.rotations]
+
+    def add(self, segment: str, ns: int, q: np.ndarray, gyro_norm: float,
+            arrival: float | None = None) -> list[SyncedAngles]:
+        """One sample (sensor→world q, |ω| rad/s) of ``segment`` at stamp ``ns``; the instants ready now."""
+        if not self.active or segment not in self.segments:
+            return []
+        self.pending.setdefault(ns, {})[segment] = (np.asarray(q, dtype=float), float(gyro_norm))
+        self.first_arrival.setdefault(ns, arrival if arrival is not None else math.inf)
+        return self.flush(arrival)
+
+    def flush(self, now: float | None = None, force: bool = False) -> list[SyncedAngles]:
+        """Emit the stamps that are complete, older than a complete one, waited ``max_wait`` s by
+        ``now`` (same clock as the arrivals), or all of them with ``force`` (end of a recording)."""
+        if not self.active or not self.pending:
+            return []
+        wanted = self._wanted()
+        stamps = sorted(self.pending)
+        complete = [ns for ns in stamps if all(s in self.pending[ns] for s in wanted)]
+        newest_complete = complete[-1] if complete else None
+        out = []
+        for ns in stamps:
+            done = force or ns in complete or (newest_complete is not None and ns < newest_complete)
+            timed_out = now is not None and now - self.first_arrival[ns] > self.max_wait
+            if not (done or timed_out):
+                break
+            emitted = self._emit(ns, self.pending.pop(ns), wanted)
+            self.first_arrival.pop(ns, None)
+            if emitted is not None:
+                out.append(emitted)
+        return out
+
+    def _emit(self, ns: int, samples: dict[str, tuple[np.ndarray, float]],
+              wanted: list[str]) -> SyncedAngles | None:
+        while self._waiting and ns >= self._waiting[0][0]:
+            self.calculator = self._waiting.pop(0)[1]
+        if self.calculator is None:
+            return None
+        for seg in wanted:
+            if seg not in samples:
+                self.missing_counts[seg] += 1
+        quats = {s: q for s, (q, _) in samples.items()}
+        still = all(w < self.still_gyro for _, w in samples.values()) and len(samples) == len(wanted)
+        angles = self.calculator.update(ns * 1e-9, quats, still=still)
+        return SyncedAngles(ns, angles, quats, self.calculator.rotations)

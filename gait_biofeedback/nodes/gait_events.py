@@ -7,7 +7,9 @@ stamp, ``detection_latency`` = to the confirming sample) and ``gait/cycles`` (Ga
 closes a stride; an implausible stride, < ``min_stride_s`` or > ``max_stride_s`` or without exactly one
 TC, is published with ``plausible = false`` and its ``flag``), plus ``/diagnostics``. The detection is
 :class:`~gait_biofeedback.core.gait_events.GaitEventDetector` (thesis Algorithm 1), the strides
-:class:`~gait_biofeedback.core.gait_cycles.GaitCycleTracker`.
+:class:`~gait_biofeedback.core.gait_cycles.GaitCycleTracker`, the stream rules below
+:class:`~gait_biofeedback.core.gait_stream.GaitEventStream` (a calibration is in force from its header
+stamp, 0 = at once).
 
 Bad input: a foot without data for ``stale_after`` s (wall clock), a stamp gap > ``max_gap`` s or a
 stamp going backwards resets that foot's detector and stride state, counted and said on /diagnostics.
@@ -25,6 +27,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 
 import numpy as np
 from builtin_interfaces.msg import Time
@@ -34,9 +37,9 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import Imu
 
-from gait_biofeedback.core import quaternion as quat
-from gait_biofeedback.core.gait_cycles import GaitCycle, GaitCycleTracker
+from gait_biofeedback.core.gait_cycles import GaitCycle
 from gait_biofeedback.core.gait_events import INITIAL_CONTACT, GaitEvent, GaitEventDetector
+from gait_biofeedback.core.gait_stream import GaitEventStream, standing_reference
 from gait_biofeedback.core.segments import orientation_topic
 from gait_biofeedback.nodes.common import (
     DIAGNOSTICS_TOPIC,
@@ -54,18 +57,79 @@ from gait_biofeedback_msgs.msg import SegmentCalibrationArray
 EVENTS_TOPIC = "gait/events"
 CYCLES_TOPIC = "gait/cycles"
 CALIBRATION_TOPIC = "calibration/sensor_to_segment"
+__all__ = ["GaitEventsNode", "apply_calibration_msg", "cycle_msg", "event_msg", "imu_to_foot_sample",
+           "standing_reference", "stream_options"]
 _SIDE_CODE = {"left": GaitEventMsg.SIDE_LEFT, "right": GaitEventMsg.SIDE_RIGHT}
 
 
-def standing_reference(q: np.ndarray) -> np.ndarray:
-    """Rotation r whose segment x axis is the horizontal projection of the IMU x axis at orientation q
-    (y up): ``q_segment = q ⊗ r`` keeps the heading and removes the standing roll/pitch."""
-    forward = quat.rotate(q, np.array([1.0, 0.0, 0.0]))
-    forward[2] = 0.0
-    forward /= np.linalg.norm(forward)
-    up = np.array([0.0, 0.0, 1.0])
-    segment_in_world = np.column_stack([forward, up, np.cross(forward, up)])
-    return quat.from_matrix(quat.as_matrix(quat.conjugate(q)) @ segment_in_world)
+def event_msg(event: GaitEvent) -> GaitEventMsg:
+    """``gait/events`` message of a core event (stamp = the event sample's stamp)."""
+    out = GaitEventMsg()
+    out.header.stamp = event.stamp
+    out.header.frame_id = f"{event.side}_foot"
+    out.side = _SIDE_CODE[event.side]
+    out.type = (GaitEventMsg.INITIAL_CONTACT if event.kind == INITIAL_CONTACT
+                else GaitEventMsg.TERMINAL_CONTACT)
+    out.detection_latency = float(event.latency)
+    out.signal_value = float(event.signal)
+    out.event_index = int(event.index)
+    return out
+
+
+def cycle_msg(c: GaitCycle, stamp_of: Callable[[str, float], Time | None]) -> GaitCycleMsg:
+    """``gait/cycles`` message of a core stride; ``stamp_of(side, t)`` gives the exact stamps of its
+    events (a stamp rounded from ``t`` when unknown, an empty stamp for NaN)."""
+
+    def stamp(t: float) -> Time:
+        if not math.isfinite(t):
+            return Time()
+        return stamp_of(c.side, t) or s_to_stamp(t)
+
+    out = GaitCycleMsg()
+    out.header.stamp = stamp(c.end)
+    out.header.frame_id = f"{c.side}_foot"
+    out.side = _SIDE_CODE[c.side]
+    out.stride_index = c.index
+    out.start = stamp(c.start)
+    out.terminal_contact = stamp(c.terminal_contact)
+    for name in ("stride_time", "stance_time", "swing_time", "stance_fraction", "swing_fraction",
+                 "step_time", "cadence", "double_support_time", "double_support_fraction",
+                 "step_time_symmetry_index"):
+        setattr(out, name, float(getattr(c, name)))
+    out.plausible = bool(c.plausible)
+    out.flag = c.flag
+    return out
+
+
+def apply_calibration_msg(stream: GaitEventStream, msg: SegmentCalibrationArray) -> None:
+    """Hand the feet's entries of a calibration message to the core stream (in force from its stamp)."""
+    from_t = stamp_to_s(msg.header.stamp)
+    for entry in msg.segments:
+        side = entry.segment.removesuffix("_foot")
+        if side not in stream.detectors or entry.segment != f"{side}_foot":
+            continue
+        r = entry.rotation
+        stream.set_calibration(side, np.array([r.w, r.x, r.y, r.z]), bool(entry.valid), entry.message, from_t)
+
+
+def imu_to_foot_sample(msg: Imu) -> tuple[float, tuple[float, float, float, float]]:
+    """(stamp s, sensor→world q) of a ``<side>_foot/imu/data`` message."""
+    o = msg.orientation
+    return stamp_to_s(msg.header.stamp), (o.w, o.x, o.y, o.z)
+
+
+def stream_options(get: Callable[[str, object], object]) -> dict[str, object]:
+    """:class:`GaitEventStream` keyword arguments from parameters (``get(name, default)``)."""
+    options: dict[str, object] = {"sides": [s for s in get("sides", ["left", "right"]) if s],
+                                  "rate_hz": float(get("rate_hz", 100.0))}
+    for name, default in (("threshold", -0.2), ("refractory_s", 0.15), ("window_s", 0.15),
+                          ("trend_fraction", 0.8), ("max_gap", 0.5)):
+        options[name] = float(get(name, default))
+    options["use_standing_reference"] = bool(get("use_standing_reference", False))
+    options["symmetry_window"] = int(get("symmetry_window", 10))
+    options["min_stride_s"] = float(get("min_stride_s", 0.4))
+    options["max_stride_s"] = float(get("max_stride_s", 3.0))
+    return options
 
 
 class GaitEventsNode(Node):
@@ -74,30 +138,12 @@ class GaitEventsNode(Node):
     def __init__(self, context: Context | None = None, **overrides: object) -> None:
         super().__init__("gait_events", context=context,
                          parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()])
-        self.sides = [s for s in self.declare_parameter("sides", ["left", "right"]).value if s]
-        if not self.sides or any(s not in _SIDE_CODE for s in self.sides):
-            raise ValueError(f"gait_events: sides must be 'left' and/or 'right', got {self.sides}")
-        rate_hz = float(self.declare_parameter("rate_hz", 100.0).value)
-        options = {name: float(self.declare_parameter(name, default).value) for name, default in (
-            ("threshold", -0.2), ("refractory_s", 0.15), ("window_s", 0.15), ("trend_fraction", 0.8))}
-        self.max_gap = float(self.declare_parameter("max_gap", 0.5).value)
+        self.stream = GaitEventStream(**stream_options(lambda n, d: self.declare_parameter(n, d).value))
+        self.sides = self.stream.sides
         self.stale_after = float(self.declare_parameter("stale_after", 1.0).value)
-        self.use_standing_reference = bool(self.declare_parameter("use_standing_reference", False).value)
-        self.tracker = GaitCycleTracker(
-            symmetry_window=int(self.declare_parameter("symmetry_window", 10).value),
-            min_stride_s=float(self.declare_parameter("min_stride_s", 0.4).value),
-            max_stride_s=float(self.declare_parameter("max_stride_s", 3.0).value))
         diagnostics_period = float(self.declare_parameter("diagnostics_period", 1.0).value)
-
-        self.detectors = {s: GaitEventDetector(s, rate_hz, **options) for s in self.sides}
-        self.calibrated = {s: False for s in self.sides}
-        self.counts = {s: {"samples": 0, "uncalibrated": 0, "resets": 0, "stream_stops": 0, "ic": 0, "tc": 0,
-                           "strides": 0, "implausible_strides": 0} for s in self.sides}
-        self._last_t: dict[str, float | None] = {s: None for s in self.sides}
         self._last_arrival: dict[str, float] = {}
         self._stopped: dict[str, bool] = {s: False for s in self.sides}
-        self._note: dict[str, str] = {s: "" for s in self.sides}
-        self._stamps: dict[tuple[str, float], Time] = {}
         self._events = self.create_publisher(GaitEventMsg, EVENTS_TOPIC, RELIABLE_QOS)
         self._cycles = self.create_publisher(GaitCycleMsg, CYCLES_TOPIC, RELIABLE_QOS)
         self._diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, RELIABLE_QOS)
@@ -108,101 +154,42 @@ class GaitEventsNode(Node):
                                  LATCHED_QOS)
         self.create_timer(diagnostics_period, self._check_streams)
 
-    def _on_calibration(self, msg: SegmentCalibrationArray) -> None:
-        for entry in msg.segments:
-            side = entry.segment.removesuffix("_foot")
-            if side not in self.detectors or entry.segment != f"{side}_foot":
-                continue
-            if not entry.valid:
-                self._note[side] = f"calibration invalid: {entry.message}"
-                continue
-            r = entry.rotation
-            self.detectors[side].set_mounting(np.array([r.w, r.x, r.y, r.z]))
-            self._reset(side, "new calibration")
-            self.calibrated[side] = True
-            self._note[side] = ""
+    @property
+    def detectors(self) -> dict[str, GaitEventDetector]:
+        """Per-foot detectors (held by the core stream)."""
+        return self.stream.detectors
 
-    def _reset(self, side: str, why: str) -> None:
-        self.detectors[side].reset()
-        self.tracker.reset(side)
-        self._last_t[side] = None
-        self.counts[side]["resets"] += 1
-        self._note[side] = f"state reset: {why}"
+    @property
+    def calibrated(self) -> dict[str, bool]:
+        """Whether each foot's calibration is in force."""
+        return self.stream.calibrated
+
+    @property
+    def counts(self) -> dict[str, dict[str, int]]:
+        """Per-foot counters shown on /diagnostics."""
+        return self.stream.counts
+
+    def _on_calibration(self, msg: SegmentCalibrationArray) -> None:
+        apply_calibration_msg(self.stream, msg)
+
+    def _say(self) -> None:
+        for level, text in self.stream.pop_messages():
+            (self.get_logger().warning if level == "warn" else self.get_logger().info)(text)
 
     def _on_imu(self, side: str, msg: Imu) -> None:
         self._last_arrival[side] = time.monotonic()
         self._stopped[side] = False
-        counts = self.counts[side]
-        counts["samples"] += 1
-        o = msg.orientation
-        q = (o.w, o.x, o.y, o.z)
-        if not all(math.isfinite(v) for v in q) or q == (0.0, 0.0, 0.0, 0.0):
-            return
-        if not self.calibrated[side]:
-            if not self.use_standing_reference:
-                counts["uncalibrated"] += 1
-                return
-            self.detectors[side].set_mounting(standing_reference(np.array(q)))
-            self.calibrated[side] = True
-        t = stamp_to_s(msg.header.stamp)
-        last = self._last_t[side]
-        if last is not None and (t <= last or t - last > self.max_gap):
-            self._reset(side, "time went backwards" if t <= last else f"{t - last:.2f} s gap in the stamps")
-            self.get_logger().warning(f"{side} foot: {self._note[side]}")
-        self._last_t[side] = t
-        event = self.detectors[side].update(t, q, msg.header.stamp)
-        if event is not None:
-            self._publish_event(event)
-
-    def _publish_event(self, event: GaitEvent) -> None:
-        side = event.side
-        self.counts[side][event.kind] += 1
-        out = GaitEventMsg()
-        out.header.stamp = event.stamp
-        out.header.frame_id = f"{side}_foot"
-        out.side = _SIDE_CODE[side]
-        out.type = (GaitEventMsg.INITIAL_CONTACT if event.kind == INITIAL_CONTACT
-                    else GaitEventMsg.TERMINAL_CONTACT)
-        out.detection_latency = float(event.latency)
-        out.signal_value = float(event.signal)
-        out.event_index = int(event.index)
-        self._events.publish(out)
-        self._stamps[(side, event.t)] = event.stamp
-        if len(self._stamps) > 64:
-            del self._stamps[next(iter(self._stamps))]
-        cycle = self.tracker.add(event)
-        if cycle is not None:
-            self._publish_cycle(cycle)
-
-    def _stamp(self, side: str, t: float) -> Time:
-        if not math.isfinite(t):
-            return Time()
-        return self._stamps.get((side, t)) or s_to_stamp(t)
-
-    def _publish_cycle(self, c: GaitCycle) -> None:
-        counts = self.counts[c.side]
-        counts["strides"] += 1
-        if not c.plausible:
-            counts["implausible_strides"] += 1
-            self.get_logger().warning(f"{c.side} stride {c.index} flagged: {c.flag}")
-        out = GaitCycleMsg()
-        out.header.stamp = self._stamp(c.side, c.end)
-        out.header.frame_id = f"{c.side}_foot"
-        out.side = _SIDE_CODE[c.side]
-        out.stride_index = c.index
-        out.start = self._stamp(c.side, c.start)
-        out.terminal_contact = self._stamp(c.side, c.terminal_contact)
-        for name in ("stride_time", "stance_time", "swing_time", "stance_fraction", "swing_fraction",
-                     "step_time", "cadence", "double_support_time", "double_support_fraction",
-                     "step_time_symmetry_index"):
-            setattr(out, name, float(getattr(c, name)))
-        out.plausible = bool(c.plausible)
-        out.flag = c.flag
-        self._cycles.publish(out)
+        t, q = imu_to_foot_sample(msg)
+        for event, cycle in self.stream.update(side, t, q, msg.header.stamp):
+            self._events.publish(event_msg(event))
+            if cycle is not None:
+                self._cycles.publish(cycle_msg(cycle, self.stream.stamp_of))
+        self._say()
 
     def _check_streams(self) -> None:
         now = time.monotonic()
         statuses = []
+        note = self.stream.notes
         for side in self.sides:
             last = self._last_arrival.get(side)
             level, message = DiagnosticStatus.OK, "detecting"
@@ -211,18 +198,17 @@ class GaitEventsNode(Node):
             elif now - last > self.stale_after:
                 if not self._stopped[side]:
                     self._stopped[side] = True
-                    self.counts[side]["stream_stops"] += 1
-                    self._reset(side, "stream stopped")
-                    self.get_logger().warning(f"{side} foot: no data for {now - last:.1f} s, state reset")
+                    self.stream.stream_stopped(side, now - last)
+                    self._say()
                 level = DiagnosticStatus.ERROR
                 message = (f"no data for {now - last:.1f} s: {side} foot state reset; check the sensor "
                            "and the orientation filter")
             elif not self.calibrated[side]:
                 level, message = DiagnosticStatus.WARN, "waiting for the foot calibration " + (
-                    f"({self._note[side]})" if self._note[side] else "(calibration/sensor_to_segment)")
-            elif self._note[side]:
-                level, message = DiagnosticStatus.WARN, self._note[side]
-                self._note[side] = ""
+                    f"({note[side]})" if note[side] else "(calibration/sensor_to_segment)")
+            elif note[side]:
+                level, message = DiagnosticStatus.WARN, note[side]
+                note[side] = ""
             statuses.append(diagnostic_status(f"gait_events: {side} foot", level, message, f"{side}_foot",
                                               {**self.counts[side], "waiting_for_ic":
                                                self.detectors[side].waiting_for_ic}))

@@ -1,13 +1,15 @@
 """Node ``joint_angles``: calibrated segment orientations → ISB joint angles and a stick figure.
 
 Subscribes ``<segment>/imu/data`` of the pelvis and both legs and ``calibration/sensor_to_segment``
-(latched). Samples are synchronised by exact header stamp (the IMUs are sampled together): a stamp
-is published when every calibrated segment has it, when a newer stamp is complete, or ``max_wait`` s
-after its first sample arrived; then with the joints whose two segments are present (the missing
-segments are counted and named on /diagnostics). Until a calibration is in force nothing is
-published (WARN "not calibrated: run calibration"). Standing offset (gait.md §1.9): with
-``remove_standing_offset``, the mean of the first ``offset_window_s`` s after calibration during which
-every segment is still (|ω| < ``still_gyro`` rad/s) is subtracted from then on.
+(latched; in force from its header stamp, 0 = at once). Synchronisation, calibration switching and
+offset removal are :class:`~gait_biofeedback.core.joint_angles.JointAngleStream`: samples are
+synchronised by exact header stamp (the IMUs are sampled together); a stamp is published when every
+calibrated segment has it, when a newer stamp is complete, or ``max_wait`` s after its first sample
+arrived; then with the joints whose two segments are present (the missing segments are counted and
+named on /diagnostics). Until a calibration is in force nothing is published (WARN "not calibrated:
+run calibration"). Standing offset (gait.md §1.9): with ``remove_standing_offset``, the mean of the
+first ``offset_window_s`` s after calibration during which every segment is still (|ω| <
+``still_gyro`` rad/s) is subtracted from then on.
 
 Publishes ``joint_states`` (sensor_msgs/JointState, names from JOINT_NAMES, rad, stamp = sample stamp)
 and ``skeleton`` (visualization_msgs/MarkerArray, one LINE_LIST in frame "world", pelvis at the origin,
@@ -18,6 +20,7 @@ every ``skeleton_every`` samples). Segment lengths: ``thigh_length``, ``shank_le
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
@@ -28,7 +31,13 @@ from rclpy.parameter import Parameter
 from sensor_msgs.msg import Imu, JointState
 from visualization_msgs.msg import Marker, MarkerArray
 
-from gait_biofeedback.core.joint_angles import JointAngleCalculator, segment_orientations
+from gait_biofeedback.core.joint_angles import (
+    STREAM_SEGMENTS,
+    JointAngleCalculator,
+    JointAngleStream,
+    SyncedAngles,
+    segment_orientations,
+)
 from gait_biofeedback.core.segments import WORLD_FRAME, orientation_topic
 from gait_biofeedback.core.skeleton import SegmentLengths, stick_figure
 from gait_biofeedback.nodes.common import (
@@ -42,8 +51,50 @@ from gait_biofeedback.nodes.common import (
 )
 from gait_biofeedback_msgs.msg import SegmentCalibrationArray
 
-JOINT_SEGMENTS = ("pelvis", "left_thigh", "left_shank", "left_foot", "right_thigh", "right_shank",
-                  "right_foot")
+JOINT_SEGMENTS = STREAM_SEGMENTS
+
+
+def calibration_rotations(msg: SegmentCalibrationArray) -> tuple[dict[str, np.ndarray], int]:
+    """(segment → r of the valid segments, stamp ns from which it is in force) of a calibration message."""
+    rotations = {m.segment: np.array([m.rotation.w, m.rotation.x, m.rotation.y, m.rotation.z])
+                 for m in msg.segments if m.valid}
+    return rotations, stamp_to_ns(msg.header.stamp)
+
+
+def imu_to_joint_sample(msg: Imu) -> tuple[int, np.ndarray, float]:
+    """(stamp ns, sensor→world q, |ω| rad/s) of a ``<segment>/imu/data`` message."""
+    o, w = msg.orientation, msg.angular_velocity
+    return (stamp_to_ns(msg.header.stamp), np.array([o.w, o.x, o.y, o.z]),
+            float(np.linalg.norm([w.x, w.y, w.z])))
+
+
+def joint_state_msg(synced: SyncedAngles) -> JointState:
+    """``joint_states`` message of one emitted instant (names from JOINT_NAMES, rad)."""
+    msg = JointState(name=list(synced.angles), position=[float(v) for v in synced.angles.values()])
+    msg.header.stamp = ns_to_stamp(synced.ns)
+    return msg
+
+
+def skeleton_msg(synced: SyncedAngles, lengths: SegmentLengths) -> MarkerArray:
+    """``skeleton`` stick figure (one LINE_LIST in "world", pelvis at the origin) of one instant."""
+    m = Marker(ns="skeleton", id=0, type=Marker.LINE_LIST, action=Marker.ADD)
+    m.header.stamp = ns_to_stamp(synced.ns)
+    m.header.frame_id = WORLD_FRAME
+    m.pose.orientation.w = 1.0
+    m.scale.x = 0.02
+    m.color.r, m.color.g, m.color.b, m.color.a = 0.1, 0.6, 1.0, 1.0
+    orientations = segment_orientations(synced.sensor_quats, synced.rotations)
+    for _seg, a, b in stick_figure(orientations, lengths):
+        m.points.append(Point(x=float(a[0]), y=float(a[1]), z=float(a[2])))
+        m.points.append(Point(x=float(b[0]), y=float(b[1]), z=float(b[2])))
+    return MarkerArray(markers=[m])
+
+
+def segment_lengths(get: Callable[[str, float], float]) -> SegmentLengths:
+    """Stick-figure lengths from parameters (``get(name, default)``)."""
+    return SegmentLengths(thigh=float(get("thigh_length", 0.43)), shank=float(get("shank_length", 0.43)),
+                          hip_width=float(get("hip_width", 0.18)), foot=float(get("foot_length", 0.14)),
+                          ankle_height=float(get("ankle_height", 0.08)))
 
 
 class JointAnglesNode(Node):
@@ -58,15 +109,9 @@ class JointAnglesNode(Node):
         self.offset_window_s = float(p("offset_window_s", 2.0).value)
         self.still_gyro = float(p("still_gyro", 0.2).value)
         self.skeleton_every = int(p("skeleton_every", 5).value)
-        self.lengths = SegmentLengths(thigh=float(p("thigh_length", 0.43).value),
-                                      shank=float(p("shank_length", 0.43).value),
-                                      hip_width=float(p("hip_width", 0.18).value),
-                                      foot=float(p("foot_length", 0.14).value),
-                                      ankle_height=float(p("ankle_height", 0.08).value))
-        self.calculator: JointAngleCalculator | None = None
-        self.pending: dict[int, dict[str, tuple[np.ndarray, float]]] = {}
-        self.first_arrival: dict[int, float] = {}
-        self.missing_counts: dict[str, int] = {s: 0 for s in JOINT_SEGMENTS}
+        self.lengths = segment_lengths(lambda name, default: p(name, default).value)
+        self.stream = JointAngleStream(JOINT_SEGMENTS, self.max_wait, self.remove_offset,
+                                       self.offset_window_s, self.still_gyro)
         self.published = 0
         for seg in JOINT_SEGMENTS:
             self.create_subscription(Imu, orientation_topic(seg), lambda m, s=seg: self._on_imu(s, m),
@@ -79,67 +124,36 @@ class JointAnglesNode(Node):
         self.create_timer(max(self.max_wait / 2, 0.01), self._flush)
         self.create_timer(float(p("diagnostics_period", 1.0).value), self._publish_diagnostics)
 
+    @property
+    def calculator(self) -> JointAngleCalculator | None:
+        """The calculator of the calibration in force (None until one is)."""
+        return self.stream.calculator
+
+    @property
+    def missing_counts(self) -> dict[str, int]:
+        """Emitted stamps that lacked each segment."""
+        return self.stream.missing_counts
+
     def _on_calibration(self, msg: SegmentCalibrationArray) -> None:
-        rotations = {m.segment: np.array([m.rotation.w, m.rotation.x, m.rotation.y, m.rotation.z])
-                     for m in msg.segments if m.valid}
-        self.calculator = JointAngleCalculator(rotations)
-        if self.remove_offset:
-            self.calculator.collect_offset(self.offset_window_s)
-        self.pending.clear()
-        self.first_arrival.clear()
-        self.get_logger().info(f"calibration in force ({msg.protocol}): {sorted(rotations)}")
+        rotations, from_ns = calibration_rotations(msg)
+        self.stream.set_calibration(rotations, from_ns)
+        when = f"from stamp {from_ns * 1e-9:.3f} s" if from_ns > 0 else "now"
+        self.get_logger().info(f"calibration in force {when} ({msg.protocol}): {sorted(rotations)}")
 
     def _on_imu(self, segment: str, msg: Imu) -> None:
-        if self.calculator is None:
-            return
-        ns = stamp_to_ns(msg.header.stamp)
-        o, w = msg.orientation, msg.angular_velocity
-        self.pending.setdefault(ns, {})[segment] = (np.array([o.w, o.x, o.y, o.z]),
-                                                    float(np.linalg.norm([w.x, w.y, w.z])))
-        self.first_arrival.setdefault(ns, time.monotonic())
-        self._flush()
+        ns, q, gyro_norm = imu_to_joint_sample(msg)
+        self._publish(self.stream.add(segment, ns, q, gyro_norm, time.monotonic()))
 
     def _flush(self) -> None:
-        if self.calculator is None or not self.pending:
-            return
-        wanted = [s for s in JOINT_SEGMENTS if s in self.calculator.rotations]
-        now = time.monotonic()
-        stamps = sorted(self.pending)
-        complete = [ns for ns in stamps if all(s in self.pending[ns] for s in wanted)]
-        newest_complete = complete[-1] if complete else None
-        for ns in stamps:
-            done = ns in complete or (newest_complete is not None and ns < newest_complete)
-            if not (done or now - self.first_arrival[ns] > self.max_wait):
-                break
-            self._emit(ns, self.pending.pop(ns), wanted)
-            self.first_arrival.pop(ns, None)
+        self._publish(self.stream.flush(time.monotonic()))
 
-    def _emit(self, ns: int, samples: dict[str, tuple[np.ndarray, float]], wanted: list[str]) -> None:
-        for seg in wanted:
-            if seg not in samples:
-                self.missing_counts[seg] += 1
-        quats = {s: q for s, (q, _) in samples.items()}
-        still = all(w < self.still_gyro for _, w in samples.values()) and len(samples) == len(wanted)
-        angles = self.calculator.update(ns * 1e-9, quats, still=still)
-        if angles:
-            msg = JointState(name=list(angles), position=[float(v) for v in angles.values()])
-            msg.header.stamp = ns_to_stamp(ns)
-            self._joints.publish(msg)
-        self.published += 1
-        if self.skeleton_every > 0 and self.published % self.skeleton_every == 0:
-            self._skeleton.publish(self._markers(ns, segment_orientations(quats, self.calculator.rotations)))
-
-    def _markers(self, ns: int, orientations: dict[str, np.ndarray]) -> MarkerArray:
-        m = Marker(ns="skeleton", id=0, type=Marker.LINE_LIST, action=Marker.ADD)
-        m.header.stamp = ns_to_stamp(ns)
-        m.header.frame_id = WORLD_FRAME
-        m.pose.orientation.w = 1.0
-        m.scale.x = 0.02
-        m.color.r, m.color.g, m.color.b, m.color.a = 0.1, 0.6, 1.0, 1.0
-        for _seg, a, b in stick_figure(orientations, self.lengths):
-            m.points.append(Point(x=float(a[0]), y=float(a[1]), z=float(a[2])))
-            m.points.append(Point(x=float(b[0]), y=float(b[1]), z=float(b[2])))
-        return MarkerArray(markers=[m])
+    def _publish(self, emitted: list[SyncedAngles]) -> None:
+        for synced in emitted:
+            if synced.angles:
+                self._joints.publish(joint_state_msg(synced))
+            self.published += 1
+            if self.skeleton_every > 0 and self.published % self.skeleton_every == 0:
+                self._skeleton.publish(skeleton_msg(synced, self.lengths))
 
     def _publish_diagnostics(self) -> None:
         if self.calculator is None:
