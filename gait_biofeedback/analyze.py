@@ -39,15 +39,14 @@ from typing import Any
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import Imu, MagneticField
 
-from gait_biofeedback.core.activity import ActivityMonitor
-from gait_biofeedback.core.activity import ActivityState as CoreActivityState
+from gait_biofeedback.core.activity_stream import ActivityStream
 from gait_biofeedback.core.calibration import PROTOCOLS
 from gait_biofeedback.core.calibration_windows import CalibrationAttempt, CalibrationBuffer
 from gait_biofeedback.core.filters import ALGORITHMS, DEFAULT_ALGORITHM
 from gait_biofeedback.core.gait_stream import GaitEventStream
 from gait_biofeedback.core.joint_angles import JointAngleStream
-from gait_biofeedback.core.orientation_stream import OrientationSample, SegmentOrientationTracker
-from gait_biofeedback.core.segments import SEGMENTS, sensor_frame
+from gait_biofeedback.core.orientation_stream import SegmentOrientationTracker
+from gait_biofeedback.core.segments import SEGMENTS
 from gait_biofeedback.io.bag import BagReader, BagWriter
 from gait_biofeedback.io.schemas import type_name_of
 from gait_biofeedback.nodes.activity_monitor import to_message as activity_msg
@@ -72,6 +71,7 @@ from gait_biofeedback.nodes.joint_angles import (
     segment_lengths,
     skeleton_msg,
 )
+from gait_biofeedback.nodes.orientation_filter import orientation_msg
 
 IMU_TYPE = "sensor_msgs/msg/Imu"
 MAG_TYPE = "sensor_msgs/msg/MagneticField"
@@ -108,24 +108,6 @@ class AnalysisResult:
     messages: list[tuple[str, Any, int]] = field(default_factory=list)
 
 
-def orientation_msg(segment: str, sample: OrientationSample, raw: Imu, variance: float) -> Imu:
-    """``<segment>/imu/data`` of one filtered sample, field by field as the ``orientation_filter`` node
-    builds it (stamp of the sample, raw covariances of the message that released it)."""
-    out = Imu()
-    out.header.stamp = sample.stamp
-    out.header.frame_id = sensor_frame(segment)
-    q = sample.q
-    out.orientation.w, out.orientation.x, out.orientation.y, out.orientation.z = (
-        float(q[0]), float(q[1]), float(q[2]), float(q[3]))
-    out.orientation_covariance = [variance, 0.0, 0.0, 0.0, variance, 0.0, 0.0, 0.0, variance]
-    out.angular_velocity.x, out.angular_velocity.y, out.angular_velocity.z = (float(x) for x in sample.gyr)
-    out.linear_acceleration.x, out.linear_acceleration.y, out.linear_acceleration.z = (
-        float(x) for x in sample.acc)
-    out.angular_velocity_covariance = raw.angular_velocity_covariance
-    out.linear_acceleration_covariance = raw.linear_acceleration_covariance
-    return out
-
-
 def parse_calibrate_at(text: str) -> tuple[float, str]:
     """``"T:protocol"`` (T in s into the recording; protocol default hip_flexion) → (T, protocol)."""
     time_text, _, protocol = text.partition(":")
@@ -146,51 +128,30 @@ def _settings(params: dict[str, dict] | None, node: str, defaults: dict[str, Any
 
 
 class _ActivityRun:
-    """The ``activity_monitor`` node's input rules around :class:`ActivityMonitor`, offline: NaN and
-    repeated stamps skipped, time going back or a gap > ``max_gap`` restarts the monitor, a state is
-    published when posture, locomotion or the last transition change and every ``publish_period`` s
-    of recording time (the node: of wall-clock time)."""
+    """The ``activity_monitor`` node offline: the same :class:`ActivityStream`, a state published on
+    every change and every ``publish_period`` s of recording time (the node: of wall-clock time)."""
 
     def __init__(self, settings: dict[str, Any]) -> None:
         self.segment = str(settings["segment"])
-        self.rate_hz = float(settings["rate_hz"])
-        self.options = {"units": settings["units"], "reference_s": float(settings["reference_s"]),
-                        "thigh_length_m": float(settings["thigh_length"]),
-                        "initial_posture": settings["initial_posture"]}
-        self.max_gap = float(settings["max_gap"])
         self.period = float(settings["publish_period"])
-        self.monitor = ActivityMonitor(self.rate_hz, **self.options)
-        self._t_last: float | None = None
-        self._key: tuple | None = None
-        self._latest: CoreActivityState | None = None
+        self.stream = ActivityStream(
+            float(settings["rate_hz"]), max_gap=float(settings["max_gap"]), units=settings["units"],
+            reference_s=float(settings["reference_s"]), thigh_length_m=float(settings["thigh_length"]),
+            initial_posture=settings["initial_posture"])
         self._next_periodic: float | None = None
 
     def update(self, msg: Imu) -> list[Any]:
         t = stamp_to_s(msg.header.stamp)
         a = msg.linear_acceleration
-        acc = (a.x, a.y, a.z)
-        if not all(math.isfinite(v) for v in acc):
-            return []
-        if self._t_last is not None:
-            dt = t - self._t_last
-            if dt == 0.0:
-                return []
-            if dt < 0.0 or dt > self.max_gap:
-                self.monitor = ActivityMonitor(self.rate_hz, **self.options)
-        self._t_last = t
         out = []
         if self._next_periodic is None:
             self._next_periodic = t + self.period
-        elif t >= self._next_periodic and self._latest is not None:
+        elif t >= self._next_periodic and self.stream.latest is not None:
             self._next_periodic = t + self.period
-            out.append(activity_msg(self._latest, t, self.segment))
-        state = self.monitor.update(t, acc)
-        if state is not None:
-            self._latest = state
-            key = (state.posture, state.locomotion, state.last_transition, state.last_transition_t)
-            if key != self._key:
-                self._key = key
-                out.append(activity_msg(state, t, self.segment))
+            out.append(activity_msg(self.stream.latest, t, self.segment))
+        state, changed, _ = self.stream.update(t, (a.x, a.y, a.z))
+        if changed:
+            out.append(activity_msg(state, t, self.segment))
         return out
 
 

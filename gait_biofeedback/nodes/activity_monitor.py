@@ -15,16 +15,14 @@ Parameters: ``segment`` (chest), ``rate_hz`` (nominal rate of the chest IMU, 20â
 
 from __future__ import annotations
 
-import math
-
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import Imu
 
-from gait_biofeedback.core.activity import ActivityMonitor
 from gait_biofeedback.core.activity import ActivityState as CoreActivityState
+from gait_biofeedback.core.activity_stream import ActivityStream
 from gait_biofeedback.core.segments import raw_topic
 from gait_biofeedback.nodes.common import (
     DIAGNOSTICS_TOPIC,
@@ -80,60 +78,39 @@ class ActivityMonitorNode(Node):
             "initial_posture": self.declare_parameter("initial_posture", "standing").value,
         }
         self.max_gap = float(self.declare_parameter("max_gap", 0.5).value)
-        self.monitor = ActivityMonitor(self.rate_hz, **self.options)
-        self.counts = {"samples": 0, "nan_skipped": 0, "duplicates": 0, "restarts": 0, "published": 0}
-        self._t_last: float | None = None
-        self._latest: CoreActivityState | None = None
+        self.stream = ActivityStream(self.rate_hz, max_gap=self.max_gap, **self.options)
         self._newest_t = 0.0
-        self._published_key: tuple | None = None
+        self.published = 0
         self._pub = self.create_publisher(ActivityState, "activity/state", RELIABLE_QOS)
         self._diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, RELIABLE_QOS)
         self.create_subscription(Imu, raw_topic(self.segment), self._on_imu, SENSOR_QOS)
         self.create_timer(float(self.declare_parameter("publish_period", 1.0).value), self._periodic)
 
-    def _restart(self, why: str) -> None:
-        self.counts["restarts"] += 1
-        self.get_logger().warning(f"{self.segment}: {why}: activity monitor restarted")
-        self.monitor = ActivityMonitor(self.rate_hz, **self.options)
+    @property
+    def counts(self) -> dict[str, int]:
+        """Input counters of the stream plus states published."""
+        return {**self.stream.counts, "published": self.published}
 
     def _on_imu(self, msg: Imu) -> None:
-        self.counts["samples"] += 1
         t = stamp_to_s(msg.header.stamp)
         a = msg.linear_acceleration
-        acc = (a.x, a.y, a.z)
-        if not all(math.isfinite(v) for v in acc):
-            self.counts["nan_skipped"] += 1
-            return
-        if self._t_last is not None:
-            dt = t - self._t_last
-            if dt == 0.0:
-                self.counts["duplicates"] += 1
-                return
-            if dt < 0.0:
-                self._restart(f"time went back {-dt:.3f} s")
-            elif dt > self.max_gap:
-                self._restart(f"{dt:.2f} s without data")
-        self._t_last = t
+        state, changed, warning = self.stream.update(t, (a.x, a.y, a.z))
+        if warning:
+            self.get_logger().warning(f"{self.segment}: {warning}")
         self._newest_t = t
-        state = self.monitor.update(t, acc)
-        if state is None:
-            return
-        self._latest = state
-        key = (state.posture, state.locomotion, state.last_transition, state.last_transition_t)
-        if key != self._published_key:
+        if changed:
             self._publish(state)
 
     def _publish(self, state: CoreActivityState) -> None:
-        self._published_key = (state.posture, state.locomotion, state.last_transition,
-                               state.last_transition_t)
         self._pub.publish(to_message(state, self._newest_t, self.segment))
-        self.counts["published"] += 1
+        self.published += 1
 
     def _periodic(self) -> None:
-        if self._latest is not None:
-            self._publish(self._latest)
-        level = DiagnosticStatus.OK if self._latest is not None else DiagnosticStatus.WARN
-        message = "monitoring" if self._latest is not None else "waiting for chest data"
+        latest = self.stream.latest
+        if latest is not None:
+            self._publish(latest)
+        level = DiagnosticStatus.OK if latest is not None else DiagnosticStatus.WARN
+        message = "monitoring" if latest is not None else "waiting for chest data"
         self._diagnostics.publish(diagnostic_array(self, [diagnostic_status(
             "activity_monitor", level, message, f"{self.segment}_imu", self.counts)]))
 

@@ -43,6 +43,25 @@ from gait_biofeedback.nodes.common import (
 )
 
 
+def orientation_msg(segment: str, sample: OrientationSample, raw: Imu, variance: float) -> Imu:
+    """``<segment>/imu/data`` of one filtered sample, field by field as the ``orientation_filter`` node
+    builds it (stamp of the sample, raw covariances of the message that released it)."""
+    out = Imu()
+    out.header.stamp = sample.stamp
+    out.header.frame_id = sensor_frame(segment)
+    q = sample.q
+    out.orientation.w, out.orientation.x, out.orientation.y, out.orientation.z = (
+        float(q[0]), float(q[1]), float(q[2]), float(q[3]))
+    out.orientation_covariance = [variance, 0.0, 0.0, 0.0, variance, 0.0, 0.0, 0.0, variance]
+    out.angular_velocity.x, out.angular_velocity.y, out.angular_velocity.z = (float(x) for x in sample.gyr)
+    out.linear_acceleration.x, out.linear_acceleration.y, out.linear_acceleration.z = (
+        float(x) for x in sample.acc)
+    out.angular_velocity_covariance = raw.angular_velocity_covariance
+    out.linear_acceleration_covariance = raw.linear_acceleration_covariance
+    return out
+
+
+
 class OrientationFilterNode(Node):
     """All segments' orientation filters (see module docstring)."""
 
@@ -110,24 +129,7 @@ class OrientationFilterNode(Node):
         for level, text in tracker.pop_messages():
             (self.get_logger().warning if level == "warn" else self.get_logger().info)(text)
         for sample in samples:
-            self._out[segment].publish(self._to_msg(segment, sample, msg))
-
-    def _to_msg(self, segment: str, sample: OrientationSample, raw: Imu) -> Imu:
-        out = Imu()
-        out.header.stamp = sample.stamp
-        out.header.frame_id = sensor_frame(segment)
-        q = sample.q
-        out.orientation.w, out.orientation.x, out.orientation.y, out.orientation.z = (
-            float(q[0]), float(q[1]), float(q[2]), float(q[3]))
-        v = self.orientation_variance
-        out.orientation_covariance = [v, 0.0, 0.0, 0.0, v, 0.0, 0.0, 0.0, v]
-        out.angular_velocity.x, out.angular_velocity.y, out.angular_velocity.z = (
-            float(x) for x in sample.gyr)
-        out.linear_acceleration.x, out.linear_acceleration.y, out.linear_acceleration.z = (
-            float(x) for x in sample.acc)
-        out.angular_velocity_covariance = raw.angular_velocity_covariance
-        out.linear_acceleration_covariance = raw.linear_acceleration_covariance
-        return out
+            self._out[segment].publish(orientation_msg(segment, sample, msg, self.orientation_variance))
 
     def _segment_status(self, segment: str, now: float) -> DiagnosticStatus:
         info = self.trackers[segment].diagnostics()
