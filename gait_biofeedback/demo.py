@@ -93,12 +93,14 @@ def run_demo(bag: Path, output: Path, speed: float = 2.0, dashboard_port: int = 
 
     calibration_dir = output.parent / f"{output.name}_calibration"
     shutil.rmtree(calibration_dir, ignore_errors=True)
-    said: list[str] = []
+    start_ns = BagReader(bag).start_time_ns
+    calibration_nodes: list = []
 
     def press_calibrate(nodes: dict) -> None:
+        # by stamp, not "now": the same samples whatever the replay speed (and `analyze` agrees)
         if "calibration" in nodes:
-            ok, message, _ = nodes["calibration"].calibrate("hip_flexion")
-            said.append(("" if ok else "REFUSED: ") + message)
+            calibration_nodes.append(nodes["calibration"])
+            nodes["calibration"].calibrate_at(start_ns + round(calibration_time() * 1e9), "hip_flexion")
 
     with tqdm(total=total, desc="replay", unit="msg", unit_scale=True, leave=False,
               disable=not sys.stderr.isatty()) as bar:
@@ -107,5 +109,7 @@ def run_demo(bag: Path, output: Path, speed: float = 2.0, dashboard_port: int = 
             node_parameters={"calibration": {"session_dir": str(calibration_dir)},
                              "biofeedback": {"port": dashboard_port}},
             actions=[(calibration_time(), press_calibrate)])
+    attempts = [node.last_attempt for node in calibration_nodes if node.last_attempt is not None]
+    said = [("" if a.success else "REFUSED: ") + a.message for a in attempts]
     print(summarize(bag, output, result.wall_time, result.published, " ".join(said)))
     return 0
