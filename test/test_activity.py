@@ -256,3 +256,72 @@ def test_reference_period_reorients_mounting() -> None:
 def test_rate_out_of_range_is_rejected() -> None:
     with pytest.raises(ValueError, match="rate_hz"):
         ActivityMonitor(10.0)
+
+
+# --- posture-consistency gates chosen on UCI dev subjects (activity.py "chosen on the UCI ...") ---
+
+
+def _sit_then_stand(dz: float, sitting_lean_deg: float) -> Template:
+    tpl = Template(RATE).hold(4.0, 0.0).hold(6.0, sitting_lean_deg)  # reference: upright, first 2 s
+    return tpl.transition("sit_to_stand", 2.0, 0.0, dz, 40.0)
+
+
+def test_weak_sit_to_stand_needs_walking_to_count() -> None:
+    # from an upright seat the θ-minima window sees ΔY ≈ 0.23 m: above the thesis gate (0.5 thigh
+    # = 0.21 m), below the strong gate (0.7 thigh = 0.29 m)
+    still = _run(_sit_then_stand(0.45, 0.0).hold(15.0), initial_posture="sitting")
+    assert still["transitions"] == []
+    assert set(still["posture"]) == {"sitting"}
+    tpl = _sit_then_stand(0.45, 0.0).hold(2.0).walk(12).hold(3.0)
+    walked = _run(tpl, initial_posture="sitting")
+    assert [k for _, k in walked["transitions"]] == ["sit_to_stand"]
+    assert abs(walked["transitions"][0][0] - tpl.events[0][0]) < 0.5  # the instant, not the confirmation
+    assert walked["posture"][-1] == "standing"
+
+
+def test_strong_sit_to_stand_without_walking_reverts_after_a_minute() -> None:
+    tpl = _sit_then_stand(0.45, 8.0).hold(70.0)  # from a slight lean: ΔY ≈ 0.3 m, strong
+    out = _run(tpl, initial_posture="sitting")
+    assert [k for _, k in out["transitions"]] == ["sit_to_stand"]
+    t = np.arange(len(out["posture"])) / RATE
+    t_up = out["transitions"][0][0]
+    assert set(out["posture"][(t > t_up + 1.0) & (t < t_up + 55.0)]) == {"standing"}
+    assert set(out["posture"][t > t_up + 62.0]) == {"sitting"}
+
+
+def test_stand_to_sit_is_ignored_when_already_sitting() -> None:
+    tpl = Template(RATE).hold(4.0, 5.0).transition("stand_to_sit", 2.4, 8.0, -0.45, 45.0).hold(8.0)
+    assert [k for _, k in _run(tpl)["transitions"]] == ["stand_to_sit"]
+    assert _run(tpl, initial_posture="sitting")["transitions"] == []
+
+
+def test_a_few_peaks_while_seated_do_not_make_standing() -> None:
+    tpl = Template(RATE).hold(4.0, 10.0).walk(4, amplitude=3.0).hold(5.0)
+    out = _run(tpl, initial_posture="sitting")
+    assert (out["locomotion"] != "none").any()  # the short bout is still reported as locomotion
+    assert set(out["posture"]) == {"sitting"}
+
+
+def test_long_held_lean_means_sitting() -> None:
+    out = _run(Template(RATE).hold(4.0, 0.0).hold(40.0, 35.0))
+    t = np.arange(len(out["posture"])) / RATE
+    assert set(out["posture"][t < 25.0]) == {"standing"}
+    assert out["posture"][-1] == "sitting"
+    assert out["transitions"] == []
+
+
+def test_uci_dev_subject_sitting_block_has_no_false_transition() -> None:
+    from conftest import shared_data
+
+    path = shared_data("uci_chest_casale", "7.csv.gz")
+    raw = np.loadtxt(path, delimiter=",", max_rows=52 * 760)  # sitting 630 s, mixed, standing at 699 s
+    labels = raw[:, 4].astype(int)
+    acc = raw[:, 1:4] - 2048.0  # 12-bit counts, mid-scale zero (benchmarks/activity.py)
+    sit_end = int(np.flatnonzero(labels != 1)[0])
+    stand = np.flatnonzero(labels == 3)
+    ref = (int(stand[0]) + 52, int(stand[0]) + 312) if stand.size else (sit_end + 52 * 60, sit_end + 52 * 65)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UnitMismatchWarning)
+        out = classify_activity(acc, 52.0, units="g", reference=ref, initial_posture="sitting")
+    assert all(t > sit_end / 52.0 - 30.0 for t, _ in out["transitions"])
+    assert np.mean(out["posture"][:sit_end] == "sitting") > 0.95
