@@ -94,7 +94,7 @@ def test_node_on_replayed_walk_equals_offline_core(ros_context, walk_bag):
         mine = [c for c in cycles if c.side == code]
         assert len(mine) == len(ics) - 1
         assert all(c.plausible and c.flag == "" for c in mine)
-        steady = [c for c in mine if c.stride_time < 1.2]
+        steady = [c for c in mine if c.stride_time < 1.15]  # the cadence ramps at both ends are slower
         assert steady and all(abs(c.cadence - 1.8) < 0.1 and 0.55 < c.stance_fraction < 0.7 for c in steady)
     assert np.isfinite(cycles[-1].step_time_symmetry_index)
 

@@ -110,6 +110,30 @@ def test_foot_pitch_and_contact_are_coherent(walk_clean):
             assert pitch[_idx(tr, t_tc)] < -30 * DEG  # toe down at TC
 
 
+@pytest.mark.parametrize("scenario", ["walk", "slow_gait"])
+def test_foot_pitch_extrema_at_contacts_and_toe_clearance(scenario):
+    """Real foot IMUs with motion capture: toes-up maximum at IC, toes-down minimum 0-20 ms after TC."""
+    s = simulate(SCENARIOS[scenario](rate_hz=1000.0, segments=("left_foot",)).without_errors())
+    tr, cfg = s.truth, s.config
+    rf = quat.as_matrix(tr.segment_orientation["left_foot"])
+    pitch = np.arcsin(rf[:, 2, 0])
+    ics, tcs = tr.initial_contacts["left"][2:-2], tr.terminal_contacts["left"][2:-2]
+    assert len(ics) >= 5
+    for t_ic in ics:
+        m = np.abs(tr.t - t_ic) < 0.15
+        assert abs(tr.t[m][np.argmax(pitch[m])] - t_ic) <= 0.010
+    for t_tc in tcs:
+        m = (tr.t > t_tc - 0.1) & (tr.t < t_tc + 0.2)
+        assert 0.0 <= tr.t[m][np.argmin(pitch[m])] - t_tc <= 0.020
+    if scenario == "walk":
+        toe = (tr.segment_position["left_foot"] + rf[:, :, 0] * cfg.toe_length
+               - rf[:, :, 1] * cfg.ankle_height)
+        stride = 2.0 / cfg.cadence
+        for t_tc in tcs:
+            swing = (tr.t > t_tc + 0.1 * stride) & (tr.t < t_tc + 0.3 * stride)  # mid swing
+            assert toe[swing, 2].min() > 0.015
+
+
 def test_walking_speed_and_sagittal_ranges(walk_clean):
     tr = walk_clean.truth
     p = tr.segment_position["pelvis"]
@@ -120,7 +144,7 @@ def test_walking_speed_and_sagittal_ranges(walk_clean):
     assert 25 < ja["left_hip_flexion"].max() < 38 and -15 < ja["left_hip_flexion"].min() < -3
     assert 55 < ja["right_knee_flexion"].max() < 66 and ja["right_knee_flexion"].min() < 8
     assert -22 < ja["left_ankle_dorsiflexion"].min() < -10 and 5 < ja["left_ankle_dorsiflexion"].max() < 20
-    assert 0.02 < np.ptp(p[m, 2]) < 0.07  # vertical pelvis oscillation
+    assert 0.012 < np.ptp(p[m, 2]) < 0.07  # vertical pelvis oscillation (~1.5 cm)
 
 
 def test_truth_joint_angles_equal_jcs_of_true_segment_orientations(walk_clean):
@@ -274,3 +298,33 @@ def test_slow_gait_is_slower_with_longer_stance():
 def test_bad_config_raises_clear_value_error(change, message):
     with pytest.raises(ValueError, match=message):
         simulate(replace(SimulationConfig(), **change))
+
+
+def test_stairs_climb_one_riser_per_step_with_labels_and_trunk_lean():
+    s = simulate(SCENARIOS["stairs"]().without_errors())
+    tr, cfg = s.truth, s.config
+    phases = {kind: (t0, t1) for t0, t1, kind in tr.phases if kind.startswith("stairs")}
+    z = tr.segment_position["pelvis"][:, 2]
+    lean = {}
+    for kind, label, sign in (("stairs_up", "upstairs", 1.0), ("stairs_down", "downstairs", -1.0)):
+        t0, t1 = phases[kind]
+        assert tr.locomotion[_idx(tr, 0.5 * (t0 + t1))] == label
+        steady = tr.steps[(tr.steps > t0 + 2.0) & (tr.steps < t1 - 2.0)]
+        assert len(steady) >= 6
+        rise = z[_idx(tr, steady[-1])] - z[_idx(tr, steady[0])]
+        assert sign * rise / (len(steady) - 1) == pytest.approx(cfg.stair_height, abs=0.02)
+        for side in ("left", "right"):  # feet pinned in mid stance on the stairs
+            origin = tr.segment_position[f"{side}_foot"]
+            for t_ic in tr.initial_contacts[side][(tr.initial_contacts[side] > t0 + 2.0)
+                                                  & (tr.initial_contacts[side] < t1 - 2.0)]:
+                k = _idx(tr, t_ic + 0.25 * 2.0 / cfg.cadence)
+                assert np.linalg.norm(origin[k + 1] - origin[k - 1]) / 0.02 < 1e-3
+        m = (tr.t > t0 + 2.0) & (tr.t < t1 - 2.0)
+        up = quat.rotate(tr.segment_orientation["chest"][m], [0.0, 1.0, 0.0])
+        lean[kind] = np.degrees(np.mean(np.arcsin(up[:, 0])))  # walking east: + = forward
+    m = (tr.t > 6.5) & (tr.t < 8.5)
+    up = quat.rotate(tr.segment_orientation["chest"][m], [0.0, 1.0, 0.0])
+    level = np.degrees(np.mean(np.arcsin(up[:, 0])))
+    assert lean["stairs_up"] > level + 5.0
+    assert abs(z[-1] - z[0]) < 0.02  # back on the ground floor
+    assert {"level", "upstairs", "downstairs", "none"} == set(np.unique(tr.locomotion))

@@ -17,7 +17,14 @@ together/apart during these 1 s blends). Truth IC/TC = gait phase crossing 0 / t
 during the cadence ramps; each IC is a step. The hip flexion range is scaled (secant search) so the steady
 pelvis speed equals ``speed``. During turns a foot keeps its heading through stance and turns in swing.
 Transition instants in the truth are the midpoints of the transition phases (gait.md: PT = mean of start
-and end). Stairs are not simulated.
+and end).
+
+Stairs ("stairs_up"/"stairs_down" phases, part of a walking bout): the sagittal hip/knee/foot curves blend
+(C², 0.8 s around the phase bounds) to stair gait (gait_kinematics.stairs_angles) with more pelvis tilt and
+trunk lean going up, and every IC raises (lowers) the ground under the new contact by ``stair_height``
+times the stair blend at that IC, so the pelvis climbs (descends) one step per step. READING: the treads
+are heights only (no nosing, any depth); the first and last steps of a flight are partial while the blend
+ramps.
 
 IMU signals are analytic-consistent: every quantity is a smooth (C²) function of time, evaluated at
 ``t`` and ``t ± h`` (h = 0.5 ms); gyro = rotation vector of ``q(t-h)* ⊗ q(t+h)`` / 2h (sensor frame,
@@ -44,18 +51,21 @@ from gait_biofeedback.core.gait_kinematics import (
     leg_angles,
     pelvis_angles,
     smootherstep,
+    stairs_angles,
     window,
 )
 from gait_biofeedback.core.joint_angles import joint_angles_from_segments, relative_rotation_from_angles
 from gait_biofeedback.core.segments import GRAVITY, SEGMENTS, SIDES, ImuSeries
 
 PHASE_KINDS = ("stand", "walk", "turn", "hip_flexion", "sit", "lie", "sit_to_stand", "stand_to_sit",
-               "sit_to_lie", "lie_to_sit")
+               "sit_to_lie", "lie_to_sit", "stairs_up", "stairs_down")
 TRANSITIONS = {"sit_to_stand": ("sitting", "standing"), "stand_to_sit": ("standing", "sitting"),
                "sit_to_lie": ("sitting", "lying"), "lie_to_sit": ("lying", "sitting")}
 _POSTURE_OF = {"stand": "standing", "walk": "standing", "turn": "standing", "hip_flexion": "standing",
-               "sit": "sitting", "lie": "lying"}
-_WALKING = ("walk", "turn")
+               "sit": "sitting", "lie": "lying", "stairs_up": "standing", "stairs_down": "standing"}
+_WALKING = ("walk", "turn", "stairs_up", "stairs_down")
+_STAIRS = {"stairs_up": ("up", "upstairs"), "stairs_down": ("down", "downstairs")}
+_STAIRS_RAMP = 1.6  # s, blend level ↔ stair gait, centred on the phase bound
 _GAIT_RAMP = 1.0  # s, angle blend standing ↔ walking pose (frozen mid double support) at the bout ends
 _CADENCE_RAMP = 0.8  # s, cadence 0 ↔ nominal once the walking pose is reached / before it is left
 _H = 5e-4  # s, half-step of the central differences
@@ -74,7 +84,8 @@ _LEVER_ARMS = {
 @dataclass
 class Phase:
     """One part of a session. ``params``: walk/turn {"angle": rad (turn, + = left)}, hip_flexion
-    {"side": "left"|"right"|"both", "frequency": Hz, "amplitude": rad}."""
+    {"side": "left"|"right"|"both", "frequency": Hz, "amplitude": rad}; stairs_up/stairs_down: none (one
+    step of ``SimulationConfig.stair_height`` per IC)."""
 
     kind: str
     duration: float
@@ -117,6 +128,7 @@ class SimulationConfig:
     heel_length: float = 0.06  # ankle → heel, backwards
     toe_length: float = 0.14  # ankle → metatarsal heads, forwards
     trunk_length: float = 0.15  # pelvis origin → chest segment origin (lumbar joint)
+    stair_height: float = 0.17  # m, riser of the stairs_up / stairs_down phases
 
     def without_errors(self) -> SimulationConfig:
         """Copy with no noise, no bias and no magnetic disturbance (for consistency tests)."""
@@ -141,7 +153,7 @@ class GroundTruth:
     terminal_contacts: dict[str, np.ndarray]
     steps: np.ndarray  # all IC times, sorted
     posture: np.ndarray  # (N,) "standing" | "sitting" | "lying"
-    locomotion: np.ndarray  # (N,) "none" | "level" (| "upstairs" | "downstairs": not simulated yet)
+    locomotion: np.ndarray  # (N,) "none" | "level" | "upstairs" | "downstairs"
     transitions: list[tuple[float, str]]  # (mid-time of the transition, kind)
     phases: list[tuple[float, float, str]]
 
@@ -238,6 +250,8 @@ class _Plan:
         self.duration = float(self.bounds[-1])
         self.turns = [(self.bounds[i], p.duration, float(p.params.get("angle", 0.0)))
                       for i, p in enumerate(cfg.phases) if p.kind == "turn"]
+        self.stairs = [(self.bounds[i], self.bounds[i + 1], _STAIRS[p.kind][0])
+                       for i, p in enumerate(cfg.phases) if p.kind in _STAIRS]
         self.bouts: list[tuple[float, float]] = []  # contiguous walking phases
         for i, p in enumerate(cfg.phases):
             if p.kind in _WALKING:
@@ -265,6 +279,28 @@ class _Plan:
         for t0, dur, angle in self.turns:
             psi = psi + angle * smootherstep((t - t0) / dur)
         return psi
+
+    def stairs_blend(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Blend (0..1) of stair ascent and of stair descent at ``t``: C² ramps of ``_STAIRS_RAMP`` s
+        centred on the bounds of the stairs phases."""
+        t = np.asarray(t, dtype=float)
+        out = {"up": np.zeros_like(t), "down": np.zeros_like(t)}
+        for a, b, direction in self.stairs:
+            out[direction] = out[direction] + (smootherstep((t - a) / _STAIRS_RAMP + 0.5)
+                                               * smootherstep((b - t) / _STAIRS_RAMP + 0.5))
+        return out["up"], out["down"]
+
+    def ground(self, t: np.ndarray) -> np.ndarray:
+        """Ground height (m) under a contact that starts at ``t``: ``stair_height`` × (stair blend) summed
+        over the ICs of both feet up to ``t`` (+ up, - down); 0 without stairs."""
+        t = np.asarray(t, dtype=float)
+        if not self.stairs:
+            return np.zeros_like(t)
+        ics, _ = _events(self, self.duration)
+        ic = np.sort(np.concatenate([ics[s] for s in SIDES]))
+        up, down = self.stairs_blend(ic)
+        levels = np.concatenate([[0.0], np.cumsum(self.cfg.stair_height * (up - down))])
+        return levels[np.searchsorted(ic, t, side="right")]
 
     def gait_phase(self, t: np.ndarray, ts: float, tf: float) -> np.ndarray:
         """Left gait phase of a bout: frozen at mid double support, C² cadence ramps at ts and tf."""
@@ -313,9 +349,15 @@ class _Plan:
         stand = _static_pose("standing")
         s_angle = self.gait_window(t, t0, t1, tf)
         p_left = self.gait_phase(t, ts, tf)
-        walk = dict(pelvis_angles(p_left, self.pattern))
+        up, down = self.stairs_blend(t)
+        walk = dict(pelvis_angles(p_left, self.pattern, up, down))
         for side, p in (("left", p_left), ("right", p_left + 0.5)):
-            for name, value in leg_angles(p, self.pattern).items():
+            angles = leg_angles(p, self.pattern)
+            for direction, f in (("up", up), ("down", down)):
+                if np.any(f > 0):
+                    for name, value in stairs_angles(p, self.pattern, direction).items():
+                        angles[name] = angles[name] + (value - angles[name]) * f
+            for name, value in angles.items():
                 walk[f"{side}_{name}"] = value
             walk[f"{side}_foot_yaw"] = self._foot_yaw(t, p)
             walk[f"w_{side}"] = contact_weight(p, self.pattern.stance_fraction)
@@ -415,8 +457,9 @@ class _Body:
         self.weights = {c: np.clip(g(f"w_{c}"), 0.0, 1.0) for c in _CONTACTS}
 
 
-def _pins(body: _Body) -> dict[str, np.ndarray]:
-    """World pin (N, 3) of each contact at every sample, fixed while its weight stays positive."""
+def _pins(body: _Body, ground: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """World pin (N, 3) of each contact at every sample, fixed while its weight stays positive; a foot's pin
+    is at the ground height ``ground[k]`` (m, default 0) of the sample ``k`` where its contact starts."""
     n = body.weights["free"].shape[0]
     active = {c: body.weights[c] > 0.0 for c in _CONTACTS}
     pins = {c: np.full((n, 3), np.nan) for c in _CONTACTS}
@@ -435,7 +478,7 @@ def _pins(body: _Body) -> dict[str, np.ndarray]:
             pelvis = np.array([0.0, 0.0, -body.contacts[c][k][2]])
         pin = pelvis + body.contacts[c][k]
         if c != "free":
-            pin[2] = 0.0
+            pin[2] = 0.0 if ground is None else ground[k]
         current[c] = pin
         end = k + int(np.argmin(active[c][k:])) if not active[c][k:].all() else n
         pins[c][k:end] = pin
@@ -468,6 +511,8 @@ def _validate(cfg: SimulationConfig) -> None:
         raise ValueError(f"speed {cfg.speed} m/s outside the simulated range [0.05, 2.5]")
     if not MIN_STANCE <= cfg.stance_fraction <= MAX_STANCE:
         raise ValueError(f"stance_fraction {cfg.stance_fraction} outside [{MIN_STANCE}, {MAX_STANCE}]")
+    if not (np.isfinite(cfg.stair_height) and 0.0 <= cfg.stair_height <= 0.25):
+        raise ValueError(f"stair_height {cfg.stair_height} m outside [0, 0.25]")
     if cfg.pathology is not None and cfg.pathology not in PATHOLOGIES:
         raise ValueError(f"unknown pathology {cfg.pathology!r}; expected None or one of "
                          f"{sorted(PATHOLOGIES)}")
@@ -511,7 +556,7 @@ def _kinematics(cfg: SimulationConfig, pattern: GaitPattern, t: np.ndarray, offs
     for dt in offsets:
         tt = t + dt
         bodies.append(_Body(cfg, plan.channels(tt), plan.heading(tt)))
-    pins = _pins(bodies[0])
+    pins = _pins(bodies[0], plan.ground(t) if plan.stairs else None)
     return plan, bodies, [_pelvis_position(b, pins) for b in bodies]
 
 
@@ -592,7 +637,11 @@ def _labels(cfg: SimulationConfig, plan: _Plan, t: np.ndarray):
         else:
             posture[sel] = _POSTURE_OF[ph.kind]
     for _t0, _t1, ts, tf in plan.stepping:
-        locomotion[(t >= ts) & (t < tf + _CADENCE_RAMP)] = "level"
+        stepping = (t >= ts) & (t < tf + _CADENCE_RAMP)
+        locomotion[stepping] = "level"
+        for i, ph in enumerate(cfg.phases):
+            if ph.kind in _STAIRS:
+                locomotion[stepping & (t >= plan.bounds[i]) & (t < plan.bounds[i + 1])] = _STAIRS[ph.kind][1]
     return posture.astype(str), locomotion.astype(str), transitions, phases
 
 
@@ -697,6 +746,12 @@ def slow_gait(**kw) -> SimulationConfig:
     return _cfg([Phase("stand", 5.0), Phase("walk", 30.0), Phase("stand", 3.0)], **kw)
 
 
+def stairs(**kw) -> SimulationConfig:
+    """Standing, level walking, a flight of stairs up (~12 steps), level walking, a flight down, standing."""
+    return _cfg([Phase("stand", 5.0), Phase("walk", 4.0), Phase("stairs_up", 8.0), Phase("walk", 4.0),
+                 Phase("stairs_down", 8.0), Phase("walk", 4.0), Phase("stand", 3.0)], **kw)
+
+
 SCENARIOS: dict[str, Callable[..., SimulationConfig]] = {
     "demo": demo,
     "walk": walk,
@@ -704,4 +759,5 @@ SCENARIOS: dict[str, Callable[..., SimulationConfig]] = {
     "calibration_walking": calibration_walking,
     "activity": activity,
     "slow_gait": slow_gait,
+    "stairs": stairs,
 }
