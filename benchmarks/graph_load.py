@@ -1,11 +1,20 @@
 """CPU load and message loss of the in-process node graph at live rate (prints a table).
 
-Replays ``--seconds`` of the demo session (8 IMUs at 100 Hz with magnetometers) at ``--speed``
-through growing sets of nodes, recording everything, and reports per set: CPU time of the process
-per second of recording (100 % = one core), and how many raw samples and orientations reached the
-recording (loss = best-effort samples dropped somewhere in the graph).
+Replays the demo session (8 IMUs at 100 Hz with magnetometers) at ``--speed`` through growing sets
+of nodes, recording everything, and reports per set: CPU time of the process per second of
+recording (100 % = one core), and how many raw samples and orientations reached the recording
+(loss = best-effort samples dropped somewhere in the graph).
 
-    .venv/bin/python benchmarks/graph_load.py [--seconds 20] [--speed 1]
+Two parts:
+
+- ``start``: the first ``--seconds`` s, before any calibration (joint angles and gait events idle);
+- ``calibrated``: 36–66 s (quiet standing, then walking) with a calibration in force from the start
+  (the demo's hip-flexion calibration at 36 s, computed once offline and reloaded by the
+  calibration node from its session file), so joint angles, skeleton and gait events all run.
+
+A last table times the per-message conversions (rclpy objects vs :mod:`gait_biofeedback.io.cdr`).
+
+    .venv/bin/python benchmarks/graph_load.py [--seconds 15] [--speed 1] [--part all|start|calibrated|codec]
 """
 
 from __future__ import annotations
@@ -13,20 +22,20 @@ from __future__ import annotations
 import argparse
 import resource
 import tempfile
+import time
 from pathlib import Path
 
-from gait_biofeedback.demo import ensure_demo_bag
+import yaml
+
+from gait_biofeedback.demo import calibration_time, ensure_demo_bag
 from gait_biofeedback.graph import replay_through_graph
 from gait_biofeedback.io.bag import BagReader
 
-STAGES = (
-    [],
-    ["orientation_filter"],
-    ["orientation_filter", "calibration"],
-    ["orientation_filter", "calibration", "joint_angles"],
-    ["orientation_filter", "calibration", "joint_angles", "gait_events"],
-    ["orientation_filter", "calibration", "joint_angles", "gait_events", "activity_monitor"],
-)
+CHAIN = ["orientation_filter", "calibration", "joint_angles", "gait_events", "activity_monitor",
+         "biofeedback"]
+STAGES = [CHAIN[:k] for k in range(len(CHAIN) + 1)]
+CALIBRATED_STAGES = [CHAIN[:k] for k in range(3, len(CHAIN) + 1)]
+CALIBRATED_WINDOW = (36.0, 66.0)
 
 
 def cpu_seconds() -> float:
@@ -35,30 +44,95 @@ def cpu_seconds() -> float:
     return usage.ru_utime + usage.ru_stime
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--seconds", type=float, default=20.0)
-    parser.add_argument("--speed", type=float, default=1.0)
-    args = parser.parse_args()
-    bag, _ = ensure_demo_bag(Path("bags/demo_walk.mcap"))
-    expected = round(args.seconds * 100) * 8
-    print(f"demo session, first {args.seconds:g} s at {args.speed:g}x; {expected} raw IMU samples expected")
+def demo_calibration(bag: Path, session_dir: Path) -> None:
+    """Write the demo's calibration (hip flexion, pressed at 36 s) to ``session_dir/calibration.yaml``,
+    where the calibration node reloads it from (in force at once)."""
+    from gait_biofeedback.analyze import analyze_recording
+    from gait_biofeedback.nodes.calibration import CALIBRATION_FILE
+
+    result = analyze_recording(bag, None, calibrate_at=[(calibration_time(), "hip_flexion")])
+    attempt = result.calibrations[0]
+    if not attempt.success or attempt.calibration is None:
+        raise RuntimeError(f"demo calibration refused: {attempt.message}")
+    session_dir.mkdir(parents=True, exist_ok=True)
+    text = yaml.safe_dump(attempt.calibration.to_dict(), sort_keys=False)
+    (session_dir / CALIBRATION_FILE).write_text(text)
+
+
+def run_rows(bag: Path, stages: list[list[str]], start: float, stop: float, speed: float,
+             session_dir: Path | None) -> None:
+    seconds = stop - start
+    expected = round(seconds * 100) * 8
     print(f"{'nodes (each row adds one)':36s}{'CPU % of a core':>16s}{'raw kept':>10s}{'orient.':>9s}")
-    for stage in STAGES:
+    for stage in stages:
         with tempfile.TemporaryDirectory() as tmp:
             out = Path(tmp) / "out"
             before = cpu_seconds()
-            replay_through_graph(bag, out, speed=args.speed, nodes=stage, stop_offset=args.seconds,
-                                 node_parameters={"calibration": {"session_dir": str(Path(tmp) / "s")}})
+            replay_through_graph(bag, out, speed=speed, nodes=stage, start_offset=start, stop_offset=stop,
+                                 node_parameters={"calibration": {"session_dir": str(session_dir or
+                                                                                     Path(tmp) / "s")},
+                                                  "biofeedback": {"port": 0}})
             cpu = cpu_seconds() - before
             counts = BagReader(out).message_counts()
         raw = sum(n for t, n in counts.items() if t.endswith("/imu/data_raw"))
         orientations = sum(n for t, n in counts.items() if t.endswith("/imu/data"))
         label = "+ " + stage[-1] if stage else "replayer + recorder"
-        load = 100.0 * cpu / (args.seconds / args.speed)
+        load = 100.0 * cpu / (seconds / speed)
         print(f"{label:36s}{load:15.0f}%{100.0 * raw / expected:9.1f}%"
-              f"{100.0 * orientations / expected if stage else float('nan'):8.1f}%")
+              f"{100.0 * orientations / expected if stage else float('nan'):8.1f}%", flush=True)
+
+
+def time_codec(bag: Path, n: int = 2000) -> None:
+    """µs per message: rclpy deserialize/serialize of an Imu vs the CDR codec."""
+    from rclpy.serialization import deserialize_message, serialize_message
+    from sensor_msgs.msg import Imu
+
+    from gait_biofeedback.io import cdr
+
+    with BagReader(bag) as reader:
+        data = next(d for t, _, d, _ in reader.raw_messages() if t.endswith("/imu/data_raw"))
+    msg = deserialize_message(data, Imu)
+    stamped = cdr.unpack_imu(data)
+
+    def per_call(fn) -> float:
+        t0 = time.perf_counter()
+        for _ in range(n):
+            fn()
+        return (time.perf_counter() - t0) / n * 1e6
+
+    print(f"{'one sensor_msgs/Imu':36s}{'µs':>8s}")
+    rows = [("rclpy deserialize_message", lambda: deserialize_message(data, Imu)),
+            ("rclpy Imu() + fields", lambda: Imu(header=msg.header, orientation=msg.orientation)),
+            ("rclpy serialize_message", lambda: serialize_message(msg)),
+            ("cdr.unpack_imu", lambda: cdr.unpack_imu(data)),
+            ("cdr.pack_imu", lambda: cdr.pack_imu(stamped.ns, stamped.frame_id, stamped.values))]
+    for label, fn in rows:
+        print(f"{label:36s}{per_call(fn):8.2f}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--seconds", type=float, default=15.0)
+    parser.add_argument("--speed", type=float, default=1.0)
+    parser.add_argument("--part", choices=["all", "start", "calibrated", "codec"], default="all")
+    args = parser.parse_args()
+    bag, _ = ensure_demo_bag(Path("bags/demo_walk.mcap"))
+    if args.part in ("all", "start"):
+        print(f"demo session, first {args.seconds:g} s at {args.speed:g}x, not calibrated; "
+              f"{round(args.seconds * 100) * 8} raw IMU samples expected")
+        run_rows(bag, STAGES, 0.0, args.seconds, args.speed, None)
+    if args.part in ("all", "calibrated"):
+        start, stop = CALIBRATED_WINDOW
+        with tempfile.TemporaryDirectory() as tmp:
+            session = Path(tmp) / "session"
+            demo_calibration(bag, session)
+            print(f"\ndemo session, {start:g}-{stop:g} s at {args.speed:g}x, calibrated (joint angles and "
+                  f"gait events running); {round((stop - start) * 100) * 8} raw IMU samples expected")
+            run_rows(bag, CALIBRATED_STAGES, start, stop, args.speed, session)
+    if args.part in ("all", "codec"):
+        print()
+        time_codec(bag)
 
 
 if __name__ == "__main__":

@@ -37,7 +37,7 @@ from pathlib import Path
 from typing import Any
 
 from rclpy.serialization import deserialize_message, serialize_message
-from sensor_msgs.msg import Imu, MagneticField
+from sensor_msgs.msg import Imu
 
 from gait_biofeedback.core.activity_stream import ActivityStream
 from gait_biofeedback.core.calibration import PROTOCOLS
@@ -48,14 +48,15 @@ from gait_biofeedback.core.joint_angles import JointAngleStream
 from gait_biofeedback.core.orientation_stream import SegmentOrientationTracker
 from gait_biofeedback.core.segments import SEGMENTS
 from gait_biofeedback.io.bag import BagReader, BagWriter
+from gait_biofeedback.io.cdr import Stamped, decode_imu, decode_mag
 from gait_biofeedback.io.schemas import type_name_of
+from gait_biofeedback.nodes.activity_monitor import chest_sample
 from gait_biofeedback.nodes.activity_monitor import to_message as activity_msg
 from gait_biofeedback.nodes.calibration import (
     calibration_array_msg,
     imu_to_calibration_sample,
     load_calibration_file,
 )
-from gait_biofeedback.nodes.common import stamp_to_s
 from gait_biofeedback.nodes.gait_events import (
     apply_calibration_msg,
     cycle_msg,
@@ -71,7 +72,7 @@ from gait_biofeedback.nodes.joint_angles import (
     segment_lengths,
     skeleton_msg,
 )
-from gait_biofeedback.nodes.orientation_filter import orientation_msg
+from gait_biofeedback.nodes.orientation_filter import mag_sample, orientation_payload, raw_imu_sample
 
 IMU_TYPE = "sensor_msgs/msg/Imu"
 MAG_TYPE = "sensor_msgs/msg/MagneticField"
@@ -140,16 +141,15 @@ class _ActivityRun:
             initial_posture=settings["initial_posture"])
         self._next_periodic: float | None = None
 
-    def update(self, msg: Imu) -> list[Any]:
-        t = stamp_to_s(msg.header.stamp)
-        a = msg.linear_acceleration
+    def update(self, raw: Stamped) -> list[Any]:
+        t, acc = chest_sample(raw)
         out = []
         if self._next_periodic is None:
             self._next_periodic = t + self.period
         elif t >= self._next_periodic and self.stream.latest is not None:
             self._next_periodic = t + self.period
             out.append(activity_msg(self.stream.latest, t, self.segment))
-        state, changed, _ = self.stream.update(t, (a.x, a.y, a.z))
+        state, changed, _ = self.stream.update(t, acc)
         if changed:
             out.append(activity_msg(state, t, self.segment))
         return out
@@ -253,6 +253,13 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
         if keep:
             result.messages.append((topic, msg, log_ns))
 
+    def emit_imu(topic: str, data: bytes, log_ns: int) -> None:
+        """An Imu the node publishes as CDR bytes: recorded as those bytes."""
+        out.append((log_ns, topic, IMU_TYPE, data))
+        result.counts[topic] = result.counts.get(topic, 0) + 1
+        if keep:
+            result.messages.append((topic, deserialize_message(data, Imu), log_ns))
+
     def publish_calibration(msg: Any, log_ns: int) -> None:
         emit("/calibration/sensor_to_segment", msg, log_ns)
         rotations, from_ns = calibration_rotations(msg)
@@ -271,9 +278,9 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
     def said(messages: list[tuple[str, str]]) -> None:
         result.warnings.extend(text for level, text in messages if level != "info")
 
-    def downstream(segment: str, msg: Imu, log_ns: int) -> None:
+    def downstream(segment: str, imu: Stamped, log_ns: int) -> None:
         if segment in buffer.buffers:
-            buffer.add(segment, *imu_to_calibration_sample(msg))
+            buffer.add(segment, *imu_to_calibration_sample(imu))
             if buffer.scheduled:
                 for attempt in buffer.run_due():
                     result.calibrations.append(attempt)
@@ -281,12 +288,12 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
                         publish_calibration(calibration_array_msg(attempt.calibration, attempt.applies_from),
                                             log_ns)
         if segment in JOINT_SEGMENTS:
-            ns, q, gyro_norm = imu_to_joint_sample(msg)
+            ns, q, gyro_norm = imu_to_joint_sample(imu)
             publish_joints(joints.add(segment, ns, q, gyro_norm), log_ns)
         side = segment.removesuffix("_foot")
         if segment.endswith("_foot") and side in gait.detectors:
-            t, q = imu_to_foot_sample(msg)
-            for event, cycle in gait.update(side, t, q, msg.header.stamp):
+            t, q = imu_to_foot_sample(imu)
+            for event, cycle in gait.update(side, t, q, imu.ns):
                 emit("/gait/events", event_msg(event), log_ns)
                 if cycle is not None:
                     emit("/gait/cycles", cycle_msg(cycle, gait.stamp_of), log_ns)
@@ -307,26 +314,22 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
         if topic in mag_of:
             seg = mag_of[topic]
             if seg in trackers:
-                msg = deserialize_message(data, MagneticField)
-                f = msg.magnetic_field
-                trackers[seg].add_mag(stamp_to_s(msg.header.stamp), (f.x, f.y, f.z))
+                trackers[seg].add_mag(*mag_sample(decode_mag(data)))
             continue
         seg = segment_of[topic]
-        msg = deserialize_message(data, Imu)
+        raw = decode_imu(data)
         if activity is not None and seg == activity.segment:
-            for state in activity.update(msg):
+            for state in activity.update(raw):
                 emit("/activity/state", state, log_ns)
         tracker = trackers.get(seg)
         if tracker is None:
             continue
-        w, a = msg.angular_velocity, msg.linear_acceleration
-        samples = tracker.update(stamp_to_s(msg.header.stamp), (w.x, w.y, w.z), (a.x, a.y, a.z),
-                                 msg.header.stamp)
+        samples = tracker.update(*raw_imu_sample(raw), raw.ns)
         said(tracker.pop_messages())
         for sample in samples:
-            filtered = orientation_msg(seg, sample, msg, variance)
-            emit(f"/{seg}/imu/data", filtered, log_ns)
-            downstream(seg, filtered, log_ns)
+            filtered = orientation_payload(seg, sample, raw, variance)
+            emit_imu(f"/{seg}/imu/data", filtered, log_ns)
+            downstream(seg, decode_imu(filtered), log_ns)
     publish_joints(joints.flush(force=True), reader.end_time_ns)
     for until, protocol in buffer.scheduled:
         result.warnings.append(f"calibration ({protocol}) at {until - start_ns * 1e-9:.2f} s never ran: "

@@ -24,6 +24,7 @@ from sensor_msgs.msg import Imu
 from gait_biofeedback.core.activity import ActivityState as CoreActivityState
 from gait_biofeedback.core.activity_stream import ActivityStream
 from gait_biofeedback.core.segments import raw_topic
+from gait_biofeedback.io.cdr import LINEAR_ACCELERATION, Stamped, decode_imu
 from gait_biofeedback.nodes.common import (
     DIAGNOSTICS_TOPIC,
     RELIABLE_QOS,
@@ -31,7 +32,6 @@ from gait_biofeedback.nodes.common import (
     diagnostic_array,
     diagnostic_status,
     s_to_stamp,
-    stamp_to_s,
 )
 from gait_biofeedback_msgs.msg import ActivityState
 
@@ -63,6 +63,11 @@ def to_message(state: CoreActivityState, newest_t: float, frame_id: str = "chest
     return msg
 
 
+def chest_sample(imu: Stamped) -> tuple[float, tuple[float, float, float]]:
+    """(stamp s, acceleration) of a decoded raw chest Imu message: all the monitor uses."""
+    return imu.ns / 1_000_000_000, imu.values[LINEAR_ACCELERATION]
+
+
 class ActivityMonitorNode(Node):
     """Chest activity monitor (see module docstring)."""
 
@@ -83,7 +88,7 @@ class ActivityMonitorNode(Node):
         self.published = 0
         self._pub = self.create_publisher(ActivityState, "activity/state", RELIABLE_QOS)
         self._diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, RELIABLE_QOS)
-        self.create_subscription(Imu, raw_topic(self.segment), self._on_imu, SENSOR_QOS)
+        self.create_subscription(Imu, raw_topic(self.segment), self._on_imu, SENSOR_QOS, raw=True)
         self.create_timer(float(self.declare_parameter("publish_period", 1.0).value), self._periodic)
 
     @property
@@ -91,10 +96,9 @@ class ActivityMonitorNode(Node):
         """Input counters of the stream plus states published."""
         return {**self.stream.counts, "published": self.published}
 
-    def _on_imu(self, msg: Imu) -> None:
-        t = stamp_to_s(msg.header.stamp)
-        a = msg.linear_acceleration
-        state, changed, warning = self.stream.update(t, (a.x, a.y, a.z))
+    def _on_imu(self, data: bytes) -> None:
+        t, acc = chest_sample(decode_imu(data))
+        state, changed, warning = self.stream.update(t, acc)
         if warning:
             self.get_logger().warning(f"{self.segment}: {warning}")
         self._newest_t = t

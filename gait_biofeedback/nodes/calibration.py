@@ -33,7 +33,8 @@ from sensor_msgs.msg import Imu
 from gait_biofeedback.core.calibration import SessionCalibration
 from gait_biofeedback.core.calibration_windows import CalibrationAttempt, CalibrationBuffer
 from gait_biofeedback.core.segments import SEGMENTS, WORLD_FRAME, orientation_topic, sensor_frame
-from gait_biofeedback.nodes.common import LATCHED_QOS, RELIABLE_QOS, s_to_stamp, stamp_to_s
+from gait_biofeedback.io.cdr import ANGULAR_VELOCITY, LINEAR_ACCELERATION, Stamped, decode_imu
+from gait_biofeedback.nodes.common import LATCHED_QOS, RELIABLE_QOS, s_to_stamp
 from gait_biofeedback_msgs.msg import SegmentCalibration, SegmentCalibrationArray
 from gait_biofeedback_msgs.srv import Calibrate
 
@@ -63,10 +64,10 @@ def calibration_array_msg(cal: SessionCalibration, applies_from: float) -> Segme
     return msg
 
 
-def imu_to_calibration_sample(msg: Imu) -> tuple[float, tuple, tuple, tuple]:
-    """(stamp s, acc, gyro, q) of a ``<segment>/imu/data`` message, as the buffer stores them."""
-    a, w, o = msg.linear_acceleration, msg.angular_velocity, msg.orientation
-    return stamp_to_s(msg.header.stamp), (a.x, a.y, a.z), (w.x, w.y, w.z), (o.w, o.x, o.y, o.z)
+def imu_to_calibration_sample(imu: Stamped) -> tuple[float, tuple, tuple, tuple]:
+    """(stamp s, acc, gyro, q) of a decoded ``<segment>/imu/data`` message, as the buffer stores them."""
+    v = imu.values
+    return imu.ns / 1_000_000_000, v[LINEAR_ACCELERATION], v[ANGULAR_VELOCITY], (v[3], v[0], v[1], v[2])
 
 
 def load_calibration_file(path: Path) -> SessionCalibration:
@@ -93,7 +94,7 @@ class CalibrationNode(Node):
         self.last_attempt: CalibrationAttempt | None = None
         for seg in self.segments:
             self.create_subscription(Imu, orientation_topic(seg), lambda m, s=seg: self._on_imu(s, m),
-                                     RELIABLE_QOS)
+                                     RELIABLE_QOS, raw=True)
         self._pub = self.create_publisher(SegmentCalibrationArray, CALIBRATION_TOPIC, LATCHED_QOS)
         self.create_service(Calibrate, CALIBRATE_SERVICE, self._on_calibrate)
         self._reload()
@@ -119,8 +120,8 @@ class CalibrationNode(Node):
         self.get_logger().info(f"reloaded the calibration from {self.calibration_file}")
         self._publish(self.current, 0.0)
 
-    def _on_imu(self, segment: str, msg: Imu) -> None:
-        self.core.add(segment, *imu_to_calibration_sample(msg))
+    def _on_imu(self, segment: str, data: bytes) -> None:
+        self.core.add(segment, *imu_to_calibration_sample(decode_imu(data)))
         if self.core.scheduled:
             for attempt in self.core.run_due():
                 self._accept(attempt)

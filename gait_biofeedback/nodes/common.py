@@ -115,14 +115,27 @@ def spin_until(
     done: Callable[[], bool],
     timeout: float | None = None,
     period: float = 0.05,
+    check_every: float = 0.005,
 ) -> bool:
-    """Drive ``executor`` with ``spin_once`` until ``done()`` or ``timeout`` s; True if done."""
+    """Drive ``executor`` with ``spin_once`` until ``done()`` or ``timeout`` s; True if done.
+
+    ``spin_once`` handles one callback, i.e. runs thousands of times a second in a busy graph; the
+    context, ``done()`` and the deadline are checked at most every ``check_every`` s, not after each
+    callback (an idle ``spin_once`` waits ``period`` s, so an idle graph checks after each)."""
     deadline = None if timeout is None else time.monotonic() + timeout
     context = executor.context
-    while context.ok() and not done():
-        if deadline is not None and time.monotonic() > deadline:
-            return False
-        executor.spin_once(timeout_sec=period)
+    spin_once = executor.spin_once
+    monotonic = time.monotonic
+    next_check = 0.0
+    while True:
+        now = monotonic()
+        if now >= next_check:
+            if not context.ok() or done():
+                break
+            if deadline is not None and now > deadline:
+                return False
+            next_check = now + check_every
+        spin_once(timeout_sec=period)
     return done()
 
 

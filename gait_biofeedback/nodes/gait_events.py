@@ -41,12 +41,14 @@ from gait_biofeedback.core.gait_cycles import GaitCycle
 from gait_biofeedback.core.gait_events import INITIAL_CONTACT, GaitEvent, GaitEventDetector
 from gait_biofeedback.core.gait_stream import GaitEventStream, standing_reference
 from gait_biofeedback.core.segments import orientation_topic
+from gait_biofeedback.io.cdr import Stamped, decode_imu
 from gait_biofeedback.nodes.common import (
     DIAGNOSTICS_TOPIC,
     LATCHED_QOS,
     RELIABLE_QOS,
     diagnostic_array,
     diagnostic_status,
+    ns_to_stamp,
     s_to_stamp,
     stamp_to_s,
 )
@@ -63,9 +65,9 @@ _SIDE_CODE = {"left": GaitEventMsg.SIDE_LEFT, "right": GaitEventMsg.SIDE_RIGHT}
 
 
 def event_msg(event: GaitEvent) -> GaitEventMsg:
-    """``gait/events`` message of a core event (stamp = the event sample's stamp)."""
+    """``gait/events`` message of a core event (stamp = the event sample's stamp, int ns)."""
     out = GaitEventMsg()
-    out.header.stamp = event.stamp
+    out.header.stamp = ns_to_stamp(event.stamp)
     out.header.frame_id = f"{event.side}_foot"
     out.side = _SIDE_CODE[event.side]
     out.type = (GaitEventMsg.INITIAL_CONTACT if event.kind == INITIAL_CONTACT
@@ -76,14 +78,15 @@ def event_msg(event: GaitEvent) -> GaitEventMsg:
     return out
 
 
-def cycle_msg(c: GaitCycle, stamp_of: Callable[[str, float], Time | None]) -> GaitCycleMsg:
-    """``gait/cycles`` message of a core stride; ``stamp_of(side, t)`` gives the exact stamps of its
-    events (a stamp rounded from ``t`` when unknown, an empty stamp for NaN)."""
+def cycle_msg(c: GaitCycle, stamp_of: Callable[[str, float], int | None]) -> GaitCycleMsg:
+    """``gait/cycles`` message of a core stride; ``stamp_of(side, t)`` gives the exact stamps (ns) of
+    its events (a stamp rounded from ``t`` when unknown, an empty stamp for NaN)."""
 
     def stamp(t: float) -> Time:
         if not math.isfinite(t):
             return Time()
-        return stamp_of(c.side, t) or s_to_stamp(t)
+        ns = stamp_of(c.side, t)
+        return s_to_stamp(t) if ns is None else ns_to_stamp(ns)
 
     out = GaitCycleMsg()
     out.header.stamp = stamp(c.end)
@@ -112,10 +115,11 @@ def apply_calibration_msg(stream: GaitEventStream, msg: SegmentCalibrationArray)
         stream.set_calibration(side, np.array([r.w, r.x, r.y, r.z]), bool(entry.valid), entry.message, from_t)
 
 
-def imu_to_foot_sample(msg: Imu) -> tuple[float, tuple[float, float, float, float]]:
-    """(stamp s, sensor→world q) of a ``<side>_foot/imu/data`` message."""
-    o = msg.orientation
-    return stamp_to_s(msg.header.stamp), (o.w, o.x, o.y, o.z)
+def imu_to_foot_sample(imu: Stamped) -> tuple[float, tuple[float, float, float, float]]:
+    """(stamp s, sensor→world q) of a decoded ``<side>_foot/imu/data`` message; the stream is given
+    the stamp in ns (``imu.ns``) to hand back with events."""
+    v = imu.values
+    return imu.ns / 1_000_000_000, (v[3], v[0], v[1], v[2])
 
 
 def stream_options(get: Callable[[str, object], object]) -> dict[str, object]:
@@ -149,7 +153,7 @@ class GaitEventsNode(Node):
         self._diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, RELIABLE_QOS)
         for side in self.sides:
             self.create_subscription(Imu, orientation_topic(f"{side}_foot"),
-                                     lambda msg, s=side: self._on_imu(s, msg), RELIABLE_QOS)
+                                     lambda data, s=side: self._on_imu(s, data), RELIABLE_QOS, raw=True)
         self.create_subscription(SegmentCalibrationArray, CALIBRATION_TOPIC, self._on_calibration,
                                  LATCHED_QOS)
         self.create_timer(diagnostics_period, self._check_streams)
@@ -176,11 +180,12 @@ class GaitEventsNode(Node):
         for level, text in self.stream.pop_messages():
             (self.get_logger().warning if level == "warn" else self.get_logger().info)(text)
 
-    def _on_imu(self, side: str, msg: Imu) -> None:
+    def _on_imu(self, side: str, data: bytes) -> None:
         self._last_arrival[side] = time.monotonic()
         self._stopped[side] = False
-        t, q = imu_to_foot_sample(msg)
-        for event, cycle in self.stream.update(side, t, q, msg.header.stamp):
+        imu = decode_imu(data)
+        t, q = imu_to_foot_sample(imu)
+        for event, cycle in self.stream.update(side, t, q, imu.ns):
             self._events.publish(event_msg(event))
             if cycle is not None:
                 self._cycles.publish(cycle_msg(cycle, self.stream.stamp_of))

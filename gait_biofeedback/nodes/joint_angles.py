@@ -19,6 +19,7 @@ every ``skeleton_every`` samples). Segment lengths: ``thigh_length``, ``shank_le
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 
@@ -40,6 +41,7 @@ from gait_biofeedback.core.joint_angles import (
 )
 from gait_biofeedback.core.segments import WORLD_FRAME, orientation_topic
 from gait_biofeedback.core.skeleton import SegmentLengths, stick_figure
+from gait_biofeedback.io.cdr import ANGULAR_VELOCITY, Stamped, decode_imu
 from gait_biofeedback.nodes.common import (
     DIAGNOSTICS_TOPIC,
     LATCHED_QOS,
@@ -61,11 +63,10 @@ def calibration_rotations(msg: SegmentCalibrationArray) -> tuple[dict[str, np.nd
     return rotations, stamp_to_ns(msg.header.stamp)
 
 
-def imu_to_joint_sample(msg: Imu) -> tuple[int, np.ndarray, float]:
-    """(stamp ns, sensor→world q, |ω| rad/s) of a ``<segment>/imu/data`` message."""
-    o, w = msg.orientation, msg.angular_velocity
-    return (stamp_to_ns(msg.header.stamp), np.array([o.w, o.x, o.y, o.z]),
-            float(np.linalg.norm([w.x, w.y, w.z])))
+def imu_to_joint_sample(imu: Stamped) -> tuple[int, np.ndarray, float]:
+    """(stamp ns, sensor→world q, |ω| rad/s) of a decoded ``<segment>/imu/data`` message."""
+    v = imu.values
+    return imu.ns, np.array((v[3], v[0], v[1], v[2])), math.hypot(*v[ANGULAR_VELOCITY])
 
 
 def joint_state_msg(synced: SyncedAngles) -> JointState:
@@ -115,7 +116,7 @@ class JointAnglesNode(Node):
         self.published = 0
         for seg in JOINT_SEGMENTS:
             self.create_subscription(Imu, orientation_topic(seg), lambda m, s=seg: self._on_imu(s, m),
-                                     RELIABLE_QOS)
+                                     RELIABLE_QOS, raw=True)
         self.create_subscription(SegmentCalibrationArray, "calibration/sensor_to_segment",
                                  self._on_calibration, LATCHED_QOS)
         self._joints = self.create_publisher(JointState, "joint_states", RELIABLE_QOS)
@@ -140,8 +141,8 @@ class JointAnglesNode(Node):
         when = f"from stamp {from_ns * 1e-9:.3f} s" if from_ns > 0 else "now"
         self.get_logger().info(f"calibration in force {when} ({msg.protocol}): {sorted(rotations)}")
 
-    def _on_imu(self, segment: str, msg: Imu) -> None:
-        ns, q, gyro_norm = imu_to_joint_sample(msg)
+    def _on_imu(self, segment: str, data: bytes) -> None:
+        ns, q, gyro_norm = imu_to_joint_sample(decode_imu(data))
         self._publish(self.stream.add(segment, ns, q, gyro_norm, time.monotonic()))
 
     def _flush(self) -> None:

@@ -12,6 +12,9 @@ benchmark), ``<segment>.algorithm`` per-segment override ("" = ``algorithm``), `
 for the filters' defaults; dt always comes from stamps), ``startup_s``, ``max_gap``,
 ``mag_max_age``, ``orientation_variance``, ``diagnostics_period``, ``stale_after`` (s without
 data before a segment is reported stale).
+
+Messages travel as CDR bytes (raw subscriptions, serialized publishing; :mod:`gait_biofeedback.io.cdr`):
+no rclpy message object is built per sample. ``analyze`` uses the same conversion functions.
 """
 
 from __future__ import annotations
@@ -33,33 +36,46 @@ from gait_biofeedback.core.segments import (
     raw_topic,
     sensor_frame,
 )
+from gait_biofeedback.io.cdr import (
+    ANGULAR_VELOCITY,
+    ANGULAR_VELOCITY_COV,
+    LINEAR_ACCELERATION,
+    LINEAR_ACCELERATION_COV,
+    Stamped,
+    decode_imu,
+    decode_mag,
+    pack_imu,
+)
 from gait_biofeedback.nodes.common import (
     DIAGNOSTICS_TOPIC,
     RELIABLE_QOS,
     SENSOR_QOS,
     diagnostic_array,
     diagnostic_status,
-    stamp_to_s,
 )
 
 
-def orientation_msg(segment: str, sample: OrientationSample, raw: Imu, variance: float) -> Imu:
-    """``<segment>/imu/data`` of one filtered sample, field by field as the ``orientation_filter`` node
-    builds it (stamp of the sample, raw covariances of the message that released it)."""
-    out = Imu()
-    out.header.stamp = sample.stamp
-    out.header.frame_id = sensor_frame(segment)
-    q = sample.q
-    out.orientation.w, out.orientation.x, out.orientation.y, out.orientation.z = (
-        float(q[0]), float(q[1]), float(q[2]), float(q[3]))
-    out.orientation_covariance = [variance, 0.0, 0.0, 0.0, variance, 0.0, 0.0, 0.0, variance]
-    out.angular_velocity.x, out.angular_velocity.y, out.angular_velocity.z = (float(x) for x in sample.gyr)
-    out.linear_acceleration.x, out.linear_acceleration.y, out.linear_acceleration.z = (
-        float(x) for x in sample.acc)
-    out.angular_velocity_covariance = raw.angular_velocity_covariance
-    out.linear_acceleration_covariance = raw.linear_acceleration_covariance
-    return out
+def orientation_payload(segment: str, sample: OrientationSample, raw: Stamped, variance: float) -> bytes:
+    """Serialized ``<segment>/imu/data`` of one filtered sample, as the ``orientation_filter`` node
+    publishes it: the sample's stamp (int ns, handed through the tracker), the sensor frame, q, the
+    bias-corrected gyro, the raw acceleration, a diagonal orientation covariance and the raw
+    covariances of the message that released the sample."""
+    w, x, y, z = sample.q.tolist()
+    v = variance
+    values = (x, y, z, w, v, 0.0, 0.0, 0.0, v, 0.0, 0.0, 0.0, v, *sample.gyr.tolist(),
+              *raw.values[ANGULAR_VELOCITY_COV], *sample.acc.tolist(), *raw.values[LINEAR_ACCELERATION_COV])
+    return pack_imu(sample.stamp, sensor_frame(segment), values)
 
+
+def raw_imu_sample(raw: Stamped) -> tuple[float, tuple, tuple]:
+    """(stamp s, gyro, acc) of a raw ``<segment>/imu/data_raw`` message."""
+    v = raw.values
+    return raw.ns / 1_000_000_000, v[ANGULAR_VELOCITY], v[LINEAR_ACCELERATION]
+
+
+def mag_sample(mag: Stamped) -> tuple[float, tuple]:
+    """(stamp s, field) of a ``<segment>/imu/mag`` message."""
+    return mag.ns / 1_000_000_000, mag.values[0:3]
 
 
 class OrientationFilterNode(Node):
@@ -85,6 +101,7 @@ class OrientationFilterNode(Node):
         self._out: dict[str, object] = {}
         self._last_arrival: dict[str, float] = {}
         self._frame_warned: set[str] = set()
+        self._frames = {s: sensor_frame(s) for s in segments}
         self.wrong_frame: dict[str, int] = {}
         for segment in segments:
             algorithm = self.declare_parameter(f"{segment}.algorithm", "").value or default_algorithm
@@ -97,9 +114,9 @@ class OrientationFilterNode(Node):
             self.wrong_frame[segment] = 0
             self._out[segment] = self.create_publisher(Imu, orientation_topic(segment), RELIABLE_QOS)
             self.create_subscription(Imu, raw_topic(segment),
-                                     lambda msg, s=segment: self._on_imu(s, msg), SENSOR_QOS)
+                                     lambda data, s=segment: self._on_imu(s, data), SENSOR_QOS, raw=True)
             self.create_subscription(MagneticField, mag_topic(segment),
-                                     lambda msg, s=segment: self._on_mag(s, msg), SENSOR_QOS)
+                                     lambda data, s=segment: self._on_mag(s, data), SENSOR_QOS, raw=True)
         self._diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, RELIABLE_QOS)
         self.create_timer(diagnostics_period, self._publish_diagnostics)
         self.get_logger().info(
@@ -115,21 +132,21 @@ class OrientationFilterNode(Node):
                 f"{raw_topic(segment)} carries frame_id {frame_id!r}, expected {sensor_frame(segment)!r}: "
                 "is the sensor mapped to the right segment? (processing it anyway)")
 
-    def _on_mag(self, segment: str, msg: MagneticField) -> None:
-        f = msg.magnetic_field
-        self.trackers[segment].add_mag(stamp_to_s(msg.header.stamp), (f.x, f.y, f.z))
+    def _on_mag(self, segment: str, data: bytes) -> None:
+        self.trackers[segment].add_mag(*mag_sample(decode_mag(data)))
 
-    def _on_imu(self, segment: str, msg: Imu) -> None:
+    def _on_imu(self, segment: str, data: bytes) -> None:
         self._last_arrival[segment] = time.monotonic()
-        self._check_frame(segment, msg.header.frame_id)
-        w, a = msg.angular_velocity, msg.linear_acceleration
+        raw = decode_imu(data)
+        if raw.frame_id != self._frames[segment]:
+            self._check_frame(segment, raw.frame_id)
         tracker = self.trackers[segment]
-        samples = tracker.update(stamp_to_s(msg.header.stamp), (w.x, w.y, w.z), (a.x, a.y, a.z),
-                                 msg.header.stamp)
+        samples = tracker.update(*raw_imu_sample(raw), raw.ns)
         for level, text in tracker.pop_messages():
             (self.get_logger().warning if level == "warn" else self.get_logger().info)(text)
+        publish = self._out[segment].publish
         for sample in samples:
-            self._out[segment].publish(orientation_msg(segment, sample, msg, self.orientation_variance))
+            publish(orientation_payload(segment, sample, raw, self.orientation_variance))
 
     def _segment_status(self, segment: str, now: float) -> DiagnosticStatus:
         info = self.trackers[segment].diagnostics()

@@ -1,0 +1,131 @@
+"""Per-message CDR codec (gait_biofeedback.io.cdr) against rclpy's serializer."""
+
+from __future__ import annotations
+
+import struct
+
+import numpy as np
+import pytest
+from rclpy.serialization import deserialize_message, serialize_message
+from sensor_msgs.msg import Imu, MagneticField
+
+from gait_biofeedback.io import cdr
+
+
+def random_imu(frame_id: str, rng: np.random.Generator) -> Imu:
+    msg = Imu()
+    msg.header.frame_id = frame_id
+    msg.header.stamp.sec = int(rng.integers(-(2**31), 2**31))
+    msg.header.stamp.nanosec = int(rng.integers(0, 1_000_000_000))
+    v = rng.normal(size=37).tolist()
+    msg.orientation.x, msg.orientation.y, msg.orientation.z, msg.orientation.w = v[0:4]
+    msg.orientation_covariance = v[4:13]
+    msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z = v[13:16]
+    msg.angular_velocity_covariance = v[16:25]
+    msg.linear_acceleration.x, msg.linear_acceleration.y, msg.linear_acceleration.z = v[25:28]
+    msg.linear_acceleration_covariance = v[28:37]
+    return msg
+
+
+def random_mag(frame_id: str, rng: np.random.Generator) -> MagneticField:
+    msg = MagneticField()
+    msg.header.frame_id = frame_id
+    msg.header.stamp.sec, msg.header.stamp.nanosec = 1_700_000_000, int(rng.integers(0, 1_000_000_000))
+    msg.magnetic_field.x, msg.magnetic_field.y, msg.magnetic_field.z = rng.normal(size=3).tolist()
+    msg.magnetic_field_covariance = rng.normal(size=9).tolist()
+    return msg
+
+
+def imu_values(msg: Imu) -> tuple[float, ...]:
+    q, w, a = msg.orientation, msg.angular_velocity, msg.linear_acceleration
+    return (q.x, q.y, q.z, q.w, *msg.orientation_covariance, w.x, w.y, w.z, *msg.angular_velocity_covariance,
+            a.x, a.y, a.z, *msg.linear_acceleration_covariance)
+
+
+def padding_mask(frame_len: int, size: int) -> np.ndarray:
+    """True on every byte that carries data (rclpy leaves the alignment padding uninitialised)."""
+    offset, total = cdr.layout(frame_len + 1, (size - 16 - frame_len - 1) // 8)
+    keep = np.ones(size, dtype=bool)
+    keep[16 + frame_len + 1 : offset] = False
+    assert total == size
+    return keep
+
+
+def ns_of(msg) -> int:
+    return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+
+
+@pytest.mark.parametrize("frame_len", range(10))
+def test_imu_round_trip_matches_rclpy(frame_len: int) -> None:
+    rng = np.random.default_rng(frame_len)
+    frame_id = "abcdefghij"[:frame_len]
+    msg = random_imu(frame_id, rng)
+    data = serialize_message(msg)
+    fields = cdr.unpack_imu(data)
+    assert fields is not None
+    assert fields.ns == ns_of(msg) and fields.frame_id == frame_id
+    assert fields.values == imu_values(msg)
+    packed = cdr.pack_imu(fields.ns, fields.frame_id, fields.values)
+    assert len(packed) == len(data)
+    keep = padding_mask(frame_len, len(data))
+    assert np.array_equal(np.frombuffer(packed, np.uint8)[keep], np.frombuffer(data, np.uint8)[keep])
+    assert not any(np.frombuffer(packed, np.uint8)[~keep]), "padding is zero"
+    assert deserialize_message(packed, Imu) == msg
+    assert cdr.decode_imu(data) == fields
+
+
+@pytest.mark.parametrize("frame_len", range(10))
+def test_magnetic_field_round_trip_matches_rclpy(frame_len: int) -> None:
+    rng = np.random.default_rng(100 + frame_len)
+    msg = random_mag("x" * frame_len, rng)
+    data = serialize_message(msg)
+    fields = cdr.unpack_mag(data)
+    assert fields is not None and fields.ns == ns_of(msg) and fields.frame_id == "x" * frame_len
+    f = msg.magnetic_field
+    assert fields.values == (f.x, f.y, f.z, *msg.magnetic_field_covariance)
+    packed = cdr.pack_stamped(fields.ns, fields.frame_id, fields.values)
+    assert deserialize_message(packed, MagneticField) == msg
+    assert cdr.decode_mag(data) == fields
+
+
+def test_non_ascii_frame_id() -> None:
+    msg = random_imu("käse_imu", np.random.default_rng(7))
+    data = serialize_message(msg)
+    fields = cdr.unpack_imu(data)
+    assert fields is not None and fields.frame_id == "käse_imu"
+    assert deserialize_message(cdr.pack_imu(*fields), Imu) == msg
+
+
+def big_endian_imu(msg: Imu) -> bytes:
+    """The same message in big-endian XCDR1 (encapsulation 00 00 00 00), which the fast path refuses."""
+    frame = msg.header.frame_id.encode() + b"\x00"
+    head = struct.pack(">iII", msg.header.stamp.sec, msg.header.stamp.nanosec, len(frame)) + frame
+    head += bytes(-len(head) % 8)
+    return b"\x00\x00\x00\x00" + head + struct.pack(">37d", *imu_values(msg))
+
+
+def test_other_layouts_fall_back_to_rclpy() -> None:
+    msg = random_imu("left_foot_imu", np.random.default_rng(3))
+    data = serialize_message(msg)
+    expected = cdr.unpack_imu(data)
+
+    big = big_endian_imu(msg)
+    assert deserialize_message(big, Imu) == msg, "test input is a valid message"
+    assert cdr.unpack_imu(big) is None
+    assert cdr.decode_imu(big) == expected
+
+    longer = data + bytes(8)  # a size that does not match the layout
+    assert cdr.unpack_imu(longer) is None
+    assert cdr.decode_imu(longer) == expected
+
+    assert cdr.unpack_imu(data[:-8]) is None
+    assert cdr.unpack_imu(b"") is None
+    assert cdr.unpack_mag(data) is None, "an Imu is not a MagneticField"
+    bad_length = bytearray(data)
+    bad_length[12:16] = (10_000).to_bytes(4, "little")
+    assert cdr.unpack_imu(bytes(bad_length)) is None
+
+
+def test_pack_imu_checks_the_field_count() -> None:
+    with pytest.raises(ValueError):
+        cdr.pack_imu(0, "x", (0.0,) * 36)
