@@ -27,6 +27,7 @@ from pathlib import Path
 
 import yaml
 
+from gait_biofeedback.cli import DEMO_BAG
 from gait_biofeedback.demo import calibration_time, ensure_demo_bag
 from gait_biofeedback.graph import replay_through_graph
 from gait_biofeedback.io.bag import BagReader
@@ -117,7 +118,7 @@ def main() -> None:
     parser.add_argument("--speed", type=float, default=1.0)
     parser.add_argument("--part", choices=["all", "start", "calibrated", "codec"], default="all")
     args = parser.parse_args()
-    bag, _ = ensure_demo_bag(Path("bags/demo_walk.mcap"))
+    bag, _ = ensure_demo_bag(DEMO_BAG)
     if args.part in ("all", "start"):
         print(f"demo session, first {args.seconds:g} s at {args.speed:g}x, not calibrated; "
               f"{round(args.seconds * 100) * 8} raw IMU samples expected")

@@ -49,7 +49,9 @@ from gait_biofeedback.core.orientation_stream import SegmentOrientationTracker
 from gait_biofeedback.core.segments import SEGMENTS
 from gait_biofeedback.io.bag import BagReader, BagWriter
 from gait_biofeedback.io.cdr import Stamped, decode_imu, decode_mag
+from gait_biofeedback.io.imu_messages import IMU_TYPE, MAG_TYPE
 from gait_biofeedback.io.schemas import type_name_of
+from gait_biofeedback.io.session_bag import TRUTH_PREFIX
 from gait_biofeedback.nodes.activity_monitor import chest_sample
 from gait_biofeedback.nodes.activity_monitor import to_message as activity_msg
 from gait_biofeedback.nodes.calibration import (
@@ -73,10 +75,6 @@ from gait_biofeedback.nodes.joint_angles import (
     skeleton_msg,
 )
 from gait_biofeedback.nodes.orientation_filter import mag_sample, orientation_payload, raw_imu_sample
-
-IMU_TYPE = "sensor_msgs/msg/Imu"
-MAG_TYPE = "sensor_msgs/msg/MagneticField"
-TRUTH_PREFIX = "/ground_truth/"
 
 # Defaults of the nodes this module stands in for (their declare_parameter defaults).
 ORIENTATION_DEFAULTS: dict[str, Any] = {"segments": list(SEGMENTS), "algorithm": DEFAULT_ALGORITHM,
@@ -305,7 +303,7 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
     segment_of = {topic: seg for seg, topic in raw_topics.items()}
     mag_of = {topic: seg for seg, topic in mag_topics.items()}
     copied: list[tuple[int, str, str, bytes]] = []
-    truth = [t for t in reader.topics() if t.startswith(TRUTH_PREFIX)]
+    truth = [t for t in reader.topics() if t.startswith(TRUTH_PREFIX + "/")]
     for topic, type_name, data, log_ns in reader.raw_messages([*segment_of, *mag_of, *truth]):
         if output is not None:
             copied.append((log_ns, topic, type_name, data))

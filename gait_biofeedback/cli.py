@@ -6,14 +6,14 @@ import argparse
 import sys
 from pathlib import Path
 
-DEMO_BAG = Path("bags/demo_walk.mcap")
+DEMO_BAG = Path("bags/demo_walk")
 DEMO_OUTPUT = Path("output/demo_session")
 
 DESCRIPTION = """\
 Wearable-IMU gait biofeedback (ROS 2 Jazzy). Typical use:
 
   gait-biofeedback demo                        simulate a session, replay it through the graph, summarise
-  gait-biofeedback simulate -o bags/walk.mcap  make a synthetic recording with ground truth
+  gait-biofeedback simulate -o bags/walk       make a synthetic recording with ground truth
   gait-biofeedback import csv my.csv --mapping map.yaml -o bags/mine
                                                convert your own IMU data to the project's MCAP layout
   gait-biofeedback replay bags/mine --record output/mine
@@ -184,7 +184,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_demo)
 
     p = sub.add_parser("simulate", help="synthetic session with ground truth → MCAP recording")
-    p.add_argument("-o", "--output", required=True, help="output: a folder (rosbag2) or a .mcap file")
+    p.add_argument("-o", "--output", required=True, help="output bag folder (rosbag2: metadata.yaml + .mcap)")
     p.add_argument("--scenario", default="demo", help="what the subject does [%(default)s]")
     p.add_argument("--rate", type=float, default=100.0, help="IMU sampling rate, Hz [%(default)s]")
     p.add_argument("--seed", type=int, default=0, help="random seed (same seed, same file) [%(default)s]")
@@ -195,7 +195,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("import", help="real recording (CSV/MAT) → the project's MCAP layout")
     p.add_argument("kind", help="qmt_fullbody, gaitmap, broad, csv, or auto")
     p.add_argument("path", help="the file to import")
-    p.add_argument("-o", "--output", required=True, help="output recording (folder or .mcap)")
+    p.add_argument("-o", "--output", required=True, help="output bag folder (rosbag2: metadata.yaml + .mcap)")
     p.add_argument("--mapping", help="csv: YAML file mapping segments to columns")
     p.add_argument("--units", nargs="*", help="csv: e.g. acc=g gyr=deg/s mag=uT time=ms")
     p.add_argument("--rate", type=float, help="csv without a time column: sampling rate, Hz")

@@ -1,6 +1,6 @@
 """``gait-biofeedback demo``: the main job end to end, with a one-screen summary.
 
-1. Simulate the demo session (seeded, so always the same) unless ``bags/demo_walk.mcap`` exists.
+1. Simulate the demo session (seeded, so always the same) unless the bag folder ``bags/demo_walk`` exists.
 2. Replay it through every processing node of this build, in one process, recording all topics; one
    second after the subject's hip flexion/extension moves end, "press Calibrate" (call the
    calibration node), as the clinician would.

@@ -19,16 +19,13 @@ import numpy as np
 from gait_biofeedback.core import quaternion as quat
 from gait_biofeedback.core.event_matching import EventScore, match_events
 from gait_biofeedback.io.bag import BagReader
+from gait_biofeedback.io.session_bag import TRUTH_PREFIX as TRUTH
+from gait_biofeedback.nodes.common import stamp_to_ns as _ns
 
-TRUTH = "/ground_truth"
 KIND_NAMES = {0: "ic", 1: "tc"}
 SIDE_NAMES = {0: "left", 1: "right"}
 REPORTED_JOINTS = ("hip_flexion", "knee_flexion", "ankle_dorsiflexion", "hip_adduction", "knee_adduction",
                    "ankle_inversion")
-
-
-def _ns(stamp) -> int:
-    return stamp.sec * 1_000_000_000 + stamp.nanosec
 
 
 @dataclass
@@ -42,7 +39,6 @@ class SessionReport:
     events: dict[str, EventScore] = field(default_factory=dict)
     cycles: dict[str, float] = field(default_factory=dict)
     transitions: list[tuple[float, int]] = field(default_factory=list)
-    true_transitions: list[tuple[float, int]] = field(default_factory=list)
     steps: int = 0
     true_steps: int = 0
 

@@ -19,6 +19,8 @@ from sensor_msgs.msg import JointState
 
 from gait_biofeedback.core.segments import sensor_frame
 from gait_biofeedback.io.bag import write_imu_bag
+from gait_biofeedback.io.imu_messages import seconds_to_ns
+from gait_biofeedback.nodes.common import ns_to_stamp
 from gait_biofeedback_msgs.msg import GaitEvent, SegmentCalibration, SegmentCalibrationArray
 
 TRUTH_PREFIX = "/ground_truth"
@@ -26,17 +28,13 @@ SIDE_CODES = {"left": GaitEvent.SIDE_LEFT, "right": GaitEvent.SIDE_RIGHT}
 EVENT_CODES = {"ic": GaitEvent.INITIAL_CONTACT, "tc": GaitEvent.TERMINAL_CONTACT}
 
 
-def _stamp(msg_header, t_ns: int) -> None:
-    msg_header.stamp.sec, msg_header.stamp.nanosec = divmod(int(t_ns), 1_000_000_000)
-
-
 def truth_messages(session) -> Iterator[tuple[str, object, int]]:
     """(topic, message, t_ns) of a SimulatedSession's ground truth, in time order per topic."""
     truth = session.truth
-    t_ns = np.round(np.asarray(truth.t) * 1e9).astype(np.int64)
+    t_ns = seconds_to_ns(truth.t)  # exactly as the IMU stamps are made, so they pair by stamp
 
     calib = SegmentCalibrationArray(protocol="ground_truth")
-    _stamp(calib.header, int(t_ns[0]))
+    calib.header.stamp = ns_to_stamp(int(t_ns[0]))
     calib.header.frame_id = "world"
     for segment, q in truth.mounting.items():
         w, x, y, z = (float(v) for v in q)
@@ -49,18 +47,18 @@ def truth_messages(session) -> Iterator[tuple[str, object, int]]:
     angles = np.stack([np.asarray(truth.joint_angles[n], dtype=float) for n in names], axis=1)
     for k, tk in enumerate(t_ns):
         msg = JointState(name=names, position=angles[k].tolist())
-        _stamp(msg.header, int(tk))
+        msg.header.stamp = ns_to_stamp(int(tk))
         yield f"{TRUTH_PREFIX}/joint_states", msg, int(tk)
 
     events = []
     for kind, per_side in (("ic", truth.initial_contacts), ("tc", truth.terminal_contacts)):
         for side, times in per_side.items():
-            for index, t in enumerate(np.asarray(times).tolist()):
-                events.append((round(t * 1e9), side, kind, index))
+            for index, ns in enumerate(seconds_to_ns(np.asarray(times, dtype=float)).tolist()):
+                events.append((ns, side, kind, index))
     for ev_ns, side, kind, index in sorted(events):
         msg = GaitEvent(side=SIDE_CODES[side], type=EVENT_CODES[kind], event_index=index)
         msg.header.frame_id = f"{side}_foot"
-        _stamp(msg.header, ev_ns)
+        msg.header.stamp = ns_to_stamp(ev_ns)
         yield f"{TRUTH_PREFIX}/gait/events", msg, ev_ns
 
 

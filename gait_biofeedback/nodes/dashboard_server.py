@@ -136,8 +136,9 @@ class DashboardServer:
                 self.frames_skipped += 1
             else:
                 ready.append(ws)
-        broadcast(ready, text)
-        self.frames_sent += 1
+        if ready:
+            broadcast(ready, text)
+            self.frames_sent += 1
 
     async def _handler(self, ws: ServerConnection) -> None:
         self._clients.add(ws)

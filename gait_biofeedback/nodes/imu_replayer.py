@@ -115,8 +115,8 @@ class ImuReplayer(Node):
                     first_ns = log_ns
                 if self.speed > 0:
                     delay = wall0 + (log_ns - first_ns) * 1e-9 / self.speed - time.perf_counter()
-                    if delay > 0:
-                        time.sleep(delay)
+                    if delay > 0 and self._stop.wait(delay):
+                        break
                 if self._clock_pub is not None:
                     self._clock_pub.publish(Clock(clock=ns_to_stamp(log_ns)))
                 self._topic_publishers[topic].publish(data)
@@ -131,6 +131,7 @@ class ImuReplayer(Node):
     def destroy_node(self) -> None:
         self._stop.set()
         self._thread.join(timeout=2.0)
+        self.reader.close()
         super().destroy_node()
 
 

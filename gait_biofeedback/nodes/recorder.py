@@ -1,7 +1,9 @@
 """Node ``recorder``: topics → a rosbag2 folder (metadata.yaml + MCAP), crash-safe.
 
 Subscriptions are raw (the CDR bytes, no deserialisation); a callback only appends to a queue, and a
-writer thread does all file work, so no callback ever waits for the disk. The writer closes a chunk
+writer thread does all file work, so no message callback ever waits for the disk (the
+``recorder/stop`` service waits, up to 30 s, for the writer thread to close the bag, so that its
+reply means "saved"). The writer closes a chunk
 at least every ``flush_period`` s, so a killed session still leaves a readable file
 (``gait-biofeedback repair`` restores its index and metadata.yaml).
 
@@ -208,13 +210,6 @@ class Recorder(Node):
     def written(self) -> int:
         """Messages handed to the files so far, over every start/stop."""
         return self._written_before + (self.writer.message_count if self.writer is not None else 0)
-
-    def wait_until_written(self, count: int, timeout: float = 5.0) -> bool:
-        """Block (not from a callback) until ``count`` messages are in the file or ``timeout``."""
-        deadline = time.monotonic() + timeout
-        while self.written + self.dropped_by_writer < count and time.monotonic() < deadline:
-            time.sleep(0.01)
-        return self.written + self.dropped_by_writer >= count
 
     def destroy_node(self) -> None:
         for sub in self._recorded_topics.values():
