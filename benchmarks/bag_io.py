@@ -1,4 +1,4 @@
-"""Throughput of the bag I/O: ``python -m gait_biofeedback.io.bench_bag [--seconds 120] [--out DIR]``.
+"""Throughput of the bag I/O: ``.venv/bin/python benchmarks/bag_io.py [--seconds 120] [--out DIR]``.
 
 Writes 8 segments × 100 Hz (Imu + MagneticField) with :func:`write_imu_bag`, reads it back with
 :func:`read_imu_bag`, :meth:`BagReader.raw_messages` and (rclpy objects) :meth:`BagReader.messages`,
