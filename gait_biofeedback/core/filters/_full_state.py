@@ -32,6 +32,25 @@ def transition(q: np.ndarray, w: np.ndarray, ts: float) -> tuple[np.ndarray, np.
     return phi, dq_db
 
 
+def predict(x: np.ndarray, P: np.ndarray, w: np.ndarray, ts: float, sigma_g: float,
+            p: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Prediction shared by both full-state filters: x⁻ (q by Φ, not normalised; external acceleration
+    and magnetic disturbance decayed by the AR(1) coefficients c_a, c_d) and P⁻ = F P Fᵀ + 𝒬 with the
+    Jacobian F of thesis Eq 39–40 (Eq 26–28 for the linear KF)."""
+    q = x[Q]
+    phi, dq_db = transition(q, w, ts)
+    xp = x.copy()
+    xp[Q] = phi @ q
+    xp[A] *= p["c_a"]
+    xp[D] *= p["c_d"]
+    F = np.eye(13)
+    F[Q, Q] = phi
+    F[Q, B] = dq_db
+    F[A, A] *= p["c_a"]
+    F[D, D] *= p["c_d"]
+    return xp, F @ P @ F.T + process_noise(q, ts, sigma_g, p["sigma_aw"], p["sigma_bw"], p["sigma_dw"])
+
+
 def process_noise(q: np.ndarray, ts: float, sigma_g: float, sigma_aw: float, sigma_bw: float,
                   sigma_dw: float) -> np.ndarray:
     """𝒬_k of thesis Eq 28 (13×13), Ξ evaluated at q⁺_k."""
