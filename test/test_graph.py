@@ -270,3 +270,17 @@ def test_live_run_processes_topics_and_closes_the_bag_on_ctrl_c(tmp_path):
     assert (out / "metadata.yaml").exists(), "a clean stop writes the rosbag2 metadata"
     counts = BagReader(out).message_counts()
     assert counts["/chest/imu/data"] >= 250 and counts["/chest/imu/data_raw"] >= 250
+
+
+def test_recorder_refuses_to_overwrite_a_recording(tmp_path, ros_context):
+    """A session must never record over an earlier one: a clear error, and no writer thread left behind."""
+    import threading
+
+    from gait_biofeedback.nodes.recorder import Recorder
+
+    earlier = write_imu_bag(tmp_path / "session", synthetic_imu(["chest"], duration=0.1))
+    threads = threading.active_count()
+    with pytest.raises((FileExistsError, ValueError), match="session"):
+        Recorder(ros_context, output=str(earlier))
+    assert threading.active_count() == threads
+    assert BagReader(earlier).message_count == 20, "the earlier recording is untouched"

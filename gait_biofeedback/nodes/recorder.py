@@ -82,11 +82,11 @@ class Recorder(Node):
         self._now_ns = (lambda: self.get_clock().now().nanoseconds) if use_sim_time else time.time_ns
         self._closed = threading.Event()
         self._thread = threading.Thread(target=self._write_loop, name="recorder_writer", daemon=True)
+        if p["autostart"].value:
+            self.start()  # before the writer thread: an unusable output folder raises with nothing to undo
         self._thread.start()
         self.create_service(Trigger, "recorder/start", self._on_start)
         self.create_service(Trigger, "recorder/stop", self._on_stop)
-        if p["autostart"].value:
-            self.start()
         self._discover()
         self.create_timer(float(p["discovery_period"].value), self._discover)
 
