@@ -70,7 +70,7 @@ def _outputs(path):
     return joints, sorted(events), cycles, calibrations
 
 
-def _run_live_graph(bag, output, params, calibrate_at_ns, expected_joint_states, speed=2.0):
+def _run_live_graph(bag, output, params, calibrate_at_ns, expected_joint_states, speed=1.0):
     """The node graph in this process (graph.running_graph, as replay_through_graph builds it), fed by
     the replayer, Calibrate pressed for the instant ``calibrate_at_ns``; returns once every raw sample
     reached the orientation filter and the graph has drained (replay_through_graph stops 0.5 s after

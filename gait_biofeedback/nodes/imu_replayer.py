@@ -86,9 +86,10 @@ class ImuReplayer(Node):
         deadline = time.monotonic() + self.wait_for_subscribers
         while time.monotonic() < deadline and not self._stop.is_set():
             if all(pub.get_subscription_count() > 0 for pub in self._topic_publishers.values()):
-                # the writer has matched every reader; give the readers the same moment to match
-                # the writer, or the first best-effort messages are dropped on their side
-                time.sleep(0.25)
+                # the writer has matched every reader; give the readers time to match the writer
+                # too, or the first best-effort messages are dropped on their side (0.25 s was
+                # not enough on a loaded 2-core machine)
+                time.sleep(1.0)
                 return
             time.sleep(0.01)
         lonely = [t for t, pub in self._topic_publishers.items() if pub.get_subscription_count() == 0]
