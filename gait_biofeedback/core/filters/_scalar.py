@@ -16,20 +16,13 @@ Vec = tuple[float, float, float]
 
 def gyro_step(q: Quat, gx: float, gy: float, gz: float, dt: float) -> Quat:
     """``q ⊗ exp(½ ω dt)``: exact closed-form strap-down step (orientation.md §2.2, thesis Eq 7–8)."""
-    w, x, y, z = q
     n = math.sqrt(gx * gx + gy * gy + gz * gz)
     half = 0.5 * n * dt
     if half < 1e-8:
         c, s = 1.0, 0.5 * dt
     else:
         c, s = math.cos(half), math.sin(half) / n
-    px, py, pz = gx * s, gy * s, gz * s
-    return (
-        w * c - x * px - y * py - z * pz,
-        w * px + x * c + y * pz - z * py,
-        w * py - x * pz + y * c + z * px,
-        w * pz + x * py - y * px + z * c,
-    )
+    return multiply(q, (c, gx * s, gy * s, gz * s))
 
 
 def normalized(q: Quat) -> Quat:
