@@ -325,3 +325,55 @@ def test_uci_dev_subject_sitting_block_has_no_false_transition() -> None:
         out = classify_activity(acc, 52.0, units="g", reference=ref, initial_posture="sitting")
     assert all(t > sit_end / 52.0 - 30.0 for t, _ in out["transitions"])
     assert np.mean(out["posture"][:sit_end] == "sitting") > 0.95
+
+
+def test_seated_person_walking_off_gets_a_timed_sit_to_stand() -> None:
+    # a reclined seat (θ 40°) whose stand-up only lowers θ: ΔY of the θ-minima window ≈ 0.1 m, far
+    # below the thesis gate, so only the walk that follows within seconds names the transition
+    def reclined(then_walk: bool) -> Template:
+        tpl = Template(RATE).hold(4.0, 0.0).hold(10.0, 40.0)
+        tpl.transition("sit_to_stand", 2.0, 0.0, 0.10, 46.0).hold(1.5)
+        return tpl.walk(14).hold(4.0) if then_walk else tpl.hold(20.0)
+
+    tpl = reclined(then_walk=True)
+    out = _run(tpl, initial_posture="sitting")
+    assert [k for _, k in out["transitions"]] == ["sit_to_stand"]
+    assert abs(out["transitions"][0][0] - tpl.events[0][0]) < 1.0
+    assert out["posture"][-1] == "standing"
+    still = _run(reclined(then_walk=False), initial_posture="sitting")
+    assert still["transitions"] == []
+
+
+def test_trunk_resting_near_70_degrees_does_not_flicker() -> None:
+    tpl = Template(RATE).hold(4.0, 0.0).transition("sit_to_lie", 2.5, 88.0, -0.15, 60.0).hold(6.0)
+    for _ in range(4):  # propped up on a pillow: θ wanders 64°–76° across the 70° threshold
+        tpl.hold(3.0, 64.0).hold(3.0, 76.0)
+    tpl.transition("lie_to_sit", 2.5, 10.0, 0.15, 50.0).hold(6.0)
+    out = _run(tpl, initial_posture="sitting")
+    kinds = [k for _, k in out["transitions"]]
+    assert kinds == ["sit_to_lie", "lie_to_sit"]
+    assert abs(out["transitions"][1][0] - tpl.events[-1][0]) < 1.0
+
+
+def test_sensor_handling_before_wearing_detects_nothing() -> None:
+    # the strap is being fastened: the sensor is turned over and shaken for 20 s, then worn seated
+    tpl = Template(RATE).hold(3.0, 0.0)
+    for _ in range(5):
+        tpl.hold(0.3, 130.0).walk(2, step_s=0.4, amplitude=5.0)  # turned over and shaken
+        tpl.hold(0.4, 0.0).walk(4, step_s=0.5, amplitude=5.0)  # upright, swinging
+    tpl.hold(30.0, 5.0)
+    out = _run(tpl, initial_posture="sitting")
+    assert out["transitions"] == []
+    assert out["steps"] == []
+    assert set(out["posture"]) == {"sitting"}
+
+
+def test_long_lean_with_brief_upright_moments_means_sitting() -> None:
+    tpl = Template(RATE).hold(4.0, 0.0)
+    for _ in range(12):  # leaning at a desk, sitting up for 1 s every 8 s
+        tpl.hold(7.0, 35.0).hold(1.0, 10.0)
+    out = _run(tpl)
+    t = np.arange(len(out["posture"])) / RATE
+    assert set(out["posture"][t < 30.0]) == {"standing"}
+    assert out["posture"][-1] == "sitting"
+    assert out["transitions"] == []

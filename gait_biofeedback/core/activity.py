@@ -28,7 +28,10 @@ a sit→stand needs the posture sitting, a stand→sit standing; stand→sit and
 need strong evidence (|ΔY| ≥ 0.7 thigh and |∫SVM score| ≥ 0.4 m/s); a weaker sit→stand is reported
 only if a walking bout starts within 10 s (event keeps its instant, posture switches at confirmation);
 standing entered by a sit→stand without walking within 60 s reverts to sitting; walking overrides a
-seated/lying posture after 8 steps; a lean held in [25°, 70°) for 30 s without walking ⇒ sitting.
+seated/lying posture after 8 steps, and a θ excursion ending within 5 s before such a walk (whatever
+its ΔY) names the sit→stand; a lean held (leaky) in [25°, 70°) for 30 s without walking ⇒ sitting;
+lie-to-sit needs θ 10° below the lying threshold (hysteresis); while the sensor is handled (θ > 110°
+while moving) nothing is detected and the last posture is kept.
 
 Numbers the thesis does not give (gait.md §3.7) are chosen here; each constant says where from.
 """
@@ -91,7 +94,11 @@ MAX_STEP_S = 1.3  # "pre-defined step duration": slow (stroke) gait has steps �
 UPRIGHT_WALKING_RAD = math.radians(30.0)  # "small threshold" rejecting peaks of a non-upright trunk
 STATIC_WINDOW_S = 1.0  # lying confirmation: one static second ...
 STATIC_STD = 0.5  # ... with std(|a|) < 0.5 m/s² (≈ 0.05 g) ...
+HANDLING_THETA_RAD = math.radians(110.0)  # a chest turned beyond 110° = the sensor is being handled
+HANDLING_SETTLE_S = 5.0
 LYING_STATIC_BEFORE_S = 10.0  # ... at most 10 s before a lie-to-sit crossing
+LYING_HYSTERESIS_RAD = math.radians(10.0)  # lie-to-sit confirmed below 60° (not tuned: a trunk resting
+# near 70° flickered lying/sitting every 1–2 s, UCI subject 8 at the end of its recording)
 STAIRS_WINDOW_S = 2 * DELAY_S  # level/stairs window, centred on the emitted sample
 STAIRS_GA_V_STD = 0.16  # m/s², std of g·GA_v/|GA| over 6 s → stairs. UCI dev subjects 1–7: best
 # plain level-vs-stairs accuracy of the thresholds 0.08–0.30 (0.12: 86 %, 0.16: 90 %, 0.20: 90 %)
@@ -106,6 +113,11 @@ STRONG_THIGH_FRACTION = 0.7  # "strong" transition: |ΔY| ≥ 0.7 thigh (0.29 m 
 STRONG_SVM_SCORE = 0.4  # ... and |∫SVM score| ≥ 0.4 m/s. Stand→sit must be strong (no other cue)
 CONFIRM_WALK_S = 10.0  # a weaker sit→stand counts only if a walking bout starts ≤ 10 s after t2
 # (dev: the two true sit→stand below the strong gate were followed by walking after 1–8 s)
+WALK_ONSET_GAP_S = 5.0  # any θ excursion (peak ≥ 20°, whatever its ΔY) ending ≤ 5 s before the first
+# step of a walking bout, or ≤ 2 s after it (ONSET_OVERLAP_S), is the sit→stand of a seated person who
+# walks off. UCI dev: the real stand-ups ended 0.5–4 s before the first step; their double-integrated
+# ΔY was often below the thesis gate (0.02–0.2 m: short windows, reclined seats whose θ only falls)
+ONSET_OVERLAP_S = 2.0
 STAND_CONFIRM_S = 60.0  # standing entered by a sit→stand and never followed by a walking bout within
 # 60 s reverts to sitting (no event): on dev, every false strong sit→stand was followed by minutes of
 # sitting still, every true one by walking within 20 s
@@ -114,6 +126,7 @@ SIT_WALK_MIN_STEPS = 8  # a walking bout overrides sitting/lying to standing onl
 SIT_LEAN_RAD = math.radians(25.0)  # trunk lean held ≥ 25° (and < 70°) without walking ...
 SIT_LEAN_HOLD_S = 30.0  # ... for 30 s ⇒ sitting (standing is upright). Dev: flags 0 % of standing
 # samples and 0–89 % of sitting ones (20° or 10 s flagged up to 35 % of one subject's standing)
+LEAN_RECOVERY = 4.0  # leaky hold: a second upright takes back 4 s (≥ 80 % of the time leaning)
 
 
 @dataclass(frozen=True)
@@ -205,8 +218,12 @@ class ActivityMonitor:
         # diagnostics (bounded): (t_peak, window or None, decision) of the latest stand/sit candidates
         self.candidate_log: deque[tuple[float, SitStandWindow | None, str]] = deque(maxlen=256)
         self._pending_sit_stand: tuple[float, float] | None = None  # (instant, walking deadline)
+        self._excursions: deque[tuple[float, float]] = deque(maxlen=8)  # (instant, t2) not accepted
+        self._overridden_onset = math.nan  # first step of a bout that overrode sitting without event
+        self._handled_until = -math.inf  # sensor handling: detection paused until then
         self._stand_deadline = math.inf  # standing from a sit→stand must see walking before this
-        self._lean_since = math.inf  # start of the current θ ∈ [25°, 70°) stretch
+        self._lean_hold = 0.0  # s of trunk lean accumulated (leaky) without walking
+        self._lean_t = -math.inf
         self._prime = reference_acc is not None  # GA starts from the first sample, not the reference
         self.steps: list[float] = []
         self._emitted_steps = 0
@@ -225,6 +242,7 @@ class ActivityMonitor:
         self._lying_crossing_t: float | None = None
         self._static_lying_t = -math.inf
         self._above_lying_since = math.inf
+        self._sitting_up_t: float | None = None  # downward 70° crossing awaiting the hysteresis
         # steps / walking
         self._in_peak = False
         self._peak_value = 0.0
@@ -302,7 +320,14 @@ class ActivityMonitor:
         magnitude = math.sqrt(f * f + v * v + lat * lat)
         self._update_static(magnitude)
         self._update_stairs_window(gv * inv_norm, gf * inv_norm)
-        self._update_steps(t, self._step_filter.step(magnitude - STANDARD_GRAVITY), theta)
+        svm = self._step_filter.step(magnitude - STANDARD_GRAVITY)
+        if theta > HANDLING_THETA_RAD and not self._is_static():
+            self._handled_until = t + HANDLING_SETTLE_S
+        if t < self._handled_until:
+            self._hold_during_handling(t)
+            self._pending.append([t, self.posture, False, theta])
+            return self._emit()
+        self._update_steps(t, svm, theta)
         self._update_lying(t, theta)
         self._update_excursion(t, theta)
         self._update_lean(t, theta)
@@ -315,6 +340,29 @@ class ActivityMonitor:
         self._theta_prev = theta
         self._pending.append([t, self.posture, self.walking, theta])
         return self._emit()
+
+    def _hold_during_handling(self, t: float) -> None:
+        """The sensor is being put on or adjusted: keep the last posture, detect nothing.
+
+        Our addition (gait.md §3 has no such state): a worn chest sensor does not turn beyond
+        θ = 110° while moving (lying still head-down is allowed); UCI subjects 2, 4, 6, 8, 10, 11,
+        13, 14 do so in their first 45 s (strap being fastened), which produced false sit→stand,
+        walking and lying. Detection restarts 5 s after the last such sample, from scratch. (A
+        criterion on |a| > 3.5 g was tried and dropped: the simulator's walking reaches it.)
+        """
+        if self.walking:
+            self.walking = False
+            self._relabel(self._last_peak_t, walking=False)
+        self._run = []
+        self._in_peak = False
+        self._candidate = None
+        self._excursions.clear()
+        self._pending_sit_stand = None
+        self._lying_crossing_t = self._sitting_up_t = None
+        self._lean_hold = 0.0
+        self._reset_excursion(t, self._theta_prev)
+        # on resume, a θ beyond 70° is a fresh crossing into lying (or out of it)
+        self._theta_prev = LYING_THRESHOLD_RAD + 0.01 if self.posture == "lying" else 0.0
 
     def flush(self) -> list[ActivityState]:
         """States of the samples still in the delay line (end of a recording)."""
@@ -427,7 +475,9 @@ class ActivityMonitor:
         READINGs: θ rising through 70° is sit-to-lie (GA_v falling), θ falling is lie-to-sit. The
         static period must show gravity on the trunk's horizontal plane: we accept the frontal axis
         (supine/prone, as the thesis) and also the lateral axis (side-lying), i.e. θ > 70° while
-        static. The instant is the crossing minus the GA filter's group delay.
+        static. The instant is the crossing minus the GA filter's group delay. Our addition: a
+        lie-to-sit is confirmed only once θ is 10° below the threshold (hysteresis), so a trunk
+        resting near 70° does not flicker between lying and sitting.
         """
         lying_now = theta > LYING_THRESHOLD_RAD
         prev_lying = self._theta_prev > LYING_THRESHOLD_RAD
@@ -443,13 +493,13 @@ class ActivityMonitor:
         if self._lying_crossing_t is not None and self._static_lying_t >= self._lying_crossing_t:
             self._add_transition(self._lying_crossing_t - self._ga_delay, "sit_to_lie", "lying")
             self._lying_crossing_t = None
-        if (
-            prev_lying
-            and not lying_now
-            and self.posture == "lying"
-            and t - self._static_lying_t <= LYING_STATIC_BEFORE_S
-        ):
-            self._add_transition(t - self._ga_delay, "lie_to_sit", "sitting")
+        if self.posture != "lying" or lying_now:
+            self._sitting_up_t = None
+        elif prev_lying and t - self._static_lying_t <= LYING_STATIC_BEFORE_S:
+            self._sitting_up_t = t
+        if self._sitting_up_t is not None and theta < LYING_THRESHOLD_RAD - LYING_HYSTERESIS_RAD:
+            self._add_transition(self._sitting_up_t - self._ga_delay, "lie_to_sit", "sitting")
+            self._sitting_up_t = None
             self._reset_excursion(t, theta)
 
     def _reset_excursion(self, t: float, theta: float) -> None:
@@ -505,6 +555,29 @@ class ActivityMonitor:
             self._add_transition(window.instant, "sit_to_stand", "standing")
         elif decision == "sit_to_stand?":
             self._pending_sit_stand = (window.instant, window.t2 + CONFIRM_WALK_S)
+        elif window is not None:
+            self._excursions.append((window.instant, window.t2))
+            if self.walking and self._run and self._run[0] == self._overridden_onset:
+                self._stand_up_before_walking(self._run[0])
+
+    def _stand_up_before_walking(self, onset: float) -> bool:
+        """A seated person who walks off stood up first: take the excursion next to the onset.
+
+        Our addition to §7.2.5/§7.2.6 (Fig 27 only lets an upright trunk walk): the event keeps the
+        excursion's instant; the posture switches at the instant or, if that has left the delay
+        line, now. Returns whether a sit→stand was added.
+        """
+        seated = self.posture == "sitting" or onset == self._overridden_onset
+        if not seated or len(self._run) < SIT_WALK_MIN_STEPS:
+            return False
+        for instant, t2 in reversed(self._excursions):
+            if onset - WALK_ONSET_GAP_S <= t2 <= onset + ONSET_OVERLAP_S:
+                self._excursions.clear()
+                self._overridden_onset = math.nan
+                self._add_transition(instant, "sit_to_stand", "standing")
+                self._stand_deadline = math.inf
+                return True
+        return False
 
     def _judge(self, window: SitStandWindow | None) -> str:
         """Thesis gates (§7.2.5) then the posture-consistency gates chosen on UCI dev data.
@@ -539,16 +612,21 @@ class ActivityMonitor:
 
         Thesis §7.2.6 rejects walking with a non-upright trunk, i.e. standing is upright; the
         converse used here (a long-held lean is not standing) is our choice, tuned on UCI dev data.
+        The hold is leaky: each second outside the band takes back LEAN_RECOVERY seconds, so a
+        seated person who sits up now and then for a moment still accumulates the hold.
         """
-        if SIT_LEAN_RAD <= theta < LYING_THRESHOLD_RAD and not self.walking:
-            if self._lean_since == math.inf:
-                self._lean_since = t
-            elif t - self._lean_since >= SIT_LEAN_HOLD_S and self.posture == "standing":
+        dt = t - self._lean_t
+        self._lean_t = t
+        if self.walking or not 0.0 < dt < 1.0:
+            self._lean_hold = 0.0
+        elif SIT_LEAN_RAD <= theta < LYING_THRESHOLD_RAD:
+            self._lean_hold += dt
+            if self._lean_hold >= SIT_LEAN_HOLD_S and self.posture == "standing":
                 self.posture = "sitting"
                 self._pending_sit_stand = None
                 self._relabel(t, posture="sitting")
         else:
-            self._lean_since = math.inf
+            self._lean_hold = max(0.0, self._lean_hold - LEAN_RECOVERY * dt)
 
     def _update_steps(self, t: float, svm: float, theta: float) -> None:
         """SVM peaks → steps and walking bouts [T §7.2.6, Table 16(b) "low threshold + rejection"]."""
@@ -590,6 +668,10 @@ class ActivityMonitor:
             self._pending_sit_stand = None
             self._relabel(self._run[0] - 0.5 * MIN_STEP_S, walking=True)
         if self.walking and self.posture != "standing" and len(self._run) >= SIT_WALK_MIN_STEPS:
+            if self._stand_up_before_walking(self._run[0]):
+                return
+            if self.posture == "sitting":
+                self._overridden_onset = self._run[0]  # a stand-up analysed later may still name it
             self.posture = "standing"  # walking implies upright (Fig 27); no event is invented
             self._relabel(self._run[0] - 0.5 * MIN_STEP_S, posture="standing")
 
