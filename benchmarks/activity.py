@@ -260,6 +260,17 @@ def simulator() -> None:
     print(f"steps: {n_true} true, {n_est} detected, error {100.0 * (n_est - n_true) / max(n_true, 1):+.1f} %")
     posture_ok = np.mean(out["posture"] == truth.posture[: len(out["posture"])])
     print(f"posture per-sample agreement {posture_ok:.1%}")
+    from gait_biofeedback.core import quaternion
+
+    stairs = simulate(SCENARIOS["stairs"]())
+    forward = quaternion.rotate(stairs.truth.mounting["chest"], np.array([1.0, 0.0, 0.0]))
+    print(f"\n== simulator 'stairs' scenario ({len(stairs.truth.t) / rate:.0f} s): share of samples labelled "
+          "as the truth, per true locomotion ==")
+    for name, axis in (("calibrated forward_axis", forward), ("sensor x (default)", None)):
+        got = classify_activity(stairs.imu["chest"].acc, rate, forward_axis=axis)["locomotion"]
+        true = stairs.truth.locomotion
+        shares = {k: np.mean(got[true == k] == k) for k in ("level", "upstairs", "downstairs")}
+        print(f"{name:>24}: " + ", ".join(f"{k} {v:.0%}" for k, v in shares.items()))
 
 
 def cost() -> None:

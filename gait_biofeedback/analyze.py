@@ -86,7 +86,7 @@ JOINT_DEFAULTS: dict[str, Any] = {"max_wait": 0.1, "remove_standing_offset": Tru
                                   "still_gyro": 0.2, "skeleton_every": 5}
 ACTIVITY_DEFAULTS: dict[str, Any] = {"segment": "chest", "rate_hz": 100.0, "units": "m/s2",
                                      "reference_s": 2.0, "thigh_length": 0.42, "initial_posture": "standing",
-                                     "max_gap": 0.5, "publish_period": 1.0}
+                                     "forward_axis": [1.0, 0.0, 0.0], "max_gap": 0.5, "publish_period": 1.0}
 
 
 @dataclass
@@ -136,7 +136,7 @@ class _ActivityRun:
         self.stream = ActivityStream(
             float(settings["rate_hz"]), max_gap=float(settings["max_gap"]), units=settings["units"],
             reference_s=float(settings["reference_s"]), thigh_length_m=float(settings["thigh_length"]),
-            initial_posture=settings["initial_posture"])
+            initial_posture=settings["initial_posture"], forward_axis=list(settings["forward_axis"]))
         self._next_periodic: float | None = None
 
     def update(self, raw: Stamped) -> list[Any]:

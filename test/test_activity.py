@@ -377,3 +377,19 @@ def test_long_lean_with_brief_upright_moments_means_sitting() -> None:
     assert set(out["posture"][t < 30.0]) == {"standing"}
     assert out["posture"][-1] == "sitting"
     assert out["transitions"] == []
+
+
+def test_forward_axis_decides_upstairs_on_simulated_stairs() -> None:
+    from gait_biofeedback.core import quaternion
+    from gait_biofeedback.core.simulator import SCENARIOS, simulate
+
+    session = simulate(SCENARIOS["stairs"]())
+    chest = session.imu["chest"]
+    # sensor-to-segment rotation maps segment axes into sensor axes: trunk forward (x) in the sensor
+    forward = quaternion.rotate(session.truth.mounting["chest"], np.array([1.0, 0.0, 0.0]))
+    truth = session.truth.locomotion
+    climbing = truth == "upstairs"
+    right = classify_activity(chest.acc, session.config.rate_hz, forward_axis=forward)["locomotion"]
+    wrong = classify_activity(chest.acc, session.config.rate_hz, forward_axis=-forward)["locomotion"]
+    assert np.mean(right[climbing] == "upstairs") > 0.8
+    assert np.mean(wrong[climbing] == "upstairs") < 0.2

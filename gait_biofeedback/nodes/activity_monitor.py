@@ -9,8 +9,9 @@ are skipped and counted; a stamp going backwards or a gap > ``max_gap`` s restar
 (its upright reference is taken again from the next ``reference_s`` s).
 
 Parameters: ``segment`` (chest), ``rate_hz`` (nominal rate of the chest IMU, 20–200 Hz), ``units``
-(``m/s2`` or ``g``), ``reference_s``, ``thigh_length`` (m), ``initial_posture``, ``max_gap``,
-``publish_period``.
+(``m/s2`` or ``g``), ``reference_s``, ``thigh_length`` (m), ``initial_posture``, ``forward_axis`` (the
+trunk's forward direction in sensor axes, e.g. from the chest's sensor-to-segment calibration; it
+only decides upstairs vs downstairs, and a wrong one swaps them), ``max_gap``, ``publish_period``.
 """
 
 from __future__ import annotations
@@ -81,6 +82,7 @@ class ActivityMonitorNode(Node):
             "reference_s": float(self.declare_parameter("reference_s", 2.0).value),
             "thigh_length_m": float(self.declare_parameter("thigh_length", 0.42).value),
             "initial_posture": self.declare_parameter("initial_posture", "standing").value,
+            "forward_axis": list(self.declare_parameter("forward_axis", [1.0, 0.0, 0.0]).value),
         }
         self.max_gap = float(self.declare_parameter("max_gap", 0.5).value)
         self.stream = ActivityStream(self.rate_hz, max_gap=self.max_gap, **self.options)
