@@ -115,8 +115,9 @@ CONFIRM_WALK_S = 10.0  # a weaker sit→stand counts only if a walking bout star
 # (dev: the two true sit→stand below the strong gate were followed by walking after 1–8 s)
 WALK_ONSET_GAP_S = 5.0  # any θ excursion (peak ≥ 20°, whatever its ΔY) ending ≤ 5 s before the first
 # step of a walking bout, or ≤ 2 s after it (ONSET_OVERLAP_S), is the sit→stand of a seated person who
-# walks off. UCI dev: the real stand-ups ended 0.5–4 s before the first step; their double-integrated
-# ΔY was often below the thesis gate (0.02–0.2 m: short windows, reclined seats whose θ only falls)
+# walks off. UCI dev: the real stand-ups peaked 1–5 s before the first step; their double-integrated
+# |ΔY| was often below the thesis gate (0.05–0.3 m, some of the wrong sign: short windows, reclined
+# seats whose θ only falls)
 ONSET_OVERLAP_S = 2.0
 STAND_CONFIRM_S = 60.0  # standing entered by a sit→stand and never followed by a walking bout within
 # 60 s reverts to sitting (no event): on dev, every false strong sit→stand was followed by minutes of
@@ -324,7 +325,7 @@ class ActivityMonitor:
         if theta > HANDLING_THETA_RAD and not self._is_static():
             self._handled_until = t + HANDLING_SETTLE_S
         if t < self._handled_until:
-            self._hold_during_handling(t)
+            self._hold_during_handling(t, theta)
             self._pending.append([t, self.posture, False, theta])
             return self._emit()
         self._update_steps(t, svm, theta)
@@ -341,7 +342,7 @@ class ActivityMonitor:
         self._pending.append([t, self.posture, self.walking, theta])
         return self._emit()
 
-    def _hold_during_handling(self, t: float) -> None:
+    def _hold_during_handling(self, t: float, theta: float) -> None:
         """The sensor is being put on or adjusted: keep the last posture, detect nothing.
 
         Our addition (gait.md §3 has no such state): a worn chest sensor does not turn beyond
@@ -360,7 +361,7 @@ class ActivityMonitor:
         self._pending_sit_stand = None
         self._lying_crossing_t = self._sitting_up_t = None
         self._lean_hold = 0.0
-        self._reset_excursion(t, self._theta_prev)
+        self._reset_excursion(t, theta)
         # on resume, a θ beyond 70° is a fresh crossing into lying (or out of it)
         self._theta_prev = LYING_THRESHOLD_RAD + 0.01 if self.posture == "lying" else 0.0
 
