@@ -52,6 +52,7 @@ from gait_biofeedback.io.cdr import Stamped, decode_imu, decode_mag
 from gait_biofeedback.io.imu_messages import IMU_TYPE, MAG_TYPE
 from gait_biofeedback.io.schemas import type_name_of
 from gait_biofeedback.io.session_bag import TRUTH_PREFIX
+from gait_biofeedback.nodes.activity_monitor import apply_calibration_msg as apply_activity_calibration
 from gait_biofeedback.nodes.activity_monitor import chest_sample
 from gait_biofeedback.nodes.activity_monitor import to_message as activity_msg
 from gait_biofeedback.nodes.calibration import (
@@ -263,6 +264,8 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
         rotations, from_ns = calibration_rotations(msg)
         joints.set_calibration(rotations, from_ns)
         apply_calibration_msg(gait, msg)
+        if activity is not None:
+            said([apply_activity_calibration(activity.stream, msg, activity.segment)])
 
     def publish_joints(emitted: list, log_ns: int) -> None:
         nonlocal emitted_joints

@@ -393,3 +393,34 @@ def test_forward_axis_decides_upstairs_on_simulated_stairs() -> None:
     wrong = classify_activity(chest.acc, session.config.rate_hz, forward_axis=-forward)["locomotion"]
     assert np.mean(right[climbing] == "upstairs") > 0.8
     assert np.mean(wrong[climbing] == "upstairs") < 0.2
+
+
+def test_stream_takes_the_forward_axis_from_its_stamp() -> None:
+    from gait_biofeedback.core import quaternion
+    from gait_biofeedback.core.activity_stream import ActivityStream
+    from gait_biofeedback.core.simulator import SCENARIOS, simulate
+
+    session = simulate(SCENARIOS["stairs"]())
+    chest, rate = session.imu["chest"], session.config.rate_hz
+    forward = quaternion.rotate(session.truth.mounting["chest"], np.array([1.0, 0.0, 0.0]))
+    stream = ActivityStream(rate)
+    with pytest.raises(ValueError, match="non-zero 3-vector"):
+        stream.set_forward_axis([0.0, 0.0, 0.0])
+    states, t0 = [], float(chest.t[0])
+    for k, (t, acc) in enumerate(zip(chest.t.tolist(), chest.acc.tolist(), strict=True)):
+        if k == 1:
+            stream.set_forward_axis(forward, from_t=t0 + 6.0)  # arrives early: in force from its stamp
+            assert stream.options.get("forward_axis") is None
+        state, _, warning = stream.update(t, acc)
+        assert warning == ""
+        if state is not None:
+            states.append(state)
+    assert stream.options["forward_axis"] == pytest.approx(list(forward))
+    labels = np.array([s.locomotion for s in states])
+    climbing = session.truth.locomotion[: len(labels)] == "upstairs"
+    assert np.mean(labels[climbing] == "upstairs") > 0.8
+    # once the mounting is known, an axis along "up" cannot give a heading: refused, previous kept
+    up = quaternion.rotate(session.truth.mounting["chest"], np.array([0.0, 1.0, 0.0]))
+    with pytest.raises(ValueError, match="nearly vertical"):
+        stream.set_forward_axis(up)
+    assert stream.options["forward_axis"] == pytest.approx(list(forward))

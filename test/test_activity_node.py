@@ -40,3 +40,26 @@ def test_node_reports_the_simulated_transitions(tmp_path):
     lying = [m for m in states if m.posture == POSTURE_CODES["lying"]]
     assert lying and sorted(m.trunk_inclination for m in lying)[len(lying) // 2] > 1.3, "lying ~ 90 deg"
     assert max(m.step_count for m in states) >= len(session.truth.steps) - 2
+
+
+def test_chest_calibration_entry_sets_the_forward_axis():
+    import numpy as np
+    from builtin_interfaces.msg import Time
+    from geometry_msgs.msg import Quaternion
+
+    from gait_biofeedback.core.activity_stream import ActivityStream
+    from gait_biofeedback.core.quaternion import from_axis_angle, rotate
+    from gait_biofeedback.nodes.activity_monitor import apply_calibration_msg
+    from gait_biofeedback_msgs.msg import SegmentCalibration, SegmentCalibrationArray
+
+    r = from_axis_angle(np.array([0.2, 1.0, 0.1]), 2.0)  # segment → sensor, an arbitrary mounting
+    msg = SegmentCalibrationArray(protocol="walking", segments=[
+        SegmentCalibration(segment="chest", valid=True, rotation=Quaternion(w=r[0], x=r[1], y=r[2], z=r[3]))])
+    msg.header.stamp = Time(sec=0)
+    stream = ActivityStream(100.0)
+    level, text = apply_calibration_msg(stream, msg, "chest")
+    assert level == "info" and "forward axis" in text
+    assert stream.options["forward_axis"] == pytest.approx(list(rotate(r, np.array([1.0, 0.0, 0.0]))))
+    msg.segments[0].valid = False
+    level, text = apply_calibration_msg(ActivityStream(100.0), msg, "chest")
+    assert level == "warn" and "no valid chest entry" in text

@@ -210,8 +210,9 @@ class ActivityMonitor:
         self._delay_n = round(DELAY_S * rate_hz)
         self._pending: deque[list] = deque()  # [t, posture, walking, theta]
         self._stairs_n = round(STAIRS_WINDOW_S * rate_hz)
-        self._stairs_ring: deque[tuple[float, float]] = deque()
-        self._stairs_sum = [0.0, 0.0, 0.0]  # Σ(gv−g), Σ(gv−g)², Σ lean
+        self._stairs_ring: deque[tuple[float, float, float]] = deque()
+        self._stairs_sum = [0.0, 0.0, 0.0, 0.0]  # Σ(gv−g), Σ(gv−g)², Σ lean along body x, along z
+        self._forward_cos_sin = (1.0, 0.0)  # trunk forward in the body frame's horizontal (x, z) plane
         self._static_n = round(STATIC_WINDOW_S * rate_hz)
         self._static_ring: deque[float] = deque()
         self._static_sum = [0.0, 0.0]
@@ -284,6 +285,22 @@ class ActivityMonitor:
     def calibrated(self) -> bool:
         return self._rot is not None
 
+    def set_forward_axis(self, forward_axis: np.ndarray) -> None:
+        """The trunk's forward direction in sensor axes (e.g. from the chest's sensor-to-segment
+        calibration), taken from now on.
+
+        It only decides upstairs vs downstairs (the sign of the forward lean): "up" stays the
+        reference period's, so θ, steps and transitions are unaffected and nothing restarts.
+        """
+        self.forward_axis = np.asarray(forward_axis, dtype=float)
+        if self._rot is None:
+            return  # used by _calibrate when the reference period ends
+        body = np.array(self._rot).reshape(3, 3) @ self.forward_axis
+        heading = math.atan2(body[2], body[0])
+        if math.hypot(body[0], body[2]) < 0.3 * float(np.linalg.norm(body)):
+            raise ValueError(f"forward axis {list(self.forward_axis)} is nearly vertical for this mounting")
+        self._forward_cos_sin = (math.cos(heading), math.sin(heading))
+
     # ---------------------------------------------------------------- per sample
     def update(self, t: float, acc) -> ActivityState | None:
         """Feed one sample (time in s, acceleration 3-vector); return the state of t − DELAY_S.
@@ -320,7 +337,7 @@ class ActivityMonitor:
         self._history.push(t, f, v, lat)
         magnitude = math.sqrt(f * f + v * v + lat * lat)
         self._update_static(magnitude)
-        self._update_stairs_window(gv * inv_norm, gf * inv_norm)
+        self._update_stairs_window(gv * inv_norm, gf * inv_norm, gl * inv_norm)
         svm = self._step_filter.step(magnitude - STANDARD_GRAVITY)
         if theta > HANDLING_THETA_RAD and not self._is_static():
             self._handled_until = t + HANDLING_SETTLE_S
@@ -411,11 +428,13 @@ class ActivityMonitor:
         n = len(self._stairs_ring)
         if n == 0:
             return "level"
-        s1, s2, sl = self._stairs_sum
+        s1, s2, lean_x, lean_z = self._stairs_sum
         variance = max(0.0, s2 / n - (s1 / n) ** 2)
         if variance <= STAIRS_GA_V_STD**2:
             return "level"
-        return "upstairs" if sl / n > math.sin(UPSTAIRS_LEAN_RAD) else "downstairs"
+        c, s = self._forward_cos_sin
+        lean = (c * lean_x + s * lean_z) / n
+        return "upstairs" if lean > math.sin(UPSTAIRS_LEAN_RAD) else "downstairs"
 
     def _relabel(self, t_from: float, *, posture: str | None = None, walking: bool | None = None) -> None:
         for rec in reversed(self._pending):
@@ -445,23 +464,26 @@ class ActivityMonitor:
         mean = self._static_sum[0] / n
         return self._static_sum[1] / n - mean * mean < STATIC_STD**2
 
-    def _update_stairs_window(self, up_v: float, up_f: float) -> None:
-        """Running sums of g·(GA_v/|GA|) − g and of the forward lean −GA_f/|GA| (unit direction).
+    def _update_stairs_window(self, up_v: float, up_f: float, up_l: float) -> None:
+        """Running sums of g·(GA_v/|GA|) − g and of the leans −GA_f/|GA|, −GA_l/|GA| (unit direction);
+        the lean along the trunk's forward axis is combined from the last two in ``_modality``.
 
         READING: the thesis's variance of GA_v is meant to capture trunk-inclination changes; the
         2nd-order GA filter lets the step bounce leak into GA_v, so we use the GA *direction*.
         """
         ring, sums = self._stairs_ring, self._stairs_sum
-        dv, lean = STANDARD_GRAVITY * (up_v - 1.0), -up_f
-        ring.append((dv, lean))
+        dv = STANDARD_GRAVITY * (up_v - 1.0)
+        ring.append((dv, -up_f, -up_l))
         sums[0] += dv
         sums[1] += dv * dv
-        sums[2] += lean
+        sums[2] -= up_f
+        sums[3] -= up_l
         if len(ring) > self._stairs_n:
-            old_v, old_lean = ring.popleft()
+            old_v, old_x, old_z = ring.popleft()
             sums[0] -= old_v
             sums[1] -= old_v * old_v
-            sums[2] -= old_lean
+            sums[2] -= old_x
+            sums[3] -= old_z
 
     # ---------------------------------------------------------------- detectors
     def _add_transition(self, t: float, kind: str, posture: str) -> None:

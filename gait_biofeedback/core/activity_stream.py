@@ -4,12 +4,15 @@ Shared by the ``activity_monitor`` node and the offline ``analyze`` path, so bot
 states. NaN/inf samples and repeated stamps are skipped and counted; a stamp going backwards or a gap
 longer than ``max_gap`` s restarts the monitor (its upright reference is taken again from the next
 ``reference_s`` s); a state is "changed" when posture, locomotion or the last transition differ from
-the last changed one.
+the last changed one. A trunk forward axis (from the chest's sensor-to-segment calibration) takes
+effect at the first sample at or after its "in force" stamp, or at once if that has passed, as the
+calibration does for the other consumers.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any
 
 from gait_biofeedback.core.activity import ActivityMonitor, ActivityState
@@ -21,12 +24,38 @@ class ActivityStream:
     def __init__(self, rate_hz: float, max_gap: float = 0.5, **monitor_options: Any) -> None:
         self.rate_hz = float(rate_hz)
         self.max_gap = float(max_gap)
-        self.options = monitor_options
+        self.options = dict(monitor_options)
         self.monitor = ActivityMonitor(self.rate_hz, **monitor_options)
         self.counts = {"samples": 0, "nan_skipped": 0, "duplicates": 0, "restarts": 0}
         self.latest: ActivityState | None = None
         self._t_last: float | None = None
         self._key: tuple | None = None
+        self._waiting_forward: list[tuple[float, list[float]]] = []
+
+    def set_forward_axis(self, forward_axis: Sequence[float], from_t: float = 0.0) -> None:
+        """Trunk forward in sensor axes, in force from stamp ``from_t`` s (see module docstring).
+
+        Raises ValueError when it is not a usable direction (zero, NaN, or vertical for the mounting).
+        """
+        forward = [float(v) for v in forward_axis]
+        if len(forward) != 3 or not all(math.isfinite(v) for v in forward) or not any(forward):
+            raise ValueError(f"forward axis must be a non-zero 3-vector, got {forward_axis!r}")
+        if self._t_last is not None and from_t > self._t_last:
+            self._waiting_forward.append((float(from_t), forward))
+            self._waiting_forward.sort(key=lambda item: item[0])
+            return
+        problem = self._apply_forward(forward)
+        if problem:
+            raise ValueError(problem)
+
+    def _apply_forward(self, forward: list[float]) -> str:
+        """Hand the axis to the monitor; the reason it was refused, or ""."""
+        try:
+            self.monitor.set_forward_axis(forward)
+        except ValueError as exc:
+            return f"{exc}: the previous forward axis is kept"
+        self.options["forward_axis"] = forward  # kept across restarts
+        return ""
 
     def update(self, t: float, acc: tuple[float, float, float]) -> tuple[ActivityState | None, bool, str]:
         """One sample → (the newest state or None, whether it changed, a warning or "")."""
@@ -46,6 +75,9 @@ class ActivityStream:
                     + ": activity monitor restarted"
                 self.monitor = ActivityMonitor(self.rate_hz, **self.options)
         self._t_last = t
+        while self._waiting_forward and self._waiting_forward[0][0] <= t:
+            problem = self._apply_forward(self._waiting_forward.pop(0)[1])
+            warning = "; ".join(text for text in (warning, problem) if text)
         state = self.monitor.update(t, acc)
         if state is None:
             return None, False, warning

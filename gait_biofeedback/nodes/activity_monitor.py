@@ -1,6 +1,8 @@
 """Node ``activity_monitor``: chest accelerometer → posture, transitions, walking modality, steps.
 
-Subscribes ``chest/imu/data_raw`` (sensor_msgs/Imu; only the accelerometer is used, thesis ch. 7),
+Subscribes ``chest/imu/data_raw`` (sensor_msgs/Imu; only the accelerometer is used, thesis ch. 7) and
+``calibration/sensor_to_segment`` (latched; the chest's rotation gives the trunk's forward axis, in
+force from the message's stamp),
 publishes ``activity/state`` (gait_biofeedback_msgs/ActivityState) whenever posture, locomotion or
 the last transition change, and every ``publish_period`` s. The state describes the sample
 ``delay`` s before the newest one (:data:`gait_biofeedback.core.activity.DELAY_S`): the monitor
@@ -10,12 +12,13 @@ are skipped and counted; a stamp going backwards or a gap > ``max_gap`` s restar
 
 Parameters: ``segment`` (chest), ``rate_hz`` (nominal rate of the chest IMU, 20–200 Hz), ``units``
 (``m/s2`` or ``g``), ``reference_s``, ``thigh_length`` (m), ``initial_posture``, ``forward_axis`` (the
-trunk's forward direction in sensor axes, e.g. from the chest's sensor-to-segment calibration; it
-only decides upstairs vs downstairs, and a wrong one swaps them), ``max_gap``, ``publish_period``.
+trunk's forward direction in sensor axes until a calibration gives it; it only decides upstairs vs
+downstairs, and a wrong one swaps them), ``max_gap``, ``publish_period``.
 """
 
 from __future__ import annotations
 
+import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.context import Context
 from rclpy.node import Node
@@ -24,17 +27,21 @@ from sensor_msgs.msg import Imu
 
 from gait_biofeedback.core.activity import ActivityState as CoreActivityState
 from gait_biofeedback.core.activity_stream import ActivityStream
+from gait_biofeedback.core.quaternion import rotate
 from gait_biofeedback.core.segments import raw_topic
 from gait_biofeedback.io.cdr import LINEAR_ACCELERATION, Stamped, decode_imu
+from gait_biofeedback.nodes.calibration import CALIBRATION_TOPIC
 from gait_biofeedback.nodes.common import (
     DIAGNOSTICS_TOPIC,
+    LATCHED_QOS,
     RELIABLE_QOS,
     SENSOR_QOS,
     diagnostic_array,
     diagnostic_status,
     s_to_stamp,
+    stamp_to_s,
 )
-from gait_biofeedback_msgs.msg import ActivityState
+from gait_biofeedback_msgs.msg import ActivityState, SegmentCalibrationArray
 
 POSTURE_CODES = {"standing": ActivityState.POSTURE_STANDING, "sitting": ActivityState.POSTURE_SITTING,
                  "lying": ActivityState.POSTURE_LYING}
@@ -64,6 +71,25 @@ def to_message(state: CoreActivityState, newest_t: float, frame_id: str = "chest
     return msg
 
 
+def apply_calibration_msg(stream: ActivityStream, msg: SegmentCalibrationArray,
+                          segment: str) -> tuple[str, str]:
+    """Hand the trunk forward axis of ``segment``'s calibration entry to the stream; (level, log line).
+
+    The entry's rotation maps segment axes into sensor axes, so the segment's x (anterior) in
+    sensor axes is rotate(r, x). It is in force from the message's stamp, like every calibration.
+    """
+    entry = next((e for e in msg.segments if e.segment == segment), None)
+    if entry is None or not entry.valid:
+        return "warn", f"calibration has no valid {segment} entry: the forward_axis parameter stays in use"
+    r = entry.rotation
+    forward = rotate(np.array([r.w, r.x, r.y, r.z]), np.array([1.0, 0.0, 0.0]))
+    try:
+        stream.set_forward_axis(forward, stamp_to_s(msg.header.stamp))
+    except ValueError as exc:
+        return "warn", f"{segment} calibration not used for the forward axis: {exc}"
+    return "info", f"{segment} forward axis from the calibration: {np.round(forward, 3).tolist()} (sensor)"
+
+
 def chest_sample(imu: Stamped) -> tuple[float, tuple[float, float, float]]:
     """(stamp s, acceleration) of a decoded raw chest Imu message: all the monitor uses."""
     return imu.ns / 1_000_000_000, imu.values[LINEAR_ACCELERATION]
@@ -91,12 +117,18 @@ class ActivityMonitorNode(Node):
         self._pub = self.create_publisher(ActivityState, "activity/state", RELIABLE_QOS)
         self._diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, RELIABLE_QOS)
         self.create_subscription(Imu, raw_topic(self.segment), self._on_imu, SENSOR_QOS, raw=True)
+        self.create_subscription(SegmentCalibrationArray, CALIBRATION_TOPIC, self._on_calibration,
+                                 LATCHED_QOS)
         self.create_timer(float(self.declare_parameter("publish_period", 1.0).value), self._periodic)
 
     @property
     def counts(self) -> dict[str, int]:
         """Input counters of the stream plus states published."""
         return {**self.stream.counts, "published": self.published}
+
+    def _on_calibration(self, msg: SegmentCalibrationArray) -> None:
+        level, text = apply_calibration_msg(self.stream, msg, self.segment)
+        (self.get_logger().warning if level == "warn" else self.get_logger().info)(text)
 
     def _on_imu(self, data: bytes) -> None:
         t, acc = chest_sample(decode_imu(data))
