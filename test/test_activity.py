@@ -75,8 +75,11 @@ class Template:
         self._lean, self._z = end, float(z[-1])
         return self
 
-    def walk(self, n_steps: int, step_s: float = 0.55, amplitude: float = 2.5) -> Template:
-        """Level walking: one vertical acceleration peak per step (chest bounce)."""
+    def walk(
+        self, n_steps: int, step_s: float = 0.55, amplitude: float = 2.5, sway_deg: float = 2.0
+    ) -> Template:
+        """Level walking: one vertical acceleration peak per step (chest bounce), the trunk swaying
+        ±sway_deg about its lean once per stride."""
         n = round(n_steps * step_s * self.rate)
         tt = np.arange(n) / self.rate
         omega = 2 * np.pi / step_s
@@ -85,7 +88,7 @@ class Template:
         z = self._z + amplitude / omega**2 * (omega * tt - np.sin(omega * tt))
         t0 = self.t
         self.steps += [t0 + (k + 0.25) * step_s for k in range(n_steps)]
-        self.lean += (self._lean + math.radians(2.0) * np.sin(omega * tt / 2)).tolist()
+        self.lean += (self._lean + math.radians(sway_deg) * np.sin(omega * tt / 2)).tolist()
         self.height += z.tolist()
         self.forward += (0.8 * np.sin(omega * tt)).tolist()
         self.lateral_lean += (math.radians(1.5) * np.sin(omega * tt / 2)).tolist()
@@ -424,3 +427,20 @@ def test_stream_takes_the_forward_axis_from_its_stamp() -> None:
     with pytest.raises(ValueError, match="nearly vertical"):
         stream.set_forward_axis(up)
     assert stream.options["forward_axis"] == pytest.approx(list(forward))
+
+
+def test_stairs_threshold_adapts_to_the_wearers_own_sway() -> None:
+    # a slow walker leaning 14° forward with a large sway (±7°, sway std ≈ 0.2 m/s²): above the fixed
+    # threshold, so the first 30 s of walking read as stairs; then the wearer's own median takes over
+    # (level), and a stretch with twice the sway (stairs: ≈ 0.4 m/s²) stands out again
+    tpl = Template(RATE).hold(4.0, 0.0).hold(1.0, 14.0).walk(75, step_s=0.8, sway_deg=7.0)
+    t_stairs = tpl.t
+    tpl.walk(20, step_s=0.8, sway_deg=15.0).hold(3.0)
+    out = _run(tpl)
+    t = np.arange(len(out["locomotion"])) / RATE
+    early = (t > 8.0) & (t < 20.0)
+    settled = (t > 45.0) & (t < t_stairs - 4.0)
+    climbing = (t > t_stairs + 4.0) & (t < t_stairs + 12.0)
+    assert np.mean(out["locomotion"][early] == "upstairs") > 0.9
+    assert np.mean(out["locomotion"][settled] == "level") > 0.9
+    assert np.mean(out["locomotion"][climbing] == "upstairs") > 0.9

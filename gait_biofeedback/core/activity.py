@@ -38,6 +38,7 @@ Numbers the thesis does not give (gait.md §3.7) are chosen here; each constant 
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections import deque
 from dataclasses import dataclass
@@ -102,6 +103,12 @@ LYING_HYSTERESIS_RAD = math.radians(10.0)  # lie-to-sit confirmed below 60° (no
 STAIRS_WINDOW_S = 2 * DELAY_S  # level/stairs window, centred on the emitted sample
 STAIRS_GA_V_STD = 0.16  # m/s², std of g·GA_v/|GA| over 6 s → stairs. UCI dev subjects 1–7: best
 # plain level-vs-stairs accuracy of the thresholds 0.08–0.30 (0.12: 86 %, 0.16: 90 %, 0.20: 90 %)
+STAIRS_SWAY_RATIO = 1.8  # adaptive: stairs = sway std > 1.8 × the wearer's median walking sway. UCI
+# dev 1–7 (benchmark windows), plain / balanced level-vs-stairs accuracy: fixed 0.16 m/s² 94.4/74.8 %,
+# ratio 1.5 83.6/83.3, 1.8 90.0/80.7, 2.0 91.5/78.9, 2.2 92.7/77.8: the best balanced accuracy whose
+# plain accuracy reaches the issue's 90 % (the wearer's own level sway differs up to 3× between people)
+SWAY_MIN_N = 30  # seconds of walking before the adaptive threshold replaces the fixed one
+SWAY_HISTORY_N = 600  # the last 10 min of walking
 UPSTAIRS_LEAN_RAD = math.radians(8.0)  # mean forward lean above this → upstairs (not validated)
 HISTORY_S = 14.0
 # --- chosen on the UCI development subjects 1–7 (benchmarks/activity.py; 8–15 are held out) ---------
@@ -213,6 +220,9 @@ class ActivityMonitor:
         self._stairs_ring: deque[tuple[float, float, float]] = deque()
         self._stairs_sum = [0.0, 0.0, 0.0, 0.0]  # Σ(gv−g), Σ(gv−g)², Σ lean along body x, along z
         self._forward_cos_sin = (1.0, 0.0)  # trunk forward in the body frame's horizontal (x, z) plane
+        self._sway_history: deque[float] = deque()  # per-second sway std while walking (time order)
+        self._sway_sorted: list[float] = []  # the same values, sorted (running median)
+        self._sway_t = -math.inf
         self._static_n = round(STATIC_WINDOW_S * rate_hz)
         self._static_ring: deque[float] = deque()
         self._static_sum = [0.0, 0.0]
@@ -409,7 +419,7 @@ class ActivityMonitor:
         return ActivityState(
             t=t,
             posture=posture,
-            locomotion=self._modality() if walking else "none",
+            locomotion=self._modality(t) if walking else "none",
             trunk_inclination=theta,
             step_count=self._emitted_steps,
             last_transition=last[1] if last else None,
@@ -417,8 +427,12 @@ class ActivityMonitor:
             calibrated=self.calibrated,
         )
 
-    def _modality(self) -> str:
+    def _modality(self, t: float) -> str:
         """Level vs stairs (variance of GA_v) and up vs down (mean forward lean) [T §7.2.6].
+
+        The variance threshold adapts to the wearer (our choice): once 30 s of walking have been
+        seen, stairs = a sway std above STAIRS_SWAY_RATIO × the median of the wearer's own walking
+        (one value per second, last 10 min); before that, the fixed STAIRS_GA_V_STD.
 
         READING: the thesis integrates GA_f over the bout and uses one threshold; the mean over the
         centred window is that integral divided by the window length. With x forward, a forward
@@ -429,8 +443,19 @@ class ActivityMonitor:
         if n == 0:
             return "level"
         s1, s2, lean_x, lean_z = self._stairs_sum
-        variance = max(0.0, s2 / n - (s1 / n) ** 2)
-        if variance <= STAIRS_GA_V_STD**2:
+        sway = math.sqrt(max(0.0, s2 / n - (s1 / n) ** 2))
+        history, ordered = self._sway_history, self._sway_sorted
+        if t - self._sway_t >= 1.0:
+            self._sway_t = t
+            history.append(sway)
+            bisect.insort(ordered, sway)
+            if len(history) > SWAY_HISTORY_N:
+                del ordered[bisect.bisect_left(ordered, history.popleft())]
+        if len(ordered) >= SWAY_MIN_N:
+            threshold = STAIRS_SWAY_RATIO * ordered[len(ordered) // 2]
+        else:
+            threshold = STAIRS_GA_V_STD
+        if sway <= threshold:
             return "level"
         c, s = self._forward_cos_sin
         lean = (c * lean_x + s * lean_z) / n
