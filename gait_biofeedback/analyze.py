@@ -139,6 +139,7 @@ class _ActivityRun:
             reference_s=float(settings["reference_s"]), thigh_length_m=float(settings["thigh_length"]),
             initial_posture=settings["initial_posture"], forward_axis=list(settings["forward_axis"]))
         self._next_periodic: float | None = None
+        self.warnings: list[str] = []  # what the node would log as warnings
 
     def update(self, raw: Stamped) -> list[Any]:
         t, acc = chest_sample(raw)
@@ -148,7 +149,9 @@ class _ActivityRun:
         elif t >= self._next_periodic and self.stream.latest is not None:
             self._next_periodic = t + self.period
             out.append(activity_msg(self.stream.latest, t, self.segment))
-        state, changed, _ = self.stream.update(t, acc)
+        state, changed, warning = self.stream.update(t, acc)
+        if warning:
+            self.warnings.append(f"{self.segment}: {warning}")
         if changed:
             out.append(activity_msg(state, t, self.segment))
         return out
@@ -322,6 +325,8 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
         if activity is not None and seg == activity.segment:
             for state in activity.update(raw):
                 emit("/activity/state", state, log_ns)
+            result.warnings.extend(activity.warnings)
+            activity.warnings.clear()
         tracker = trackers.get(seg)
         if tracker is None:
             continue

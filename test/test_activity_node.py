@@ -62,4 +62,4 @@ def test_chest_calibration_entry_sets_the_forward_axis():
     assert stream.options["forward_axis"] == pytest.approx(list(rotate(r, np.array([1.0, 0.0, 0.0]))))
     msg.segments[0].valid = False
     level, text = apply_calibration_msg(ActivityStream(100.0), msg, "chest")
-    assert level == "warn" and "no valid chest entry" in text
+    assert level == "info" and "no valid chest entry" in text

@@ -28,10 +28,10 @@ a sit→stand needs the posture sitting, a stand→sit standing; stand→sit and
 need strong evidence (|ΔY| ≥ 0.7 thigh and |∫SVM score| ≥ 0.4 m/s); a weaker sit→stand is reported
 only if a walking bout starts within 10 s (event keeps its instant, posture switches at confirmation);
 standing entered by a sit→stand without walking within 60 s reverts to sitting; walking overrides a
-seated/lying posture after 8 steps, and a θ excursion ending within 5 s before such a walk (whatever
-its ΔY) names the sit→stand; a lean held (leaky) in [25°, 70°) for 30 s without walking ⇒ sitting;
-lie-to-sit needs θ 10° below the lying threshold (hysteresis); while the sensor is handled (θ > 110°
-while moving) nothing is detected and the last posture is kept.
+seated/lying posture after 8 steps, and a θ excursion ending from 5 s before to 2 s after the first
+step of such a walk (whatever its ΔY) names the sit→stand; a lean held (leaky) in [25°, 70°) for
+30 s without walking ⇒ sitting; lie-to-sit needs θ 10° below the lying threshold (hysteresis); while
+the sensor is handled (θ > 110° while moving) nothing is detected and the last posture is kept.
 
 Numbers the thesis does not give (gait.md §3.7) are chosen here; each constant says where from.
 """
@@ -65,6 +65,7 @@ __all__ = [
     "ActivityMonitor",
     "ActivityState",
     "UnitMismatchWarning",
+    "check_forward_axis",
     "classify_activity",
 ]
 
@@ -101,8 +102,9 @@ LYING_STATIC_BEFORE_S = 10.0  # ... at most 10 s before a lie-to-sit crossing
 LYING_HYSTERESIS_RAD = math.radians(10.0)  # lie-to-sit confirmed below 60° (not tuned: a trunk resting
 # near 70° flickered lying/sitting every 1–2 s, UCI subject 8 at the end of its recording)
 STAIRS_WINDOW_S = 2 * DELAY_S  # level/stairs window, centred on the emitted sample
-STAIRS_GA_V_STD = 0.16  # m/s², std of g·GA_v/|GA| over 6 s → stairs. UCI dev subjects 1–7: best
-# plain level-vs-stairs accuracy of the thresholds 0.08–0.30 (0.12: 86 %, 0.16: 90 %, 0.20: 90 %)
+STAIRS_GA_V_STD = 0.16  # m/s², std of g·GA_v/|GA| over 6 s → stairs, until the adaptive threshold
+# below has 30 s of walking. Chosen first on UCI dev 1–7 (mean per-subject plain accuracy of 0.08–0.30:
+# 0.12 86 %, 0.16 90 %, 0.20 90 %; pooled windows: 94.4 %, balanced 74.8 %)
 STAIRS_SWAY_RATIO = 1.8  # adaptive: stairs = sway std > 1.8 × the wearer's median walking sway. UCI
 # dev 1–7 (benchmark windows), plain / balanced level-vs-stairs accuracy: fixed 0.16 m/s² 94.4/74.8 %,
 # ratio 1.5 83.6/83.3, 1.8 90.0/80.7, 2.0 91.5/78.9, 2.2 92.7/77.8: the best balanced accuracy whose
@@ -135,6 +137,14 @@ SIT_LEAN_RAD = math.radians(25.0)  # trunk lean held ≥ 25° (and < 70°) witho
 SIT_LEAN_HOLD_S = 30.0  # ... for 30 s ⇒ sitting (standing is upright). Dev: flags 0 % of standing
 # samples and 0–89 % of sitting ones (20° or 10 s flagged up to 35 % of one subject's standing)
 LEAN_RECOVERY = 4.0  # leaky hold: a second upright takes back 4 s (≥ 80 % of the time leaning)
+
+
+def check_forward_axis(axis: np.ndarray) -> np.ndarray:
+    """The axis as a float array; ValueError unless it is a finite non-zero 3-vector."""
+    vector = np.asarray(axis, dtype=float)
+    if vector.shape != (3,) or not np.all(np.isfinite(vector)) or not np.any(vector):
+        raise ValueError(f"forward axis must be a finite non-zero 3-vector, got {axis!r}")
+    return vector
 
 
 @dataclass(frozen=True)
@@ -196,7 +206,7 @@ class ActivityMonitor:
         self.rate_hz = float(rate_hz)
         self.units = units
         self.align = align
-        self.forward_axis = forward_axis
+        self.forward_axis = None if forward_axis is None else check_forward_axis(forward_axis)
         self.min_height_change = THIGH_FRACTION * thigh_length_m
         self.max_height_change = MAX_HEIGHT_FRACTION * thigh_length_m
         self.strong_height_change = STRONG_THIGH_FRACTION * thigh_length_m
@@ -223,6 +233,7 @@ class ActivityMonitor:
         self._sway_history: deque[float] = deque()  # per-second sway std while walking (time order)
         self._sway_sorted: list[float] = []  # the same values, sorted (running median)
         self._sway_t = -math.inf
+        self._flushing = False  # flush() emits from a frozen window: keep it out of the history
         self._static_n = round(STATIC_WINDOW_S * rate_hz)
         self._static_ring: deque[float] = deque()
         self._static_sum = [0.0, 0.0]
@@ -233,6 +244,7 @@ class ActivityMonitor:
         self._excursions: deque[tuple[float, float]] = deque(maxlen=8)  # (instant, t2) not accepted
         self._overridden_onset = math.nan  # first step of a bout that overrode sitting without event
         self._handled_until = -math.inf  # sensor handling: detection paused until then
+        self.handling_pauses = 0  # how often detection was paused for sensor handling
         self._stand_deadline = math.inf  # standing from a sit→stand must see walking before this
         self._lean_hold = 0.0  # s of trunk lean accumulated (leaky) without walking
         self._lean_t = -math.inf
@@ -297,19 +309,31 @@ class ActivityMonitor:
 
     def set_forward_axis(self, forward_axis: np.ndarray) -> None:
         """The trunk's forward direction in sensor axes (e.g. from the chest's sensor-to-segment
-        calibration), taken from now on.
+        calibration).
 
         It only decides upstairs vs downstairs (the sign of the forward lean): "up" stays the
-        reference period's, so θ, steps and transitions are unaffected and nothing restarts.
+        reference period's, so θ, steps and transitions are unaffected and nothing restarts. The
+        up/down label is formed when a state is emitted (DELAY_S after its sample, from the window
+        centred on it), so states from DELAY_S before this call on use the new axis. Before the
+        reference period ends the axis is only stored (``mounting_from_reference`` uses it as its
+        forward hint). Raises ValueError for a non-3-vector or an axis nearly vertical for the mounting.
         """
-        self.forward_axis = np.asarray(forward_axis, dtype=float)
+        forward = check_forward_axis(forward_axis)
         if self._rot is None:
-            return  # used by _calibrate when the reference period ends
-        body = np.array(self._rot).reshape(3, 3) @ self.forward_axis
-        heading = math.atan2(body[2], body[0])
+            self.forward_axis = forward
+            return
+        body = np.array(self._rot).reshape(3, 3) @ forward
         if math.hypot(body[0], body[2]) < 0.3 * float(np.linalg.norm(body)):
-            raise ValueError(f"forward axis {list(self.forward_axis)} is nearly vertical for this mounting")
+            raise ValueError(f"forward axis {forward.tolist()} is nearly vertical for this mounting")
+        heading = math.atan2(body[2], body[0])
+        self.forward_axis = forward
         self._forward_cos_sin = (math.cos(heading), math.sin(heading))
+
+    def keep_wearer_history(self, previous: ActivityMonitor) -> None:
+        """Carry the wearer's walking-sway history over from the monitor this one replaces (a
+        restart after a gap), so the adaptive stairs threshold does not start again."""
+        self._sway_history = deque(previous._sway_history)
+        self._sway_sorted = list(previous._sway_sorted)
 
     # ---------------------------------------------------------------- per sample
     def update(self, t: float, acc) -> ActivityState | None:
@@ -350,6 +374,7 @@ class ActivityMonitor:
         self._update_stairs_window(gv * inv_norm, gf * inv_norm, gl * inv_norm)
         svm = self._step_filter.step(magnitude - STANDARD_GRAVITY)
         if theta > HANDLING_THETA_RAD and not self._is_static():
+            self.handling_pauses += t >= self._handled_until
             self._handled_until = t + HANDLING_SETTLE_S
         if t < self._handled_until:
             self._hold_during_handling(t, theta)
@@ -375,12 +400,13 @@ class ActivityMonitor:
         Our addition (gait.md §3 has no such state): a worn chest sensor does not turn beyond
         θ = 110° while moving (lying still head-down is allowed); UCI subjects 2, 4, 6, 8, 10, 11,
         13, 14 do so in their first 45 s (strap being fastened), which produced false sit→stand,
-        walking and lying. Detection restarts 5 s after the last such sample, from scratch. (A
-        criterion on |a| > 3.5 g was tried and dropped: the simulator's walking reaches it.)
+        walking and lying. Detection restarts 5 s after the last such sample with the walking,
+        excursion, lying and lean detectors cleared; the posture and the 60 s walking deadline of
+        a sit→stand are kept. (A criterion on |a| > 3.5 g was tried and dropped: the simulator's
+        walking reaches it.)
         """
         if self.walking:
-            self.walking = False
-            self._relabel(self._last_peak_t, walking=False)
+            self._end_walking()
         self._run = []
         self._in_peak = False
         self._candidate = None
@@ -388,6 +414,7 @@ class ActivityMonitor:
         self._pending_sit_stand = None
         self._lying_crossing_t = self._sitting_up_t = None
         self._lean_hold = 0.0
+        self._overridden_onset = math.nan
         self._reset_excursion(t, theta)
         # on resume, a θ beyond 70° is a fresh crossing into lying (or out of it)
         self._theta_prev = LYING_THRESHOLD_RAD + 0.01 if self.posture == "lying" else 0.0
@@ -395,8 +422,10 @@ class ActivityMonitor:
     def flush(self) -> list[ActivityState]:
         """States of the samples still in the delay line (end of a recording)."""
         out = []
+        self._flushing = True
         while self._pending:
             out.append(self._make_state(self._pending.popleft()))
+        self._flushing = False
         return out
 
     # ---------------------------------------------------------------- output
@@ -445,7 +474,7 @@ class ActivityMonitor:
         s1, s2, lean_x, lean_z = self._stairs_sum
         sway = math.sqrt(max(0.0, s2 / n - (s1 / n) ** 2))
         history, ordered = self._sway_history, self._sway_sorted
-        if t - self._sway_t >= 1.0:
+        if t - self._sway_t >= 1.0 and not self._flushing:
             self._sway_t = t
             history.append(sway)
             bisect.insort(ordered, sway)
@@ -511,11 +540,13 @@ class ActivityMonitor:
             sums[3] -= old_z
 
     # ---------------------------------------------------------------- detectors
-    def _add_transition(self, t: float, kind: str, posture: str) -> None:
+    def _add_transition(self, t: float, kind: str, posture: str, *, walked: bool = False) -> None:
+        """Record an event; a sit→stand not yet followed by walking must see walking within 60 s."""
         self.transitions.append((t, kind))
         self.posture = posture
         self._relabel(t, posture=posture)
-        self._stand_deadline = t + STAND_CONFIRM_S if kind == "sit_to_stand" else math.inf
+        unconfirmed = kind == "sit_to_stand" and not walked
+        self._stand_deadline = t + STAND_CONFIRM_S if unconfirmed else math.inf
 
     def _update_lying(self, t: float, theta: float) -> None:
         """Sit-to-lie / lie-to-sit: θ crossing 70°, direction from dθ/dt, static check [T §7.2.4].
@@ -546,7 +577,9 @@ class ActivityMonitor:
         elif prev_lying and t - self._static_lying_t <= LYING_STATIC_BEFORE_S:
             self._sitting_up_t = t
         if self._sitting_up_t is not None and theta < LYING_THRESHOLD_RAD - LYING_HYSTERESIS_RAD:
-            self._add_transition(self._sitting_up_t - self._ga_delay, "lie_to_sit", "sitting")
+            # a trunk that rested between 60° and 70° for long sat up later than its 70° crossing
+            crossing = self._sitting_up_t if t - self._sitting_up_t <= LYING_STATIC_BEFORE_S else t
+            self._add_transition(crossing - self._ga_delay, "lie_to_sit", "sitting")
             self._sitting_up_t = None
             self._reset_excursion(t, theta)
 
@@ -622,8 +655,8 @@ class ActivityMonitor:
             if onset - WALK_ONSET_GAP_S <= t2 <= onset + ONSET_OVERLAP_S:
                 self._excursions.clear()
                 self._overridden_onset = math.nan
-                self._add_transition(instant, "sit_to_stand", "standing")
-                self._stand_deadline = math.inf
+                self._add_transition(instant, "sit_to_stand", "standing", walked=True)
+                self._relabel(min(instant, onset - 0.5 * MIN_STEP_S), posture="standing")
                 return True
         return False
 
@@ -676,12 +709,16 @@ class ActivityMonitor:
         else:
             self._lean_hold = max(0.0, self._lean_hold - LEAN_RECOVERY * dt)
 
+    def _end_walking(self) -> None:
+        self.walking = False
+        self._relabel(self._last_peak_t + 0.5 * MIN_STEP_S, walking=False)
+        self._run = []
+        self._overridden_onset = math.nan
+
     def _update_steps(self, t: float, svm: float, theta: float) -> None:
         """SVM peaks → steps and walking bouts [T §7.2.6, Table 16(b) "low threshold + rejection"]."""
         if self.walking and t - self._last_peak_t > MAX_STEP_S:
-            self.walking = False
-            self._relabel(self._last_peak_t + 0.5 * MIN_STEP_S, walking=False)
-            self._run = []
+            self._end_walking()
         if not self._in_peak:
             if svm > STEP_PEAK_THRESHOLD:
                 self._in_peak = True
@@ -711,8 +748,7 @@ class ActivityMonitor:
             self._stand_deadline = math.inf
             pending = self._pending_sit_stand
             if pending is not None and self.posture == "sitting" and self._run[0] <= pending[1]:
-                self._add_transition(pending[0], "sit_to_stand", "standing")  # confirmed by walking
-                self._stand_deadline = math.inf
+                self._add_transition(pending[0], "sit_to_stand", "standing", walked=True)
             self._pending_sit_stand = None
             self._relabel(self._run[0] - 0.5 * MIN_STEP_S, walking=True)
         if self.walking and self.posture != "standing" and len(self._run) >= SIT_WALK_MIN_STEPS:

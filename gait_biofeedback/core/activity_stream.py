@@ -4,9 +4,11 @@ Shared by the ``activity_monitor`` node and the offline ``analyze`` path, so bot
 states. NaN/inf samples and repeated stamps are skipped and counted; a stamp going backwards or a gap
 longer than ``max_gap`` s restarts the monitor (its upright reference is taken again from the next
 ``reference_s`` s); a state is "changed" when posture, locomotion or the last transition differ from
-the last changed one. A trunk forward axis (from the chest's sensor-to-segment calibration) takes
-effect at the first sample at or after its "in force" stamp, or at once if that has passed, as the
-calibration does for the other consumers.
+the last changed one. A trunk forward axis (from the chest's sensor-to-segment calibration) is handed
+to the monitor at the first sample at or after its "in force" stamp, or at once if that has passed,
+as the calibration is for the other consumers (the monitor applies it to the states it emits from
+then on, see ``ActivityMonitor.set_forward_axis``). A restart keeps the forward axis and the wearer's
+walking-sway history.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ import math
 from collections.abc import Sequence
 from typing import Any
 
-from gait_biofeedback.core.activity import ActivityMonitor, ActivityState
+from gait_biofeedback.core.activity import ActivityMonitor, ActivityState, check_forward_axis
 
 
 class ActivityStream:
@@ -37,10 +39,8 @@ class ActivityStream:
 
         Raises ValueError when it is not a usable direction (zero, NaN, or vertical for the mounting).
         """
-        forward = [float(v) for v in forward_axis]
-        if len(forward) != 3 or not all(math.isfinite(v) for v in forward) or not any(forward):
-            raise ValueError(f"forward axis must be a non-zero 3-vector, got {forward_axis!r}")
-        if self._t_last is not None and from_t > self._t_last:
+        forward = check_forward_axis(forward_axis).tolist()
+        if from_t > 0.0 and (self._t_last is None or from_t > self._t_last):
             self._waiting_forward.append((float(from_t), forward))
             self._waiting_forward.sort(key=lambda item: item[0])
             return
@@ -73,7 +73,8 @@ class ActivityStream:
                 self.counts["restarts"] += 1
                 warning = (f"time went back {-dt:.3f} s" if dt < 0.0 else f"{dt:.2f} s without data") \
                     + ": activity monitor restarted"
-                self.monitor = ActivityMonitor(self.rate_hz, **self.options)
+                previous, self.monitor = self.monitor, ActivityMonitor(self.rate_hz, **self.options)
+                self.monitor.keep_wearer_history(previous)
         self._t_last = t
         while self._waiting_forward and self._waiting_forward[0][0] <= t:
             problem = self._apply_forward(self._waiting_forward.pop(0)[1])

@@ -80,7 +80,7 @@ def apply_calibration_msg(stream: ActivityStream, msg: SegmentCalibrationArray,
     """
     entry = next((e for e in msg.segments if e.segment == segment), None)
     if entry is None or not entry.valid:
-        return "warn", f"calibration has no valid {segment} entry: the forward_axis parameter stays in use"
+        return "info", f"calibration has no valid {segment} entry: the current forward axis is kept"
     r = entry.rotation
     forward = rotate(np.array([r.w, r.x, r.y, r.z]), np.array([1.0, 0.0, 0.0]))
     try:
