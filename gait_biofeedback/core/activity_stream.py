@@ -18,6 +18,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from gait_biofeedback.core.activity import ActivityMonitor, ActivityState, check_forward_axis
+from gait_biofeedback.core.in_force import InForceQueue
 
 
 class ActivityStream:
@@ -32,7 +33,7 @@ class ActivityStream:
         self.latest: ActivityState | None = None
         self._t_last: float | None = None
         self._key: tuple | None = None
-        self._waiting_forward: list[tuple[float, list[float]]] = []
+        self._waiting_forward: InForceQueue[list[float]] = InForceQueue()
 
     def set_forward_axis(self, forward_axis: Sequence[float], from_t: float = 0.0) -> None:
         """Trunk forward in sensor axes, in force from stamp ``from_t`` s (see module docstring).
@@ -41,8 +42,7 @@ class ActivityStream:
         """
         forward = check_forward_axis(forward_axis).tolist()
         if from_t > 0.0 and (self._t_last is None or from_t > self._t_last):
-            self._waiting_forward.append((float(from_t), forward))
-            self._waiting_forward.sort(key=lambda item: item[0])
+            self._waiting_forward.put(float(from_t), forward)
             return
         problem = self._apply_forward(forward)
         if problem:
@@ -76,8 +76,8 @@ class ActivityStream:
                 previous, self.monitor = self.monitor, ActivityMonitor(self.rate_hz, **self.options)
                 self.monitor.keep_wearer_history(previous)
         self._t_last = t
-        while self._waiting_forward and self._waiting_forward[0][0] <= t:
-            problem = self._apply_forward(self._waiting_forward.pop(0)[1])
+        for forward in self._waiting_forward.due(t):
+            problem = self._apply_forward(forward)
             warning = "; ".join(text for text in (warning, problem) if text)
         state = self.monitor.update(t, acc)
         if state is None:

@@ -33,6 +33,7 @@ from gait_biofeedback.core.gait_events import (
     GaitEvent,
     GaitEventDetector,
 )
+from gait_biofeedback.core.in_force import InForceQueue
 
 FOOT_SIDES = ("left", "right")
 
@@ -71,7 +72,7 @@ class GaitEventStream:
                            "strides": 0, "implausible_strides": 0} for s in self.sides}
         self.notes: dict[str, str] = {s: "" for s in self.sides}
         self._last_t: dict[str, float | None] = {s: None for s in self.sides}
-        self._waiting: dict[str, list[tuple[float, np.ndarray]]] = {s: [] for s in self.sides}
+        self._waiting: dict[str, InForceQueue[np.ndarray]] = {s: InForceQueue() for s in self.sides}
         self._stamps: dict[tuple[str, float], Any] = {}
         self._messages: list[tuple[str, str]] = []
 
@@ -90,8 +91,7 @@ class GaitEventStream:
             return
         last = self._last_t[side]
         if from_t > 0 and (last is None or from_t > last):
-            self._waiting[side].append((float(from_t), np.asarray(rotation, dtype=float)))
-            self._waiting[side].sort(key=lambda item: item[0])
+            self._waiting[side].put(float(from_t), np.asarray(rotation, dtype=float))
             return
         self._apply(side, np.asarray(rotation, dtype=float))
 
@@ -124,9 +124,8 @@ class GaitEventStream:
         counts["samples"] += 1
         if not all(math.isfinite(v) for v in q) or tuple(q) == (0.0, 0.0, 0.0, 0.0):
             return []
-        waiting = self._waiting[side]
-        while waiting and t >= waiting[0][0]:
-            self._apply(side, waiting.pop(0)[1])
+        for rotation in self._waiting[side].due(t):
+            self._apply(side, rotation)
         if not self.calibrated[side]:
             if not self.use_standing_reference:
                 counts["uncalibrated"] += 1

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from gait_biofeedback.core import quaternion as quat
+from gait_biofeedback.core.in_force import InForceQueue
 from gait_biofeedback.core.segments import SIDES
 
 JOINTS: tuple[str, ...] = ("hip", "knee", "ankle")
@@ -279,7 +280,7 @@ class JointAngleStream:
         self.offset_window_s = float(offset_window_s)
         self.still_gyro = float(still_gyro)
         self.calculator: JointAngleCalculator | None = None
-        self._waiting: list[tuple[int, JointAngleCalculator]] = []
+        self._waiting: InForceQueue[JointAngleCalculator] = InForceQueue()
         self.pending: dict[int, dict[str, tuple[np.ndarray, float]]] = {}
         self.first_arrival: dict[int, float] = {}
         self.missing_counts: dict[str, int] = {s: 0 for s in self.segments}
@@ -294,11 +295,12 @@ class JointAngleStream:
         """A new calibration (segment → r, valid segments only), in force from stamp ``from_ns``."""
         calculator = self._new_calculator(rotations)
         if from_ns <= 0:
-            self.calculator, self._waiting = calculator, []
+            self.calculator = calculator
+            self._waiting.clear()
             self.pending.clear()
             self.first_arrival.clear()
             return
-        self._waiting = sorted([*self._waiting, (int(from_ns), calculator)], key=lambda item: item[0])
+        self._waiting.put(int(from_ns), calculator)
 
     @property
     def active(self) -> bool:
@@ -306,7 +308,7 @@ class JointAngleStream:
         return self.calculator is not None or bool(self._waiting)
 
     def _wanted(self) -> list[str]:
-        calculator = self.calculator or (self._waiting[0][1] if self._waiting else None)
+        calculator = self.calculator or self._waiting.first()
         return [] if calculator is None else [s for s in self.segments if s in calculator.rotations]
 
     def add(self, segment: str, ns: int, q: np.ndarray, gyro_norm: float,
@@ -341,8 +343,8 @@ class JointAngleStream:
 
     def _emit(self, ns: int, samples: dict[str, tuple[np.ndarray, float]],
               wanted: list[str]) -> SyncedAngles | None:
-        while self._waiting and ns >= self._waiting[0][0]:
-            self.calculator = self._waiting.pop(0)[1]
+        for calculator in self._waiting.due(ns):
+            self.calculator = calculator
         if self.calculator is None:
             return None
         for seg in wanted:
