@@ -30,8 +30,8 @@ from gait_biofeedback.core.activity_stream import ActivityStream
 from gait_biofeedback.core.quaternion import rotate
 from gait_biofeedback.core.segments import raw_topic
 from gait_biofeedback.io.cdr import LINEAR_ACCELERATION, Stamped, decode_imu
-from gait_biofeedback.nodes.calibration import CALIBRATION_TOPIC
 from gait_biofeedback.nodes.common import (
+    CALIBRATION_TOPIC,
     DIAGNOSTICS_TOPIC,
     LATCHED_QOS,
     RELIABLE_QOS,
@@ -41,6 +41,7 @@ from gait_biofeedback.nodes.common import (
     s_to_stamp,
     stamp_to_s,
 )
+from gait_biofeedback.nodes.joint_angles import calibration_rotations
 from gait_biofeedback_msgs.msg import ActivityState, SegmentCalibrationArray
 
 POSTURE_CODES = {"standing": ActivityState.POSTURE_STANDING, "sitting": ActivityState.POSTURE_SITTING,
@@ -78,11 +79,10 @@ def apply_calibration_msg(stream: ActivityStream, msg: SegmentCalibrationArray,
     The entry's rotation maps segment axes into sensor axes, so the segment's x (anterior) in
     sensor axes is rotate(r, x). It is in force from the message's stamp, like every calibration.
     """
-    entry = next((e for e in msg.segments if e.segment == segment), None)
-    if entry is None or not entry.valid:
+    rotations, _ = calibration_rotations(msg)
+    if segment not in rotations:
         return "info", f"calibration has no valid {segment} entry: the current forward axis is kept"
-    r = entry.rotation
-    forward = rotate(np.array([r.w, r.x, r.y, r.z]), np.array([1.0, 0.0, 0.0]))
+    forward = rotate(rotations[segment], np.array([1.0, 0.0, 0.0]))
     try:
         stream.set_forward_axis(forward, stamp_to_s(msg.header.stamp))
     except ValueError as exc:

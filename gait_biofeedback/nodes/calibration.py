@@ -34,11 +34,10 @@ from gait_biofeedback.core.calibration import SessionCalibration
 from gait_biofeedback.core.calibration_windows import CalibrationAttempt, CalibrationBuffer
 from gait_biofeedback.core.segments import SEGMENTS, WORLD_FRAME, orientation_topic, sensor_frame
 from gait_biofeedback.io.cdr import ANGULAR_VELOCITY, LINEAR_ACCELERATION, Stamped, decode_imu
-from gait_biofeedback.nodes.common import LATCHED_QOS, RELIABLE_QOS, s_to_stamp
+from gait_biofeedback.nodes.common import CALIBRATION_TOPIC, LATCHED_QOS, RELIABLE_QOS, s_to_stamp
 from gait_biofeedback_msgs.msg import SegmentCalibration, SegmentCalibrationArray
 from gait_biofeedback_msgs.srv import Calibrate
 
-CALIBRATION_TOPIC = "calibration/sensor_to_segment"
 CALIBRATE_SERVICE = "calibration/calibrate"
 CALIBRATION_FILE = "calibration.yaml"
 

@@ -54,6 +54,7 @@ LATCHED_QOS = QoSProfile(
 """State a late subscriber must still get: the calibration in force."""
 
 DIAGNOSTICS_TOPIC = "/diagnostics"
+CALIBRATION_TOPIC = "calibration/sensor_to_segment"  # latched SegmentCalibrationArray
 
 
 def stamp_to_ns(stamp: Time) -> int:

@@ -43,6 +43,7 @@ from gait_biofeedback.core.gait_stream import GaitEventStream, standing_referenc
 from gait_biofeedback.core.segments import orientation_topic
 from gait_biofeedback.io.cdr import Stamped, decode_imu
 from gait_biofeedback.nodes.common import (
+    CALIBRATION_TOPIC,
     DIAGNOSTICS_TOPIC,
     LATCHED_QOS,
     RELIABLE_QOS,
@@ -58,7 +59,6 @@ from gait_biofeedback_msgs.msg import SegmentCalibrationArray
 
 EVENTS_TOPIC = "gait/events"
 CYCLES_TOPIC = "gait/cycles"
-CALIBRATION_TOPIC = "calibration/sensor_to_segment"
 __all__ = ["GaitEventsNode", "apply_calibration_msg", "cycle_msg", "event_msg", "imu_to_foot_sample",
            "standing_reference", "stream_options"]
 _SIDE_CODE = {"left": GaitEventMsg.SIDE_LEFT, "right": GaitEventMsg.SIDE_RIGHT}

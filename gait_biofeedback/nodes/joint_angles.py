@@ -43,6 +43,7 @@ from gait_biofeedback.core.segments import WORLD_FRAME, orientation_topic
 from gait_biofeedback.core.skeleton import SegmentLengths, stick_figure
 from gait_biofeedback.io.cdr import ANGULAR_VELOCITY, Stamped, decode_imu
 from gait_biofeedback.nodes.common import (
+    CALIBRATION_TOPIC,
     DIAGNOSTICS_TOPIC,
     LATCHED_QOS,
     RELIABLE_QOS,
@@ -117,7 +118,7 @@ class JointAnglesNode(Node):
         for seg in JOINT_SEGMENTS:
             self.create_subscription(Imu, orientation_topic(seg), lambda m, s=seg: self._on_imu(s, m),
                                      RELIABLE_QOS, raw=True)
-        self.create_subscription(SegmentCalibrationArray, "calibration/sensor_to_segment",
+        self.create_subscription(SegmentCalibrationArray, CALIBRATION_TOPIC,
                                  self._on_calibration, LATCHED_QOS)
         self._joints = self.create_publisher(JointState, "joint_states", RELIABLE_QOS)
         self._skeleton = self.create_publisher(MarkerArray, "skeleton", RELIABLE_QOS)
