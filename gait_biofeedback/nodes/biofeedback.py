@@ -82,6 +82,16 @@ def _finite(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
 
 
+def _drain(queue: deque) -> list:
+    """Everything in a deque another thread appends to, oldest first (popleft is thread-safe)."""
+    out = []
+    while True:
+        try:
+            out.append(queue.popleft())
+        except IndexError:
+            return out
+
+
 def cue_to_json(c: Cue) -> dict[str, Any]:
     """A cue for the page (SI; NaN → null)."""
     return {"type": "cue", "quantity": c.quantity, "side": c.side, "unit": c.unit,
@@ -356,12 +366,7 @@ class BiofeedbackNode(Node):
     def build_frame(self) -> dict[str, Any] | None:
         """One websocket frame: new samples, latest angles and stick figure, queued messages, state."""
         frame: dict[str, Any] = {"type": "frame"}
-        samples = []
-        while True:
-            try:
-                samples.append(self._samples.popleft())
-            except IndexError:
-                break
+        samples = _drain(self._samples)
         if samples:
             frame["samples"] = [[round(v, 5) if not math.isnan(v) else None for v in row] for row in samples]
         latest = self._latest
@@ -371,12 +376,7 @@ class BiofeedbackNode(Node):
             frame["angles"] = {"t": t, "values": {k: float(v) for k, v in angles.items()}}
             frame["figure"] = [[seg, round(x0, 4), round(y0, 4), round(x1, 4), round(y1, 4)]
                                for seg, x0, y0, x1, y1 in sagittal_stick_figure(angles, self.lengths)]
-        messages = []
-        while True:
-            try:
-                messages.append(self._outbox.popleft())
-            except IndexError:
-                break
+        messages = _drain(self._outbox)
         if messages:
             frame["messages"] = messages
         if self._activity_version != self._sent_activity_version and self._activity is not None:
