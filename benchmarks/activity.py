@@ -1,4 +1,4 @@
-"""Chest activity monitor (gait_biofeedback.core.activity) against real and simulated data.
+"""Chest activity monitor (gait_biofeedback.core.activity.monitor) against real and simulated data.
 
 Run: ``.venv/bin/python benchmarks/activity.py`` (about 25 s). Prints tables for
 - UCI "Activity Recognition from a Single Chest-Mounted Accelerometer" (Casale, Pujol, Radeva 2011;
@@ -6,7 +6,7 @@ Run: ``.venv/bin/python benchmarks/activity.py`` (about 25 s). Prints tables for
   into development subjects 1–7 (all thresholds chosen there) and held-out 8–15, next to the goals;
 - UCI "Activity recognition with healthy older people using a batteryless wearable sensor" (Torres,
   Ranasinghe, Shi, Sample 2013; CC BY 4.0): lying / sitting / upright accuracy;
-- the project simulator (when ``simulate``/``SCENARIOS["activity"]`` exist): transition timing and
+- the project simulator ("activity" and "stairs" scenarios): transition timing and
   step-count error;
 - the per-sample cost of the streaming monitor.
 """
@@ -21,7 +21,17 @@ from pathlib import Path
 
 import numpy as np
 
-from gait_biofeedback.core.activity import ActivityMonitor, UnitMismatchWarning, classify_activity
+from gait_biofeedback.batch import (
+    QMT_FULLBODY_RATE_HZ,
+    SCENARIOS,
+    ActivityMonitor,
+    UnitMismatchWarning,
+    classify_activity,
+    import_qmt_fullbody,
+    quaternion,
+    seconds_to_ns,
+    simulate,
+)
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 UCI_RATE = 52.0
@@ -237,8 +247,6 @@ def qmt() -> None:
         return
     from scipy.signal import find_peaks
 
-    from gait_biofeedback.io.importers import QMT_FULLBODY_RATE_HZ, import_qmt_fullbody
-
     rec = import_qmt_fullbody(path)
     rate = QMT_FULLBODY_RATE_HZ
     out = classify_activity(rec.imu["chest"].acc, rate)
@@ -257,14 +265,6 @@ def qmt() -> None:
 
 
 def simulator() -> None:
-    try:
-        from gait_biofeedback.core.simulator import SCENARIOS, simulate
-    except ImportError as exc:
-        print(f"\n[note] simulator figures skipped: {exc}")
-        return
-    if "activity" not in SCENARIOS:
-        print("\n[note] simulator has no 'activity' scenario yet; figures skipped")
-        return
     session = simulate(SCENARIOS["activity"]())
     chest = session.imu["chest"]
     rate = session.config.rate_hz
@@ -287,7 +287,6 @@ def simulator() -> None:
     print(f"steps: {n_true} true, {n_est} detected, error {100.0 * (n_est - n_true) / max(n_true, 1):+.1f} %")
     posture_ok = np.mean(out["posture"] == truth.posture[: len(out["posture"])])
     print(f"posture per-sample agreement {posture_ok:.1%}")
-    from gait_biofeedback.core import quaternion
 
     stairs = simulate(SCENARIOS["stairs"]())
     forward = quaternion.rotate(stairs.truth.mounting["chest"], np.array([1.0, 0.0, 0.0]))
@@ -310,9 +309,10 @@ def cost() -> None:
     samples = acc.tolist()
     monitor = ActivityMonitor(rate)
     update = monitor.update
+    stamps = seconds_to_ns(np.arange(len(samples)) / rate).tolist()
     start = time.perf_counter()
     for k in range(n):
-        update(k / rate, samples[k])
+        update(stamps[k], samples[k])
     per_sample = (time.perf_counter() - start) / n
     print(f"\n== streaming cost: {per_sample * 1e6:.1f} µs per sample (100 Hz walking signal, {n} samples, "
           f"{len(monitor.steps)} steps) ==")

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from gait_biofeedback.core.segments import SEGMENTS, ImuSeries
-from gait_biofeedback.io.bag import BagReader, BagWriter, imu_series_to_messages, read_imu_bag, write_imu_bag
+from gait_biofeedback.batch import SEGMENTS, BagReader, BagWriter, ImuSeries, read_imu_bag, write_imu_bag
+from gait_biofeedback.wire.imu import series_messages
 
 
 def _rate(label: str, count: int, seconds: float) -> None:
@@ -56,7 +56,7 @@ def main() -> None:
             t0 = time.perf_counter()
             count = sum(1 for _ in reader.messages(topics=["/pelvis/imu/data_raw", "/pelvis/imu/mag"]))
             _rate("BagReader.messages (rclpy, 2 topics)", count, time.perf_counter() - t0)
-        messages = list(imu_series_to_messages(imu["pelvis"]))
+        messages = list(series_messages(imu["pelvis"]))
         t0 = time.perf_counter()
         with BagWriter(out / "bench_rclpy", overwrite=True) as writer:
             for topic, msg, t_ns in messages:

@@ -32,18 +32,19 @@ def main() -> int:
     import rclpy
     from rclpy.context import Context
     from rclpy.node import Node
-    from sensor_msgs.msg import Imu
 
-    from gait_biofeedback.core.simulator import Phase, SimulationConfig, simulate
-    from gait_biofeedback.io.session_bag import write_simulated_bag
     from gait_biofeedback.nodes.biofeedback import BiofeedbackNode
     from gait_biofeedback.nodes.calibration import CalibrationNode
-    from gait_biofeedback.nodes.common import LATCHED_QOS, SENSOR_QOS, make_executor, spin_until, stamp_to_ns
+    from gait_biofeedback.nodes.common import make_executor, spin_until
     from gait_biofeedback.nodes.gait_events import GaitEventsNode
     from gait_biofeedback.nodes.imu_replayer import ImuReplayer
     from gait_biofeedback.nodes.joint_angles import JointAnglesNode
     from gait_biofeedback.nodes.orientation_filter import OrientationFilterNode
-    from gait_biofeedback_msgs.msg import SegmentCalibration, SegmentCalibrationArray
+    from gait_biofeedback.sim.recording import write_simulated_bag
+    from gait_biofeedback.sim.simulator import Phase, SimulationConfig, simulate
+    from gait_biofeedback.wire import topics
+    from gait_biofeedback.wire.calibration import mounting_msg
+    from gait_biofeedback.wire.stamps import stamp_to_ns
 
     phases = [Phase("stand", 5.0), Phase("hip_flexion", 26.0, {"side": "both"}), Phase("stand", 5.0),
               Phase("walk", args.walk), Phase("stand", 2.0)]
@@ -57,10 +58,12 @@ def main() -> int:
     executor = make_executor(context)
     entered: dict[int, float] = {}
     probe = Node("latency_probe", context=context)
-    probe.create_subscription(Imu, "pelvis/imu/data_raw",
+    raw = topics.raw_imu("pelvis")
+    probe.create_subscription(raw.msg_type, raw.name,
                               lambda m: entered.setdefault(stamp_to_ns(m.header.stamp), time.monotonic()),
-                              SENSOR_QOS)
-    fallback = probe.create_publisher(SegmentCalibrationArray, "calibration/sensor_to_segment", LATCHED_QOS)
+                              raw.qos)
+    cal = topics.CALIBRATION
+    fallback = probe.create_publisher(cal.msg_type, cal.name, cal.qos)
     bio = BiofeedbackNode(context, port=0)
     nodes = [probe, bio, OrientationFilterNode(context), CalibrationNode(context, session_dir=str(work)),
              JointAnglesNode(context), GaitEventsNode(context)]
@@ -103,12 +106,7 @@ def main() -> int:
             refused = [r for r in replies if r.get("action") == "calibrate" and r.get("success") is False]
             if refused and not used_truth:  # the latency path is the same with the true mounting
                 used_truth = True
-                msg = SegmentCalibrationArray(protocol="hip_flexion")
-                for seg, (w, x, y, z) in session.truth.mounting.items():
-                    e = SegmentCalibration(segment=seg, sensor_frame=f"{seg}_imu", valid=True, quality=1.0)
-                    e.rotation.w, e.rotation.x, e.rotation.y, e.rotation.z = w, x, y, z
-                    msg.segments.append(e)
-                fallback.publish(msg)
+                fallback.publish(mounting_msg(session.truth.mounting, 0, "hip_flexion", "ground truth"))
             if not asked and entered and "ws" in ws_box:
                 data_t = (max(entered) - min(entered)) * 1e-9
                 if data_t >= calibrate_at:

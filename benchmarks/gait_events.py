@@ -23,11 +23,22 @@ from pathlib import Path
 
 import numpy as np
 
-from gait_biofeedback.core.event_matching import MATCH_TOLERANCE_S, match_events
-from gait_biofeedback.core.gait_cycles import GaitCycleTracker
-from gait_biofeedback.core.gait_events import INITIAL_CONTACT, TERMINAL_CONTACT, GaitEvent, detect_gait_events
-from gait_biofeedback.core.gait_events_comparator import sagittal_rate
-from gait_biofeedback.core.simulator import SCENARIOS, simulate
+from gait_biofeedback.batch import (
+    INITIAL_CONTACT,
+    MATCH_TOLERANCE_S,
+    SCENARIOS,
+    TERMINAL_CONTACT,
+    GaitEventDetector,
+    cycles_from_event_times,
+    detect_gait_events,
+    foot_calibration,
+    import_gaitmap,
+    import_qmt_fullbody,
+    match_events,
+    sagittal_rate,
+    seconds_to_ns,
+    simulate,
+)
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO.parent / "shared" / "data"
@@ -59,8 +70,6 @@ def score(results: list[tuple[str, np.ndarray, np.ndarray, list[tuple[float, flo
 
 
 def gaitmap_rows() -> list[tuple[str, str, dict]]:
-    from gait_biofeedback.io.importers import import_gaitmap
-
     folder = DATA / "gaitmap_example"
     if not folder.is_dir():
         print(f"(skipped gaitmap: {folder} not found)")
@@ -106,14 +115,7 @@ def simulator_rows() -> list[tuple[str, str, dict]]:
     return rows
 
 
-def _events_list(side: str, events: dict[str, list[float]], rate: float) -> list[GaitEvent]:
-    return [GaitEvent(side, kind, t, t + 1.0 / rate, 0.0, i) for kind in KINDS
-            for i, t in enumerate(events[kind])]
-
-
 def qmt_report() -> None:
-    from gait_biofeedback.io.importers import import_qmt_fullbody
-
     path = DATA / "qmt_fullbody" / "full_body_example_data.mat"
     if not path.is_file():
         print(f"(skipped qmt: {path} not found)")
@@ -125,14 +127,11 @@ def qmt_report() -> None:
           "strides")
     print(f"{'foot':6} {'IC':>4} {'TC':>4} {'strides':>8} {'flagged':>8} {'bout':>12} {'TC/stride':>10} "
           f"{'stride s':>12} {'cadence steps/min':>18} {'stance %':>9}")
-    all_events, traces = [], {}
+    traces = {}
     for side in ("left", "right"):
         series = rec.imu[f"{side}_foot"]
-        events = detect_gait_events(series.gyr, series.acc, rate)
-        all_events += _events_list(side, events, rate)
-        traces[side] = (series, events)
-    tracker = GaitCycleTracker()
-    cycles = [c for e in sorted(all_events, key=lambda e: e.detected_t) if (c := tracker.add(e)) is not None]
+        traces[side] = (series, detect_gait_events(series.gyr, series.acc, rate))
+    cycles = cycles_from_event_times({side: events for side, (_, events) in traces.items()}, rate)
     for side in ("left", "right"):
         events = traces[side][1]
         mine = [c for c in cycles if c.side == side]
@@ -163,8 +162,6 @@ def _longest_plausible_run(cycles: list) -> list:
 
 def _write_svg(traces: dict, path: Path, t0: float = 54.0, t1: float = 74.0) -> None:
     """Both feet's sagittal gyro (calibrated mediolateral axis) with IC (blue) / TC (red) marks."""
-    from gait_biofeedback.core.gait_events_calibration import foot_calibration
-
     width, height, lane = 1600, 440, 200
     parts = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}">',
              '<rect width="100%" height="100%" fill="white"/>']
@@ -196,17 +193,15 @@ def _write_svg(traces: dict, path: Path, t0: float = 54.0, t1: float = 74.0) -> 
 
 
 def _cost_us() -> float:
-    from gait_biofeedback.core.gait_events import GaitEventDetector
-
     config = SCENARIOS["walk"]()
     config.segments = ("left_foot",)
     session = simulate(config)
     q = session.truth.sensor_orientation["left_foot"].tolist()
-    t = session.truth.t.tolist()
+    stamps = seconds_to_ns(session.truth.t).tolist()
     detector = GaitEventDetector(rate_hz=100.0, mounting=session.truth.mounting["left_foot"])
     start = time.perf_counter()
     for k in range(len(q)):
-        detector.update(t[k], q[k])
+        detector.update(stamps[k], q[k])
     return (time.perf_counter() - start) / len(q) * 1e6
 
 

@@ -12,7 +12,7 @@ Two parts:
   (the demo's hip-flexion calibration at 36 s, computed once offline and reloaded by the
   calibration node from its session file), so joint angles, skeleton and gait events all run.
 
-A last table times the per-message conversions (rclpy objects vs :mod:`gait_biofeedback.io.cdr`).
+A last table times the per-message conversions (rclpy objects vs :mod:`gait_biofeedback.wire.cdr`).
 
     .venv/bin/python benchmarks/graph_load.py [--seconds 15] [--speed 1] [--part all|start|calibrated|codec]
 """
@@ -88,7 +88,7 @@ def time_codec(bag: Path, n: int = 2000) -> None:
     from rclpy.serialization import deserialize_message, serialize_message
     from sensor_msgs.msg import Imu
 
-    from gait_biofeedback.io import cdr
+    from gait_biofeedback.wire import cdr
 
     with BagReader(bag) as reader:
         data = next(d for t, _, d, _ in reader.raw_messages() if t.endswith("/imu/data_raw"))

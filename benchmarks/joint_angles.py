@@ -33,19 +33,26 @@ from pathlib import Path
 import numpy as np
 import scipy.io as sio
 
-from gait_biofeedback.core import quaternion as quat
-from gait_biofeedback.core.calibration import (
+from gait_biofeedback.batch import (
+    DEFAULT_ALGORITHM,
+    JOINT_NAMES,
+    ImuSeries,
+    Phase,
+    SimulationConfig,
+    align_headings,
     calibrate_session,
+    compute_joint_angles,
+    detect_gait_events,
+    estimate_orientation,
+    find_standing_then_motion,
     helical_angle,
+    import_qmt_fullbody,
     mean_orientation,
+    simulate,
+    track_orientation,
     vertical_calibration,
 )
-from gait_biofeedback.core.calibration_windows import find_standing_then_motion
-from gait_biofeedback.core.filters import DEFAULT_ALGORITHM, estimate_orientation
-from gait_biofeedback.core.joint_angles import JOINT_NAMES, align_headings, compute_joint_angles
-from gait_biofeedback.core.orientation_stream import track_orientation
-from gait_biofeedback.core.segments import ImuSeries
-from gait_biofeedback.core.simulator import Phase, SimulationConfig, simulate
+from gait_biofeedback.batch import quaternion as quat
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 LEGS = ("left_thigh", "left_shank", "left_foot", "right_thigh", "right_shank", "right_foot", "pelvis")
@@ -155,12 +162,15 @@ def _pelvis_vertical(acc: np.ndarray, beta: float) -> np.ndarray:
 
 
 def _per_stride(angle: np.ndarray, t: np.ndarray, ics: np.ndarray, lo: float, hi: float):
-    """(max, min, value at IC) of ``angle`` per stride IC→next IC inside [lo, hi] s."""
+    """(max, min, value at IC) of ``angle`` per stride IC→next IC inside [lo, hi] s. The IC times are
+    sample times: a stride starts at its IC sample (half a sample of slack, so that the float
+    rounding of equal times cannot move it to the next sample)."""
     rows = []
+    half = 0.5 * float(np.median(np.diff(t)))
     for a, b in itertools.pairwise(ics):
         if a < lo or b > hi or not 0.7 < b - a < 1.6:
             continue
-        sel = (t >= a) & (t < b)
+        sel = (t >= a - half) & (t < b - half)
         rows.append((angle[sel].max(), angle[sel].min(), angle[sel][0]))
     return np.degrees(np.array(rows))
 
@@ -170,9 +180,6 @@ def report_qmt() -> None:
     if not path.exists():
         print(f"\n[qmt_fullbody] skipped: {path} not found")
         return
-    from gait_biofeedback.core.gait_events import detect_gait_events
-    from gait_biofeedback.io.importers import import_qmt_fullbody
-
     rec = import_qmt_fullbody(path)
     segs = [s for s in LEGS if s in rec.imu]
     data = {s: rec.imu[s] for s in segs}

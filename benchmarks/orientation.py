@@ -27,9 +27,8 @@ import scipy.io
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from gait_biofeedback.core import quaternion as quat  # noqa: E402
-from gait_biofeedback.core.filters import ALGORITHMS, DEFAULT_ALGORITHM, estimate_orientation  # noqa: E402
-from gait_biofeedback.core.filters.config import load_tuned  # noqa: E402
+from gait_biofeedback.batch import ALGORITHMS, DEFAULT_ALGORITHM, estimate_orientation, load_tuned  # noqa: E402
+from gait_biofeedback.batch import quaternion as quat  # noqa: E402
 
 DATA = ROOT.parent / "shared" / "data" / "broad"
 STARTUP_S = 5.0

@@ -28,8 +28,7 @@ import yaml
 from orientation import DEV_TRIALS, ROOT, broad_errors, load_trials, run_ours
 from scipy.optimize import minimize
 
-from gait_biofeedback.core.filters import ALGORITHMS
-from gait_biofeedback.core.filters.config import TUNED_PATH
+from gait_biofeedback.batch import ALGORITHMS, TUNED_PATH
 
 SEARCH = {
     "inertial_cf": ["tau_acc", "tau_mag", "tau_rest", "rest_gyr", "rest_acc", "mag_norm_th", "mag_dip_th",

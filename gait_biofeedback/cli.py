@@ -36,8 +36,8 @@ def _progress(total: int, desc: str):
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
-    from gait_biofeedback.core.simulator import SCENARIOS, simulate
-    from gait_biofeedback.io.session_bag import write_simulated_bag
+    from gait_biofeedback.sim.recording import write_simulated_bag
+    from gait_biofeedback.sim.simulator import SCENARIOS, simulate
 
     if args.scenario not in SCENARIOS:
         print(f"unknown scenario {args.scenario!r}; choose one of {sorted(SCENARIOS)}", file=sys.stderr)
@@ -75,13 +75,9 @@ def cmd_import(args: argparse.Namespace) -> int:
 
 
 def _session_parameters(path: str | None) -> dict[str, dict]:
-    from gait_biofeedback.graph import load_session_parameters
+    from gait_biofeedback.parameters import load_params_file
 
-    if path is None:
-        return {}
-    if not Path(path).is_file():
-        raise FileNotFoundError(f"parameter file {path} not found (see config/session.yaml)")
-    return load_session_parameters(path)
+    return {} if path is None else load_params_file(path)
 
 
 def _node_list(text: str | None) -> list[str] | None:
@@ -111,14 +107,16 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
 def cmd_analyze(args: argparse.Namespace) -> int:
     from gait_biofeedback.analyze import analyze_recording, parse_calibrate_at
-    from gait_biofeedback.report import format_report, session_report
+    from gait_biofeedback.report.session import format_report, session_report
 
     requests = [parse_calibrate_at(text) for text in args.calibrate_at or []]
     result = analyze_recording(args.bag, args.output, calibrate_at=requests,
                                calibration_file=args.calibration, params=_session_parameters(args.params),
                                overwrite=args.overwrite)
     for attempt in result.calibrations:
-        print(f"calibrate ({attempt.protocol}, data up to {attempt.until - result.start_time:.2f} s): "
+        until = ("" if attempt.until_ns is None
+                 else f", data up to {(attempt.until_ns - result.start_ns) / 1e9:.2f} s")
+        print(f"calibrate ({attempt.protocol}{until}): "
               + ("" if attempt.success else "REFUSED: ") + attempt.message)
     if not requests and args.calibration is None:
         print("no calibration given (--calibrate-at or --calibration): orientations and activity only")

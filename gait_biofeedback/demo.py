@@ -16,7 +16,7 @@ from pathlib import Path
 
 from gait_biofeedback.graph import processing_nodes, replay_through_graph
 from gait_biofeedback.io.bag import BagReader
-from gait_biofeedback.report import format_report, session_report
+from gait_biofeedback.report.session import format_report, session_report
 
 DEMO_SCENARIO = "demo"
 DEMO_SEED = 0
@@ -26,8 +26,8 @@ def ensure_demo_bag(bag: Path) -> tuple[Path, bool]:
     """Make the demo recording if it is missing; returns (path, made_now)."""
     if bag.exists():
         return bag, False
-    from gait_biofeedback.core.simulator import SCENARIOS, simulate
-    from gait_biofeedback.io.session_bag import write_simulated_bag
+    from gait_biofeedback.sim.recording import write_simulated_bag
+    from gait_biofeedback.sim.simulator import SCENARIOS, simulate
 
     config = SCENARIOS[DEMO_SCENARIO]()
     config.seed = DEMO_SEED
@@ -38,7 +38,7 @@ def ensure_demo_bag(bag: Path) -> tuple[Path, bool]:
 def calibration_time() -> float:
     """Seconds into the demo session at which the clinician presses Calibrate: 1 s after the hip
     flexion/extension moves end (the calibration looks back for quiet standing + moves)."""
-    from gait_biofeedback.core.simulator import SCENARIOS
+    from gait_biofeedback.sim.simulator import SCENARIOS
 
     t = 0.0
     for phase in SCENARIOS[DEMO_SCENARIO]().phases:

@@ -21,6 +21,7 @@ from rclpy.node import Node
 from gait_biofeedback.nodes.common import make_executor, spin_until
 from gait_biofeedback.nodes.imu_replayer import ImuReplayer
 from gait_biofeedback.nodes.recorder import Recorder
+from gait_biofeedback.parameters import stage_parameters
 
 NodeFactory = Callable[[Context], Node]
 Action = tuple[float, Callable[[dict[str, Node]], object]]
@@ -67,21 +68,6 @@ def _wait_until_recorded(recorder: Recorder, nodes: Sequence[Node], timeout: flo
     raise TimeoutError(f"the recorder did not discover {missing} within {timeout} s")
 
 
-def load_session_parameters(path: str | Path) -> dict[str, dict]:
-    """Node parameters from a ROS 2 parameter file (``config/session.yaml``): node name → params.
-    Keys may carry a namespace or ``/**/`` prefix; the node name is the last path component."""
-    import yaml
-
-    document = yaml.safe_load(Path(path).read_text()) or {}
-    params: dict[str, dict] = {}
-    for key, entry in document.items():
-        values = (entry or {}).get("ros__parameters")
-        if values is None:
-            raise ValueError(f"{path}: entry {key!r} has no 'ros__parameters'")
-        params.setdefault(str(key).rstrip("/").split("/")[-1], {}).update(values)
-    return params
-
-
 @dataclass
 class ReplayResult:
     """What one in-process replay did."""
@@ -126,6 +112,8 @@ def running_graph(
     if unknown:
         raise ValueError(f"unknown node(s) {unknown}; this build has {sorted(factories)}")
     params = node_parameters or {}
+    for name, values in params.items():  # refused before anything starts
+        stage_parameters(name, values)
     context = Context()
     rclpy.init(args=args or [], context=context)
     graph = RunningGraph(context, make_executor(context), {}, None)

@@ -13,12 +13,13 @@ import warnings
 import numpy as np
 import pytest
 
-from gait_biofeedback.core.activity import (
+from gait_biofeedback.core.activity.monitor import (
     DELAY_S,
     ActivityMonitor,
     UnitMismatchWarning,
     classify_activity,
 )
+from gait_biofeedback.core.stamps import s_to_ns, sample_stamps, seconds_to_ns
 
 G = 9.80665
 # sensor ← body rotation of an awkward mounting (sensor axes are a permutation + tilt of body axes)
@@ -228,11 +229,11 @@ def test_streaming_equals_batch_and_delay_is_bounded() -> None:
     batch = classify_activity(acc, RATE, forward_axis=FORWARD_IN_SENSOR)
     monitor = ActivityMonitor(RATE, forward_axis=FORWARD_IN_SENSOR)
     states = []
+    stamps = sample_stamps(len(acc), RATE)
     for k, sample in enumerate(acc):
-        t = k / RATE
-        state = monitor.update(t, sample)
+        state = monitor.update(int(stamps[k]), sample)
         if state is not None:
-            assert state.t == pytest.approx(t - DELAY_S, abs=1e-9)
+            assert state.stamp_ns == stamps[k - round(DELAY_S * RATE)]
             states.append(state)
     states += monitor.flush()
     assert [s.posture for s in states] == batch["posture"].tolist()
@@ -244,7 +245,7 @@ def test_streaming_equals_batch_and_delay_is_bounded() -> None:
     t_sit = batch["transitions"][0][0]
     after = next(s for s in states if s.t >= t_sit + 0.1)
     assert after.last_transition == "stand_to_sit"
-    assert after.last_transition_t == pytest.approx(t_sit)
+    assert after.last_transition_ns == s_to_ns(t_sit)
 
 
 def test_reference_period_reorients_mounting() -> None:
@@ -366,8 +367,9 @@ def test_sensor_handling_before_wearing_detects_nothing() -> None:
         tpl.hold(0.4, 0.0).walk(4, step_s=0.5, amplitude=5.0)  # upright, swinging
     tpl.hold(30.0, 5.0)
     monitor = ActivityMonitor(RATE, forward_axis=FORWARD_IN_SENSOR, initial_posture="sitting")
-    for k, sample in enumerate(tpl.acc()):
-        monitor.update(k / RATE, sample)
+    acc = tpl.acc()
+    for stamp_ns, sample in zip(sample_stamps(len(acc), RATE).tolist(), acc, strict=True):
+        monitor.update(stamp_ns, sample)
     assert monitor.handling_pauses >= 1
     out = _run(tpl, initial_posture="sitting")
     assert out["transitions"] == []
@@ -388,7 +390,7 @@ def test_long_lean_with_brief_upright_moments_means_sitting() -> None:
 
 def test_forward_axis_decides_upstairs_on_simulated_stairs() -> None:
     from gait_biofeedback.core import quaternion
-    from gait_biofeedback.core.simulator import SCENARIOS, simulate
+    from gait_biofeedback.sim.simulator import SCENARIOS, simulate
 
     session = simulate(SCENARIOS["stairs"]())
     chest = session.imu["chest"]
@@ -404,23 +406,25 @@ def test_forward_axis_decides_upstairs_on_simulated_stairs() -> None:
 
 def test_stream_takes_the_forward_axis_from_its_stamp() -> None:
     from gait_biofeedback.core import quaternion
-    from gait_biofeedback.core.activity_stream import ActivityStream
-    from gait_biofeedback.core.simulator import SCENARIOS, simulate
+    from gait_biofeedback.core.activity.stream import ActivityParams, ActivityStream
+    from gait_biofeedback.sim.simulator import SCENARIOS, simulate
 
     session = simulate(SCENARIOS["stairs"]())
     chest, rate = session.imu["chest"], session.config.rate_hz
     forward = quaternion.rotate(session.truth.mounting["chest"], np.array([1.0, 0.0, 0.0]))
-    stream = ActivityStream(rate)
+    stream = ActivityStream(ActivityParams(rate_hz=rate))
     with pytest.raises(ValueError, match="non-zero 3-vector"):
         stream.set_forward_axis([0.0, 0.0, 0.0])
     states, t0 = [], float(chest.t[0])
     in_force = t0 + 13.0  # in the middle of the flight up (9–17 s)
-    for k, (t, acc) in enumerate(zip(chest.t.tolist(), chest.acc.tolist(), strict=True)):
+    stamps = seconds_to_ns(chest.t).tolist()
+    for k, (stamp_ns, acc) in enumerate(zip(stamps, chest.acc.tolist(), strict=True)):
         if k == 1:
-            stream.set_forward_axis(forward, from_t=in_force)  # arrives early: waits for its stamp
-        state, _, warning = stream.update(t, acc)
-        assert warning == ""
-        assert ("forward_axis" in stream.options) == (t >= in_force)
+            stream.set_forward_axis(forward, from_ns=s_to_ns(in_force))  # arrives early: waits for its stamp
+        state, _ = stream.update(stamp_ns, acc)
+        assert stream.notices.pop() == []
+        in_force_now = stream.options["forward_axis"] == pytest.approx(list(forward))
+        assert in_force_now == (stamp_ns >= s_to_ns(in_force))
         if state is not None:
             states.append(state)
     labels = np.array([s.locomotion for s in states])

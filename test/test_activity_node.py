@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import pytest
 
-from gait_biofeedback.core.activity import classify_activity
-from gait_biofeedback.core.simulator import SCENARIOS, simulate
+from gait_biofeedback.core.activity.monitor import classify_activity
 from gait_biofeedback.graph import replay_through_graph
 from gait_biofeedback.io.bag import BagReader
-from gait_biofeedback.io.session_bag import write_simulated_bag
-from gait_biofeedback.nodes.activity_monitor import POSTURE_CODES, TRANSITION_CODES
-from gait_biofeedback.nodes.common import stamp_to_ns
+from gait_biofeedback.sim.recording import write_simulated_bag
+from gait_biofeedback.sim.simulator import SCENARIOS, simulate
+from gait_biofeedback.wire.activity import POSTURE_CODES, TRANSITION_CODES
+from gait_biofeedback.wire.stamps import stamp_to_ns
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(120)]
 
@@ -47,19 +47,22 @@ def test_chest_calibration_entry_sets_the_forward_axis():
     from builtin_interfaces.msg import Time
     from geometry_msgs.msg import Quaternion
 
-    from gait_biofeedback.core.activity_stream import ActivityStream
+    from gait_biofeedback.core.activity.stream import ActivityStream
     from gait_biofeedback.core.quaternion import from_axis_angle, rotate
-    from gait_biofeedback.nodes.activity_monitor import apply_calibration_msg
+    from gait_biofeedback.wire.calibration import entries
     from gait_biofeedback_msgs.msg import SegmentCalibration, SegmentCalibrationArray
 
     r = from_axis_angle(np.array([0.2, 1.0, 0.1]), 2.0)  # segment → sensor, an arbitrary mounting
     msg = SegmentCalibrationArray(protocol="walking", segments=[
         SegmentCalibration(segment="chest", valid=True, rotation=Quaternion(w=r[0], x=r[1], y=r[2], z=r[3]))])
     msg.header.stamp = Time(sec=0)
-    stream = ActivityStream(100.0)
-    level, text = apply_calibration_msg(stream, msg, "chest")
-    assert level == "info" and "forward axis" in text
+    stream = ActivityStream()
+    stream.apply_calibration(*entries(msg))
+    (notice,) = stream.notices.pop()
+    assert notice.level == "info" and "forward axis" in notice.text
     assert stream.options["forward_axis"] == pytest.approx(list(rotate(r, np.array([1.0, 0.0, 0.0]))))
     msg.segments[0].valid = False
-    level, text = apply_calibration_msg(ActivityStream(100.0), msg, "chest")
-    assert level == "info" and "no valid chest entry" in text
+    stream = ActivityStream()
+    stream.apply_calibration(*entries(msg))
+    (notice,) = stream.notices.pop()
+    assert notice.level == "info" and "no valid chest entry" in notice.text

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from gait_biofeedback.core.segments import SEGMENTS
-from gait_biofeedback.core.simulator import Phase, SimulationConfig, simulate
 from gait_biofeedback.io.bag import BagReader
-from gait_biofeedback.io.session_bag import write_simulated_bag
+from gait_biofeedback.sim.recording import write_simulated_bag
+from gait_biofeedback.sim.simulator import Phase, SimulationConfig, simulate
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(180)]
 SESSION_PARAMS = Path(__file__).resolve().parents[1] / "config" / "session.yaml"
@@ -106,7 +106,7 @@ def test_analyze_gives_the_numbers_of_the_live_graph(session_bag, tmp_path):
     import time
 
     from gait_biofeedback.analyze import analyze_recording
-    from gait_biofeedback.report import session_report
+    from gait_biofeedback.report.session import session_report
 
     bag, _ = session_bag
     start_ns = BagReader(bag).start_time_ns
@@ -122,8 +122,8 @@ def test_analyze_gives_the_numbers_of_the_live_graph(session_bag, tmp_path):
 
     (attempt,) = result.calibrations
     assert attempt.success, attempt.message
-    assert attempt.until == pytest.approx(CALIBRATE_AT)
-    assert attempt.applies_from == pytest.approx(CALIBRATE_AT + 2.0)
+    assert attempt.until_ns == start_ns + round(CALIBRATE_AT * 1e9)
+    assert attempt.applies_from_ns == attempt.until_ns + 2_000_000_000
     live_joints, live_events, live_cycles, live_cal = _outputs(tmp_path / "live")
     off_joints, off_events, off_cycles, off_cal = _outputs(tmp_path / "offline")
 
@@ -193,8 +193,11 @@ def test_cli_analyze_with_a_calibration_file(tmp_path, capsys):
     import yaml
 
     from gait_biofeedback.cli import main
-    from gait_biofeedback.core.calibration import SegmentCalibrationResult, SessionCalibration
-    from gait_biofeedback.core.simulator import SCENARIOS
+    from gait_biofeedback.core.calibration.sensor_to_segment import (
+        SegmentCalibrationResult,
+        SessionCalibration,
+    )
+    from gait_biofeedback.sim.simulator import SCENARIOS
 
     config = SCENARIOS["walk"](duration=6.0, seed=5)
     session = simulate(config)

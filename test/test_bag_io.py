@@ -18,14 +18,14 @@ from gait_biofeedback.io.bag import (
     BagReader,
     BagRecoveryWarning,
     BagWriter,
-    imu_series_to_messages,
     read_imu_bag,
     repair,
     write_imu_bag,
 )
-from gait_biofeedback.io.imu_messages import IMU_DOUBLES, decode_stamped, encode_imu
 from gait_biofeedback.io.mcap_file import McapFile
 from gait_biofeedback.io.schemas import SEPARATOR, msg_text, schema_text
+from gait_biofeedback.wire.cdr import IMU_DOUBLES, decode_stamped
+from gait_biofeedback.wire.imu import encode_series, series_messages
 from gait_biofeedback_msgs.msg import GaitEvent, SegmentCalibration, SegmentCalibrationArray
 
 MSG_PACKAGE = "gait_biofeedback_msgs"
@@ -94,8 +94,8 @@ def test_imu_series_round_trip_is_exact(tmp_path: Path, with_mag: bool) -> None:
 
 def test_fast_cdr_matches_rclpy_messages() -> None:
     series = synthetic_imu(with_mag=True, n=5)["left_foot"]
-    _, imu_payloads, mag_payloads = encode_imu(series)
-    messages = list(imu_series_to_messages(series))
+    _, imu_payloads, mag_payloads = encode_series(series)
+    messages = list(series_messages(series))
     imu_msgs = [m for topic, m, _ in messages if topic == "/left_foot/imu/data_raw"]
     mag_msgs = [m for topic, m, _ in messages if topic == "/left_foot/imu/mag"]
     assert [deserialize_message(p, Imu) for p in imu_payloads] == imu_msgs

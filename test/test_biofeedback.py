@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from gait_biofeedback.core import normative_gait
-from gait_biofeedback.core.biofeedback import (
+from gait_biofeedback.core.biofeedback import normative as normative_gait
+from gait_biofeedback.core.biofeedback.evaluator import (
     SEVERITY_IN_BAND,
     SEVERITY_MILD,
     SEVERITY_SEVERE,
@@ -23,6 +23,8 @@ from gait_biofeedback.core.biofeedback import (
     select_audio_cue,
     targets_from_dict,
 )
+from gait_biofeedback.core.body import BodyDimensions
+from gait_biofeedback.core.stamps import s_to_ns
 
 DEG = math.pi / 180
 
@@ -87,9 +89,9 @@ def _hand_made_stride(evaluator: BiofeedbackEvaluator, side: str, knee_peak_deg:
     for k in range(len(t)):
         if gap is not None and gap[0] <= t[k] < gap[1]:
             continue
-        evaluator.add_angles(side, float(t[k]), float(hip[k]), float(knee[k]), float(ankle[k]))
-    return Stride(side, 7, t0, t0 + 0.6 * stride_time, t0 + stride_time, stance_fraction=0.6,
-                  cadence=2 / stride_time, step_time_symmetry=0.3)
+        evaluator.add_angles(side, s_to_ns(float(t[k])), float(hip[k]), float(knee[k]), float(ankle[k]))
+    return Stride(side, 7, s_to_ns(t0), s_to_ns(t0 + 0.6 * stride_time), s_to_ns(t0 + stride_time),
+                  stance_fraction=0.6, cadence=2 / stride_time, step_time_symmetry=0.3)
 
 
 def test_hand_made_stride_gives_the_expected_cues():
@@ -113,7 +115,7 @@ def test_hand_made_stride_gives_the_expected_cues():
     assert cadence.side == "" and cadence.measured == pytest.approx(2 / 1.2)
     sym = cues["step_time_symmetry"]
     assert sym.severity == SEVERITY_SEVERE and sym.error == pytest.approx(0.22)  # 30 % vs ±8 %
-    assert all(c.stride_index == 7 and c.stamp == pytest.approx(11.2) for c in result.cues)
+    assert all(c.stride_index == 7 and c.stamp_ns == 11_200_000_000 for c in result.cues)
     # curves: normalised 0..100 % every 2 %, starting at the IC value
     assert len(result.percent) == 51 and result.curves["hip_flexion"][0] == pytest.approx(25 * DEG, abs=1e-3)
     assert result.curves["knee_flexion"].max() == pytest.approx(45 * DEG, abs=0.2 * DEG)
@@ -127,7 +129,7 @@ def test_stride_with_a_gap_or_implausible_gives_only_temporal_or_no_cues():
     assert not result.curves
     stride.plausible = False
     assert evaluator.evaluate(stride).cues == []
-    later = Stride("right", 8, 20.0, 20.7, 21.2, 0.6, 1.6, math.nan)
+    later = Stride("right", 8, 20_000_000_000, 20_700_000_000, 21_200_000_000, 0.6, 1.6, math.nan)
     assert not evaluator.covers(later)
     assert "step_time_symmetry" not in {c.quantity for c in evaluator.evaluate(later).cues}  # NaN: skipped
 
@@ -150,14 +152,15 @@ def test_sagittal_stick_figure_geometry():
             (("hip", ("flexion", "adduction", "internal_rotation")),
              ("knee", ("flexion", "adduction", "internal_rotation")),
              ("ankle", ("dorsiflexion", "inversion", "internal_rotation"))) for k in kinds}
-    lines = {(seg, k): v for k, (seg, *v) in enumerate(sagittal_stick_figure(zero))}
+    body = BodyDimensions(thigh_length=0.43)
+    lines = {(seg, k): v for k, (seg, *v) in enumerate(sagittal_stick_figure(zero, body))}
     segs = [seg for seg, _ in lines]
     assert segs.count("pelvis") == 2 and {"left_thigh", "right_shank", "right_foot"} <= set(segs)
     by_seg = {seg: v for (seg, _), v in lines.items() if seg != "pelvis"}
     x0, y0, x1, y1 = by_seg["left_thigh"]
     assert x1 == pytest.approx(x0) and y0 - y1 == pytest.approx(0.43)  # vertical thigh
     bent = dict(zero, left_hip_flexion=30 * DEG, left_knee_flexion=60 * DEG)
-    b = {seg: v for seg, *v in sagittal_stick_figure(bent)}
+    b = {seg: v for seg, *v in sagittal_stick_figure(bent, body)}
     hip_x, _, knee_x, _ = b["left_thigh"]
     _, _, ankle_x, _ = b["left_shank"]
     assert knee_x - hip_x == pytest.approx(0.43 * math.sin(30 * DEG), abs=1e-6)  # knee forward

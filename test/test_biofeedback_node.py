@@ -11,7 +11,7 @@ import urllib.request
 import numpy as np
 import pytest
 
-from gait_biofeedback.core.simulator import SCENARIOS, simulate
+from gait_biofeedback.sim.simulator import SCENARIOS, simulate
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(120)]
 DEG = np.pi / 180
@@ -69,7 +69,9 @@ def test_node_cues_frames_and_commands(ros_context, session):
     from sensor_msgs.msg import JointState
 
     from gait_biofeedback.nodes.biofeedback import BiofeedbackNode
-    from gait_biofeedback.nodes.common import RELIABLE_QOS, make_executor, s_to_stamp, spin_until
+    from gait_biofeedback.nodes.common import make_executor, spin_until
+    from gait_biofeedback.wire.stamps import s_to_stamp
+    from gait_biofeedback.wire.topics import RELIABLE_QOS
     from gait_biofeedback_msgs.msg import BiofeedbackCue, GaitCycle
     from gait_biofeedback_msgs.srv import Calibrate
 

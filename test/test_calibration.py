@@ -8,7 +8,7 @@ import pytest
 import yaml
 
 from gait_biofeedback.core import quaternion as quat
-from gait_biofeedback.core.calibration import (
+from gait_biofeedback.core.calibration.sensor_to_segment import (
     SessionCalibration,
     calibrate_segment,
     calibrate_session,
@@ -16,9 +16,9 @@ from gait_biofeedback.core.calibration import (
     helical_angle,
     vertical_calibration,
 )
-from gait_biofeedback.core.calibration_windows import find_standing_then_motion
+from gait_biofeedback.core.calibration.windows import find_standing_then_motion
 from gait_biofeedback.core.segments import ImuSeries
-from gait_biofeedback.core.simulator import SCENARIOS, simulate
+from gait_biofeedback.sim.simulator import SCENARIOS, simulate
 
 DEG = np.pi / 180.0
 
@@ -152,7 +152,7 @@ def _real_like_foot_pitch(rate_hz=100.0, strides=12):
 
 
 def test_foot_pitch_rule_right_where_skewness_is_wrong():
-    from gait_biofeedback.core.calibration import foot_pitch_sign
+    from gait_biofeedback.core.calibration.sensor_to_segment import foot_pitch_sign
 
     rate = np.gradient(_real_like_foot_pitch(), 0.01)
     centred = rate - rate.mean()
@@ -176,7 +176,7 @@ def test_calibrate_segment_foot_direction_from_pitch_shape():
 
 
 def test_knee_shape_rule_picks_the_thigh_direction():
-    from gait_biofeedback.core.calibration import knee_shape_sign
+    from gait_biofeedback.core.calibration.sensor_to_segment import knee_shape_sign
 
     t = np.arange(3000) / 100.0
     phase = 2 * np.pi * t / 1.1
@@ -206,8 +206,8 @@ def test_simulated_walking_uses_the_physical_rules(walking):
 def test_qmt_real_walk_knee_flexion_plausible():
     from conftest import shared_data
 
-    from gait_biofeedback.core.filters import estimate_orientation
-    from gait_biofeedback.core.joint_angles import align_headings, compute_joint_angles
+    from gait_biofeedback.core.joints.angles import align_headings, compute_joint_angles
+    from gait_biofeedback.core.orientation.filters import estimate_orientation
     from gait_biofeedback.io.importers import import_qmt_fullbody
 
     rec = import_qmt_fullbody(shared_data("qmt_fullbody", "full_body_example_data.mat"))
@@ -235,7 +235,7 @@ def test_qmt_real_walk_knee_flexion_plausible():
 def test_gaitmap_foot_calibration_events_within_50_ms():
     from conftest import shared_data
 
-    from gait_biofeedback.core.gait_events import detect_gait_events
+    from gait_biofeedback.core.gait.detect import detect_gait_events
     from gait_biofeedback.io.importers import import_gaitmap
 
     rec = import_gaitmap(shared_data("gaitmap_example"))

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from gait_biofeedback.core import quaternion as quat
-from gait_biofeedback.core.calibration import helical_angle
-from gait_biofeedback.core.simulator import SCENARIOS, simulate
+from gait_biofeedback.core.calibration.sensor_to_segment import helical_angle
+from gait_biofeedback.sim.simulator import SCENARIOS, simulate
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(90)]
 SEGMENTS = ["pelvis", "left_thigh", "left_shank", "right_thigh"]
@@ -17,7 +17,7 @@ SEGMENTS = ["pelvis", "left_thigh", "left_shank", "right_thigh"]
 def _imu_msgs(session, segment):
     from sensor_msgs.msg import Imu
 
-    from gait_biofeedback.nodes.common import s_to_stamp
+    from gait_biofeedback.wire.stamps import s_to_stamp
 
     s, q = session.imu[segment], session.truth.sensor_orientation[segment]
     out = []
@@ -38,7 +38,8 @@ def test_service_calibrates_and_latched_result_reaches_late_subscriber(ros_conte
     from sensor_msgs.msg import Imu
 
     from gait_biofeedback.nodes.calibration import CalibrationNode
-    from gait_biofeedback.nodes.common import LATCHED_QOS, RELIABLE_QOS, make_executor, spin_until
+    from gait_biofeedback.nodes.common import make_executor, spin_until
+    from gait_biofeedback.wire.topics import LATCHED_QOS, RELIABLE_QOS
     from gait_biofeedback_msgs.msg import SegmentCalibrationArray
     from gait_biofeedback_msgs.srv import Calibrate
 

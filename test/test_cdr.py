@@ -1,4 +1,4 @@
-"""Per-message CDR codec (gait_biofeedback.io.cdr) against rclpy's serializer."""
+"""Per-message CDR codec (gait_biofeedback.wire.cdr) against rclpy's serializer."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import Imu, MagneticField
 
-from gait_biofeedback.io import cdr
+from gait_biofeedback.wire import cdr
 
 
 def random_imu(frame_id: str, rng: np.random.Generator) -> Imu:

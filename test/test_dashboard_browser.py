@@ -22,8 +22,8 @@ from pathlib import Path
 
 import pytest
 
-from gait_biofeedback.core.simulator import Phase, SimulationConfig, simulate
-from gait_biofeedback.io.session_bag import write_simulated_bag
+from gait_biofeedback.sim.recording import write_simulated_bag
+from gait_biofeedback.sim.simulator import Phase, SimulationConfig, simulate
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(120)]
 ARTIFACTS = Path(__file__).resolve().parents[1] / "test-artifacts"
@@ -145,11 +145,12 @@ def test_dashboard_in_headless_chromium(ros_context, walk_session, tmp_path):
     from gait_biofeedback.nodes.activity_monitor import ActivityMonitorNode
     from gait_biofeedback.nodes.biofeedback import BiofeedbackNode
     from gait_biofeedback.nodes.calibration import CalibrationNode
-    from gait_biofeedback.nodes.common import LATCHED_QOS, make_executor, spin_until
+    from gait_biofeedback.nodes.common import make_executor, spin_until
     from gait_biofeedback.nodes.gait_events import GaitEventsNode
     from gait_biofeedback.nodes.imu_replayer import ImuReplayer
     from gait_biofeedback.nodes.joint_angles import JointAnglesNode
     from gait_biofeedback.nodes.orientation_filter import OrientationFilterNode
+    from gait_biofeedback.wire.topics import LATCHED_QOS
     from gait_biofeedback_msgs.msg import SegmentCalibrationArray
 
     bag, session = walk_session

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from gait_biofeedback.core import quaternion as quat
-from gait_biofeedback.core.filters import (
+from gait_biofeedback.core.orientation.filters import (
     ALGORITHMS,
     DEFAULT_ALGORITHM,
     attitude_from_vectors,
@@ -17,9 +17,9 @@ from gait_biofeedback.core.filters import (
     estimate_orientation,
     quiet_samples,
 )
-from gait_biofeedback.core.filters import _full_state as fs
-from gait_biofeedback.core.filters.inertial_cf import InertialCF
-from gait_biofeedback.core.filters.nazarahari_rekf import NazarahariREKF
+from gait_biofeedback.core.orientation.filters import _full_state as fs
+from gait_biofeedback.core.orientation.filters.inertial_cf import InertialCF
+from gait_biofeedback.core.orientation.filters.nazarahari_rekf import NazarahariREKF
 
 RATE = 100.0
 G_WORLD = np.array([0.0, 0.0, 9.81])
@@ -363,7 +363,7 @@ def test_inertial_cf_magnet_never_tilts_and_new_field_becomes_reference():
 
 
 def test_inertial_cf_defaults_are_the_shipped_tuned_values():
-    from gait_biofeedback.core.filters.config import load_tuned
+    from gait_biofeedback.core.orientation.filters.config import load_tuned
 
     tuned = load_tuned()["inertial_cf"]
     assert tuned and {k: InertialCF.DEFAULTS[k] for k in tuned} == tuned
@@ -387,7 +387,7 @@ def test_importing_filters_does_not_import_numba():
     import subprocess
     import sys
 
-    code = "import sys, gait_biofeedback.core.filters; print('numba' in sys.modules)"
+    code = "import sys, gait_biofeedback.core.orientation.filters; print('numba' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
                          cwd=Path(__file__).resolve().parents[1])
     assert out.stdout.strip() == "False"

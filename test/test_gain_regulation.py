@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from gait_biofeedback.core.gain_regulation import GainRegulator, switch_level
+from gait_biofeedback.core.orientation.gain_regulation import GainRegulator, switch_level
 
 
 def test_fixed_ignores_deviations():

@@ -8,18 +8,19 @@ import numpy as np
 import pytest
 
 from gait_biofeedback.core import quaternion as quat
-from gait_biofeedback.core.gait_cycles import GaitCycleTracker
-from gait_biofeedback.core.gait_events import (
+from gait_biofeedback.core.calibration.foot import foot_calibration
+from gait_biofeedback.core.gait.comparator import angular_velocity_events
+from gait_biofeedback.core.gait.cycles import GaitCycleTracker
+from gait_biofeedback.core.gait.detect import detect_gait_events
+from gait_biofeedback.core.gait.events import (
     GaitEvent,
     GaitEventDetector,
-    detect_gait_events,
     events_from_signal,
     foot_pitch_sine,
 )
-from gait_biofeedback.core.gait_events_calibration import foot_calibration
-from gait_biofeedback.core.gait_events_comparator import angular_velocity_events
-from gait_biofeedback.core.orientation_stream import SegmentOrientationTracker
-from gait_biofeedback.core.simulator import SCENARIOS, simulate
+from gait_biofeedback.core.orientation.stream import SegmentOrientationTracker
+from gait_biofeedback.core.stamps import s_to_ns, seconds_to_ns
+from gait_biofeedback.sim.simulator import SCENARIOS, simulate
 
 
 def _hand_made() -> np.ndarray:
@@ -43,9 +44,10 @@ def test_algorithm1_on_hand_made_signal_gives_exact_indices_and_one_sample_delay
     assert {k: v.tolist() for k, v in events_from_signal(signal, 100.0).items()} == {"ic": [69], "tc": [49]}
     detector = GaitEventDetector("left", 100.0)
     emitted = [(k, e) for k, v in enumerate(signal)
-               if (e := detector.update_signal(k / 100, v, k)) is not None]
+               if (e := detector.update_signal(k * 10_000_000, v)) is not None]
     (k_tc, tc), (k_ic, ic) = emitted
-    assert (k_tc, tc.kind, tc.stamp) == (50, "tc", 49) and (k_ic, ic.kind, ic.stamp) == (70, "ic", 69)
+    assert (k_tc, tc.kind, tc.stamp_ns) == (50, "tc", 490_000_000)
+    assert (k_ic, ic.kind, ic.stamp_ns) == (70, "ic", 690_000_000)
     assert tc.t == pytest.approx(0.49) and tc.latency == pytest.approx(0.01)
     assert tc.signal == pytest.approx(-0.6)
     # the same shape at 200 Hz (every sample twice as dense): the same times
@@ -107,7 +109,8 @@ def test_no_event_in_quiet_standing_or_turning_on_the_spot():
     roll = np.radians(3.0) * np.sin(2 * np.pi * 1.5 * t + 1.0) * (t > 2)
     q = quat.from_euler_zyx(yaw, -pitch, roll)
     detector = GaitEventDetector(rate_hz=100.0)
-    assert [e for k in range(t.size) if (e := detector.update(t[k], q[k])) is not None] == []
+    stamps = seconds_to_ns(t)
+    assert [e for k in range(t.size) if (e := detector.update(stamps[k], q[k])) is not None] == []
 
 
 def test_simulated_walk_true_orientation_events_match_truth(walk_session):
@@ -144,9 +147,9 @@ def test_streaming_equals_batch(walk_session):
     tracker = SegmentOrientationTracker("left_foot", rate_hz=100.0)
     detector = GaitEventDetector("left", 100.0, mounting=foot_calibration(imu.gyr, imu.acc, 100.0))
     live: dict[str, list[float]] = {"ic": [], "tc": []}
-    for k, t in enumerate(imu.t.tolist()):
-        for sample in tracker.update(t, imu.gyr[k], imu.acc[k]):
-            if (event := detector.update(sample.t, sample.q)) is not None:
+    for k, stamp_ns in enumerate(seconds_to_ns(imu.t).tolist()):
+        for sample in tracker.update(stamp_ns, imu.gyr[k], imu.acc[k]):
+            if (event := detector.update(sample.stamp_ns, sample.q)) is not None:
                 live[event.kind].append(event.t)
     assert live == batch
 
@@ -165,7 +168,7 @@ def test_comparator_finds_every_simulated_event(walk_session):
 
 
 def _ev(side: str, kind: str, t: float) -> GaitEvent:
-    return GaitEvent(side, kind, t, t + 0.01, 0.0, 0)
+    return GaitEvent(side, kind, s_to_ns(t), s_to_ns(t + 0.01), 0.0, 0)
 
 
 def test_stride_parameters_from_hand_made_events():

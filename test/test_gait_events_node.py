@@ -7,11 +7,12 @@ import time
 import numpy as np
 import pytest
 
-from gait_biofeedback.core.gait_events import GaitEventDetector
-from gait_biofeedback.core.orientation_stream import track_orientation
-from gait_biofeedback.core.simulator import SCENARIOS, simulate
+from gait_biofeedback.core.gait.events import GaitEventDetector
+from gait_biofeedback.core.orientation.stream import track_orientation
+from gait_biofeedback.core.stamps import seconds_to_ns
 from gait_biofeedback.io.bag import read_imu_bag
-from gait_biofeedback.io.session_bag import write_simulated_bag
+from gait_biofeedback.sim.recording import write_simulated_bag
+from gait_biofeedback.sim.simulator import SCENARIOS, simulate
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(90)]
 FEET = ("left_foot", "right_foot")
@@ -43,19 +44,22 @@ def _offline_events(bag, session):
     for segment in FEET:
         side = segment.removesuffix("_foot")
         t, q, _ = track_orientation(recorded[segment])
+        stamps = seconds_to_ns(t).tolist()
         detector = GaitEventDetector(side, 100.0, mounting=session.truth.mounting[segment])
-        out += [(side, e.kind, round(e.t * 1e9)) for k in range(len(t))
-                if (e := detector.update(t[k], q[k])) is not None]
+        out += [(side, e.kind, e.stamp_ns) for k in range(len(t))
+                if (e := detector.update(stamps[k], q[k])) is not None]
     return sorted(out)
 
 
 def test_node_on_replayed_walk_equals_offline_core(ros_context, walk_bag):
     from rclpy.node import Node
 
-    from gait_biofeedback.nodes.common import LATCHED_QOS, make_executor, spin_until, stamp_to_ns
+    from gait_biofeedback.nodes.common import make_executor, spin_until
     from gait_biofeedback.nodes.gait_events import GaitEventsNode
     from gait_biofeedback.nodes.imu_replayer import ImuReplayer
     from gait_biofeedback.nodes.orientation_filter import OrientationFilterNode
+    from gait_biofeedback.wire.stamps import stamp_to_ns
+    from gait_biofeedback.wire.topics import LATCHED_QOS
     from gait_biofeedback_msgs.msg import GaitCycle, GaitEvent, SegmentCalibrationArray
 
     bag, session = walk_bag
@@ -104,8 +108,10 @@ def test_stopped_foot_stream_resets_state_and_says_so(ros_context):
     from rclpy.node import Node
     from sensor_msgs.msg import Imu
 
-    from gait_biofeedback.nodes.common import RELIABLE_QOS, make_executor, s_to_stamp, spin_until
+    from gait_biofeedback.nodes.common import make_executor, spin_until
     from gait_biofeedback.nodes.gait_events import GaitEventsNode
+    from gait_biofeedback.wire.stamps import s_to_stamp
+    from gait_biofeedback.wire.topics import RELIABLE_QOS
 
     node = GaitEventsNode(ros_context, use_standing_reference=True, stale_after=0.3, diagnostics_period=0.1)
     source = Node("source", context=ros_context)

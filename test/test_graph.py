@@ -47,8 +47,10 @@ def _arrival_offsets(tmp_path, ros_context, speed: float) -> tuple[np.ndarray, n
     from rclpy.node import Node
     from sensor_msgs.msg import Imu
 
-    from gait_biofeedback.nodes.common import SENSOR_QOS, make_executor, spin_until, stamp_to_s
+    from gait_biofeedback.nodes.common import make_executor, spin_until
     from gait_biofeedback.nodes.imu_replayer import ImuReplayer
+    from gait_biofeedback.wire.stamps import stamp_to_s
+    from gait_biofeedback.wire.topics import SENSOR_QOS
 
     bag = write_imu_bag(tmp_path / "in", synthetic_imu(["left_foot"], duration=1.0, with_mag=False))
     arrivals: list[tuple[float, float]] = []
@@ -140,8 +142,9 @@ def _collect(ros_context, bag, topic_type, topic, until=None, **params):
     """Run a replayer with ``params`` until it ends (or ``until(received)``); the received messages."""
     from rclpy.node import Node
 
-    from gait_biofeedback.nodes.common import SENSOR_QOS, make_executor, spin_until
+    from gait_biofeedback.nodes.common import make_executor, spin_until
     from gait_biofeedback.nodes.imu_replayer import ImuReplayer
+    from gait_biofeedback.wire.topics import SENSOR_QOS
 
     got = []
     sink = Node("sink", context=ros_context)
@@ -166,7 +169,7 @@ def test_replayer_start_stop_offsets_loop_and_clock(tmp_path, ros_context):
     from rosgraph_msgs.msg import Clock
     from sensor_msgs.msg import Imu
 
-    from gait_biofeedback.nodes.common import stamp_to_s
+    from gait_biofeedback.wire.stamps import stamp_to_s
 
     bag = write_imu_bag(tmp_path / "in", synthetic_imu(["pelvis"], duration=1.0, with_mag=False, t0=50.0))
     got = _collect(ros_context, bag, Imu, "pelvis/imu/data_raw", speed=0.0, start_offset=0.2,
@@ -201,8 +204,9 @@ def test_recorder_start_and_stop_services_make_one_bag_each(tmp_path, ros_contex
     from std_msgs.msg import String
     from std_srvs.srv import Trigger
 
-    from gait_biofeedback.nodes.common import RELIABLE_QOS, make_executor, spin_until
+    from gait_biofeedback.nodes.common import make_executor, spin_until
     from gait_biofeedback.nodes.recorder import Recorder
+    from gait_biofeedback.wire.topics import RELIABLE_QOS
 
     recorder = Recorder(ros_context, output=str(tmp_path / "session"), autostart=False,
                         topics=["/note"])

@@ -7,14 +7,16 @@ import numpy as np
 import pytest
 
 from gait_biofeedback.core import quaternion as quat
-from gait_biofeedback.core.joint_angles import (
+from gait_biofeedback.core.body import BodyDimensions
+from gait_biofeedback.core.joints.angles import (
     JOINT_NAMES,
     JointAngleCalculator,
     compute_joint_angles,
     relative_rotation_from_angles,
 )
-from gait_biofeedback.core.simulator import SCENARIOS, simulate
-from gait_biofeedback.core.skeleton import SegmentLengths, stick_figure
+from gait_biofeedback.core.joints.skeleton import stick_figure
+from gait_biofeedback.core.stamps import seconds_to_ns
+from gait_biofeedback.sim.simulator import SCENARIOS, simulate
 
 DEG = np.pi / 180.0
 RNG = np.random.default_rng(3)
@@ -100,8 +102,8 @@ def test_streaming_calculator_equals_batch(walk):
     calc = JointAngleCalculator(truth.mounting)
     calc.collect_offset(1.5)
     stream = []
-    for k, t in enumerate(truth.t):
-        stream.append(calc.update(float(t), {s: q[k] for s, q in sensors.items()}))
+    for k, stamp_ns in enumerate(seconds_to_ns(truth.t).tolist()):
+        stream.append(calc.update(stamp_ns, {s: q[k] for s, q in sensors.items()}))
     assert not calc.offset_pending
     for name in JOINT_NAMES:
         got = np.array([row[name] for row in stream[150:]])
@@ -110,7 +112,9 @@ def test_streaming_calculator_equals_batch(walk):
 
 def test_stick_figure_of_standing_pose():
     upright = quat.from_axis_angle([1, 0, 0], np.pi / 2)  # facing east: anatomical z (right) → world -y
-    lines = stick_figure({s: upright for s in MOUNTS}, SegmentLengths())
+    body = BodyDimensions(thigh_length=0.45, shank_length=0.41, hip_width=0.2, foot_length=0.15,
+                          ankle_height=0.07)
+    lines = stick_figure({s: upright for s in MOUNTS}, body)
     ends = {seg: end for seg, _start, end in lines}
-    np.testing.assert_allclose(ends["right_foot"], [0.14, -0.09, -0.43 - 0.43 - 0.08], atol=1e-12)
-    np.testing.assert_allclose(ends["left_thigh"], [0.0, 0.09, -0.43], atol=1e-12)
+    np.testing.assert_allclose(ends["right_foot"], [0.15, -0.10, -0.45 - 0.41 - 0.07], atol=1e-12)
+    np.testing.assert_allclose(ends["left_thigh"], [0.0, 0.10, -0.45], atol=1e-12)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from gait_biofeedback.core import quaternion as quat
-from gait_biofeedback.core.joint_angles import (
+from gait_biofeedback.core.joints.angles import (
     JOINT_NAMES,
     angles_from_relative_rotation,
     joint_angles_from_segments,

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gait_biofeedback.core.joint_angles import compute_joint_angles
-from gait_biofeedback.core.simulator import SCENARIOS, simulate
+from gait_biofeedback.core.joints.angles import compute_joint_angles
+from gait_biofeedback.sim.simulator import SCENARIOS, simulate
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(90)]
 SEGMENTS = ["pelvis", "left_thigh", "left_shank", "right_thigh"]
@@ -19,10 +19,15 @@ def test_joint_angles_node(ros_context):
     from sensor_msgs.msg import Imu, JointState
     from visualization_msgs.msg import MarkerArray
 
-    from gait_biofeedback.core.calibration import SegmentCalibrationResult, SessionCalibration
-    from gait_biofeedback.nodes.calibration import calibration_to_msg
-    from gait_biofeedback.nodes.common import LATCHED_QOS, RELIABLE_QOS, make_executor, s_to_stamp, spin_until
+    from gait_biofeedback.core.calibration.sensor_to_segment import (
+        SegmentCalibrationResult,
+        SessionCalibration,
+    )
+    from gait_biofeedback.nodes.common import make_executor, spin_until
     from gait_biofeedback.nodes.joint_angles import JointAnglesNode
+    from gait_biofeedback.wire.calibration import segment_messages
+    from gait_biofeedback.wire.stamps import s_to_stamp
+    from gait_biofeedback.wire.topics import LATCHED_QOS, RELIABLE_QOS
     from gait_biofeedback_msgs.msg import SegmentCalibrationArray
 
     session = simulate(SCENARIOS["walk"](duration=4.0, seed=3))
@@ -55,7 +60,7 @@ def test_joint_angles_node(ros_context):
         send(0, SEGMENTS)
         assert spin_until(executor, lambda: any("not calibrated" in d.message for d in diags), timeout=5)
         assert joints == []
-        cal_pub.publish(SegmentCalibrationArray(protocol="walking", segments=calibration_to_msg(cal)))
+        cal_pub.publish(SegmentCalibrationArray(protocol="walking", segments=segment_messages(cal)))
         assert spin_until(executor, lambda: node.calculator is not None, timeout=5)
         n = 60
         for k in range(1, n):

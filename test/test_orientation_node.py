@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 
 from gait_biofeedback.core import quaternion as quat
-from gait_biofeedback.core.orientation_stream import SegmentOrientationTracker, track_orientation
-from gait_biofeedback.core.simulator import SCENARIOS, simulate
+from gait_biofeedback.core.orientation.stream import SegmentOrientationTracker, track_orientation
 from gait_biofeedback.graph import replay_through_graph
 from gait_biofeedback.io.bag import BagReader, read_imu_bag
-from gait_biofeedback.io.session_bag import write_simulated_bag
+from gait_biofeedback.sim.recording import write_simulated_bag
+from gait_biofeedback.sim.simulator import SCENARIOS, simulate
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(90)]
 SEGMENTS = ["left_foot", "pelvis"]
@@ -56,35 +56,33 @@ def test_tracker_skips_nan_and_duplicates_and_resets_on_backwards_time():
     tracker = SegmentOrientationTracker("chest", rate_hz=100.0, startup_s=0.5)
     still = ((0.0, 0.0, 0.0), (0.0, 0.0, 9.81))
     out = []
+    ms = 1_000_000
     for k in range(100):
-        out += tracker.update(10.0 + k * 0.01, *still)
+        out += tracker.update(10_000 * ms + k * 10 * ms, *still)
     assert len(out) == 100 and tracker.startup_quiet
-    assert tracker.update(11.0, (np.nan, 0.0, 0.0), (0.0, 0.0, 9.81)) == []
-    assert tracker.update(10.99, *still) == [], "same stamp as the last sample: a duplicate"
+    assert tracker.update(11_000 * ms, (np.nan, 0.0, 0.0), (0.0, 0.0, 9.81)) == []
+    assert tracker.update(10_990 * ms, *still) == [], "same stamp as the last sample: a duplicate"
     assert tracker.counts["nan_skipped"] == 1 and tracker.counts["duplicates"] == 1
-    tracker.pop_messages()
-    assert tracker.update(5.0, *still) == [], "backwards: filter reset, start-up collects again"
+    tracker.notices.pop()
+    assert tracker.update(5_000 * ms, *still) == [], "backwards: filter reset, start-up collects again"
     assert tracker.counts["time_resets"] == 1
-    (level, text), = tracker.pop_messages()
-    assert level == "warn" and "time went back" in text
+    (notice,) = tracker.notices.pop()
+    assert notice.level == "warn" and "time went back" in notice.text
     more = []
     for k in range(1, 60):
-        more += tracker.update(5.0 + k * 0.01, *still)
+        more += tracker.update(5_000 * ms + k * 10 * ms, *still)
     assert len(more) == 60, "the start-up window releases every buffered sample"
-    assert tracker.update(8.0, *still) and tracker.counts["gaps"] == 1
+    assert tracker.update(8_000 * ms, *still) and tracker.counts["gaps"] == 1
 
 
 def test_node_counts_bad_samples_and_reports_them(ros_context):
     from rclpy.node import Node
     from sensor_msgs.msg import Imu
 
-    from gait_biofeedback.nodes.common import (
-        SENSOR_QOS,
-        make_executor,
-        s_to_stamp,
-        spin_until,
-    )
+    from gait_biofeedback.nodes.common import make_executor, spin_until
     from gait_biofeedback.nodes.orientation_filter import OrientationFilterNode
+    from gait_biofeedback.wire.stamps import s_to_stamp
+    from gait_biofeedback.wire.topics import SENSOR_QOS
 
     node = OrientationFilterNode(ros_context, segments=["chest"], startup_s=0.2, diagnostics_period=0.2)
     source = Node("source", context=ros_context)

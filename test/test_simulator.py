@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from gait_biofeedback.core import quaternion as quat
-from gait_biofeedback.core.joint_angles import JOINT_NAMES, angles_from_relative_rotation
+from gait_biofeedback.core.joints.angles import JOINT_NAMES, angles_from_relative_rotation
 from gait_biofeedback.core.segments import GRAVITY, SEGMENTS
-from gait_biofeedback.core.simulator import (
+from gait_biofeedback.sim.simulator import (
     SCENARIOS,
     Phase,
     SimulationConfig,

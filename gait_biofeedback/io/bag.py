@@ -23,7 +23,7 @@ from gait_biofeedback.io.bag_metadata import (
 )
 from gait_biofeedback.io.bag_reader import BagReader, BagRecoveryWarning, bag_files
 from gait_biofeedback.io.bag_writer import BagWriter
-from gait_biofeedback.io.imu_messages import imu_series_to_messages, read_imu_bag, write_imu_bag
+from gait_biofeedback.io.imu_bag import read_imu_bag, write_imu_bag
 from gait_biofeedback.io.mcap_file import McapFile
 from gait_biofeedback.io.schemas import message_class, type_description_hash
 
@@ -31,7 +31,6 @@ __all__ = [
     "BagReader",
     "BagRecoveryWarning",
     "BagWriter",
-    "imu_series_to_messages",
     "message_class",
     "read_imu_bag",
     "repair",

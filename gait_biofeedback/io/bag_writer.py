@@ -26,9 +26,11 @@ from gait_biofeedback.io.bag_metadata import (
     qos_to_text,
     write_metadata,
 )
+from gait_biofeedback.io.params import COMPRESSIONS as COMPRESSION_NAMES
 from gait_biofeedback.io.schemas import schema_text, type_description_hash, type_name_of
 
-COMPRESSIONS = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
+COMPRESSIONS = dict(zip(COMPRESSION_NAMES, (CompressionType.ZSTD, CompressionType.LZ4, CompressionType.NONE),
+                        strict=True))
 LIBRARY = "gait_biofeedback"
 
 

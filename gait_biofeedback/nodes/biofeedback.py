@@ -2,14 +2,14 @@
 
 Thesis ch. 8 and §9.2.5 (gait.md §5.3): the stick figure and joint-angle graphs for patient and therapist,
 and the prescriptive layer (measured vs targeted pattern → visual and auditory cues); the rules are in
-:mod:`gait_biofeedback.core.biofeedback`.
+:mod:`gait_biofeedback.core.biofeedback.evaluator`.
 
 Subscribes ``joint_states`` (sensor_msgs/JointState, rad), ``gait/cycles`` (GaitCycle), ``gait/events``
 (GaitEvent), ``activity/state`` (ActivityState) and ``/diagnostics``. At each plausible stride it waits
 until the joint angles reach the closing IC (at most ``stride_wait`` s, then the kinematic quantities are
 left out) and publishes one ``biofeedback/cues`` (BiofeedbackCue) per targeted quantity, in band or not.
 
-Dashboard (``serve_dashboard``): :class:`~gait_biofeedback.nodes.dashboard_server.DashboardServer` on
+Dashboard (``serve_dashboard``): :class:`~gait_biofeedback.dashboard.server.DashboardServer` on
 ``host``:``port`` (127.0.0.1:8080; port 0 = a free port, see :attr:`BiofeedbackNode.port`), page at
 ``/``, websocket at ``/ws``, frames at ``frame_rate`` Hz built from the latest state. ROS callbacks only
 replace references and append to bounded deques; the server thread only reads/drains them. Page → node
@@ -23,10 +23,8 @@ Audio: the cue to sound (largest error of the chosen side/joint among the latest
 are in band) is sent to the page as ``{"type": "audio", "frequency", "rate", ...}``; the page beeps with
 WebAudio, so the robot side needs no sound hardware.
 
-Parameters: ``targets_file`` ("" = config/targets.yaml), ``serve_dashboard``, ``host``, ``port``,
-``frame_rate``, ``stride_wait``, ``curve_strides`` (strides per side a new page receives),
-``feedback_side``, ``feedback_joint``, ``diagnostics_period``, segment lengths of the stick figure
-(``thigh_length``, ``shank_length``, ``hip_width``, ``foot_length``, ``ankle_height``, m).
+Parameters: :class:`~gait_biofeedback.core.biofeedback.evaluator.BiofeedbackParams` (the body
+dimensions draw the stick figure).
 """
 
 from __future__ import annotations
@@ -39,13 +37,14 @@ from typing import Any
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.context import Context
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
-from gait_biofeedback.core.biofeedback import (
-    JOINT_GROUPS,
+from gait_biofeedback.core.biofeedback.evaluator import (
+    FEEDBACK_JOINTS,
+    FEEDBACK_SIDES,
     BiofeedbackEvaluator,
+    BiofeedbackParams,
     Cue,
     Stride,
     StrideResult,
@@ -54,26 +53,21 @@ from gait_biofeedback.core.biofeedback import (
     sagittal_stick_figure,
     select_audio_cue,
 )
+from gait_biofeedback.core.body import body_dimensions
+from gait_biofeedback.core.calibration.sensor_to_segment import PROTOCOLS
 from gait_biofeedback.core.segments import SIDES
-from gait_biofeedback.core.skeleton import SegmentLengths
-from gait_biofeedback.nodes.common import (
-    DIAGNOSTICS_TOPIC,
-    RELIABLE_QOS,
-    diagnostic_array,
-    diagnostic_status,
-    s_to_stamp,
-    stamp_to_s,
-)
-from gait_biofeedback_msgs.msg import ActivityState, BiofeedbackCue, GaitCycle, GaitEvent
+from gait_biofeedback.core.stamps import NS_PER_S
+from gait_biofeedback.nodes.common import diagnostic_array, publisher, subscribe
+from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
+from gait_biofeedback.wire import diagnostics, topics
+from gait_biofeedback.wire.activity import state_of
+from gait_biofeedback.wire.biofeedback import cue_msg
+from gait_biofeedback.wire.gait import event_of, foot_frame, stride_of
+from gait_biofeedback.wire.joints import angles_of
+from gait_biofeedback_msgs.msg import ActivityState, GaitCycle, GaitEvent
 from gait_biofeedback_msgs.srv import Calibrate
 
-CUES_TOPIC = "biofeedback/cues"
-CALIBRATE_SERVICE = "calibration/calibrate"
-PROTOCOLS = ("hip_flexion", "walking")
-_SIDE = {GaitCycle.SIDE_LEFT: "left", GaitCycle.SIDE_RIGHT: "right"}
-_POSTURES = {0: "unknown", 1: "standing", 2: "sitting", 3: "lying"}
-_LOCOMOTION = {0: "none", 1: "level walking", 2: "upstairs", 3: "downstairs"}
-_TRANSITIONS = {0: "none", 1: "sit to stand", 2: "stand to sit", 3: "sit to lie", 4: "lie to sit"}
+_LOCOMOTION_TEXT = {"level": "level walking"}
 _SAMPLE_NAMES = tuple(f"{side}_{name}" for side in SIDES
                       for name in ("hip_flexion", "knee_flexion", "ankle_dorsiflexion"))
 
@@ -97,28 +91,23 @@ def cue_to_json(c: Cue) -> dict[str, Any]:
     return {"type": "cue", "quantity": c.quantity, "side": c.side, "unit": c.unit,
             "measured": _finite(c.measured), "low": c.band_low, "high": c.band_high,
             "error": _finite(c.error), "severity": c.severity,
-            "frequency": c.audio_frequency, "rate": c.audio_rate, "stride": c.stride_index, "t": c.stamp}
+            "frequency": c.audio_frequency, "rate": c.audio_rate, "stride": c.stride_index,
+            "t": c.stamp_ns / NS_PER_S}
 
 
 class BiofeedbackNode(Node):
     """Biofeedback cues and the dashboard server (see module docstring)."""
 
     def __init__(self, context: Context | None = None, **overrides: object) -> None:
-        super().__init__("biofeedback", context=context,
-                         parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()])
-        p = self.declare_parameter
-        targets_file = str(p("targets_file", "").value) or str(default_targets_path())
-        self.targets = load_targets(targets_file)
+        super().__init__("biofeedback", context=context, parameter_overrides=node_overrides(overrides))
+        self.params: BiofeedbackParams = declare_parameters(self, BiofeedbackParams)
+        p = self.params
+        self.targets = load_targets(p.targets_file or str(default_targets_path()))
         self.targets_json = self.targets.to_json()
-        self.stride_wait = float(p("stride_wait", 0.5).value)
-        self.curve_strides = int(p("curve_strides", 5).value)
-        self.feedback = {"side": str(p("feedback_side", "both").value),
-                         "joint": str(p("feedback_joint", "all").value)}
-        self.lengths = SegmentLengths(thigh=float(p("thigh_length", 0.43).value),
-                                      shank=float(p("shank_length", 0.43).value),
-                                      hip_width=float(p("hip_width", 0.18).value),
-                                      foot=float(p("foot_length", 0.14).value),
-                                      ankle_height=float(p("ankle_height", 0.08).value))
+        self.stride_wait = p.stride_wait
+        self.curve_strides = p.curve_strides
+        self.feedback = {"side": p.feedback_side, "joint": p.feedback_joint}
+        self.lengths = body_dimensions(p)
         self.evaluator = BiofeedbackEvaluator(self.targets)
         self.muted = False
         # state shared with the server thread: references replaced whole, bounded deques
@@ -145,29 +134,25 @@ class BiofeedbackNode(Node):
         self._index_names: tuple[str, ...] = ()
         self._index: list[int | None] = []
 
-        self.create_subscription(JointState, "joint_states", self._on_joints, RELIABLE_QOS)
-        self.create_subscription(GaitCycle, "gait/cycles", self._on_cycle, RELIABLE_QOS)
-        self.create_subscription(GaitEvent, "gait/events", self._on_event, RELIABLE_QOS)
-        self.create_subscription(ActivityState, "activity/state", self._on_activity, RELIABLE_QOS)
-        self.create_subscription(DiagnosticArray, DIAGNOSTICS_TOPIC, self._on_diagnostics, RELIABLE_QOS)
-        self._cues = self.create_publisher(BiofeedbackCue, CUES_TOPIC, RELIABLE_QOS)
-        self._diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, RELIABLE_QOS)
-        self._calibrate = self.create_client(Calibrate, CALIBRATE_SERVICE)
-        self._record = {"record_start": self.create_client(Trigger, "recorder/start"),
-                        "record_stop": self.create_client(Trigger, "recorder/stop")}
+        for topic, callback in ((topics.JOINT_STATES, self._on_joints), (topics.GAIT_CYCLES, self._on_cycle),
+                                (topics.GAIT_EVENTS, self._on_event), (topics.ACTIVITY, self._on_activity),
+                                (topics.DIAGNOSTICS, self._on_diagnostics)):
+            subscribe(self, topic, callback)
+        self._cues = publisher(self, topics.CUES)
+        self._diagnostics = publisher(self, topics.DIAGNOSTICS)
+        self._calibrate = self.create_client(Calibrate, topics.CALIBRATE_SERVICE)
+        self._record = {"record_start": self.create_client(Trigger, topics.RECORDER_START_SERVICE),
+                        "record_stop": self.create_client(Trigger, topics.RECORDER_STOP_SERVICE)}
         self.create_timer(0.05, self._tick)
-        self.create_timer(float(p("diagnostics_period", 1.0).value), self._publish_diagnostics)
+        self.create_timer(p.diagnostics_period, self._publish_diagnostics)
 
         self.server = None
         self.port: int | None = None
-        if bool(p("serve_dashboard", True).value):
-            from gait_biofeedback.nodes.dashboard_server import DashboardServer
+        if p.serve_dashboard:
+            from gait_biofeedback.dashboard.server import DashboardServer
 
-            self.server = DashboardServer(self.build_frame, self._commands.append, self.hello,
-                                          host=str(p("host", "127.0.0.1").value),
-                                          port=int(p("port", 8080).value),
-                                          frame_rate=float(p("frame_rate", 30.0).value),
-                                          logger=self.get_logger())
+            self.server = DashboardServer(self.build_frame, self._commands.append, self.hello, host=p.host,
+                                          port=p.port, frame_rate=p.frame_rate, logger=self.get_logger())
             self.port = self.server.start()
             self.get_logger().info(f"dashboard: http://{self.server.host}:{self.port}/")
 
@@ -180,24 +165,21 @@ class BiofeedbackNode(Node):
             lookup = {n: i for i, n in enumerate(names)}
             self._index = [lookup.get(n) for n in _SAMPLE_NAMES]
         pos = msg.position
-        t = stamp_to_s(msg.header.stamp)
+        stamp_ns, angles = angles_of(msg)
+        t = stamp_ns / NS_PER_S
         self.counts["joint_states"] += 1
-        self._latest = (t, dict(zip(names, pos, strict=False)))
+        self._latest = (t, angles)
         row = [t] + [float(pos[i]) if i is not None else math.nan for i in self._index]
         self._samples.append(row)
         for k, side in enumerate(SIDES):
             hip, knee, ankle = row[1 + 3 * k: 4 + 3 * k]
             if not (math.isnan(hip) or math.isnan(knee) or math.isnan(ankle)):
-                self.evaluator.add_angles(side, t, hip, knee, ankle)
+                self.evaluator.add_angles(side, stamp_ns, hip, knee, ankle)
         if self._pending:
             self._process_pending()
 
     def _on_cycle(self, msg: GaitCycle) -> None:
-        stride = Stride(side=_SIDE.get(msg.side, "left"), index=int(msg.stride_index),
-                        t_start=stamp_to_s(msg.start), t_tc=stamp_to_s(msg.terminal_contact),
-                        t_end=stamp_to_s(msg.header.stamp), stance_fraction=float(msg.stance_fraction),
-                        cadence=float(msg.cadence), step_time_symmetry=float(msg.step_time_symmetry_index),
-                        plausible=bool(msg.plausible))
+        stride = stride_of(msg)
         self._outbox.append({"type": "cycle", "side": stride.side, "stride": stride.index, "t": stride.t_end,
                              "stance_fraction": _finite(stride.stance_fraction),
                              "cadence": _finite(stride.cadence),
@@ -211,22 +193,23 @@ class BiofeedbackNode(Node):
         self._process_pending()
 
     def _on_event(self, msg: GaitEvent) -> None:
-        self._outbox.append({"type": "event", "side": _SIDE.get(msg.side, "left"),
-                             "kind": "IC" if msg.type == GaitEvent.INITIAL_CONTACT else "TC",
-                             "t": stamp_to_s(msg.header.stamp), "index": int(msg.event_index)})
+        side, kind, stamp_ns, index = event_of(msg)
+        self._outbox.append({"type": "event", "side": side, "kind": kind.upper(), "t": stamp_ns / NS_PER_S,
+                             "index": index})
 
     def _on_activity(self, msg: ActivityState) -> None:
-        self._activity = {"posture": _POSTURES.get(msg.posture, "unknown"),
-                          "locomotion": _LOCOMOTION.get(msg.locomotion, "none"),
-                          "last_transition": _TRANSITIONS.get(msg.last_transition, "none"),
-                          "step_count": int(msg.step_count),
-                          "trunk_inclination": float(msg.trunk_inclination),
-                          "t": stamp_to_s(msg.header.stamp)}
+        state = state_of(msg)
+        transition = state["last_transition"]
+        self._activity = {"posture": state["posture"],
+                          "locomotion": _LOCOMOTION_TEXT.get(state["locomotion"], state["locomotion"]),
+                          "last_transition": transition.replace("_", " ") if transition else "none",
+                          "step_count": state["step_count"], "trunk_inclination": state["trunk_inclination"],
+                          "t": state["stamp_ns"] / NS_PER_S}
         self._activity_version += 1
 
     def _on_diagnostics(self, msg: DiagnosticArray) -> None:
         for s in msg.status:
-            level = s.level[0] if isinstance(s.level, bytes) else int(s.level)
+            level = diagnostics.level_of(s)
             self._diag[s.name] = {"name": s.name, "level": int(level), "message": s.message,
                                   "hardware_id": s.hardware_id,
                                   "values": {kv.key: kv.value for kv in s.values}}
@@ -261,14 +244,7 @@ class BiofeedbackNode(Node):
         if not result.curves:
             self.counts["strides_without_angles"] += 1
         for c in result.cues:
-            msg = BiofeedbackCue(quantity=c.quantity, side=c.side, unit=c.unit, measured=c.measured,
-                                 band_low=c.band_low, band_high=c.band_high, error=c.error,
-                                 severity=c.severity,
-                                 audio_frequency=c.audio_frequency, audio_rate=c.audio_rate,
-                                 stride_index=c.stride_index)
-            msg.header.stamp = s_to_stamp(c.stamp)
-            msg.header.frame_id = f"{stride.side}_foot"
-            self._cues.publish(msg)
+            self._cues.publish(cue_msg(c, foot_frame(stride.side)))
             self.counts["cues"] += 1
             self._latest_cues[(c.quantity, c.side)] = c
             self._outbox.append(cue_to_json(c))
@@ -325,7 +301,7 @@ class BiofeedbackNode(Node):
         elif action == "feedback":
             side = str(command.get("side", self.feedback["side"]))
             joint = str(command.get("joint", self.feedback["joint"]))
-            if side not in (*SIDES, "both") or joint not in (*JOINT_GROUPS, "all"):
+            if side not in FEEDBACK_SIDES or joint not in FEEDBACK_JOINTS:
                 self._reply(action, False, f"unknown feedback choice side={side!r} joint={joint!r}")
                 return
             self.feedback = {"side": side, "joint": joint}
@@ -407,8 +383,8 @@ class BiofeedbackNode(Node):
                 level, text = DiagnosticStatus.ERROR, f"dashboard server failed: {self.server.error}"
         if level == DiagnosticStatus.OK and self.counts["joint_states"] == 0:
             level, text = DiagnosticStatus.WARN, "no joint angles yet: calibrate, then walk"
-        self._diagnostics.publish(diagnostic_array(self, [diagnostic_status("biofeedback", level, text,
-                                                                            values=values)]))
+        self._diagnostics.publish(diagnostic_array(self, [diagnostics.status("biofeedback", level, text,
+                                                                             values=values)]))
 
     def destroy_node(self) -> None:
         if self.server is not None:

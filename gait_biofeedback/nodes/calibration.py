@@ -2,8 +2,8 @@
 
 Keeps a rolling buffer (``buffer_s``, default 90 s) of every segment's ``<segment>/imu/data`` (stamp,
 raw acc, bias-corrected gyro, orientation) in a core
-:class:`~gait_biofeedback.core.calibration_windows.CalibrationBuffer`. A call looks back over it for
-the protocol just performed (:func:`~gait_biofeedback.core.calibration_windows.find_standing_then_motion`:
+:class:`~gait_biofeedback.core.calibration.stream.CalibrationBuffer`. A call looks back over it for
+the protocol just performed (:func:`~gait_biofeedback.core.calibration.windows.find_standing_then_motion`:
 the last quiet standing of ``standing_duration`` s followed by the motion) and returns at once; the
 executor never blocks. :meth:`CalibrationNode.calibrate_at` instead calibrates on the window ending at
 a given sample stamp once the data gets there (replays; the offline ``analyze`` does the same).
@@ -14,8 +14,7 @@ newest sample used (0 for a reloaded file: at once), so joint_angles and gait_ev
 same sample whenever the message reaches them within that delay. A refused calibration keeps the
 previous one in force and publishes nothing.
 
-Parameters: ``segments`` (default all eight), ``buffer_s``, ``session_dir`` ("session"),
-``default_standing_duration`` (3 s), ``apply_delay`` (0.5 s).
+Parameters: :class:`~gait_biofeedback.core.calibration.stream.CalibrationParams`.
 """
 
 from __future__ import annotations
@@ -24,49 +23,20 @@ from collections import deque
 from pathlib import Path
 
 import yaml
-from builtin_interfaces.msg import Time
 from rclpy.context import Context
 from rclpy.node import Node
-from rclpy.parameter import Parameter
-from sensor_msgs.msg import Imu
 
-from gait_biofeedback.core.calibration import SessionCalibration
-from gait_biofeedback.core.calibration_windows import CalibrationAttempt, CalibrationBuffer
-from gait_biofeedback.core.segments import SEGMENTS, WORLD_FRAME, orientation_topic, sensor_frame
-from gait_biofeedback.io.cdr import ANGULAR_VELOCITY, LINEAR_ACCELERATION, Stamped, decode_imu
-from gait_biofeedback.nodes.common import CALIBRATION_TOPIC, LATCHED_QOS, RELIABLE_QOS, s_to_stamp
-from gait_biofeedback_msgs.msg import SegmentCalibration, SegmentCalibrationArray
+from gait_biofeedback.core.calibration.sensor_to_segment import SessionCalibration
+from gait_biofeedback.core.calibration.stream import CalibrationAttempt, CalibrationBuffer, CalibrationParams
+from gait_biofeedback.nodes.common import publisher, subscribe
+from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
+from gait_biofeedback.wire import topics
+from gait_biofeedback.wire.calibration import calibration_msg, segment_messages
+from gait_biofeedback.wire.cdr import decode_imu
+from gait_biofeedback.wire.imu import orientation_sample
 from gait_biofeedback_msgs.srv import Calibrate
 
-CALIBRATE_SERVICE = "calibration/calibrate"
 CALIBRATION_FILE = "calibration.yaml"
-
-
-def calibration_to_msg(cal: SessionCalibration) -> list[SegmentCalibration]:
-    """Per-segment messages of a core result."""
-    out = []
-    for seg, r in cal.segments.items():
-        m = SegmentCalibration(segment=seg, sensor_frame=sensor_frame(seg), valid=bool(r.valid),
-                               quality=float(r.quality), quality_metric=r.quality_metric,
-                               standing_motion=float(r.standing_motion), message=r.message)
-        m.rotation.w, m.rotation.x, m.rotation.y, m.rotation.z = (float(v) for v in r.rotation)
-        out.append(m)
-    return out
-
-
-def calibration_array_msg(cal: SessionCalibration, applies_from: float) -> SegmentCalibrationArray:
-    """The latched ``calibration/sensor_to_segment`` message of a result; header.stamp = the sample
-    stamp from which it is in force (0 = at once, e.g. a calibration reloaded from its file)."""
-    msg = SegmentCalibrationArray(protocol=cal.protocol, segments=calibration_to_msg(cal))
-    msg.header.stamp = s_to_stamp(applies_from) if applies_from > 0 else Time()
-    msg.header.frame_id = WORLD_FRAME
-    return msg
-
-
-def imu_to_calibration_sample(imu: Stamped) -> tuple[float, tuple, tuple, tuple]:
-    """(stamp s, acc, gyro, q) of a decoded ``<segment>/imu/data`` message, as the buffer stores them."""
-    v = imu.values
-    return imu.ns / 1_000_000_000, v[LINEAR_ACCELERATION], v[ANGULAR_VELOCITY], (v[3], v[0], v[1], v[2])
 
 
 def load_calibration_file(path: Path) -> SessionCalibration:
@@ -78,24 +48,17 @@ class CalibrationNode(Node):
     """Sensor-to-segment calibration service (see module docstring)."""
 
     def __init__(self, context: Context | None = None, **overrides: object) -> None:
-        super().__init__("calibration", context=context,
-                         parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()])
-        self.segments = [s for s in self.declare_parameter("segments", list(SEGMENTS)).value if s]
-        unknown = [s for s in self.segments if s not in SEGMENTS]
-        if unknown:
-            raise ValueError(f"calibration: unknown segments {unknown}; known: {list(SEGMENTS)}")
-        self.buffer_s = float(self.declare_parameter("buffer_s", 90.0).value)
-        self.session_dir = Path(str(self.declare_parameter("session_dir", "session").value))
-        self.default_standing = float(self.declare_parameter("default_standing_duration", 3.0).value)
-        self.core = CalibrationBuffer(self.segments, self.buffer_s, self.default_standing,
-                                      apply_delay=float(self.declare_parameter("apply_delay", 0.5).value))
+        super().__init__("calibration", context=context, parameter_overrides=node_overrides(overrides))
+        self.params: CalibrationParams = declare_parameters(self, CalibrationParams)
+        self.segments = list(self.params.segments)
+        self.session_dir = Path(self.params.session_dir)
+        self.core = CalibrationBuffer(self.params)
         self.current: SessionCalibration | None = None
         self.last_attempt: CalibrationAttempt | None = None
         for seg in self.segments:
-            self.create_subscription(Imu, orientation_topic(seg), lambda m, s=seg: self._on_imu(s, m),
-                                     RELIABLE_QOS, raw=True)
-        self._pub = self.create_publisher(SegmentCalibrationArray, CALIBRATION_TOPIC, LATCHED_QOS)
-        self.create_service(Calibrate, CALIBRATE_SERVICE, self._on_calibrate)
+            subscribe(self, topics.orientation(seg), lambda m, s=seg: self._on_imu(s, m), raw=True)
+        self._pub = publisher(self, topics.CALIBRATION)
+        self.create_service(Calibrate, topics.CALIBRATE_SERVICE, self._on_calibrate)
         self._reload()
 
     @property
@@ -117,26 +80,29 @@ class CalibrationNode(Node):
                                     "run the calibration again")
             return
         self.get_logger().info(f"reloaded the calibration from {self.calibration_file}")
-        self._publish(self.current, 0.0)
+        self._pub.publish(calibration_msg(self.current, 0))
 
     def _on_imu(self, segment: str, data: bytes) -> None:
-        self.core.add(segment, *imu_to_calibration_sample(decode_imu(data)))
+        self.core.add(segment, *orientation_sample(decode_imu(data)))
         if self.core.scheduled:
             for attempt in self.core.run_due():
                 self._accept(attempt)
-                (self.get_logger().info if attempt.success else self.get_logger().warning)(
-                    f"scheduled calibration ({attempt.protocol}, data up to {attempt.until:.3f} s): "
-                    f"{attempt.message}")
+                text = (f"scheduled calibration ({attempt.protocol}, data up to "
+                        f"{(attempt.until_ns or 0) * 1e-9:.3f} s): {attempt.message}")
+                if attempt.success:
+                    self.get_logger().info(text)
+                else:
+                    self.get_logger().warning(text)
 
     def _accept(self, attempt: CalibrationAttempt) -> None:
         """Keep, save and publish a successful result (a refused one changes nothing)."""
         self.last_attempt = attempt
         cal = attempt.calibration
-        if attempt.success and cal is not None:
+        if attempt.success and cal is not None and attempt.applies_from_ns is not None:
             self.current = cal
             self.session_dir.mkdir(parents=True, exist_ok=True)
             self.calibration_file.write_text(yaml.safe_dump(cal.to_dict(), sort_keys=False))
-            self._publish(cal, attempt.applies_from)
+            self._pub.publish(calibration_msg(cal, attempt.applies_from_ns))
 
     def calibrate(self, protocol: str, standing_duration: float = 0.0, motion_duration: float = 0.0,
                   segments: list[str] | None = None) -> tuple[bool, str, SessionCalibration | None]:
@@ -147,11 +113,11 @@ class CalibrationNode(Node):
         return attempt.success, attempt.message, attempt.calibration
 
     def calibrate_at(self, stamp_ns: int, protocol: str, **options: object) -> None:
-        """Calibrate on the window ending at the sample stamp ``stamp_ns`` (ns) as soon as every
-        segment's data gets there (at once if it already has): replays and the offline analysis
+        """Calibrate on the window ending at the sample stamp ``stamp_ns`` as soon as every segment's
+        data gets there (at once if it already has): replays and the offline analysis
         (:mod:`gait_biofeedback.analyze`) then calibrate on exactly the same samples. The outcome
         is in :attr:`last_attempt` (and published when successful)."""
-        self.core.schedule(stamp_ns / 1_000_000_000, protocol, **options)
+        self.core.schedule(stamp_ns, protocol, **options)
         for attempt in self.core.run_due():
             self._accept(attempt)
 
@@ -160,12 +126,12 @@ class CalibrationNode(Node):
                                                request.motion_duration, list(request.segments))
         response.success, response.message = success, message
         if cal is not None:
-            response.segments = calibration_to_msg(cal)
-        (self.get_logger().info if success else self.get_logger().warning)(message)
+            response.segments = segment_messages(cal)
+        if success:
+            self.get_logger().info(message)
+        else:
+            self.get_logger().warning(message)
         return response
-
-    def _publish(self, cal: SessionCalibration, applies_from: float) -> None:
-        self._pub.publish(calibration_array_msg(cal, applies_from))
 
 
 def main(args: list[str] | None = None) -> int:

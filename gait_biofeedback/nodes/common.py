@@ -1,4 +1,7 @@
-"""What every node shares: QoS profiles, time conversion, executors, diagnostics, `main`.
+"""What every node shares: executors, logging the core's notices, diagnostics, `main`.
+
+Topics, QoS and message conversion are :mod:`gait_biofeedback.wire`; parameters
+:mod:`gait_biofeedback.nodes.parameters`.
 
 Nodes stay thin: they convert messages, hold parameters and call the core. Executor choice is
 measured (ROS_FROM_PYPI.md): an ``EventsExecutor`` driven by ``spin_once`` in a loop is about 3×
@@ -8,98 +11,52 @@ called. ``GAIT_EXECUTOR=single`` selects the fallback.
 
 from __future__ import annotations
 
-import math
 import os
 import sys
 import time
 from collections.abc import Callable, Iterable, Sequence
+from typing import Any
 
 import rclpy
-from builtin_interfaces.msg import Time
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.context import Context
 from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import (
-    DurabilityPolicy,
-    HistoryPolicy,
-    QoSProfile,
-    ReliabilityPolicy,
-)
+from rclpy.publisher import Publisher
+from rclpy.subscription import Subscription
 
-SENSOR_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=100,
-    reliability=ReliabilityPolicy.BEST_EFFORT,
-    durability=DurabilityPolicy.VOLATILE,
-)
-"""Raw sensor streams (DESIGN.md: best effort, depth 100)."""
-
-RELIABLE_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=300,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE,
-)
-"""Derived streams: orientations, joint states, events, cues. Depth 300, not DESIGN.md's 100: the
-orientation filter releases its start-up window (1 s = 100 samples at 100 Hz, 200 at 200 Hz) in one
-burst, and a KEEP_LAST history as deep as the burst drops its first samples."""
-
-LATCHED_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
-"""State a late subscriber must still get: the calibration in force."""
-
-DIAGNOSTICS_TOPIC = "/diagnostics"
-CALIBRATION_TOPIC = "calibration/sensor_to_segment"  # latched SegmentCalibrationArray
+from gait_biofeedback.core.notices import Notice
+from gait_biofeedback.core.params import ParameterError
+from gait_biofeedback.parameters import load_params_file
+from gait_biofeedback.wire import diagnostics
+from gait_biofeedback.wire.topics import Topic
 
 
-def stamp_to_ns(stamp: Time) -> int:
-    """builtin_interfaces/Time → integer nanoseconds."""
-    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+def log_notices(logger: Any, notices: Iterable[Notice]) -> None:
+    """Log what a core stream said (:mod:`gait_biofeedback.core.notices`), one call site per severity
+    (rclpy refuses to log from one call site at two severities)."""
+    for notice in notices:
+        if notice.level == "error":
+            logger.error(notice.text)
+        elif notice.level == "warn":
+            logger.warning(notice.text)
+        else:
+            logger.info(notice.text)
 
 
-def ns_to_stamp(ns: int) -> Time:
-    """Integer nanoseconds → builtin_interfaces/Time (floor division keeps nanosec in range)."""
-    sec, nanosec = divmod(int(ns), 1_000_000_000)
-    return Time(sec=sec, nanosec=nanosec)
+def publisher(node: Node, topic: Topic) -> Publisher:
+    """A publisher of ``topic`` with its message type and QoS (:mod:`gait_biofeedback.wire.topics`)."""
+    return node.create_publisher(topic.msg_type, topic.name, topic.qos)
 
 
-def stamp_to_s(stamp: Time) -> float:
-    """builtin_interfaces/Time → the float nearest to its exact value in seconds (the same number
-    :func:`gait_biofeedback.io.imu_messages.ns_to_seconds` gives, so live and offline agree)."""
-    return stamp_to_ns(stamp) / 1_000_000_000
-
-
-def s_to_stamp(t: float) -> Time:
-    """Float seconds → builtin_interfaces/Time, rounded to the nanosecond."""
-    whole = math.floor(t)
-    return ns_to_stamp(int(whole) * 1_000_000_000 + round((t - whole) * 1e9))
-
-
-def diagnostic_status(
-    name: str, level: int | bytes, message: str, hardware_id: str = "", values: dict | None = None
-) -> DiagnosticStatus:
-    """One DiagnosticStatus with ``values`` rendered as strings (floats with 4 significant digits);
-    ``level`` is DiagnosticStatus.OK/WARN/ERROR/STALE (bytes) or the same as an int."""
-    if isinstance(level, int):
-        level = bytes([level])
-    status = DiagnosticStatus(name=name, level=level, message=message, hardware_id=hardware_id)
-    for key, value in (values or {}).items():
-        text = f"{value:.4g}" if isinstance(value, float) else str(value)
-        status.values.append(KeyValue(key=str(key), value=text))
-    return status
+def subscribe(node: Node, topic: Topic, callback: Callable[[Any], None], raw: bool = False) -> Subscription:
+    """A subscription to ``topic`` with its message type and QoS; ``raw``: the callback gets CDR bytes."""
+    return node.create_subscription(topic.msg_type, topic.name, callback, topic.qos, raw=raw)
 
 
 def diagnostic_array(node: Node, statuses: Iterable[DiagnosticStatus]) -> DiagnosticArray:
-    """DiagnosticArray stamped with the node clock."""
-    msg = DiagnosticArray()
-    msg.header.stamp = node.get_clock().now().to_msg()
-    msg.status = list(statuses)
-    return msg
+    """DiagnosticArray of ``statuses`` stamped with the node clock."""
+    return diagnostics.array(node.get_clock().now().to_msg(), statuses)
 
 
 def make_executor(context: Context | None = None) -> Executor:
@@ -140,13 +97,27 @@ def spin_until(
     return done()
 
 
+def params_files(args: Sequence[str]) -> list[str]:
+    """The ``--params-file`` arguments of a ROS command line."""
+    return [args[i + 1] for i, a in enumerate(args[:-1]) if a == "--params-file"]
+
+
 def run_nodes(node_factories: Sequence[Callable[[Context], Node]], args: list[str] | None = None) -> int:
-    """Console-script body: init rclpy with ``args`` (``--ros-args`` work), spin the nodes until
-    Ctrl-C / SIGTERM, destroy them (each node's ``destroy_node`` closes its files) and shut down."""
+    """Console-script body: check the ``--params-file`` files, init rclpy with ``args`` (``--ros-args``
+    work), spin the nodes until Ctrl-C / SIGTERM, destroy them (each node's ``destroy_node`` closes its
+    files) and shut down. A refused parameter prints one line and returns 2."""
+    args = sys.argv if args is None else args
+    try:
+        for path in params_files(args):
+            load_params_file(path)
+    except ParameterError as exc:
+        print(f"{os.path.basename(args[0]) if args else 'node'}: {exc}", file=sys.stderr)
+        return 2
     context = Context()
-    rclpy.init(args=sys.argv if args is None else args, context=context)
+    rclpy.init(args=args, context=context)
     nodes: list[Node] = []
     executor = make_executor(context)
+    code = 0
     try:
         for factory in node_factories:
             nodes.append(factory(context))
@@ -154,10 +125,13 @@ def run_nodes(node_factories: Sequence[Callable[[Context], Node]], args: list[st
         spin_until(executor, lambda: False)
     except KeyboardInterrupt:
         pass
+    except ParameterError as exc:
+        print(f"{os.path.basename(args[0]) if args else 'node'}: {exc}", file=sys.stderr)
+        code = 2
     finally:
         for node in nodes:
             node.destroy_node()
         executor.shutdown()
         if context.ok():
             rclpy.shutdown(context=context)
-    return 0
+    return code

@@ -6,11 +6,8 @@ thread stays free for the rest of the graph and timing does not depend on its lo
 Topics are published under the node's namespace: a recorded ``/left_foot/imu/data_raw`` goes out
 as ``left_foot/imu/data_raw`` (relative), so ``-r __ns:=/patient1`` works unchanged.
 
-Parameters: ``bag`` (path, required), ``speed`` (1.0; 0 = as fast as possible), ``loop`` (false;
-on each loop the stamps jump back, which downstream filters treat as a reset), ``start_offset`` /
-``stop_offset`` (s from the recording start; stop 0 = to the end), ``publish_clock`` (false:
-``/clock`` follows the recording time), ``topics`` (empty = all), ``wait_for_subscribers``
-(seconds to wait for every topic to have a subscriber before starting; 0 = start at once).
+Parameters: :class:`~gait_biofeedback.io.params.ReplayerParams` (``bag`` is required; on each
+``loop`` the stamps jump back, which downstream filters treat as a reset).
 """
 
 from __future__ import annotations
@@ -21,41 +18,31 @@ from pathlib import Path
 
 from rclpy.context import Context
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 
 from gait_biofeedback.io.bag import BagReader, message_class
-from gait_biofeedback.nodes.common import RELIABLE_QOS, SENSOR_QOS, ns_to_stamp
-
-SENSOR_TOPIC_SUFFIXES = ("/imu/data_raw", "/imu/mag")
+from gait_biofeedback.io.params import ReplayerParams
+from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
+from gait_biofeedback.wire import topics
+from gait_biofeedback.wire.stamps import ns_to_stamp
 
 
 class ImuReplayer(Node):
     """Publishes a recording's messages at their recorded pace (see module docstring)."""
 
     def __init__(self, context: Context | None = None, **overrides: object) -> None:
-        super().__init__("imu_replayer", context=context,
-                         parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()])
-        self.declare_parameter("bag", "")
-        self.declare_parameter("speed", 1.0)
-        self.declare_parameter("loop", False)
-        self.declare_parameter("start_offset", 0.0)
-        self.declare_parameter("stop_offset", 0.0)
-        self.declare_parameter("publish_clock", False)
-        self.declare_parameter("topics", [""])
-        self.declare_parameter("wait_for_subscribers", 0.0)
-        p = self.get_parameters_by_prefix("")
-        bag = str(p["bag"].value)
+        super().__init__("imu_replayer", context=context, parameter_overrides=node_overrides(overrides))
+        p: ReplayerParams = declare_parameters(self, ReplayerParams)
+        self.params = p
+        bag = p.bag
         if not bag or not Path(bag).exists():
             raise ValueError(f"imu_replayer: parameter 'bag' must name a recording; got {bag!r}")
-        self.speed = float(p["speed"].value)
-        if self.speed < 0:
-            raise ValueError(f"imu_replayer: speed must be >= 0 (0 = as fast as possible), got {self.speed}")
-        self.loop = bool(p["loop"].value)
-        self.start_offset = float(p["start_offset"].value)
-        self.stop_offset = float(p["stop_offset"].value)
-        self.wait_for_subscribers = float(p["wait_for_subscribers"].value)
-        wanted = [t for t in p["topics"].value if t]
+        self.speed = p.speed
+        self.loop = p.loop
+        self.start_offset = p.start_offset
+        self.stop_offset = p.stop_offset
+        self.wait_for_subscribers = p.wait_for_subscribers
+        wanted = [t for t in p.topics if t]
 
         self.reader = BagReader(bag)
         available = self.reader.topics()
@@ -64,13 +51,11 @@ class ImuReplayer(Node):
             raise ValueError(f"imu_replayer: topics {missing} are not in {bag}; it has {sorted(available)}")
         self.topics = {t: available[t] for t in (wanted or available)}
         self._topic_publishers = {
-            topic: self.create_publisher(
-                message_class(type_name), topic.lstrip("/"),
-                SENSOR_QOS if topic.endswith(SENSOR_TOPIC_SUFFIXES) else RELIABLE_QOS)
+            topic: self.create_publisher(message_class(type_name), topic.lstrip("/"),
+                                         topics.qos_of_recorded(topic))
             for topic, type_name in self.topics.items()
         }
-        self._clock_pub = (self.create_publisher(Clock, "/clock", 10)
-                           if p["publish_clock"].value else None)
+        self._clock_pub = self.create_publisher(Clock, "/clock", 10) if p.publish_clock else None
         self.published = 0
         self.position_ns = self.reader.start_time_ns  # log time of the newest published message
         self.loops_done = 0

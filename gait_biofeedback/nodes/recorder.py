@@ -11,11 +11,8 @@ QoS per topic follows its publishers, as ``ros2 bag record`` does: reliable only
 is reliable, transient-local (latched) only if every publisher is, so latched state such as the
 calibration is recorded even when it was published before the recorder started.
 
-Parameters: ``output`` (bag folder; default ``recordings/session_<time>``), ``topics`` (empty = every
-topic, discovered every ``discovery_period`` s), ``exclude`` (topics never recorded),
-``split_size`` (bytes, 0 = never), ``split_duration`` (s, 0 = never), ``flush_period`` (s, 1.0),
-``compression`` (``zstd``, ``lz4`` or ``none``), ``autostart`` (true: record from the start).
-Services ``recorder/start`` and ``recorder/stop`` (std_srvs/Trigger) open a new bag folder
+Parameters: :class:`~gait_biofeedback.io.params.RecorderParams`. Services ``recorder/start`` and
+``recorder/stop`` (std_srvs/Trigger) open a new bag folder
 (``<output>_1``, ``<output>_2``, … after the first) and close it, e.g. from the dashboard.
 """
 
@@ -28,12 +25,14 @@ from pathlib import Path
 
 from rclpy.context import Context
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_srvs.srv import Trigger
 
 from gait_biofeedback.io.bag import BagWriter, message_class
-from gait_biofeedback.nodes.common import RELIABLE_QOS, SENSOR_QOS
+from gait_biofeedback.io.params import RecorderParams
+from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
+from gait_biofeedback.wire import topics
+from gait_biofeedback.wire.topics import RELIABLE_QOS, SENSOR_QOS
 
 ALWAYS_EXCLUDED = ("/parameter_events", "/rosout")
 BATCH_WAIT = 0.01
@@ -44,27 +43,17 @@ class Recorder(Node):
     """Records topics to a rosbag2/MCAP folder (see module docstring)."""
 
     def __init__(self, context: Context | None = None, **overrides: object) -> None:
-        super().__init__("recorder", context=context,
-                         parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()])
-        self.declare_parameter("output", "")
-        self.declare_parameter("topics", [""])
-        self.declare_parameter("exclude", [""])
-        self.declare_parameter("split_size", 0)
-        self.declare_parameter("split_duration", 0.0)
-        self.declare_parameter("flush_period", 1.0)
-        self.declare_parameter("compression", "zstd")
-        self.declare_parameter("discovery_period", 0.5)
-        self.declare_parameter("autostart", True)
-        p = self.get_parameters_by_prefix("")
-        self._base_output = str(p["output"].value)
-        self.requested = [t if t.startswith("/") else self.resolve_topic_name(t)
-                          for t in p["topics"].value if t]
-        self.excluded = {*ALWAYS_EXCLUDED, *(t for t in p["exclude"].value if t)}
+        super().__init__("recorder", context=context, parameter_overrides=node_overrides(overrides))
+        p: RecorderParams = declare_parameters(self, RecorderParams)
+        self.params = p
+        self._base_output = p.output
+        self.requested = [t if t.startswith("/") else self.resolve_topic_name(t) for t in p.topics if t]
+        self.excluded = {*ALWAYS_EXCLUDED, *(t for t in p.exclude if t)}
         self._writer_options = {
-            "compression": str(p["compression"].value),
-            "flush_period": float(p["flush_period"].value),
-            "split_size": int(p["split_size"].value) or None,
-            "split_duration": float(p["split_duration"].value) or None,
+            "compression": p.compression,
+            "flush_period": p.flush_period,
+            "split_size": p.split_size or None,
+            "split_duration": p.split_duration or None,
         }
         self.writer: BagWriter | None = None
         self.output: Path | None = None
@@ -82,13 +71,13 @@ class Recorder(Node):
         self._now_ns = (lambda: self.get_clock().now().nanoseconds) if use_sim_time else time.time_ns
         self._closed = threading.Event()
         self._thread = threading.Thread(target=self._write_loop, name="recorder_writer", daemon=True)
-        if p["autostart"].value:
+        if p.autostart:
             self.start()  # before the writer thread: an unusable output folder raises with nothing to undo
         self._thread.start()
-        self.create_service(Trigger, "recorder/start", self._on_start)
-        self.create_service(Trigger, "recorder/stop", self._on_stop)
+        self.create_service(Trigger, topics.RECORDER_START_SERVICE, self._on_start)
+        self.create_service(Trigger, topics.RECORDER_STOP_SERVICE, self._on_stop)
         self._discover()
-        self.create_timer(float(p["discovery_period"].value), self._discover)
+        self.create_timer(p.discovery_period, self._discover)
 
     def _next_output(self) -> Path:
         if not self._base_output:
@@ -144,7 +133,7 @@ class Recorder(Node):
     def _qos_for(self, topic: str) -> QoSProfile:
         infos = self.get_publishers_info_by_topic(topic)
         if not infos:
-            return RELIABLE_QOS if topic == "/diagnostics" else SENSOR_QOS
+            return RELIABLE_QOS if topic == topics.DIAGNOSTICS.name else SENSOR_QOS
         reliable = all(i.qos_profile.reliability == ReliabilityPolicy.RELIABLE for i in infos)
         latched = all(i.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for i in infos)
         base = RELIABLE_QOS if reliable else SENSOR_QOS

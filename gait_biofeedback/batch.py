@@ -1,0 +1,145 @@
+"""The public batch API: every pipeline step on whole recordings, in one import.
+
+``from gait_biofeedback.batch import estimate_orientation, detect_gait_events, classify_activity``.
+Scripts outside the package (your analyses, ``benchmarks/``) import from here only, so the
+package's internal layout can change without breaking them; these names are kept stable and
+documented in the README (section *Batch API*). Units SI, quaternions (w, x, y, z) Hamilton
+sensor → world ENU, times in s from the first sample unless a stamp (int ns) is asked for
+(``docs/conventions.md``).
+
+Each step's streaming form (one sample at a time, as the nodes run it) is exported beside its
+batch function; a batch function gives exactly what its stream gives when fed the same samples.
+"""
+
+from __future__ import annotations
+
+from gait_biofeedback.analyze import AnalysisResult, analyze_recording, parse_calibrate_at
+from gait_biofeedback.core import quaternion
+from gait_biofeedback.core.activity.monitor import (
+    ActivityMonitor,
+    ActivityState,
+    UnitMismatchWarning,
+    classify_activity,
+)
+from gait_biofeedback.core.body import BodyDimensions
+from gait_biofeedback.core.calibration.foot import foot_calibration
+from gait_biofeedback.core.calibration.sensor_to_segment import (
+    PROTOCOLS,
+    SegmentCalibrationResult,
+    SessionCalibration,
+    calibrate_segment,
+    calibrate_session,
+    helical_angle,
+    mean_orientation,
+    vertical_calibration,
+)
+from gait_biofeedback.core.calibration.windows import find_standing_then_motion
+from gait_biofeedback.core.gait.comparator import angular_velocity_events, sagittal_rate
+from gait_biofeedback.core.gait.cycles import GaitCycle, GaitCycleTracker, cycles_from_event_times
+from gait_biofeedback.core.gait.detect import detect_gait_events
+from gait_biofeedback.core.gait.events import (
+    INITIAL_CONTACT,
+    TERMINAL_CONTACT,
+    GaitEvent,
+    GaitEventDetector,
+    events_from_signal,
+    foot_pitch_sine,
+)
+from gait_biofeedback.core.gait.matching import MATCH_TOLERANCE_S, EventScore, match_events
+from gait_biofeedback.core.joints.angles import (
+    JOINT_NAMES,
+    JointAngleCalculator,
+    align_headings,
+    compute_joint_angles,
+    joint_angles_from_segments,
+    segment_orientations,
+)
+from gait_biofeedback.core.orientation.filters import ALGORITHMS, DEFAULT_ALGORITHM, estimate_orientation
+from gait_biofeedback.core.orientation.filters.config import TUNED_PATH, load_tuned
+from gait_biofeedback.core.orientation.stream import SegmentOrientationTracker, track_orientation
+from gait_biofeedback.core.segments import SEGMENTS, SIDES, ImuSeries
+from gait_biofeedback.core.stamps import ns_to_seconds, seconds_to_ns
+from gait_biofeedback.io.bag import BagReader, BagWriter, read_imu_bag, write_imu_bag
+from gait_biofeedback.io.importers import (
+    QMT_FULLBODY_RATE_HZ,
+    Recording,
+    import_gaitmap,
+    import_qmt_fullbody,
+    import_recording,
+)
+from gait_biofeedback.report.session import SessionReport, format_report, session_report
+from gait_biofeedback.sim.recording import write_simulated_bag
+from gait_biofeedback.sim.simulator import SCENARIOS, Phase, SimulatedSession, SimulationConfig, simulate
+
+__all__ = [
+    "ALGORITHMS",
+    "DEFAULT_ALGORITHM",
+    "INITIAL_CONTACT",
+    "JOINT_NAMES",
+    "MATCH_TOLERANCE_S",
+    "PROTOCOLS",
+    "QMT_FULLBODY_RATE_HZ",
+    "SCENARIOS",
+    "SEGMENTS",
+    "SIDES",
+    "TERMINAL_CONTACT",
+    "TUNED_PATH",
+    "ActivityMonitor",
+    "ActivityState",
+    "AnalysisResult",
+    "BagReader",
+    "BagWriter",
+    "BodyDimensions",
+    "EventScore",
+    "GaitCycle",
+    "GaitCycleTracker",
+    "GaitEvent",
+    "GaitEventDetector",
+    "ImuSeries",
+    "JointAngleCalculator",
+    "Phase",
+    "Recording",
+    "SegmentCalibrationResult",
+    "SegmentOrientationTracker",
+    "SessionCalibration",
+    "SessionReport",
+    "SimulatedSession",
+    "SimulationConfig",
+    "UnitMismatchWarning",
+    "align_headings",
+    "analyze_recording",
+    "angular_velocity_events",
+    "calibrate_segment",
+    "calibrate_session",
+    "classify_activity",
+    "compute_joint_angles",
+    "cycles_from_event_times",
+    "detect_gait_events",
+    "estimate_orientation",
+    "events_from_signal",
+    "find_standing_then_motion",
+    "foot_calibration",
+    "foot_pitch_sine",
+    "format_report",
+    "helical_angle",
+    "import_gaitmap",
+    "import_qmt_fullbody",
+    "import_recording",
+    "joint_angles_from_segments",
+    "load_tuned",
+    "match_events",
+    "mean_orientation",
+    "ns_to_seconds",
+    "parse_calibrate_at",
+    "quaternion",
+    "read_imu_bag",
+    "sagittal_rate",
+    "seconds_to_ns",
+    "segment_orientations",
+    "session_report",
+    "simulate",
+    "track_orientation",
+    "vertical_calibration",
+    "write_imu_bag",
+    "write_simulated_bag",
+]

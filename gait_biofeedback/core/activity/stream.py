@@ -1,0 +1,153 @@
+"""The chest activity monitor on a live stream: the input rules around :class:`ActivityMonitor`.
+
+Shared by the ``activity_monitor`` node and the offline ``analyze`` path, so both see the same
+states. NaN/inf samples and repeated stamps are skipped and counted; a stamp going backwards or a gap
+longer than ``max_gap`` s restarts the monitor (its upright reference is taken again from the next
+``reference_s`` s); a state is "changed" when posture, locomotion or the last transition differ from
+the last changed one. A trunk forward axis (from the chest's sensor-to-segment calibration) is handed
+to the monitor at the first sample at or after its "in force" stamp, or at once if that has passed,
+as the calibration is for the other consumers (the monitor applies it to the states it emits from
+then on, see ``ActivityMonitor.set_forward_axis``). A restart keeps the forward axis and the wearer's
+walking-sway history. Warnings go to :attr:`ActivityStream.notices`.
+
+Samples are identified by their stamps (int ns); the stage's parameters are :class:`ActivityParams`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from gait_biofeedback.core import quaternion as quat
+from gait_biofeedback.core.activity.monitor import (
+    POSTURES,
+    ActivityMonitor,
+    ActivityState,
+    check_forward_axis,
+)
+from gait_biofeedback.core.body import BodyDimensions
+from gait_biofeedback.core.calibration.sensor_to_segment import SegmentEntry
+from gait_biofeedback.core.in_force import InForceQueue
+from gait_biofeedback.core.notices import Notices
+from gait_biofeedback.core.params import param, same_as
+from gait_biofeedback.core.segments import SEGMENTS
+from gait_biofeedback.core.stamps import NS_PER_S
+
+UNITS = ("m/s2", "g")
+
+
+@dataclass(frozen=True)
+class ActivityParams:
+    """Parameters of the activity stage (node ``activity_monitor``, and ``analyze``)."""
+
+    segment: str = param("chest", "segment whose raw accelerometer is monitored", choices=SEGMENTS)
+    rate_hz: float = param(100.0, "nominal sample rate of that IMU (the filters are designed for it)", "Hz",
+                           low=20.0, high=200.0)
+    units: str = param("m/s2", "unit of the accelerometer readings", choices=UNITS)
+    reference_s: float = param(2.0, "upright standing at the start taken as the trunk's reference", "s",
+                               low=0.1, high=60.0)
+    thigh_length: float = same_as(BodyDimensions, "thigh_length")
+    initial_posture: str = param("standing", "posture until a transition says otherwise", choices=POSTURES)
+    forward_axis: tuple[float, ...] = param(
+        (1.0, 0.0, 0.0), "trunk forward in chest-sensor axes until a calibration gives it (decides upstairs "
+        "vs downstairs only)", "1", length=3)
+    max_gap: float = param(0.5, "longest stamp gap before the monitor restarts", "s", low=0.01, high=60.0)
+    publish_period: float = param(1.0, "the state is also published this often (besides every change)", "s",
+                                  low=0.05, high=60.0)
+
+
+class ActivityStream:
+    """One chest accelerometer stream (see module docstring)."""
+
+    def __init__(self, params: ActivityParams | None = None) -> None:
+        p = params or ActivityParams()
+        self.params = p
+        self.rate_hz = p.rate_hz
+        self.max_gap = p.max_gap
+        self.options = {"units": p.units, "reference_s": p.reference_s, "thigh_length_m": p.thigh_length,
+                        "initial_posture": p.initial_posture, "forward_axis": list(p.forward_axis)}
+        self.monitor = ActivityMonitor(self.rate_hz, **self.options)
+        self.counts = {"samples": 0, "nan_skipped": 0, "duplicates": 0, "restarts": 0}
+        self.notices = Notices()
+        self.latest: ActivityState | None = None
+        self._last_ns: int | None = None
+        self._key: tuple | None = None
+        self._waiting_forward: InForceQueue[list[float]] = InForceQueue()
+
+    def set_forward_axis(self, forward_axis: Sequence[float], from_ns: int = 0) -> None:
+        """Trunk forward in sensor axes, in force from stamp ``from_ns`` (see module docstring).
+
+        Raises ValueError when it is not a usable direction (zero, NaN, or vertical for the mounting).
+        """
+        forward = check_forward_axis(forward_axis).tolist()
+        if from_ns > 0 and (self._last_ns is None or from_ns > self._last_ns):
+            self._waiting_forward.put(int(from_ns), forward)
+            return
+        problem = self._apply_forward(forward)
+        if problem:
+            raise ValueError(problem)
+
+    def apply_calibration(self, entries: Mapping[str, SegmentEntry], from_ns: int = 0) -> None:
+        """The trunk forward axis from this segment's entry of a calibration (in force from
+        ``from_ns``); what happened is said in :attr:`notices`.
+
+        The entry's rotation maps segment axes into sensor axes, so the segment's x (anterior) in
+        sensor axes is rotate(r, x)."""
+        segment = self.params.segment
+        entry = entries.get(segment)
+        if entry is None or not entry.valid:
+            self.notices.say("info", f"calibration has no valid {segment} entry: the current forward axis "
+                                     "is kept")
+            return
+        forward = quat.rotate(entry.rotation, np.array([1.0, 0.0, 0.0]))
+        try:
+            self.set_forward_axis(forward, from_ns)
+        except ValueError as exc:
+            self.notices.say("warn", f"{segment} calibration not used for the forward axis: {exc}")
+            return
+        self.notices.say("info", f"{segment} forward axis from the calibration: "
+                                 f"{np.round(forward, 3).tolist()} (sensor)")
+
+    def _apply_forward(self, forward: list[float]) -> str:
+        """Hand the axis to the monitor; the reason it was refused, or ""."""
+        try:
+            self.monitor.set_forward_axis(forward)
+        except ValueError as exc:
+            return f"{exc}: the previous forward axis is kept"
+        self.options["forward_axis"] = forward  # kept across restarts
+        return ""
+
+    def update(self, stamp_ns: int, acc: tuple[float, float, float]) -> tuple[ActivityState | None, bool]:
+        """One sample → (the newest state or None, whether it changed)."""
+        self.counts["samples"] += 1
+        if not all(math.isfinite(v) for v in acc):
+            self.counts["nan_skipped"] += 1
+            return None, False
+        segment = self.params.segment
+        if self._last_ns is not None:
+            dt = stamp_ns / NS_PER_S - self._last_ns / NS_PER_S
+            if dt == 0.0:
+                self.counts["duplicates"] += 1
+                return None, False
+            if dt < 0.0 or dt > self.max_gap:
+                self.counts["restarts"] += 1
+                cause = f"time went back {-dt:.3f} s" if dt < 0.0 else f"{dt:.2f} s without data"
+                self.notices.say("warn", f"{segment}: {cause}: activity monitor restarted")
+                previous, self.monitor = self.monitor, ActivityMonitor(self.rate_hz, **self.options)
+                self.monitor.keep_wearer_history(previous)
+        self._last_ns = stamp_ns
+        for forward in self._waiting_forward.due(stamp_ns):
+            problem = self._apply_forward(forward)
+            if problem:
+                self.notices.say("warn", f"{segment}: {problem}")
+        state = self.monitor.update(stamp_ns, acc)
+        if state is None:
+            return None, False
+        self.latest = state
+        key = (state.posture, state.locomotion, state.last_transition, state.last_transition_ns)
+        changed = key != self._key
+        self._key = key
+        return state, changed

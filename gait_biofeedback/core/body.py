@@ -1,0 +1,35 @@
+"""The patient's body dimensions: one declaration for every stage that needs them.
+
+The activity monitor scales its sit/stand height gate by the thigh length (thesis §7.2.5), the
+joint-angle node draws the ``skeleton`` and the dashboard the stick figure from the same lengths. In a
+params file they go under ``/**:`` (every node) so that one value serves them all. Defaults: an adult
+of about 1.75 m (thigh 0.42 m greater trochanter to knee, the activity monitor's reference).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+from gait_biofeedback.core.params import param
+
+
+@dataclass(frozen=True)
+class BodyDimensions:
+    """Segment lengths (m) of the patient."""
+
+    thigh_length: float = param(0.42, "thigh length, hip joint to knee joint", "m", low=0.2, high=0.7)
+    shank_length: float = param(0.43, "shank length, knee joint to ankle joint", "m", low=0.2, high=0.7)
+    hip_width: float = param(0.18, "distance between the hip joint centres", "m", low=0.1, high=0.5)
+    foot_length: float = param(0.14, "ankle joint to the toes, along the foot", "m", low=0.05, high=0.35)
+    ankle_height: float = param(0.08, "ankle joint above the sole", "m", low=0.02, high=0.2)
+    trunk_length: float = param(0.45, "pelvis origin to the shoulders (stick figure only)", "m",
+                                low=0.2, high=0.9)
+
+
+def body_dimensions(params: Any) -> BodyDimensions:
+    """The :class:`BodyDimensions` of a stage's parameters (the fields it declares with
+    ``same_as(BodyDimensions, ...)``; the others at their defaults)."""
+    names = {f.name for f in dataclasses.fields(BodyDimensions)}
+    return BodyDimensions(**{n: getattr(params, n) for n in names if hasattr(params, n)})

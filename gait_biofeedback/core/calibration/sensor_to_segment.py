@@ -1,0 +1,490 @@
+"""Sensor-to-segment calibration (thesis ch. 3, Eq 14–17; gait.md §1.3–1.7).
+
+Result per segment: the constant rotation ``r`` (segment → sensor) with ``q_segment = q_sensor ⊗ r``;
+``as_matrix(r)`` has the anatomical axes (x anterior, y superior, z right, both legs) as columns in
+sensor coordinates, i.e. it is ``(AF→SF)`` = the transpose of the thesis' ``({}^{AF}_{SF}R)`` (Eq 16).
+
+Steps (per segment, independently):
+
+1. Vertical (thesis Eq 14, READING gait.md §1.4 "rows"): ``y_AF`` = mean accelerometer during quiet
+   standing, normalised (specific force points up). No axis pre-permutation: READING for arbitrary
+   mountings, the provisional VF x is the horizontal projection of the sensor axis most
+   perpendicular to ``y_AF`` (never degenerate), ``z_VF = x_VF × y_VF``.
+2. Heading (thesis Eq 15, convention-free recipe of gait.md §1.5): the first principal axis ``u`` of
+   the angular velocity's horizontal components (VF x–z plane, mean removed) during the motion is the
+   mediolateral axis; ``z_AF = ±u``, ``x_AF = y_AF × z_AF``. READING (EXT): the motion gyro is first
+   low-passed (2nd-order Butterworth, ``MOTION_LOWPASS_HZ`` = 6 Hz, zero phase; gait and hip flexion
+   have their sagittal content below it). Real thigh sensors vibrate on the soft tissue at each heel
+   strike: on the qmt walk 52–63 % of the thigh gyro's x/y power is above 10 Hz (spikes of ±15 rad/s),
+   which made the raw PCA pick that vibration axis instead of the mediolateral one.
+3. Sign of ``z_AF`` (= the 180° x anterior/posterior ambiguity; the thesis' atan restriction needs
+   pre-permuted axes, READING here): ``z_AF`` must point right, so forward (sagittal) rotation is
+   positive about +z on both legs. Each rule is a physical property of the movement that holds for any
+   walker (simulated and real), evaluated on the low-passed rate ``ω·z``:
+
+   * hip flexion protocol, thigh: hip flexion exceeds extension, so the thigh's sagittal angle relative
+     to standing (``∫ ω·z dt``, gyro minus its standing mean) has a positive mean; shank and foot swing
+     with the thigh, so their ``ω·z`` correlates positively with the thigh's (simulated: +1.0);
+   * walking protocol, shank: it rotates forward slowly over the planted foot in stance and fast in
+     swing, so its largest rate peak is the forward swing (positive skewness of ``ω·z``; simulated
+     +1.6, qmt ±0.8);
+   * walking protocol, thigh (:func:`knee_shape_sign`, reference = the calibrated shank of the same
+     leg): the knee angle ``∫(ω_thigh − ω_shank)`` flexes far more (≈ 60° in swing) than it
+     hyperextends, so its excursion about its 2 s moving mean is positive-dominant
+     (``p99 + p1 > 0``); with the wrong thigh sign the curve is the sum of the two segment angles,
+     nearly symmetric (simulated +20° vs 0°, qmt +19° vs −3°). The former rule (mean of ``∫ ω·z``
+     over the walk) drifts on a long real walk (qmt right thigh: +21° mean from drift alone, the wrong
+     sign on both thighs); it stays the fallback without a shank;
+   * walking protocol, foot (:func:`foot_pitch_sign`, no reference needed, also used by the batch
+     gait-event calibration): the foot's toes-down minimum at push-off (≈ −37°) is deeper than its
+     toes-up maximum at initial contact (≈ +12°) [T §6.4.2], so the sign whose detrended pitch has the
+     larger negative excursion (``|p1| > p99``) is kept. The skewness of a real foot's rate is ≈ 0
+     (qmt ±0.16: the push-off and swing peaks are equally fast, the largest can be negative), which
+     put every gait event ~300 ms off. ``details["reference_agreement"]`` records whether the foot's
+     rate correlates positively with the shank's (qmt +0.95, simulated +0.92).
+
+   Without the reference, a segment falls back to its own rule (the mean-angle rule in hip flexion,
+   skewness for a walking shank, knee shape impossible → mean angle for a walking thigh), noted in
+   ``details["sign_rule"]``.
+4. Pelvis and chest (gait.md §1.7 option (a), project decision): vertical from standing; heading =
+   mean heading of the calibrated thighs' x axes during standing, in the common world frame, so it
+   needs the standing orientations (magnetometer-aided filter) of the trunk sensor and the thighs.
+
+Quality: ``explained_variance`` of the first principal axis (λ1/(λ1+λ2), 0.5 = no preferred axis,
+1 = single-axis motion); trunk: ``thigh_heading_agreement`` (1 − |Δheading| / 90°).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, NamedTuple
+
+import numpy as np
+from scipy.signal import butter, filtfilt
+
+from gait_biofeedback.core import quaternion as quat
+from gait_biofeedback.core.segments import GRAVITY, SIDES, ImuSeries
+
+PROTOCOLS: tuple[str, ...] = ("hip_flexion", "walking")
+LEG_PARTS: tuple[str, ...] = ("thigh", "shank", "foot")
+TRUNK_SEGMENTS: tuple[str, ...] = ("pelvis", "chest")
+# Minimum sagittal cycles per leg segment: thesis §3.6 (≥ 10 hip FE) and §3.3 PC8 (8 steps = 4 per leg).
+MIN_CYCLES: dict[str, int] = {"hip_flexion": 10, "walking": 4}
+CYCLE_WORD: dict[str, str] = {"hip_flexion": "flexion", "walking": "swing"}
+MIN_EXPLAINED_VARIANCE = 0.6
+MAX_STANDING_GYRO_RMS = 0.08  # rad/s (4.6 °/s): more is not quiet standing
+MAX_STANDING_ACC_RMS = 0.5  # m/s²
+MAX_THIGH_HEADING_DISAGREEMENT = np.radians(30.0)
+CYCLE_THRESHOLD = 0.35  # rad/s, hysteresis of the cycle counter (20 °/s)
+MOTION_LOWPASS_HZ = 6.0  # READING: low-pass of the motion gyro before PCA and the sign rules
+DETREND_WINDOW_S = 2.0  # moving-mean window removed from integrated angles (about one stride)
+
+
+@dataclass
+class SegmentCalibrationResult:
+    """One segment's calibration; ``rotation`` = r (segment → sensor), ``q_segment = q_sensor ⊗ r``."""
+
+    segment: str
+    rotation: np.ndarray
+    valid: bool
+    quality: float
+    quality_metric: str
+    standing_motion: float
+    message: str = ""
+    details: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"segment": self.segment, "rotation": [float(v) for v in self.rotation], "valid": self.valid,
+                "quality": float(self.quality), "quality_metric": self.quality_metric,
+                "standing_motion": float(self.standing_motion), "message": self.message,
+                "details": _plain(self.details)}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> SegmentCalibrationResult:
+        return cls(segment=str(d["segment"]), rotation=quat.normalize(np.asarray(d["rotation"], dtype=float)),
+                   valid=bool(d["valid"]), quality=float(d["quality"]),
+                   quality_metric=str(d["quality_metric"]),
+                   standing_motion=float(d["standing_motion"]), message=str(d.get("message", "")),
+                   details=dict(d.get("details", {})))
+
+
+class SegmentEntry(NamedTuple):
+    """One segment's calibration as its consumers receive it: r, whether it is valid, the message."""
+
+    rotation: np.ndarray
+    valid: bool
+    message: str = ""
+
+
+@dataclass
+class SessionCalibration:
+    """All segments' calibration of one calibration trial; ``success`` only when every segment is valid."""
+
+    protocol: str
+    segments: dict[str, SegmentCalibrationResult]
+    success: bool
+    message: str
+    standing: tuple[float, float] | None = None
+    motion: tuple[float, float] | None = None
+
+    def rotations(self) -> dict[str, np.ndarray]:
+        """Segment → r of the valid segments."""
+        return {s: r.rotation for s, r in self.segments.items() if r.valid}
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"protocol": self.protocol, "success": self.success, "message": self.message,
+                "standing": None if self.standing is None else [float(v) for v in self.standing],
+                "motion": None if self.motion is None else [float(v) for v in self.motion],
+                "segments": {s: r.to_dict() for s, r in self.segments.items()}}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> SessionCalibration:
+        if d.get("protocol") not in PROTOCOLS:
+            raise ValueError(f"calibration file: protocol {d.get('protocol')!r} is not one of {PROTOCOLS}")
+        return cls(protocol=d["protocol"], success=bool(d["success"]), message=str(d.get("message", "")),
+                   standing=None if d.get("standing") is None else tuple(d["standing"]),
+                   motion=None if d.get("motion") is None else tuple(d["motion"]),
+                   segments={s: SegmentCalibrationResult.from_dict(r) for s, r in d["segments"].items()})
+
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [_plain(v) for v in value]
+    if isinstance(value, (np.floating, float)):
+        return float(value)
+    if isinstance(value, (np.integer, int)) and not isinstance(value, bool):
+        return int(value)
+    return value if isinstance(value, (str, bool)) or value is None else str(value)
+
+
+def label(segment: str) -> str:
+    """'left_shank' → 'left shank' (for messages a clinician reads)."""
+    return segment.replace("_", " ")
+
+
+def vertical_calibration(standing_acc: np.ndarray) -> np.ndarray:
+    """Thesis Eq 14, rows READING (gait.md §1.4): ``(SF→VF)`` matrix whose rows are x_VF, y_VF, z_VF.
+
+    ``y_VF`` = mean specific force (up). READING for arbitrary mountings: ``x_VF`` = horizontal
+    projection of the sensor axis most perpendicular to ``y_VF`` (instead of the sensor x of the
+    pre-permuted thesis set-up), ``z_VF = x_VF × y_VF``. Property: ``R @ mean(acc) = (0, |mean|, 0)``.
+    """
+    acc = np.asarray(standing_acc, dtype=float).reshape(-1, 3)
+    y = acc.mean(axis=0)
+    norm = np.linalg.norm(y)
+    if not np.isfinite(norm) or norm < 1e-6:
+        raise ValueError("vertical calibration: the mean accelerometer reading is zero or not finite")
+    y = y / norm
+    e = np.eye(3)[int(np.argmin(np.abs(y)))]
+    x = e - np.dot(e, y) * y
+    x /= np.linalg.norm(x)
+    z = np.cross(x, y)
+    return np.vstack([x, y, z])
+
+
+def heading_calibration(motion_gyr: np.ndarray, vertical: np.ndarray) -> tuple[float, float, np.ndarray]:
+    """Thesis Eq 15 by the convention-free recipe (gait.md §1.5 READING).
+
+    ``vertical``: the ``(SF→VF)`` matrix of :func:`vertical_calibration`. Returns (γ rad, explained
+    variance λ1/(λ1+λ2), principal axis in sensor coordinates). ``u = (u_x, u_z)`` is the unit first
+    principal vector of the VF horizontal components with ``u_z >= 0``; ``γ = atan2(-u_x, u_z)`` rotates
+    VF about y onto AF (``x_AF = (u_z, 0, -u_x)``, ``z_AF = (u_x, 0, u_z)`` in VF). The axis sign is
+    resolved by :func:`calibrate_segment`, not here.
+    """
+    w_vf = np.asarray(motion_gyr, dtype=float).reshape(-1, 3) @ np.asarray(vertical).T
+    horizontal = w_vf[:, [0, 2]]
+    if horizontal.shape[0] < 3:
+        raise ValueError("heading calibration: fewer than 3 motion samples")
+    cov = np.cov(horizontal, rowvar=False)
+    eigval, eigvec = np.linalg.eigh(cov)
+    u = eigvec[:, 1]
+    if u[1] < 0:
+        u = -u
+    total = float(eigval.sum())
+    explained = float(eigval[1] / total) if total > 0 else 0.5
+    gamma = float(np.arctan2(-u[0], u[1]))
+    axis_sf = u[0] * vertical[0] + u[1] * vertical[2]
+    return gamma, explained, axis_sf / np.linalg.norm(axis_sf)
+
+
+def count_cycles(rate: np.ndarray, threshold: float = CYCLE_THRESHOLD) -> int:
+    """Sagittal movement cycles in an angular-rate signal: each rise above +threshold after a fall
+    below -threshold (hysteresis), on a 50 ms moving average."""
+    rate = np.asarray(rate, dtype=float)
+    if rate.size == 0:
+        return 0
+    smooth = np.convolve(rate, np.ones(5) / 5.0, mode="same")
+    state, cycles = 0, 0
+    for v in smooth:
+        if v < -threshold:
+            state = -1
+        elif v > threshold and state == -1:
+            cycles += 1
+            state = 1
+    return cycles
+
+
+def lowpass_motion(gyr: np.ndarray, rate_hz: float, cutoff_hz: float = MOTION_LOWPASS_HZ) -> np.ndarray:
+    """Zero-phase 2nd-order Butterworth low-pass of (N, 3) angular rates (module docstring step 2).
+
+    Returned unchanged when too short to filter (< 15 samples) or when the cut-off is not below the
+    Nyquist frequency."""
+    gyr = np.asarray(gyr, dtype=float)
+    if gyr.shape[0] < 15 or cutoff_hz >= 0.5 * rate_hz:
+        return gyr
+    b, a = butter(2, cutoff_hz / (0.5 * rate_hz))
+    return filtfilt(b, a, gyr, axis=0)
+
+
+def sagittal_angle(rate: np.ndarray, rate_hz: float, window_s: float = DETREND_WINDOW_S) -> np.ndarray:
+    """Integrated sagittal rate (rad) minus its ``window_s`` moving mean: a drift-free shape of a
+    segment's (or joint's) sagittal angle over a walk, to compare its negative and positive excursions."""
+    angle = np.cumsum(np.asarray(rate, dtype=float)) / rate_hz
+    window = max(1, min(len(angle), round(window_s * rate_hz)))
+    padded = np.pad(angle, (window // 2, window - 1 - window // 2), mode="edge")
+    return angle - np.convolve(padded, np.ones(window) / window, "valid")
+
+
+def foot_pitch_sign(rate: np.ndarray, rate_hz: float) -> tuple[float, float]:
+    """(+1 if ``rate`` is about the right-pointing axis, asymmetry) of a walking foot's sagittal rate.
+
+    Rule (module docstring step 3, READING after [T §6.4.2]): the toes-down minimum at push-off is
+    deeper than the toes-up maximum at IC. ``asymmetry`` = ``|p1| − p99`` (rad) of the detrended pitch
+    for the returned sign (≥ 0)."""
+    pitch = sagittal_angle(rate, rate_hz)
+    p1, p99 = np.percentile(pitch, [1, 99])
+    deeper_down = -p1 - p99
+    return (1.0 if deeper_down >= 0 else -1.0), float(abs(deeper_down))
+
+
+def knee_shape_sign(thigh_rate: np.ndarray, shank_rate: np.ndarray, rate_hz: float) -> tuple[float, float]:
+    """(+1 if ``thigh_rate`` is about the right-pointing axis, asymmetry) of a walking thigh, given the
+    same leg's shank rate about its (already right-pointing) axis.
+
+    Rule (module docstring step 3): the knee angle ``∫(ω_thigh − ω_shank)`` flexes far more than it
+    hyperextends: its detrended excursion has ``p99 + p1 > 0``. Both thigh signs are tried and the one
+    with the more positive-dominant knee curve is returned; ``asymmetry`` = the difference (rad)."""
+    thigh_rate = np.asarray(thigh_rate, dtype=float)
+    shank_rate = np.asarray(shank_rate, dtype=float)
+    score = []
+    for sign in (1.0, -1.0):
+        p1, p99 = np.percentile(sagittal_angle(sign * thigh_rate - shank_rate, rate_hz), [1, 99])
+        score.append(p99 + p1)
+    return (1.0 if score[0] >= score[1] else -1.0), float(abs(score[0] - score[1]))
+
+
+def _own_sign(segment: str, rate: np.ndarray, protocol: str, rate_hz: float) -> tuple[float, str]:
+    """(+1 if the segment's own rule says the axis points right, rule name) (module docstring step 3)."""
+    if protocol == "walking" and segment.endswith("foot"):
+        sign, asym = foot_pitch_sign(rate, rate_hz)
+        return sign, f"foot pitch shape (push-off deeper by {np.degrees(asym):.0f} deg)"
+    if protocol == "hip_flexion" or segment.endswith("thigh"):
+        angle = np.cumsum(rate) / rate_hz
+        return (1.0 if np.mean(angle) >= 0 else -1.0), "mean sagittal angle"
+    centred = rate - rate.mean()
+    return (1.0 if np.mean(centred**3) >= 0 else -1.0), "skewness"
+
+
+def calibrate_segment(
+    segment: str,
+    standing_acc: np.ndarray,
+    standing_gyr: np.ndarray,
+    motion_gyr: np.ndarray,
+    rate_hz: float,
+    protocol: str,
+    standing_orientation: np.ndarray | None = None,
+    reference_rate: np.ndarray | None = None,
+) -> SegmentCalibrationResult:
+    """Calibrate one leg segment (thigh, shank, foot) with thesis Eq 14–16 (see module docstring).
+
+    ``reference_rate``: the sagittal angular rate (about its right-pointing axis, standing bias removed,
+    low-passed with :func:`lowpass_motion`) of the same leg's reference segment at the motion samples:
+    hip flexion thigh for shank/foot (correlation), walking shank for the thigh (knee shape); None = the
+    segment's own rule. A walking foot always uses its own pitch-shape rule. ``standing_orientation`` is
+    kept in ``details`` (needed by the trunk heading). Never raises for bad recordings: returns
+    ``valid=False`` with a message a clinician can act on.
+    """
+    if protocol not in PROTOCOLS:
+        raise ValueError(f"unknown protocol {protocol!r}; expected one of {PROTOCOLS}")
+    name = label(segment)
+    standing_acc = np.asarray(standing_acc, dtype=float).reshape(-1, 3)
+    standing_gyr = np.asarray(standing_gyr, dtype=float).reshape(-1, 3)
+    motion_gyr = np.asarray(motion_gyr, dtype=float).reshape(-1, 3)
+    stand_motion, problem = standing_check(segment, standing_acc, standing_gyr)
+    result = SegmentCalibrationResult(segment, quat.IDENTITY.copy(), False, 0.0, "explained_variance",
+                                      stand_motion, problem or "")
+    if problem:
+        return result
+    vertical = vertical_calibration(standing_acc)
+    y = vertical[1]
+    bias = standing_gyr.mean(axis=0)
+    if motion_gyr.shape[0] < 3:
+        result.message = f"{name}: no movement recorded after the quiet standing"
+        return result
+    motion = lowpass_motion(motion_gyr - bias, rate_hz)
+    gamma, explained, axis = heading_calibration(motion, vertical)
+    rate = motion @ axis
+    cycles = count_cycles(rate)
+    usable_ref = (reference_rate is not None and len(reference_rate) == len(rate)
+                  and np.std(reference_rate) > 0)
+    details: dict[str, Any] = {}
+    if usable_ref:
+        ref = np.asarray(reference_rate, dtype=float)
+        corr = float(np.corrcoef(rate, ref)[0, 1])
+    if protocol == "walking" and segment.endswith("foot"):
+        sign, rule = _own_sign(segment, rate, protocol, rate_hz)
+        if usable_ref:
+            details["reference_agreement"] = float(sign * corr)
+    elif protocol == "walking" and segment.endswith("thigh") and usable_ref:
+        sign, asym = knee_shape_sign(rate, ref, rate_hz)
+        rule = f"knee shape with the shank (flexion-dominant by {np.degrees(asym):.0f} deg)"
+    elif usable_ref:
+        sign, rule = (1.0 if corr >= 0 else -1.0), f"correlation with reference ({corr:+.2f})"
+    else:
+        sign, rule = _own_sign(segment, rate, protocol, rate_hz)
+    z = sign * axis
+    x = np.cross(y, z)
+    rotation = quat.from_matrix(np.column_stack([x, y, z]))
+    result.rotation, result.quality = rotation, explained
+    result.details = {"gamma": gamma, "cycles": cycles, "sign_rule": rule, **details}
+    if standing_orientation is not None:
+        result.details["standing_orientation"] = [float(v) for v in standing_orientation]
+    need = MIN_CYCLES[protocol]
+    if cycles < need:
+        what = "flexion cycles" if protocol == "hip_flexion" else "swings (steps of this leg)"
+        result.message = f"{name}: only {cycles} {what} detected, need {need}"
+    elif explained < MIN_EXPLAINED_VARIANCE:
+        result.message = (f"{name}: movement not in one plane (explained variance {explained:.2f} < "
+                          f"{MIN_EXPLAINED_VARIANCE}); repeat with clear forward-backward movements")
+    else:
+        result.valid = True
+    return result
+
+
+def standing_check(segment: str, acc: np.ndarray, gyr: np.ndarray) -> tuple[float, str | None]:
+    """(RMS angular rate about its mean in rad/s, problem message or None) of a quiet-standing window."""
+    name = label(segment)
+    if acc.shape[0] < 10:
+        return float("nan"), f"{name}: no quiet standing recorded (need 3–5 s standing still)"
+    gyro_rms = float(np.sqrt(np.mean(np.sum((gyr - gyr.mean(axis=0)) ** 2, axis=1))))
+    acc_rms = float(np.sqrt(np.mean(np.sum((acc - acc.mean(axis=0)) ** 2, axis=1))))
+    if gyro_rms > MAX_STANDING_GYRO_RMS or acc_rms > MAX_STANDING_ACC_RMS:
+        return gyro_rms, (f"subject moved during quiet standing ({name}: {np.degrees(gyro_rms):.1f} °/s, "
+                          f"limit {np.degrees(MAX_STANDING_GYRO_RMS):.1f} °/s); stand still 5 s and repeat")
+    g = float(np.linalg.norm(acc.mean(axis=0)))
+    if abs(g - GRAVITY) > 1.5:
+        return gyro_rms, f"{name}: accelerometer reads {g:.1f} m/s² at rest, not ~9.8: check the sensor"
+    return gyro_rms, None
+
+
+def mean_orientation(q: np.ndarray) -> np.ndarray:
+    """Normalised sign-aligned mean of nearby unit quaternions (N, 4) (a standing period's attitude)."""
+    q = np.asarray(q, dtype=float).reshape(-1, 4)
+    signs = np.where(q @ q[0] < 0, -1.0, 1.0)
+    return quat.normalize((q * signs[:, None]).mean(axis=0))
+
+
+def calibrate_trunk(segment: str, standing_acc: np.ndarray, standing_gyr: np.ndarray,
+                    standing_orientation: np.ndarray | None,
+                    thighs: list[SegmentCalibrationResult]) -> SegmentCalibrationResult:
+    """Pelvis/chest (gait.md §1.7 option (a)): vertical from standing (Eq 14), heading = mean world
+    heading of the calibrated thighs' x axes during standing (needs a common world heading)."""
+    name = label(segment)
+    standing_acc = np.asarray(standing_acc, dtype=float).reshape(-1, 3)
+    motion, problem = standing_check(segment, standing_acc, np.asarray(standing_gyr, float).reshape(-1, 3))
+    result = SegmentCalibrationResult(segment, quat.IDENTITY.copy(), False, 0.0, "thigh_heading_agreement",
+                                      motion, problem or "")
+    if problem:
+        return result
+    usable = [t for t in thighs if t.valid and "standing_orientation" in t.details]
+    if standing_orientation is None or not usable:
+        result.message = (f"{name}: heading needs calibrated thighs and the orientations of a "
+                          "magnetometer-aided filter; calibrate the thighs first")
+        return result
+    headings = []
+    for t in usable:
+        x_sensor = quat.rotate(t.rotation, [1.0, 0.0, 0.0])
+        x_world = quat.rotate(np.asarray(t.details["standing_orientation"]), x_sensor)
+        headings.append(np.arctan2(x_world[1], x_world[0]))
+    mean_heading = float(np.arctan2(np.mean(np.sin(headings)), np.mean(np.cos(headings))))
+    spread = float(np.abs(np.angle(np.exp(1j * (headings[0] - headings[-1])))))
+    y = vertical_calibration(standing_acc)[1]
+    x_target = quat.rotate_inverse(standing_orientation, [np.cos(mean_heading), np.sin(mean_heading), 0.0])
+    x = x_target - np.dot(x_target, y) * y
+    if np.linalg.norm(x) < 0.3:
+        result.message = f"{name}: sensor orientation and accelerometer disagree on the vertical"
+        return result
+    x /= np.linalg.norm(x)
+    result.rotation = quat.from_matrix(np.column_stack([x, y, np.cross(x, y)]))
+    result.quality = max(0.0, 1.0 - spread / (np.pi / 2))
+    result.details = {"heading": mean_heading, "thigh_heading_spread": spread,
+                      "standing_orientation": [float(v) for v in standing_orientation]}
+    if spread > MAX_THIGH_HEADING_DISAGREEMENT:
+        result.message = (f"{name}: left and right thigh headings differ by {np.degrees(spread):.0f}°: "
+                          "check the thigh sensors and the magnetic environment, then repeat")
+    else:
+        result.valid = True
+    return result
+
+
+def _window(series_t: np.ndarray, window: tuple[float, float]) -> np.ndarray:
+    return (series_t >= window[0]) & (series_t <= window[1])
+
+
+def calibrate_session(
+    data: dict[str, ImuSeries],
+    standing: tuple[float, float],
+    motion: tuple[float, float],
+    protocol: str,
+    rate_hz: float | None = None,
+    orientations: dict[str, np.ndarray] | None = None,
+) -> SessionCalibration:
+    """Calibrate every segment of ``data`` (legs, then pelvis/chest) from the ``standing`` and
+    ``motion`` time windows (s). ``orientations``: segment → (N, 4) sensor→world per sample of
+    ``data`` (needed for the trunk heading). ``success`` only if every segment is valid."""
+    if protocol not in PROTOCOLS:
+        raise ValueError(f"unknown protocol {protocol!r}; expected one of {PROTOCOLS}")
+    orientations = orientations or {}
+    results: dict[str, SegmentCalibrationResult] = {}
+    ref_part = "thigh" if protocol == "hip_flexion" else "shank"
+    for side in SIDES:
+        ref = f"{side}_{ref_part}"
+        order = [ref] + [f"{side}_{p}" for p in LEG_PARTS if p != ref_part]
+        ref_rate = None
+        for seg in order:
+            if seg not in data:
+                continue
+            s = data[seg]
+            st, mo = _window(s.t, standing), _window(s.t, motion)
+            rate_ref = None
+            if ref_rate is not None and (protocol == "walking" or not seg.endswith("thigh")):
+                rate_ref = np.interp(s.t[mo], *ref_rate)
+            q_stand = mean_orientation(orientations[seg][st]) if seg in orientations and st.any() else None
+            res = calibrate_segment(seg, s.acc[st], s.gyr[st], s.gyr[mo], rate_hz or s.rate_hz, protocol,
+                                    q_stand, rate_ref)
+            results[seg] = res
+            if seg == ref and res.valid:
+                z = quat.rotate(res.rotation, [0.0, 0.0, 1.0])
+                ref_motion = lowpass_motion(s.gyr[mo] - s.gyr[st].mean(axis=0), rate_hz or s.rate_hz)
+                ref_rate = (s.t[mo], ref_motion @ z)
+    thighs = [results[f"{side}_thigh"] for side in SIDES if f"{side}_thigh" in results]
+    for seg in TRUNK_SEGMENTS:
+        if seg in data:
+            s = data[seg]
+            st = _window(s.t, standing)
+            q_stand = mean_orientation(orientations[seg][st]) if seg in orientations and st.any() else None
+            results[seg] = calibrate_trunk(seg, s.acc[st], s.gyr[st], q_stand, thighs)
+    problems = [r.message for r in results.values() if not r.valid]
+    if not results:
+        problems = ["no sensor data to calibrate"]
+    success = not problems
+    message = ("calibrated " + ", ".join(label(s) for s in results) if success
+               else "calibration refused, previous calibration stays in force: " + "; ".join(problems))
+    return SessionCalibration(protocol, results, success, message, tuple(standing), tuple(motion))
+
+
+def helical_angle(r_estimate: np.ndarray, r_reference: np.ndarray) -> np.ndarray:
+    """Calibration error θ of thesis Eq 19 (rad): rotation angle between two segment→sensor rotations."""
+    return quat.angle_between(r_estimate, r_reference)

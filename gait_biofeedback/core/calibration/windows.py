@@ -1,0 +1,84 @@
+"""Where the calibration protocol happened in a recording: quiet standing, then the motion.
+
+The live calibration looks back over a rolling buffer when the clinician presses Calibrate (protocol:
+"stand still 5 s, then ≥ 10 hip flexion/extension per leg or ≥ 8 straight steps, then Calibrate").
+EXT/READING (the thesis does not say how the windows were cut, gait.md §1.12): a sample is *still*
+when, on every segment, the 0.5 s moving mean of the gyro norm is below ``gyro_threshold`` and the
+0.5 s moving standard deviation of the accelerometer norm is below ``acc_threshold``. The standing
+window is the last ``standing_duration`` s of the last still run of at least that length that is
+followed by at least ``min_motion`` s of movement; the motion window runs from the end of that run
+to the end of the recording (trailing standing adds near-zero rates, harmless to the PCA).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from gait_biofeedback.core.segments import ImuSeries
+
+GYRO_STILL = 0.2  # rad/s, moving mean of |ω|
+ACC_STILL = 0.3  # m/s², moving std of |a|
+STILL_WINDOW = 0.5  # s
+
+
+def _moving(x: np.ndarray, n: int) -> np.ndarray:
+    kernel = np.ones(n) / n
+    pad = np.pad(x, (n // 2, n - 1 - n // 2), mode="edge")
+    return np.convolve(pad, kernel, mode="valid")
+
+
+def still_mask(series: ImuSeries, gyro_threshold: float = GYRO_STILL,
+               acc_threshold: float = ACC_STILL) -> np.ndarray:
+    """(N,) bool: the sensor is still around each sample (module docstring)."""
+    n = max(3, round(STILL_WINDOW * series.rate_hz))
+    gyro = _moving(np.linalg.norm(series.gyr, axis=1), n)
+    a = np.linalg.norm(series.acc, axis=1)
+    acc_std = np.sqrt(np.maximum(_moving(a**2, n) - _moving(a, n) ** 2, 0.0))
+    return (gyro < gyro_threshold) & (acc_std < acc_threshold)
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """[start, stop) index pairs of the True runs."""
+    edges = np.diff(np.concatenate([[0], mask.astype(int), [0]]))
+    return list(zip(np.flatnonzero(edges == 1).tolist(), np.flatnonzero(edges == -1).tolist(), strict=True))
+
+
+def find_standing_then_motion(
+    data: dict[str, ImuSeries],
+    standing_duration: float = 3.0,
+    motion_duration: float = 0.0,
+    min_motion: float = 2.0,
+) -> tuple[tuple[float, float], tuple[float, float]]:
+    """((t0, t1) standing, (t0, t1) motion) of the protocol just performed (module docstring).
+
+    Raises ValueError with a message a clinician can act on when the recording has no such pattern.
+    ``motion_duration`` > 0: at least that many seconds must follow the standing.
+    """
+    if not data:
+        raise ValueError("no sensor data received: are the sensors on and the orientation filter running?")
+    ref = max(data.values(), key=len)
+    t = ref.t
+    if len(t) < 2:
+        raise ValueError("not enough sensor data yet: stand still 5 s, do the movements, then calibrate")
+    still = np.ones(len(t), dtype=bool)
+    for series in data.values():
+        if len(series) < 2:
+            continue
+        s = still_mask(series).astype(float)
+        still &= np.interp(t, series.t, s, left=0.0, right=0.0) > 0.5
+    need_motion = max(min_motion, motion_duration)
+    runs = [(a, b) for a, b in _runs(still) if t[b - 1] - t[a] >= standing_duration - 1e-9]
+    if not runs:
+        raise ValueError(f"no quiet standing of {standing_duration:g} s found in the last "
+                         f"{t[-1] - t[0]:.0f} s: "
+                         "ask the subject to stand still, then repeat the movements and calibrate")
+    moving_after = [(a, b) for a, b in runs if np.sum(~still[b:]) / ref.rate_hz >= min_motion]
+    if not moving_after:
+        raise ValueError("no movement after the quiet standing: do the calibration movements "
+                         "(hip flexion/extension or straight walking) before pressing Calibrate")
+    _, b = moving_after[-1]
+    t_end_stand = float(t[b - 1])
+    if t[-1] - t_end_stand < need_motion:
+        raise ValueError(f"only {t[-1] - t_end_stand:.1f} s of movement after the quiet standing, "
+                         f"need {need_motion:g} s")
+    return (t_end_stand - standing_duration, t_end_stand), (t_end_stand, float(t[-1]))

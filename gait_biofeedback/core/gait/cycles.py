@@ -1,0 +1,170 @@
+"""Per-stride temporal parameters from both feet's IC/TC events (issue 5; thesis Ch. 8 feedback list).
+
+A stride of one foot runs from its IC to its next IC. At that closing IC, :class:`GaitCycleTracker`
+returns a :class:`GaitCycle`: stride, stance (IC → TC) and swing (TC → next IC) time and fractions,
+step time (last IC of the other foot → this IC), cadence (steps/s = 2 / stride time), double support
+(IC → other foot's TC, plus other foot's IC → this foot's TC, inside the stride), and the step-time
+symmetry index ``(left - right) / (0.5 (left + right))`` of the mean step times over the last
+``symmetry_window`` steps of each side (a step "of the left side" ends with a left IC).
+Plausibility: a stride outside [0.4, 3] s, or one without exactly one TC of its own foot between the
+two ICs, is returned with ``plausible=False`` and a ``flag`` saying why; implausible strides do not
+enter the symmetry window. Events may arrive slightly out of order between feet (two topics); each
+foot's own events must be in order.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+from gait_biofeedback.core.gait.events import INITIAL_CONTACT, TERMINAL_CONTACT, GaitEvent
+from gait_biofeedback.core.segments import SIDES
+from gait_biofeedback.core.stamps import NS_PER_S, s_to_ns
+
+MIN_STRIDE_S = 0.4
+MAX_STRIDE_S = 3.0
+
+
+@dataclass(frozen=True)
+class GaitCycle:
+    """One stride of ``side``: the stamps (int ns) of its opening IC, closing IC and its TC (None when
+    it has not exactly one), durations in s, fractions of the stride time, NaN where unknown."""
+
+    side: str
+    index: int
+    start_ns: int
+    end_ns: int
+    terminal_contact_ns: int | None
+    stride_time: float
+    stance_time: float
+    swing_time: float
+    stance_fraction: float
+    swing_fraction: float
+    step_time: float
+    cadence: float
+    double_support_time: float
+    double_support_fraction: float
+    step_time_symmetry_index: float
+    plausible: bool
+    flag: str = ""
+
+    @property
+    def start(self) -> float:
+        """Opening IC, s."""
+        return self.start_ns / NS_PER_S
+
+    @property
+    def end(self) -> float:
+        """Closing IC, s."""
+        return self.end_ns / NS_PER_S
+
+    @property
+    def terminal_contact(self) -> float:
+        """The stride's TC, s (NaN when unknown)."""
+        return math.nan if self.terminal_contact_ns is None else self.terminal_contact_ns / NS_PER_S
+
+
+class GaitCycleTracker:
+    """Streaming stride parameters of both feet: feed every :class:`GaitEvent` to :meth:`add`."""
+
+    def __init__(self, symmetry_window: int = 10, min_stride_s: float = MIN_STRIDE_S,
+                 max_stride_s: float = MAX_STRIDE_S, history: int = 8) -> None:
+        self.min_stride_s = float(min_stride_s)
+        self.max_stride_s = float(max_stride_s)
+        self._ics: dict[str, deque[GaitEvent]] = {s: deque(maxlen=history) for s in SIDES}
+        self._tcs: dict[str, deque[GaitEvent]] = {s: deque(maxlen=history) for s in SIDES}
+        self._steps = {s: deque(maxlen=max(1, int(symmetry_window))) for s in SIDES}
+        self.counts = {s: 0 for s in SIDES}
+        self.implausible = {s: 0 for s in SIDES}
+
+    def reset(self, side: str) -> None:
+        """Forget one foot's events (its stream stopped): its next IC opens a new stride."""
+        self._ics[side].clear()
+        self._tcs[side].clear()
+
+    def add(self, event: GaitEvent) -> GaitCycle | None:
+        """One event; the stride it closes (an IC after an earlier IC of the same foot), else None."""
+        side = event.side
+        if event.kind == TERMINAL_CONTACT:
+            self._tcs[side].append(event)
+            return None
+        if event.kind != INITIAL_CONTACT:
+            raise ValueError(f"unknown event kind {event.kind!r}")
+        ics = self._ics[side]
+        previous = ics[-1] if ics else None
+        ics.append(event)
+        if previous is None:
+            return None
+        return self._cycle(side, previous, event)
+
+    def _cycle(self, side: str, opening: GaitEvent, closing: GaitEvent) -> GaitCycle:
+        start, end = opening.t, closing.t
+        other = SIDES[1 - SIDES.index(side)]
+        stride = end - start
+        own_tcs = [e for e in self._tcs[side] if start < e.t < end]
+        flags = []
+        if not self.min_stride_s <= stride <= self.max_stride_s:
+            flags.append(f"stride time {stride:.2f} s outside {self.min_stride_s:g}-{self.max_stride_s:g} s")
+        if len(own_tcs) != 1:
+            flags.append(f"{len(own_tcs)} terminal contacts between the initial contacts (expected 1)")
+        tc = own_tcs[0].t if own_tcs else math.nan
+        other_ics = [e.t for e in self._ics[other] if start < e.t < end]
+        step = end - other_ics[-1] if other_ics else math.nan
+        other_tc_after_start = [e.t for e in self._tcs[other] if start < e.t < tc]
+        other_ic_before_tc = [t for t in other_ics if t < tc]
+        if other_tc_after_start and other_ic_before_tc:
+            double = (other_tc_after_start[0] - start) + (tc - other_ic_before_tc[-1])
+        else:
+            double = math.nan
+        plausible = not flags
+        if plausible and math.isfinite(step):
+            self._steps[side].append(step)
+        if not plausible:
+            self.implausible[side] += 1
+        self.counts[side] += 1
+        stance = tc - start
+        swing = end - tc
+        return GaitCycle(
+            side=side, index=self.counts[side], start_ns=opening.stamp_ns, end_ns=closing.stamp_ns,
+            terminal_contact_ns=own_tcs[0].stamp_ns if own_tcs else None,
+            stride_time=stride, stance_time=stance, swing_time=swing, stance_fraction=stance / stride,
+            swing_fraction=swing / stride, step_time=step, cadence=2.0 / stride,
+            double_support_time=double, double_support_fraction=double / stride,
+            step_time_symmetry_index=self.symmetry_index(), plausible=plausible, flag="; ".join(flags))
+
+    def symmetry_index(self) -> float:
+        """``(L - R) / (0.5 (L + R))`` of the mean step times in the window; NaN until both sides have one."""
+        left, right = self._steps["left"], self._steps["right"]
+        if not left or not right:
+            return math.nan
+        mean_left = sum(left) / len(left)
+        mean_right = sum(right) / len(right)
+        return (mean_left - mean_right) / (0.5 * (mean_left + mean_right))
+
+
+def cycles_from_events(events: list[GaitEvent], **options: float) -> list[GaitCycle]:
+    """Batch: all strides of a list of both feet's events (sorted here by detection time)."""
+    tracker = GaitCycleTracker(**options)
+    out = []
+    for event in sorted(events, key=lambda e: (e.detected_ns, e.stamp_ns)):
+        cycle = tracker.add(event)
+        if cycle is not None:
+            out.append(cycle)
+    return out
+
+
+def cycles_from_event_times(events: Mapping[str, Mapping[str, Sequence[float]]], rate_hz: float,
+                            **options: float) -> list[GaitCycle]:
+    """Batch: the strides of both feet's event times, ``{side: {"ic": [s], "tc": [s]}}`` as
+    :func:`~gait_biofeedback.core.gait.detect.detect_gait_events` gives them (each event confirmed one
+    sample later, as live)."""
+    detected = []
+    for side, per_kind in events.items():
+        for kind in (INITIAL_CONTACT, TERMINAL_CONTACT):
+            for index, t in enumerate(per_kind.get(kind, ())):
+                stamp_ns = s_to_ns(float(t))
+                confirmed_ns = stamp_ns + s_to_ns(1.0 / rate_hz)
+                detected.append(GaitEvent(side, kind, stamp_ns, confirmed_ns, 0.0, index))
+    return cycles_from_events(detected, **options)

@@ -1,0 +1,213 @@
+"""Real-time initial/terminal contact (IC/TC) detection from the foot pitch (thesis ch. 6, Algorithm 1).
+
+Signal (thesis Eq 52, gait.md §2.3): ``s = -sin(beta)`` = element (3,1) of the foot orientation, i.e.
+the world-vertical (ENU z) component of the foot's anterior unit axis. In the project's ISB foot frame
+(x anterior, y superior, z right) the anterior axis is the segment x-axis, so with the calibrated foot
+orientation ``q_segment = q_sensor ⊗ r``: ``s = e_up · R(q_sensor) R(r) e_x``. READING: the thesis'
+ch. 6 frame (x forward, z up) maps onto ours by its x-axis alone; no sign flip is needed: s > 0 with
+the toes up (IC region), s < 0 toes down (TC region), s = 0 in quiet standing after the vertical
+calibration (thesis "correction 1" is then automatic; "correction 2" is a no-op for element (3,1)).
+
+Algorithm 1 (gait.md §2.4–2.6), one detector per foot, state ``flag`` (0 = waiting for TC):
+- TC at the confirming sample k: ``k - k_TC > N_refr``, ``s_k < -0.2``, ``s_{k-1}`` is a local minimum;
+- IC: a TC since the last IC (the flag), ``k - k_IC > N_refr``, ``s_k > -0.2``, ``s_{k-1}`` local maximum.
+Local minimum of ``c = k-1`` (gait.md §2.5): ``s_c < s_{c-i}`` for i = 1..W and ``s_c < s_{c+1}``, and at
+least 80 % of the W differences ``s_{c-i} - s_{c-i-1}`` (i = 1..W) are negative; maximum mirrored.
+
+READINGs / choices (documented and tested):
+- Rates other than 100 Hz: the sample counts scale with time, ``W = round(0.150 s · rate)`` (15 at
+  100 Hz, 30 at 200 Hz, 31 at 204.8 Hz) and ``N_refr = round(0.150 s · rate)`` with the strict ``>`` of
+  Algorithm 1 (so exactly Algorithm 1 at 100 Hz: ≥ 160 ms between events of one type); the 80 % rule
+  needs ``ceil(0.8 · W)`` decreasing (increasing) differences. The look-ahead stays one sample.
+- Start-up: no previous TC/IC counts as −∞ (gait.md §6.2 #18); the first test waits for ``W + 3``
+  samples (the 80 % rule of candidate k−1 reaches back to ``s_{k-W-2}``).
+- Threshold on the confirming sample ``s_k``, extremum at ``s_{k-1}`` (verbatim Algorithm 1).
+- Event time: the extremum sample ``k-1`` (the message stamp); it is emitted when sample k arrives, so
+  the detection latency is one sample period (thesis Table 15 compares the detection sample k; the
+  benchmark reports both).
+
+Samples and events are identified by their stamps (int ns, ``docs/conventions.md``); Algorithm 1 itself
+counts samples and never looks at time.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from gait_biofeedback.core import quaternion as quat
+from gait_biofeedback.core.stamps import NS_PER_S, sample_stamps
+
+INITIAL_CONTACT = "ic"
+TERMINAL_CONTACT = "tc"
+THRESHOLD = -0.2  # -sin(beta) threshold, thesis §6.2.2 (≈ 11.5° toes-down)
+REFRACTORY_S = 0.150  # per event type, thesis §6.2.2 / Algorithm 1 ("> 15" samples at 100 Hz)
+EXTREMUM_WINDOW_S = 0.150  # 15 previous samples at 100 Hz, thesis §6.2.2
+TREND_FRACTION = 0.8  # ≥ 80 % monotone differences, thesis §6.2.2
+
+
+@dataclass(frozen=True)
+class GaitEvent:
+    """One detected event of one foot. ``stamp_ns``: stamp of the event (extremum) sample;
+    ``detected_ns``: stamp of the sample that confirmed it (one sample later); ``signal``: the
+    detector's signal at the event (-sin(beta) for Algorithm 1); ``index``: running count of events of
+    this side and type."""
+
+    side: str
+    kind: str
+    stamp_ns: int
+    detected_ns: int
+    signal: float
+    index: int
+
+    @property
+    def t(self) -> float:
+        """The event's stamp in seconds."""
+        return self.stamp_ns / NS_PER_S
+
+    @property
+    def latency(self) -> float:
+        """Detection latency, s (thesis: one sample)."""
+        return (self.detected_ns - self.stamp_ns) / NS_PER_S
+
+
+def samples_for(duration_s: float, rate_hz: float) -> int:
+    """A duration of thesis Algorithm 1 (stated at 100 Hz) as a sample count at ``rate_hz`` (≥ 1)."""
+    return max(1, round(duration_s * rate_hz))
+
+
+def anterior_axis_in_sensor(mounting: np.ndarray | None) -> tuple[float, float, float]:
+    """The foot's anterior (segment x) axis in the sensor frame, ``R(r) e_x``, for the calibration
+    rotation ``r`` (segment → sensor, ``q_segment = q_sensor ⊗ r``); identity if ``None``."""
+    r = quat.IDENTITY if mounting is None else np.asarray(mounting, dtype=float)
+    f = quat.rotate(quat.normalize(r), np.array([1.0, 0.0, 0.0]))
+    return float(f[0]), float(f[1]), float(f[2])
+
+
+def foot_pitch_sine(foot_quat: np.ndarray, mounting: np.ndarray | None = None) -> np.ndarray:
+    """``-sin(beta)`` (thesis Eq 52) of sensor orientations (..., 4) with the calibration ``r``: the
+    world-vertical component of the foot's anterior axis (see module docstring)."""
+    fx, fy, fz = anterior_axis_in_sensor(mounting)
+    q = quat.normalize(np.asarray(foot_quat, dtype=float))
+    w, x, y, z = np.moveaxis(q, -1, 0)
+    # third row of R(q): (2(xz - wy), 2(yz + wx), 1 - 2(x² + y²))
+    return 2.0 * (x * z - w * y) * fx + 2.0 * (y * z + w * x) * fy + (1.0 - 2.0 * (x * x + y * y)) * fz
+
+
+class GaitEventDetector:
+    """Streaming thesis Algorithm 1 for one foot (see module docstring); pure-Python floats.
+
+    ``update(stamp_ns, foot_quat)`` takes the foot IMU's orientation (sensor → world, (w, x, y, z)) and
+    uses the calibration ``mounting`` r; ``update_signal(stamp_ns, s)`` takes ``-sin(beta)`` directly.
+    Both return a :class:`GaitEvent` (for the previous sample) or ``None``.
+    """
+
+    def __init__(self, side: str = "left", rate_hz: float = 100.0, mounting: np.ndarray | None = None,
+                 threshold: float = THRESHOLD, refractory_s: float = REFRACTORY_S,
+                 window_s: float = EXTREMUM_WINDOW_S, trend_fraction: float = TREND_FRACTION) -> None:
+        if not rate_hz > 0:
+            raise ValueError(f"rate_hz must be > 0, got {rate_hz}")
+        self.side = side
+        self.rate_hz = float(rate_hz)
+        self.threshold = float(threshold)
+        self.window = samples_for(window_s, rate_hz)
+        self.refractory = samples_for(refractory_s, rate_hz)
+        self.min_trend = math.ceil(trend_fraction * self.window - 1e-9)
+        self.set_mounting(mounting)
+        self.counts = {INITIAL_CONTACT: 0, TERMINAL_CONTACT: 0}
+        self.reset()
+
+    def set_mounting(self, mounting: np.ndarray | None) -> None:
+        """Use a new calibration rotation r (segment → sensor)."""
+        self._f = anterior_axis_in_sensor(mounting)
+
+    def reset(self) -> None:
+        """Forget the signal history and the state (e.g. after a stream gap); counters are kept."""
+        self._s: deque[float] = deque(maxlen=self.window + 3)
+        self._stamps: deque[int] = deque(maxlen=2)
+        self._k = -1
+        self._k_tc = -math.inf
+        self._k_ic = -math.inf
+        self.waiting_for_ic = False  # Algorithm 1 "flag"
+
+    def signal(self, foot_quat: Any) -> float:
+        """``-sin(beta)`` of one sensor orientation (w, x, y, z) with the current calibration."""
+        w, x, y, z = (float(v) for v in foot_quat)
+        n2 = w * w + x * x + y * y + z * z
+        fx, fy, fz = self._f
+        up_x, up_y, up_z = 2.0 * (x * z - w * y), 2.0 * (y * z + w * x), n2 - 2.0 * (x * x + y * y)
+        return (up_x * fx + up_y * fy + up_z * fz) / n2
+
+    def update(self, stamp_ns: int, foot_quat: Any) -> GaitEvent | None:
+        """One orientation sample stamped ``stamp_ns`` → the event of the previous sample, if any."""
+        return self.update_signal(stamp_ns, self.signal(foot_quat))
+
+    def update_signal(self, stamp_ns: int, s: float) -> GaitEvent | None:
+        """One ``-sin(beta)`` sample stamped ``stamp_ns`` → the event of the previous sample, if any."""
+        buf = self._s
+        buf.append(s)
+        self._stamps.append(stamp_ns)
+        self._k += 1
+        k = self._k
+        if len(buf) < self.window + 3:
+            return None
+        prev = buf[-2]
+        if not self.waiting_for_ic:
+            if k - self._k_tc > self.refractory and s < self.threshold and prev < s and self._is_minimum():
+                self._k_tc = k
+                self.waiting_for_ic = True
+                return self._event(TERMINAL_CONTACT, stamp_ns, prev)
+        elif k - self._k_ic > self.refractory and s > self.threshold and prev > s and self._is_maximum():
+            self._k_ic = k
+            self.waiting_for_ic = False
+            return self._event(INITIAL_CONTACT, stamp_ns, prev)
+        return None
+
+    def _is_minimum(self) -> bool:
+        buf = self._s
+        n = len(buf)
+        c = buf[n - 2]
+        trend = 0
+        for j in range(n - 3, 0, -1):  # s_{c-i}, i = 1..W (indices n-3 .. 1)
+            v = buf[j]
+            if not c < v:
+                return False
+            if v < buf[j - 1]:
+                trend += 1
+        return trend >= self.min_trend
+
+    def _is_maximum(self) -> bool:
+        buf = self._s
+        n = len(buf)
+        c = buf[n - 2]
+        trend = 0
+        for j in range(n - 3, 0, -1):
+            v = buf[j]
+            if not c > v:
+                return False
+            if v > buf[j - 1]:
+                trend += 1
+        return trend >= self.min_trend
+
+    def _event(self, kind: str, detected_ns: int, value: float) -> GaitEvent:
+        self.counts[kind] += 1
+        return GaitEvent(self.side, kind, self._stamps[0], detected_ns, value, self.counts[kind])
+
+
+def events_from_signal(signal: np.ndarray, rate_hz: float, **options: Any) -> dict[str, np.ndarray]:
+    """Algorithm 1 over a whole ``-sin(beta)`` series → event sample indices ``{"ic": (n,), "tc": (m,)}``
+    (the extremum samples; the thesis' detection sample is one later). ``options`` go to
+    :class:`GaitEventDetector`."""
+    detector = GaitEventDetector(rate_hz=rate_hz, **options)
+    values = np.asarray(signal, dtype=float)
+    out: dict[str, list[int]] = {INITIAL_CONTACT: [], TERMINAL_CONTACT: []}
+    for k, (stamp_ns, sk) in enumerate(zip(sample_stamps(len(values), rate_hz).tolist(), values.tolist(),
+                                           strict=True)):
+        event = detector.update_signal(stamp_ns, sk)
+        if event is not None:
+            out[event.kind].append(k - 1)
+    return {kind: np.array(v, dtype=int) for kind, v in out.items()}

@@ -1,0 +1,194 @@
+"""Both feet's live gait events and strides: the stream rules around the detector and the tracker.
+
+:class:`GaitEventStream` is what the ``gait_events`` node and the offline analysis
+(:mod:`gait_biofeedback.analyze`) both drive: per foot a
+:class:`~gait_biofeedback.core.gait.events.GaitEventDetector` (thesis Algorithm 1) and one shared
+:class:`~gait_biofeedback.core.gait.cycles.GaitCycleTracker`, plus what a real stream needs:
+
+- Calibration: a foot's samples are not used (counted as ``uncalibrated``) until its calibration is
+  in force, unless ``use_standing_reference`` (the mounting is then taken from the first orientation,
+  :func:`standing_reference`). :meth:`GaitEventStream.set_calibration` with ``from_ns`` > 0 takes
+  effect at the first sample stamped ``>= from_ns`` (so a live node and the offline path switch at
+  the same sample); ``from_ns = 0``, or a stamp the foot has already passed, takes effect at once. A
+  new calibration resets the foot's detector and strides.
+- Bad input: a non-finite or zero quaternion is skipped; a stamp going backwards or a gap
+  > ``max_gap`` s resets that foot (detector and strides), counted and said (:attr:`notices`).
+  A stream that stopped (the node's wall-clock check) is reported with :meth:`stream_stopped`.
+
+Samples are identified by their stamps (int ns); the stage's parameters are :class:`GaitEventsParams`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from gait_biofeedback.core import quaternion as quat
+from gait_biofeedback.core.calibration.sensor_to_segment import SegmentEntry
+from gait_biofeedback.core.gait.cycles import MAX_STRIDE_S, MIN_STRIDE_S, GaitCycle, GaitCycleTracker
+from gait_biofeedback.core.gait.events import (
+    EXTREMUM_WINDOW_S,
+    REFRACTORY_S,
+    THRESHOLD,
+    TREND_FRACTION,
+    GaitEvent,
+    GaitEventDetector,
+)
+from gait_biofeedback.core.in_force import InForceQueue
+from gait_biofeedback.core.notices import Notices
+from gait_biofeedback.core.params import param, require
+from gait_biofeedback.core.segments import SIDES
+from gait_biofeedback.core.stamps import NS_PER_S
+
+FOOT_SIDES = SIDES
+
+
+@dataclass(frozen=True)
+class GaitEventsParams:
+    """Parameters of the gait-event stage (node ``gait_events``, and ``analyze``)."""
+
+    sides: tuple[str, ...] = param(FOOT_SIDES, "feet whose events are detected", choices=FOOT_SIDES)
+    rate_hz: float = param(100.0, "nominal sample rate: Algorithm 1 counts samples (windows of 15 at 100 Hz)",
+                           "Hz", low=20.0, high=1000.0)
+    threshold: float = param(THRESHOLD, "-sin(foot pitch) threshold of Algorithm 1 (thesis §6.2.2)", "1",
+                             low=-1.0, high=1.0)
+    refractory_s: float = param(REFRACTORY_S, "least time between two events of one type", "s",
+                                low=0.0, high=2.0)
+    window_s: float = param(EXTREMUM_WINDOW_S, "look-back of the local-extremum rule", "s",
+                            low=0.01, high=1.0)
+    trend_fraction: float = param(TREND_FRACTION, "share of monotone differences the extremum rule needs",
+                                  "1", low=0.0, high=1.0)
+    max_gap: float = param(0.5, "longest stamp gap before a foot's state is reset", "s", low=0.01, high=60.0)
+    use_standing_reference: bool = param(False, "before a calibration, take the foot's anterior axis from "
+                                         "its first orientation (IMU x made horizontal, thesis §6.2.2)")
+    symmetry_window: int = param(10, "steps per side in the step-time symmetry index", "steps",
+                                 low=1, high=1000)
+    min_stride_s: float = param(MIN_STRIDE_S, "shorter strides are flagged implausible", "s",
+                                low=0.1, high=10.0)
+    max_stride_s: float = param(MAX_STRIDE_S, "longer strides are flagged implausible", "s",
+                                low=0.2, high=30.0)
+    stale_after: float = param(1.0, "time without a foot's data before its state is reset and reported",
+                               "s", low=0.1, high=60.0)
+    diagnostics_period: float = param(1.0, "period of the /diagnostics status", "s", low=0.1, high=60.0)
+
+    def __post_init__(self) -> None:
+        require(bool(self.sides) and len(set(self.sides)) == len(self.sides),
+                f"parameter 'sides': {list(self.sides)} must name 'left' and/or 'right' once each")
+        require(self.min_stride_s < self.max_stride_s,
+                f"parameter 'min_stride_s' ({self.min_stride_s:g}) must be below 'max_stride_s' "
+                f"({self.max_stride_s:g})")
+
+
+def standing_reference(q: np.ndarray) -> np.ndarray:
+    """Rotation r whose segment x axis is the horizontal projection of the IMU x axis at orientation q
+    (y up): ``q_segment = q ⊗ r`` keeps the heading and removes the standing roll/pitch."""
+    forward = quat.rotate(q, np.array([1.0, 0.0, 0.0]))
+    forward[2] = 0.0
+    forward /= np.linalg.norm(forward)
+    up = np.array([0.0, 0.0, 1.0])
+    segment_in_world = np.column_stack([forward, up, np.cross(forward, up)])
+    return quat.from_matrix(quat.as_matrix(quat.conjugate(q)) @ segment_in_world)
+
+
+class GaitEventStream:
+    """Gait events and strides of the feet in ``params.sides`` (see module docstring)."""
+
+    def __init__(self, params: GaitEventsParams | None = None) -> None:
+        p = params or GaitEventsParams()
+        self.params = p
+        self.sides = list(p.sides)
+        self.max_gap = p.max_gap
+        self.use_standing_reference = p.use_standing_reference
+        self.tracker = GaitCycleTracker(symmetry_window=p.symmetry_window, min_stride_s=p.min_stride_s,
+                                        max_stride_s=p.max_stride_s)
+        self.detectors = {s: GaitEventDetector(s, p.rate_hz, threshold=p.threshold,
+                                               refractory_s=p.refractory_s, window_s=p.window_s,
+                                               trend_fraction=p.trend_fraction)
+                          for s in self.sides}
+        self.calibrated = {s: False for s in self.sides}
+        self.counts = {s: {"samples": 0, "uncalibrated": 0, "resets": 0, "stream_stops": 0, "ic": 0, "tc": 0,
+                           "strides": 0, "implausible_strides": 0} for s in self.sides}
+        self.notes: dict[str, str] = {s: "" for s in self.sides}
+        self.notices = Notices()
+        self._last_ns: dict[str, int | None] = {s: None for s in self.sides}
+        self._waiting: dict[str, InForceQueue[np.ndarray]] = {s: InForceQueue() for s in self.sides}
+
+    def set_calibration(self, side: str, rotation: np.ndarray | None, valid: bool = True, message: str = "",
+                        from_ns: int = 0) -> None:
+        """The foot calibration r (segment → sensor) of ``side``, in force from stamp ``from_ns``."""
+        if side not in self.detectors:
+            return
+        if not valid or rotation is None:
+            self.notes[side] = f"calibration invalid: {message}"
+            return
+        last = self._last_ns[side]
+        if from_ns > 0 and (last is None or from_ns > last):
+            self._waiting[side].put(int(from_ns), np.asarray(rotation, dtype=float))
+            return
+        self._apply(side, np.asarray(rotation, dtype=float))
+
+    def apply_calibration(self, entries: Mapping[str, SegmentEntry], from_ns: int = 0) -> None:
+        """The feet's entries (``<side>_foot``) of a calibration in force from stamp ``from_ns``."""
+        for side in self.sides:
+            entry = entries.get(f"{side}_foot")
+            if entry is not None:
+                self.set_calibration(side, entry.rotation, entry.valid, entry.message, from_ns)
+
+    def _apply(self, side: str, rotation: np.ndarray) -> None:
+        self.detectors[side].set_mounting(rotation)
+        self.reset(side, "new calibration")
+        self.calibrated[side] = True
+        self.notes[side] = ""
+
+    def reset(self, side: str, why: str) -> None:
+        """Forget ``side``'s detector state and open strides (counted; noted for /diagnostics)."""
+        self.detectors[side].reset()
+        self.tracker.reset(side)
+        self._last_ns[side] = None
+        self.counts[side]["resets"] += 1
+        self.notes[side] = f"state reset: {why}"
+
+    def stream_stopped(self, side: str, seconds: float) -> None:
+        """``side``'s samples stopped ``seconds`` ago (wall clock): reset its state."""
+        self.counts[side]["stream_stops"] += 1
+        self.reset(side, "stream stopped")
+        self.notices.say("warn", f"{side} foot: no data for {seconds:.1f} s, state reset")
+
+    def update(self, side: str, stamp_ns: int,
+               q: tuple[float, float, float, float]) -> list[tuple[GaitEvent, GaitCycle | None]]:
+        """One orientation sample (sensor→world w, x, y, z) of ``side``'s foot stamped ``stamp_ns`` →
+        the events it confirmed, each with the stride it closed (or None)."""
+        counts = self.counts[side]
+        counts["samples"] += 1
+        if not all(math.isfinite(v) for v in q) or tuple(q) == (0.0, 0.0, 0.0, 0.0):
+            return []
+        for rotation in self._waiting[side].due(stamp_ns):
+            self._apply(side, rotation)
+        if not self.calibrated[side]:
+            if not self.use_standing_reference:
+                counts["uncalibrated"] += 1
+                return []
+            self.detectors[side].set_mounting(standing_reference(np.array(q)))
+            self.calibrated[side] = True
+        last_ns = self._last_ns[side]
+        if last_ns is not None:
+            t, last = stamp_ns / NS_PER_S, last_ns / NS_PER_S
+            if t <= last or t - last > self.max_gap:
+                why = "time went backwards" if t <= last else f"{t - last:.2f} s gap in the stamps"
+                self.reset(side, why)
+                self.notices.say("warn", f"{side} foot: {self.notes[side]}")
+        self._last_ns[side] = stamp_ns
+        event = self.detectors[side].update(stamp_ns, q)
+        if event is None:
+            return []
+        counts[event.kind] += 1
+        cycle = self.tracker.add(event)
+        if cycle is not None:
+            counts["strides"] += 1
+            if not cycle.plausible:
+                counts["implausible_strides"] += 1
+                self.notices.say("warn", f"{cycle.side} stride {cycle.index} flagged: {cycle.flag}")
+        return [(event, cycle)]

@@ -1,0 +1,164 @@
+"""The live joint-angle stream, shared by the ``joint_angles`` node and the offline analysis.
+
+Segment samples are synchronised by their exact stamps (int ns: the IMUs are sampled together), then
+turned into clinical joint angles by :class:`~gait_biofeedback.core.joints.angles.JointAngleCalculator`
+(thesis Eq 17, ISB JCS of gait.md §1.8, standing offset of §1.9). The stage's parameters are
+:class:`JointAnglesParams`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from gait_biofeedback.core.body import BodyDimensions, body_dimensions
+from gait_biofeedback.core.in_force import InForceQueue
+from gait_biofeedback.core.joints.angles import JointAngleCalculator
+from gait_biofeedback.core.params import param, same_as
+
+
+@dataclass(frozen=True)
+class JointAnglesParams:
+    """Parameters of the joint-angle stage (node ``joint_angles``, and ``analyze``); the body
+    dimensions draw the ``skeleton``."""
+
+    max_wait: float = param(0.1, "longest wait for a stamp's missing segments before it is published "
+                            "without them (live only)", "s", low=0.0, high=5.0)
+    remove_standing_offset: bool = param(True, "subtract the mean angles of the first still standing after "
+                                         "each calibration (gait.md §1.9)")
+    offset_window_s: float = param(2.0, "still standing averaged for the standing offset", "s",
+                                   low=0.1, high=30.0)
+    still_gyro: float = param(0.2, "every segment below this angular rate counts as still", "rad/s",
+                              low=0.01, high=5.0)
+    skeleton_every: int = param(5, "publish the skeleton markers every this many samples (0 = never)",
+                                "samples", low=0, high=10000)
+    diagnostics_period: float = param(1.0, "period of the /diagnostics status", "s", low=0.1, high=60.0)
+    thigh_length: float = same_as(BodyDimensions, "thigh_length")
+    shank_length: float = same_as(BodyDimensions, "shank_length")
+    hip_width: float = same_as(BodyDimensions, "hip_width")
+    foot_length: float = same_as(BodyDimensions, "foot_length")
+    ankle_height: float = same_as(BodyDimensions, "ankle_height")
+
+    @property
+    def body(self) -> BodyDimensions:
+        """The body dimensions among these parameters."""
+        return body_dimensions(self)
+
+
+
+STREAM_SEGMENTS: tuple[str, ...] = ("pelvis", "left_thigh", "left_shank", "left_foot", "right_thigh",
+                                    "right_shank", "right_foot")
+"""Segments the joint-angle stream synchronises (the chest takes no part in a joint)."""
+
+
+@dataclass(frozen=True)
+class SyncedAngles:
+    """One emitted instant: stamp (ns), the angles (rad, offset removed; empty when no joint had both
+    segments), the sensor→world orientations present, and the calibration rotations in force."""
+
+    ns: int
+    angles: dict[str, float]
+    sensor_quats: dict[str, np.ndarray]
+    rotations: dict[str, np.ndarray]
+
+
+class JointAngleStream:
+    """Synchronise segment samples by exact stamp, then :class:`JointAngleCalculator` (one per calibration).
+
+    Sync: a stamp is emitted when every calibrated segment has it, when a newer stamp is complete, or
+    (only with a clock, :meth:`flush` ``now``) ``max_wait`` s after its first sample arrived; the
+    missing segments are counted in :attr:`missing_counts`. Stamps are emitted in order.
+    Calibrations: :meth:`set_calibration` with ``from_ns`` > 0 takes effect at the first emitted stamp
+    ``>= from_ns`` (every consumer of a calibration then switches at the same sample, whenever the
+    calibration message arrived); ``from_ns = 0`` takes effect at once and drops the pending stamps.
+    Samples are ignored while no calibration is in force or waiting. Each calibration starts a new
+    calculator and, with ``remove_standing_offset``, a new standing-offset collection of
+    ``offset_window_s`` s of still samples (every segment present with |ω| < ``still_gyro`` rad/s).
+    """
+
+    def __init__(self, params: JointAnglesParams | None = None,
+                 segments: tuple[str, ...] = STREAM_SEGMENTS) -> None:
+        p = params or JointAnglesParams()
+        self.params = p
+        self.segments = tuple(segments)
+        self.max_wait = p.max_wait
+        self.remove_offset = p.remove_standing_offset
+        self.offset_window_s = p.offset_window_s
+        self.still_gyro = p.still_gyro
+        self.calculator: JointAngleCalculator | None = None
+        self._waiting: InForceQueue[JointAngleCalculator] = InForceQueue()
+        self.pending: dict[int, dict[str, tuple[np.ndarray, float]]] = {}
+        self.first_arrival: dict[int, float] = {}
+        self.missing_counts: dict[str, int] = {s: 0 for s in self.segments}
+
+    def _new_calculator(self, rotations: dict[str, np.ndarray]) -> JointAngleCalculator:
+        calculator = JointAngleCalculator(rotations)
+        if self.remove_offset:
+            calculator.collect_offset(self.offset_window_s)
+        return calculator
+
+    def set_calibration(self, rotations: dict[str, np.ndarray], from_ns: int = 0) -> None:
+        """A new calibration (segment → r, valid segments only), in force from stamp ``from_ns``."""
+        calculator = self._new_calculator(rotations)
+        if from_ns <= 0:
+            self.calculator = calculator
+            self._waiting.clear()
+            self.pending.clear()
+            self.first_arrival.clear()
+            return
+        self._waiting.put(int(from_ns), calculator)
+
+    @property
+    def active(self) -> bool:
+        """A calibration is in force or waiting for its first stamp."""
+        return self.calculator is not None or bool(self._waiting)
+
+    def _wanted(self) -> list[str]:
+        calculator = self.calculator or self._waiting.first()
+        return [] if calculator is None else [s for s in self.segments if s in calculator.rotations]
+
+    def add(self, segment: str, ns: int, q: np.ndarray, gyro_norm: float,
+            arrival: float | None = None) -> list[SyncedAngles]:
+        """One sample (sensor→world q, |ω| rad/s) of ``segment`` at stamp ``ns``; the instants ready now."""
+        if not self.active or segment not in self.segments:
+            return []
+        self.pending.setdefault(ns, {})[segment] = (np.asarray(q, dtype=float), float(gyro_norm))
+        self.first_arrival.setdefault(ns, arrival if arrival is not None else math.inf)
+        return self.flush(arrival)
+
+    def flush(self, now: float | None = None, force: bool = False) -> list[SyncedAngles]:
+        """Emit the stamps that are complete, older than a complete one, waited ``max_wait`` s by
+        ``now`` (same clock as the arrivals), or all of them with ``force`` (end of a recording)."""
+        if not self.active or not self.pending:
+            return []
+        wanted = self._wanted()
+        stamps = sorted(self.pending)
+        complete = [ns for ns in stamps if all(s in self.pending[ns] for s in wanted)]
+        newest_complete = complete[-1] if complete else None
+        out = []
+        for ns in stamps:
+            done = force or ns in complete or (newest_complete is not None and ns < newest_complete)
+            timed_out = now is not None and now - self.first_arrival[ns] > self.max_wait
+            if not (done or timed_out):
+                break
+            emitted = self._emit(ns, self.pending.pop(ns), wanted)
+            self.first_arrival.pop(ns, None)
+            if emitted is not None:
+                out.append(emitted)
+        return out
+
+    def _emit(self, ns: int, samples: dict[str, tuple[np.ndarray, float]],
+              wanted: list[str]) -> SyncedAngles | None:
+        for calculator in self._waiting.due(ns):
+            self.calculator = calculator
+        if self.calculator is None:
+            return None
+        for seg in wanted:
+            if seg not in samples:
+                self.missing_counts[seg] += 1
+        quats = {s: q for s, (q, _) in samples.items()}
+        still = all(w < self.still_gyro for _, w in samples.values()) and len(samples) == len(wanted)
+        angles = self.calculator.update(ns, quats, still=still)
+        return SyncedAngles(ns, angles, quats, self.calculator.rotations)

@@ -1,0 +1,255 @@
+"""One segment's live orientation: an orientation filter plus the care a real stream needs.
+
+:class:`SegmentOrientationTracker` wraps a filter of :mod:`gait_biofeedback.core.orientation.filters` and owns
+what is not the filter's job: time from sample stamps, the start-up step, magnetometer samples that
+arrive on their own stream, and bad input. The ``orientation_filter`` node and the offline path
+(:func:`track_orientation`) both drive this class, so they give the same numbers.
+
+Samples are identified by their stamps, int ns (``docs/conventions.md``, Time); dt is computed from
+them in float seconds. The stage's parameters are :class:`OrientationParams`.
+
+Rules (issue 3):
+- dt comes from the stamps. A NaN/inf sample is skipped and counted. A repeated stamp (duplicate
+  packet) is skipped and counted. A stamp going backwards (a bag that loops, a driver restart)
+  resets the filter and the start-up step, with a message. A gap > ``max_gap`` s re-initialises the
+  attitude from the accelerometer (+ magnetometer); the gyro bias estimate is kept.
+- Start-up (thesis §5.3.1): the first ``startup_s`` seconds are buffered; if the sensor was still,
+  they give the static gyro bias, reference norms and initial attitude
+  (:func:`~gait_biofeedback.core.orientation.filters.calibrate_from_rest`); if it moved, a message says so and
+  the filter starts from the accelerometer alone. Then the buffered samples are filtered and released
+  together, so no sample is lost; only the first ``startup_s`` s come out late, once.
+- Magnetometer: the IMU sample at ``t`` uses the newest magnetometer sample stamped at or before
+  ``t - mag_delay``, if it is not older than ``mag_delay + mag_max_age``; without one the filter runs
+  in 6D mode for that sample. The fixed look-back ``mag_delay`` (50 ms) makes the pairing depend on
+  stamps only, not on whether the magnetometer message of an instant arrives before or after the IMU
+  message (DDS does not order across topics), so the live graph and the offline path agree exactly
+  while the magnetometer stream lags by less than ``mag_delay``. A 50 ms old magnetic field costs
+  nothing measurable: it only corrects the slow heading drift.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from gait_biofeedback.core.notices import Notices
+from gait_biofeedback.core.orientation.filters import (
+    ALGORITHMS,
+    DEFAULT_ALGORITHM,
+    calibrate_from_rest,
+    quiet_samples,
+)
+from gait_biofeedback.core.orientation.filters.config import load_tuned
+from gait_biofeedback.core.params import param, require
+from gait_biofeedback.core.segments import SEGMENTS, ImuSeries
+from gait_biofeedback.core.stamps import NS_PER_S, ns_to_seconds, seconds_to_ns
+
+_CHOICES = tuple(sorted(ALGORITHMS))
+
+
+@dataclass(frozen=True)
+class OrientationParams:
+    """Parameters of the orientation stage (node ``orientation_filter``, and ``analyze``)."""
+
+    segments: tuple[str, ...] = param(SEGMENTS, "segments whose IMUs are tracked", choices=SEGMENTS)
+    algorithm: str = param(DEFAULT_ALGORITHM, "orientation filter of every segment", choices=_CHOICES)
+    segment_algorithm: dict[str, str] = param(
+        "", "orientation filter of this segment ('' = the 'algorithm' parameter)", choices=("", *_CHOICES),
+        keys=SEGMENTS, name="{key}.algorithm")
+    rate_hz: float = param(100.0, "nominal sample rate, for the filters' defaults (dt comes from the stamps)",
+                           "Hz", low=1.0, high=2000.0)
+    startup_s: float = param(1.0, "quiet standing at the start used for the gyro bias and initial attitude",
+                             "s", low=0.1, high=30.0)
+    max_gap: float = param(0.5, "longest stamp gap before the attitude is re-initialised from the "
+                           "accelerometer", "s", low=0.01, high=60.0)
+    mag_max_age: float = param(0.05, "oldest magnetometer sample a sample may use, beyond the fixed 50 ms "
+                               "look-back", "s", low=0.0, high=1.0)
+    orientation_variance: float = param(0.0012, "diagonal of the published orientation_covariance", "rad^2",
+                                        low=0.0, high=10.0)
+    stale_after: float = param(1.0, "time without data before a segment is reported stale on /diagnostics",
+                               "s", low=0.1, high=60.0)
+    diagnostics_period: float = param(1.0, "period of the /diagnostics status", "s", low=0.1, high=60.0)
+
+    def __post_init__(self) -> None:
+        require(len(set(self.segments)) == len(self.segments),
+                f"parameter 'segments': {list(self.segments)} names a segment twice")
+
+    def algorithm_of(self, segment: str) -> str:
+        """The filter of ``segment``: its own override, else ``algorithm``."""
+        return self.segment_algorithm.get(segment) or self.algorithm
+
+    def tracker(self, segment: str) -> SegmentOrientationTracker:
+        """The stream of one segment with these parameters."""
+        return SegmentOrientationTracker(segment, rate_hz=self.rate_hz, algorithm=self.algorithm_of(segment),
+                                         startup_s=self.startup_s, max_gap=self.max_gap,
+                                         mag_max_age=self.mag_max_age)
+
+
+@dataclass(frozen=True)
+class OrientationSample:
+    """One filtered sample: its stamp (int ns), q (w, x, y, z) sensor→world, bias-corrected gyro
+    (rad/s), raw acc (m/s²)."""
+
+    stamp_ns: int
+    q: np.ndarray
+    gyr: np.ndarray
+    acc: np.ndarray
+
+    @property
+    def t(self) -> float:
+        """The stamp in seconds."""
+        return self.stamp_ns / NS_PER_S
+
+
+class SegmentOrientationTracker:
+    """Streaming orientation of one segment's IMU (see module docstring)."""
+
+    def __init__(self, segment: str, rate_hz: float = 100.0, algorithm: str | None = None,
+                 params: dict[str, Any] | None = None, startup_s: float = 1.0, max_gap: float = 0.5,
+                 mag_max_age: float = 0.05, mag_delay: float = 0.05) -> None:
+        self.segment = segment
+        self.algorithm = algorithm or DEFAULT_ALGORITHM
+        if self.algorithm not in ALGORITHMS:
+            raise ValueError(f"{segment}: unknown orientation algorithm {self.algorithm!r}; "
+                             f"choose one of {sorted(ALGORITHMS)}")
+        self.params = {**load_tuned().get(self.algorithm, {}), **(params or {})}
+        self.rate_hz = float(rate_hz)
+        self.startup_s = float(startup_s)
+        self.max_gap = float(max_gap)
+        self.mag_max_age = float(mag_max_age)
+        self.mag_delay = float(mag_delay)
+        self.filter = ALGORITHMS[self.algorithm](self.rate_hz, **self.params)
+        self.counts = {"samples": 0, "published": 0, "nan_skipped": 0, "duplicates": 0,
+                       "time_resets": 0, "gaps": 0, "mag_samples": 0}
+        self.startup_quiet: bool | None = None
+        self.notices = Notices()
+        self._mag: deque[tuple[float, tuple[float, float, float]]] = deque(maxlen=64)
+        self._restart()
+
+    def _restart(self) -> None:
+        self._t_last: float | None = None
+        self._startup: list[tuple[float, tuple, tuple, tuple | None, int]] | None = []
+
+    def _say(self, level: str, text: str) -> None:
+        self.notices.say(level, f"{self.segment}: {text}")
+
+    def add_mag(self, stamp_ns: int, mag: Any) -> None:
+        """A magnetometer sample (any unit, tesla on the wire) stamped ``stamp_ns``."""
+        m = tuple(float(v) for v in mag)
+        if all(math.isfinite(v) for v in m):
+            self._mag.append((stamp_ns / NS_PER_S, m))
+            self.counts["mag_samples"] += 1
+
+    def _mag_for(self, t: float) -> tuple | None:
+        newest = t - self.mag_delay
+        for t_mag, m in reversed(self._mag):
+            if t_mag <= newest:
+                return m if newest - t_mag <= self.mag_max_age else None
+        return None
+
+    def update(self, stamp_ns: int, gyr: Any, acc: Any) -> list[OrientationSample]:
+        """One IMU sample (rad/s, m/s²) stamped ``stamp_ns`` → the samples ready now (usually one)."""
+        self.counts["samples"] += 1
+        t = stamp_ns / NS_PER_S
+        g = tuple(float(v) for v in gyr)
+        a = tuple(float(v) for v in acc)
+        if not all(math.isfinite(v) for v in g + a) or not math.isfinite(t):
+            self.counts["nan_skipped"] += 1
+            return []
+        if self._t_last is not None:
+            dt = t - self._t_last
+            if dt == 0.0:
+                self.counts["duplicates"] += 1
+                return []
+            if dt < 0.0:
+                self.counts["time_resets"] += 1
+                self._say("warn", f"time went back {-dt:.3f} s (bag loop or driver restart): "
+                                  "orientation filter reset, start-up step repeated")
+                self.filter.reset()
+                self._restart()
+            elif dt > self.max_gap:
+                self.counts["gaps"] += 1
+                self._say("warn", f"{dt:.2f} s without data: attitude re-initialised from the accelerometer")
+                self.filter.initialize(a, self._mag_for(t))
+        m = self._mag_for(t)
+        if self._startup is not None:
+            self._startup.append((t, g, a, m, stamp_ns))
+            self._t_last = t
+            if t - self._startup[0][0] + 1.0 / self.rate_hz < self.startup_s:
+                return []
+            return self._finish_startup()
+        dt = t - self._t_last if self._t_last is not None else None
+        self._t_last = t
+        return [self._step(g, a, m, dt, stamp_ns)]
+
+    def _finish_startup(self) -> list[OrientationSample]:
+        samples, self._startup = self._startup, None
+        gyr = np.array([s[1] for s in samples])
+        acc = np.array([s[2] for s in samples])
+        n = quiet_samples(gyr, acc, self.rate_hz, max_s=self.startup_s)
+        self.startup_quiet = n >= 0.5 * len(samples)
+        if self.startup_quiet:
+            mags = [s[3] for s in samples[:n]]
+            have = sum(m is not None for m in mags)
+            mag = (np.array([m if m is not None else (np.nan,) * 3 for m in mags])
+                   if have >= 0.5 * n else None)
+            self.filter.calibrate(calibrate_from_rest(gyr[:n], acc[:n], mag))
+        else:
+            self._say("warn", f"sensor moved during the first {self.startup_s:g} s: gyro bias not "
+                              "estimated; start sessions with the patient standing still")
+            self.filter.initialize(samples[0][2], samples[0][3])
+        out = []
+        previous = None
+        for t, g, a, m, stamp_ns in samples:
+            out.append(self._step(g, a, m, None if previous is None else t - previous, stamp_ns))
+            previous = t
+        return out
+
+    def _step(self, g: tuple, a: tuple, m: tuple | None, dt: float | None,
+              stamp_ns: int) -> OrientationSample:
+        q = self.filter.update(g, a, m, dt)
+        bias = self.filter.gyro_bias()
+        self.counts["published"] += 1
+        return OrientationSample(stamp_ns, q, np.array(g) - bias, np.array(a))
+
+    def diagnostics(self) -> dict[str, Any]:
+        """Counters and filter state for /diagnostics."""
+        state = self.filter.state()
+        return {
+            "algorithm": self.algorithm,
+            **self.counts,
+            "initialized": bool(state["initialized"]),
+            "startup_quiet": self.startup_quiet,
+            "gyro_bias": np.asarray(state["gyro_bias"]).round(5).tolist(),
+            "rest": bool(state["rest"]),
+            "mag_disturbed": bool(state["mag_disturbed"]),
+            "filter_skipped": state.get("skipped_samples", 0),
+        }
+
+
+def track_orientation(series: ImuSeries, **options: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Offline: the same tracker over a whole recording → (t (M,), q (M, 4), gyr (M, 3)).
+
+    The series' times become stamps on the 1 ns grid (as in a recording) and the returned ``t`` is
+    those stamps in seconds. Magnetometer samples are taken to share the IMU stamps (as the
+    project's recordings do).
+    ``options`` are the tracker's keyword arguments; ``rate_hz`` defaults to the series' median rate
+    rounded to 1 µHz (so a 100 Hz recording gives exactly the 100.0 the live node is configured with:
+    the filters use 1/rate_hz as the dt of a first sample).
+    """
+    options.setdefault("rate_hz", round(series.rate_hz, 6))
+    tracker = SegmentOrientationTracker(series.segment, **options)
+    out: list[OrientationSample] = []
+    mag = series.mag
+    for k, stamp_ns in enumerate(seconds_to_ns(series.t).tolist()):
+        if mag is not None:
+            tracker.add_mag(stamp_ns, mag[k])
+        out.extend(tracker.update(stamp_ns, series.gyr[k], series.acc[k]))
+    if not out:
+        return np.zeros(0), np.zeros((0, 4)), np.zeros((0, 3))
+    return (ns_to_seconds(np.array([s.stamp_ns for s in out])), np.array([s.q for s in out]),
+            np.array([s.gyr for s in out]))

@@ -1,0 +1,129 @@
+"""Every node's parameters, by node name, and the params files that set them (``config/session.yaml``).
+
+Each node's parameters are one stage dataclass (``docs/conventions.md``, Parameters; the table in
+the README). A params file is in the ROS 2 format (``/**/<node>: ros__parameters: {...}``; ``/**:``
+applies to every node that declares the parameter, the body dimensions for instance) and is checked
+here before anything starts: a node name or parameter nobody declares, a value of the wrong type (an
+int where a float is expected is accepted and converted) or out of range is refused with one line
+naming the file, the node, the parameter and what is allowed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from gait_biofeedback.core.activity.stream import ActivityParams
+from gait_biofeedback.core.biofeedback.evaluator import BiofeedbackParams
+from gait_biofeedback.core.calibration.stream import CalibrationParams
+from gait_biofeedback.core.gait.stream import GaitEventsParams
+from gait_biofeedback.core.joints.stream import JointAnglesParams
+from gait_biofeedback.core.orientation.stream import OrientationParams
+from gait_biofeedback.core.params import ParameterError, check, from_mapping, spec_by_name, unknown_name
+from gait_biofeedback.io.params import RecorderParams, ReplayerParams
+
+NODE_PARAMETERS: dict[str, type] = {
+    "imu_replayer": ReplayerParams,
+    "orientation_filter": OrientationParams,
+    "calibration": CalibrationParams,
+    "joint_angles": JointAnglesParams,
+    "gait_events": GaitEventsParams,
+    "activity_monitor": ActivityParams,
+    "biofeedback": BiofeedbackParams,
+    "recorder": RecorderParams,
+}
+"""Node name → its parameters' dataclass (the node classes declare their ROS parameters from it)."""
+
+EVERY_NODE = "**"
+ROS_PARAMETERS = ("use_sim_time",)
+"""Parameters rclpy itself declares on every node (accepted and handed on unchecked)."""
+
+
+def is_ros_parameter(name: str) -> bool:
+    return name in ROS_PARAMETERS or name.startswith("qos_overrides.")
+
+
+def stage_parameters(node: str, values: Mapping[str, Any] | None = None, where: str = "") -> Any:
+    """The parameters dataclass of ``node`` from ROS-named ``values`` (the rest default), checked."""
+    if node not in NODE_PARAMETERS:
+        raise ParameterError(f"{where + ': ' if where else ''}unknown node {node!r}; nodes: "
+                             f"{', '.join(NODE_PARAMETERS)}")
+    given = {k: v for k, v in (values or {}).items() if not is_ros_parameter(k)}
+    return from_mapping(NODE_PARAMETERS[node], given, where or f"node {node}")
+
+
+def _flatten(values: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    """Nested ``ros__parameters`` mappings → dotted names, as rcl reads them."""
+    out: dict[str, Any] = {}
+    for key, value in values.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, Mapping):
+            out.update(_flatten(value, f"{name}."))
+        else:
+            out[name] = value
+    return out
+
+
+def read_params_file(path: str | Path) -> dict[str, dict[str, Any]]:
+    """A params file as node name (or ``"**"``) → flat parameter values, unchecked; ParameterError
+    for a file that is missing, not YAML, or not in the ROS 2 params-file layout."""
+    path = Path(path)
+    if not path.is_file():
+        raise ParameterError(f"parameter file {path} not found (see config/session.yaml for the format)")
+    try:
+        document = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise ParameterError(f"{path}: not valid YAML{where}: {problem}") from None
+    if document is None:
+        return {}
+    if not isinstance(document, Mapping):
+        raise ParameterError(f"{path}: expected '/**/<node>: {{ros__parameters: ...}}' entries, "
+                             f"got {type(document).__name__}")
+    out: dict[str, dict[str, Any]] = {}
+    for key, entry in document.items():
+        node = str(key).rstrip("/").split("/")[-1]
+        if node != EVERY_NODE and node not in NODE_PARAMETERS:
+            raise unknown_node(path, str(key), node)
+        values = entry.get("ros__parameters") if isinstance(entry, Mapping) else None
+        if not isinstance(values, Mapping):
+            raise ParameterError(f"{path}: entry {key!r} has no 'ros__parameters' mapping")
+        out.setdefault(node, {}).update(_flatten(values))
+    return out
+
+
+def unknown_node(path: Path, key: str, node: str) -> ParameterError:
+    error = unknown_name(node, list(NODE_PARAMETERS), f"{path}")
+    return ParameterError(str(error).replace("unknown parameter", f"entry {key!r}: unknown node", 1))
+
+
+def load_params_file(path: str | Path, nodes: list[str] | None = None) -> dict[str, dict[str, Any]]:
+    """A params file checked against every node's parameters → node → the values it sets (converted).
+
+    ``/**`` values go to every node (of ``nodes``, default all) that declares them; a node's own
+    entry wins over them. Raises ParameterError (module docstring)."""
+    path = Path(path)
+    raw = read_params_file(path)
+    shared = raw.pop(EVERY_NODE, {})
+    for name in shared:
+        if not is_ros_parameter(name) and not any(name in spec_by_name(c) for c in NODE_PARAMETERS.values()):
+            known = sorted({n for c in NODE_PARAMETERS.values() for n in spec_by_name(c)})
+            raise unknown_name(name, known, f"{path}, entry '/**'")
+    out: dict[str, dict[str, Any]] = {}
+    for node in nodes if nodes is not None else list(NODE_PARAMETERS):
+        declared = spec_by_name(NODE_PARAMETERS[node])
+        values = {k: v for k, v in shared.items() if k in declared or is_ros_parameter(k)}
+        values.update(raw.get(node, {}))
+        where = f"{path}, node {node}"
+        stage_parameters(node, values, where)
+        if values:
+            out[node] = {k: v if is_ros_parameter(k) else check(declared[k], v) for k, v in values.items()}
+    for node in raw:
+        if nodes is not None and node not in nodes:
+            stage_parameters(node, raw[node], f"{path}, node {node}")
+    return out

@@ -1,0 +1,189 @@
+"""What a session produced, and how far it is from the truth when the recording carries one.
+
+Reads a recording of the graph's outputs (``joint_states``, ``gait/events``, ``gait/cycles``,
+``activity/state``, ``calibration/sensor_to_segment``) and, for simulated sessions, the
+``/ground_truth/...`` topics replayed with them (io/session_bag.py), and summarises: the calibration
+and its error (helical angle to the true mounting, thesis Eq 19), joint-angle RMSE per joint
+(samples matched by stamp), gait-event sensitivity/precision/timing (thesis Eq 53), stride
+parameters, activity transitions and steps.
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from gait_biofeedback.core import quaternion as quat
+from gait_biofeedback.core.gait.events import INITIAL_CONTACT, TERMINAL_CONTACT
+from gait_biofeedback.core.gait.matching import EventScore, match_events
+from gait_biofeedback.core.segments import SIDES
+from gait_biofeedback.core.stamps import NS_PER_S
+from gait_biofeedback.io.bag import BagReader
+from gait_biofeedback.wire import topics
+from gait_biofeedback.wire.calibration import rotation
+from gait_biofeedback.wire.gait import event_of
+from gait_biofeedback.wire.joints import angles_of
+from gait_biofeedback.wire.stamps import stamp_to_ns
+
+CALIBRATION, TRUE_CALIBRATION = topics.CALIBRATION.absolute(), topics.truth(topics.CALIBRATION)
+JOINTS, TRUE_JOINTS = topics.JOINT_STATES.absolute(), topics.truth(topics.JOINT_STATES)
+EVENTS, TRUE_EVENTS = topics.GAIT_EVENTS.absolute(), topics.truth(topics.GAIT_EVENTS)
+REPORTED_JOINTS = ("hip_flexion", "knee_flexion", "ankle_dorsiflexion", "hip_adduction", "knee_adduction",
+                   "ankle_inversion")
+
+
+@dataclass
+class SessionReport:
+    """Figures of one session (see module docstring); NaN/empty where the recording lacks the data."""
+
+    duration: float = 0.0
+    counts: dict[str, int] = field(default_factory=dict)
+    calibration: dict[str, dict] = field(default_factory=dict)
+    joint_rmse: dict[str, float] = field(default_factory=dict)
+    events: dict[str, EventScore] = field(default_factory=dict)
+    cycles: dict[str, float] = field(default_factory=dict)
+    transitions: list[tuple[float, int]] = field(default_factory=list)
+    steps: int = 0
+    true_steps: int = 0
+
+
+def _calibration(reader: BagReader, recorded: dict) -> dict[str, dict]:
+    found: dict[str, dict] = {}
+    for topic in (CALIBRATION, TRUE_CALIBRATION):
+        if topic not in recorded:
+            continue
+        for _, msg, _ in reader.messages([topic]):
+            for seg in msg.segments:
+                entry = found.setdefault(seg.segment, {})
+                key = "truth" if topic == TRUE_CALIBRATION else "estimate"
+                entry[key] = rotation(seg)
+                if key == "estimate":
+                    entry.update(valid=seg.valid, quality=seg.quality, message=seg.message)
+    for entry in found.values():
+        if "truth" in entry and "estimate" in entry:
+            entry["error"] = float(quat.angle_between(entry["estimate"], entry["truth"]))
+    return found
+
+
+def _joint_rmse(reader: BagReader, recorded: dict) -> dict[str, float]:
+    if JOINTS not in recorded or TRUE_JOINTS not in recorded:
+        return {}
+    measured: dict[int, dict[str, float]] = {}
+    truth: dict[int, dict[str, float]] = {}
+    for topic, msg, _ in reader.messages([JOINTS, TRUE_JOINTS]):
+        stamp_ns, angles = angles_of(msg)
+        (truth if topic == TRUE_JOINTS else measured).setdefault(stamp_ns, {}).update(angles)
+    errors: dict[str, list[float]] = defaultdict(list)
+    for stamp, angles in measured.items():
+        for name, value in angles.items():
+            if stamp in truth and name in truth[stamp]:
+                errors[name].append(value - truth[stamp][name])
+    return {name: float(np.sqrt(np.mean(np.square(e)))) for name, e in errors.items()}
+
+
+def _events(reader: BagReader, recorded: dict) -> dict[str, EventScore]:
+    if TRUE_EVENTS not in recorded:
+        return {}
+    times: dict[tuple[bool, str, str], list[float]] = defaultdict(list)
+    for topic, msg, _ in reader.messages([EVENTS, TRUE_EVENTS]):
+        side, kind, stamp_ns, _ = event_of(msg)
+        times[(topic == TRUE_EVENTS, side, kind)].append(stamp_ns * 1e-9)
+    if not any(not truth for truth, _, _ in times):
+        return {}
+    scores: dict[str, EventScore] = {}
+    for kind in (INITIAL_CONTACT, TERMINAL_CONTACT):
+        total = EventScore()
+        for side in SIDES:
+            detected, reference = times[(False, side, kind)], times[(True, side, kind)]
+            if reference:
+                # score only while events were being detected at all (after calibration)
+                start = min(detected) - 0.5 if detected else np.inf
+                total += match_events(detected, [t for t in reference if t >= start])
+        scores[kind] = total
+    return scores
+
+
+def _cycles(reader: BagReader, recorded: dict) -> dict[str, float]:
+    cycles = topics.GAIT_CYCLES.absolute()
+    if cycles not in recorded:
+        return {}
+    rows = [(m.stride_time, m.stance_fraction, m.cadence, m.double_support_fraction, m.plausible)
+            for _, m, _ in reader.messages([cycles])]
+    good = np.array([r[:4] for r in rows if r[4]], dtype=float).reshape(-1, 4)
+    if not len(good):
+        return {"strides": len(rows), "plausible": 0}
+    return {
+        "strides": len(rows), "plausible": len(good),
+        "stride_time": float(np.median(good[:, 0])), "stance_percent": float(100 * np.median(good[:, 1])),
+        "cadence_per_min": float(60 * np.median(good[:, 2])),
+        "double_support_percent": float(100 * np.nanmedian(good[:, 3])),
+    }
+
+
+def session_report(path: str | Path) -> SessionReport:
+    """Read a session recording and compute its figures."""
+    reader = BagReader(path)
+    recorded = reader.topics()
+    report = SessionReport(duration=reader.duration_ns / NS_PER_S, counts=reader.message_counts())
+    report.calibration = _calibration(reader, recorded)
+    report.joint_rmse = _joint_rmse(reader, recorded)
+    report.events = _events(reader, recorded)
+    report.cycles = _cycles(reader, recorded)
+    activity = topics.ACTIVITY.absolute()
+    if activity in recorded:
+        seen: list[tuple[float, int]] = []
+        for _, msg, _ in reader.messages([activity]):
+            report.steps = max(report.steps, msg.step_count)
+            mark = (stamp_to_ns(msg.last_transition_stamp) * 1e-9, msg.last_transition)
+            if msg.last_transition and (not seen or seen[-1] != mark):
+                seen.append(mark)
+        report.transitions = seen
+    if TRUE_EVENTS in recorded:
+        report.true_steps = sum(1 for _, m, _ in reader.messages([TRUE_EVENTS])
+                                if event_of(m)[1] == INITIAL_CONTACT)
+    return report
+
+
+def _deg(x: float) -> str:
+    return f"{np.degrees(x):5.1f}"
+
+
+def format_report(report: SessionReport) -> list[str]:
+    """Human-readable lines (degrees, ms, %) of a SessionReport."""
+    lines: list[str] = []
+    if report.calibration:
+        estimated = {s: e for s, e in report.calibration.items() if "estimate" in e}
+        if estimated:
+            parts = [f"{s} {'ok' if e['valid'] else 'REFUSED'}"
+                     + (f" {_deg(e['error']).strip()}°" if "error" in e else "")
+                     for s, e in estimated.items()]
+            lines.append("calibration (error to true mounting): " + ", ".join(parts))
+        else:
+            lines.append("calibration: none in force (no joint angles, no gait events)")
+    if report.joint_rmse:
+        lines.append("joint-angle RMSE vs truth (deg):  " + "   ".join(
+            f"{j.replace('_', ' ')} L {_deg(report.joint_rmse.get('left_' + j, np.nan)).strip()}"
+            f" R {_deg(report.joint_rmse.get('right_' + j, np.nan)).strip()}"
+            for j in REPORTED_JOINTS[:3]))
+        lines.append("                                  " + "   ".join(
+            f"{j.replace('_', ' ')} L {_deg(report.joint_rmse.get('left_' + j, np.nan)).strip()}"
+            f" R {_deg(report.joint_rmse.get('right_' + j, np.nan)).strip()}"
+            for j in REPORTED_JOINTS[3:]))
+    for name, score in report.events.items():
+        lines.append(f"gait events {name.upper()}: Se {100 * score.sensitivity:5.1f} %  Pr "
+                     f"{100 * score.precision:5.1f} %  timing {1000 * score.mean_error:+6.1f} ± "
+                     f"{1000 * score.sd_error:4.1f} ms  ({len(score.errors)} matched, {len(score.missed)} "
+                     f"missed, {len(score.extra)} extra)")
+    c = report.cycles
+    if c.get("plausible"):
+        lines.append(f"strides: {c['plausible']} of {c['strides']} plausible; "
+                     f"stride {c['stride_time']:.2f} s, cadence {c['cadence_per_min']:.0f} steps/min, "
+                     f"stance {c['stance_percent']:.0f} %, "
+                     f"double support {c['double_support_percent']:.0f} %")
+    if report.transitions or report.steps:
+        lines.append(f"activity: {len(report.transitions)} transitions, {report.steps} steps counted"
+                     + (f" ({report.true_steps} true)" if report.true_steps else ""))
+    return lines

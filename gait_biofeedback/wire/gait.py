@@ -1,0 +1,79 @@
+"""``gait/events`` (GaitEvent) and ``gait/cycles`` (GaitCycle) ↔ the core's events and strides.
+
+The enum tables of the messages live here and only here: side (SIDE_LEFT/SIDE_RIGHT) and event type
+(INITIAL_CONTACT/TERMINAL_CONTACT), both ways.
+"""
+
+from __future__ import annotations
+
+from builtin_interfaces.msg import Time
+
+from gait_biofeedback.core.biofeedback.evaluator import Stride
+from gait_biofeedback.core.gait.cycles import GaitCycle
+from gait_biofeedback.core.gait.events import INITIAL_CONTACT, TERMINAL_CONTACT, GaitEvent
+from gait_biofeedback.wire.stamps import ns_to_stamp, stamp_to_ns
+from gait_biofeedback_msgs.msg import GaitCycle as GaitCycleMsg
+from gait_biofeedback_msgs.msg import GaitEvent as GaitEventMsg
+
+SIDE_CODES = {"left": GaitEventMsg.SIDE_LEFT, "right": GaitEventMsg.SIDE_RIGHT}
+SIDE_NAMES = {code: side for side, code in SIDE_CODES.items()}
+KIND_CODES = {INITIAL_CONTACT: GaitEventMsg.INITIAL_CONTACT, TERMINAL_CONTACT: GaitEventMsg.TERMINAL_CONTACT}
+KIND_NAMES = {code: kind for kind, code in KIND_CODES.items()}
+_CYCLE_FIELDS = ("stride_time", "stance_time", "swing_time", "stance_fraction", "swing_fraction", "step_time",
+                 "cadence", "double_support_time", "double_support_fraction", "step_time_symmetry_index")
+
+
+def foot_frame(side: str) -> str:
+    """header.frame_id of a foot's events and strides."""
+    return f"{side}_foot"
+
+
+def event_msg(event: GaitEvent) -> GaitEventMsg:
+    """``gait/events`` message of a core event (stamp = the event sample's stamp)."""
+    out = GaitEventMsg(side=SIDE_CODES[event.side], type=KIND_CODES[event.kind],
+                       detection_latency=float(event.latency), signal_value=float(event.signal),
+                       event_index=int(event.index))
+    out.header.stamp = ns_to_stamp(event.stamp_ns)
+    out.header.frame_id = foot_frame(event.side)
+    return out
+
+
+def truth_event_msg(side: str, kind: str, stamp_ns: int, index: int) -> GaitEventMsg:
+    """A ground-truth event (a simulator's exact IC/TC)."""
+    out = GaitEventMsg(side=SIDE_CODES[side], type=KIND_CODES[kind], event_index=index)
+    out.header.stamp = ns_to_stamp(stamp_ns)
+    out.header.frame_id = foot_frame(side)
+    return out
+
+
+def event_of(msg: GaitEventMsg) -> tuple[str, str, int, int]:
+    """(side, kind "ic"/"tc", stamp ns, index) of a ``gait/events`` message."""
+    return SIDE_NAMES[msg.side], KIND_NAMES[msg.type], stamp_to_ns(msg.header.stamp), int(msg.event_index)
+
+
+def _stamp(ns: int | None) -> Time:
+    return Time() if ns is None else ns_to_stamp(ns)
+
+
+def cycle_msg(c: GaitCycle) -> GaitCycleMsg:
+    """``gait/cycles`` message of a core stride (header.stamp = its closing IC; an empty
+    terminal_contact when the stride has no single TC)."""
+    out = GaitCycleMsg(side=SIDE_CODES[c.side], stride_index=c.index, plausible=bool(c.plausible),
+                       flag=c.flag)
+    out.header.stamp = ns_to_stamp(c.end_ns)
+    out.header.frame_id = foot_frame(c.side)
+    out.start = ns_to_stamp(c.start_ns)
+    out.terminal_contact = _stamp(c.terminal_contact_ns)
+    for name in _CYCLE_FIELDS:
+        setattr(out, name, float(getattr(c, name)))
+    return out
+
+
+def stride_of(msg: GaitCycleMsg) -> Stride:
+    """The biofeedback evaluator's view of a ``gait/cycles`` message."""
+    tc = msg.terminal_contact
+    return Stride(side=SIDE_NAMES[msg.side], index=int(msg.stride_index), start_ns=stamp_to_ns(msg.start),
+                  tc_ns=None if (tc.sec, tc.nanosec) == (0, 0) else stamp_to_ns(tc),
+                  end_ns=stamp_to_ns(msg.header.stamp), stance_fraction=float(msg.stance_fraction),
+                  cadence=float(msg.cadence), step_time_symmetry=float(msg.step_time_symmetry_index),
+                  plausible=bool(msg.plausible))

@@ -1,0 +1,115 @@
+"""IMU messages ↔ the core: raw ``<segment>/imu/data_raw`` and ``imu/mag`` samples in, filtered
+``<segment>/imu/data`` out, and whole :class:`~gait_biofeedback.core.segments.ImuSeries` as messages.
+
+sensor_msgs/Imu stores the quaternion (x, y, z, w); the core uses (w, x, y, z) (``docs/conventions.md``):
+:func:`quaternion` is the one place that reorders. A raw Imu has ``orientation_covariance[0] = -1``
+(orientation unknown) and 0 elsewhere (unknown covariances).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+from sensor_msgs.msg import Imu, MagneticField
+
+from gait_biofeedback.core.orientation.stream import OrientationSample
+from gait_biofeedback.core.segments import ImuSeries, sensor_frame
+from gait_biofeedback.core.stamps import seconds_to_ns
+from gait_biofeedback.wire import topics
+from gait_biofeedback.wire.cdr import (
+    ANGULAR_VELOCITY,
+    ANGULAR_VELOCITY_COV,
+    IMU_DOUBLES,
+    LINEAR_ACCELERATION,
+    LINEAR_ACCELERATION_COV,
+    MAGNETIC_FIELD,
+    ORIENTATION,
+    Stamped,
+    encode_stamped,
+    pack_imu,
+)
+from gait_biofeedback.wire.stamps import ns_to_stamp
+
+Vector = tuple[float, float, float]
+
+
+def quaternion(imu: Stamped) -> tuple[float, float, float, float]:
+    """The orientation (w, x, y, z) of a decoded Imu (stored x, y, z, w on the wire)."""
+    x, y, z, w = imu.values[ORIENTATION]
+    return w, x, y, z
+
+
+def raw_sample(imu: Stamped) -> tuple[int, Vector, Vector]:
+    """(stamp ns, angular velocity rad/s, specific force m/s²) of a raw Imu."""
+    v = imu.values
+    return imu.ns, v[ANGULAR_VELOCITY], v[LINEAR_ACCELERATION]
+
+
+def mag_sample(mag: Stamped) -> tuple[int, Vector]:
+    """(stamp ns, field T) of a MagneticField."""
+    return mag.ns, mag.values[MAGNETIC_FIELD]
+
+
+def orientation_sample(imu: Stamped) -> tuple[int, Vector, Vector, tuple[float, float, float, float]]:
+    """(stamp ns, specific force, bias-corrected angular velocity, q (w, x, y, z)) of a filtered Imu."""
+    v = imu.values
+    return imu.ns, v[LINEAR_ACCELERATION], v[ANGULAR_VELOCITY], quaternion(imu)
+
+
+def angular_speed(imu: Stamped) -> float:
+    """|ω| (rad/s) of a decoded Imu."""
+    return math.hypot(*imu.values[ANGULAR_VELOCITY])
+
+
+def orientation_payload(segment: str, sample: OrientationSample, raw: Stamped, variance: float) -> bytes:
+    """Serialized ``<segment>/imu/data`` of one filtered sample, as the ``orientation_filter`` node
+    publishes it: the sample's stamp, the sensor frame, q, the bias-corrected gyro, the raw
+    acceleration, a diagonal orientation covariance and the raw covariances of the message that
+    released the sample."""
+    w, x, y, z = sample.q.tolist()
+    v = variance
+    values = (x, y, z, w, v, 0.0, 0.0, 0.0, v, 0.0, 0.0, 0.0, v, *sample.gyr.tolist(),
+              *raw.values[ANGULAR_VELOCITY_COV], *sample.acc.tolist(), *raw.values[LINEAR_ACCELERATION_COV])
+    return pack_imu(sample.stamp_ns, sensor_frame(segment), values)
+
+
+def series_topics(segment: str) -> tuple[str, str]:
+    """Absolute (raw Imu topic, MagneticField topic) of ``segment`` in a recording."""
+    return topics.raw_imu(segment).absolute(), topics.magnetometer(segment).absolute()
+
+
+def encode_series(series: ImuSeries) -> tuple[np.ndarray, list[bytes], list[bytes] | None]:
+    """``(stamps ns, raw Imu payloads, MagneticField payloads or None)`` of a whole series, the bytes
+    ``serialize_message`` gives (with the padding zeroed)."""
+    ns = seconds_to_ns(series.t)
+    doubles = np.zeros((len(ns), IMU_DOUBLES))
+    doubles[:, 3], doubles[:, 4] = 1.0, -1.0  # orientation w = 1, orientation_covariance[0] = -1
+    doubles[:, ANGULAR_VELOCITY], doubles[:, LINEAR_ACCELERATION] = series.gyr, series.acc
+    imu = encode_stamped(ns, series.frame_id, doubles)
+    mag = None
+    if series.mag is not None:
+        mag = encode_stamped(ns, series.frame_id, np.hstack([series.mag, np.zeros((len(ns), 9))]))
+    return ns, imu, mag
+
+
+def series_messages(series: ImuSeries) -> Iterator[tuple[str, Any, int]]:
+    """``(topic, rclpy message, stamp ns)`` for every sample: an Imu, then a MagneticField if the
+    series has a magnetometer (the slow path of :func:`encode_series`, for tests and peers)."""
+    imu_topic, mag_name = series_topics(series.segment)
+    for i, ns in enumerate(seconds_to_ns(series.t).tolist()):
+        imu = Imu()
+        imu.header.stamp, imu.header.frame_id = ns_to_stamp(ns), series.frame_id
+        imu.orientation_covariance[0] = -1.0
+        gx, gy, gz = series.gyr[i].tolist()
+        ax, ay, az = series.acc[i].tolist()
+        imu.angular_velocity.x, imu.angular_velocity.y, imu.angular_velocity.z = gx, gy, gz
+        imu.linear_acceleration.x, imu.linear_acceleration.y, imu.linear_acceleration.z = ax, ay, az
+        yield imu_topic, imu, ns
+        if series.mag is not None:
+            mag = MagneticField()
+            mag.header.stamp, mag.header.frame_id = ns_to_stamp(ns), series.frame_id
+            mag.magnetic_field.x, mag.magnetic_field.y, mag.magnetic_field.z = series.mag[i].tolist()
+            yield mag_name, mag, ns
