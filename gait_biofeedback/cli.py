@@ -22,6 +22,7 @@ Wearable-IMU gait biofeedback (ROS 2 Jazzy). Typical use:
                                                the same processing offline, straight from the file
   gait-biofeedback run --record output/today   process live sensor topics (from your drivers)
   gait-biofeedback info output/mine            what is in a recording
+  gait-biofeedback params --check my.yaml      check a parameter file (a typo is refused, naming it)
   gait-biofeedback repair output/mine          make a recording cut off by a crash readable again
 
 Run `gait-biofeedback COMMAND --help` for the options of one command.
@@ -94,12 +95,12 @@ def cmd_replay(args: argparse.Namespace) -> int:
     from gait_biofeedback.graph import replay_through_graph
     from gait_biofeedback.io.bag import BagReader
 
+    params = _session_parameters(args.params)
     total = BagReader(args.bag).message_count
     with _progress(total, "replay") as bar:
         result = replay_through_graph(args.bag, args.record, speed=args.speed, start_offset=args.start,
                                       stop_offset=args.stop, progress=bar.update,
-                                      nodes=_node_list(args.nodes),
-                                      node_parameters=_session_parameters(args.params))
+                                      nodes=_node_list(args.nodes), node_parameters=params)
     print(f"replayed {result.published} messages in {result.wall_time:.1f} s"
           + (f"; recorded {result.recorded} to {result.output}" if result.output else ""))
     return 0
@@ -125,6 +126,22 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     outputs = ", ".join(f"{t} {n}" for t, n in sorted(result.counts.items()) if "/imu/" not in t)
     print(f"wrote {result.output}: {outputs or 'orientations only'}")
     print("\n".join(format_report(session_report(result.output))))
+    return 0
+
+
+def cmd_params(args: argparse.Namespace) -> int:
+    from gait_biofeedback.parameters import NODE_PARAMETERS, load_params_file, parameter_table
+
+    if args.check:
+        for node, values in load_params_file(args.check).items():
+            print(f"{node}: " + ", ".join(f"{k}={v!r}" for k, v in values.items()))
+        print(f"{args.check}: ok")
+        return 0
+    unknown = [n for n in args.nodes if n not in NODE_PARAMETERS]
+    if unknown:
+        raise ValueError(f"unknown node(s) {unknown}; nodes: {', '.join(NODE_PARAMETERS)}")
+    for node in args.nodes or NODE_PARAMETERS:
+        print(f"\n{node}\n" + "\n".join(parameter_table(node)))
     return 0
 
 
@@ -237,6 +254,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True, help="bag folder to create")
     p.add_argument("topics", nargs="*", help="topics to record (default: all)")
     p.set_defaults(func=cmd_record)
+
+    p = sub.add_parser("params", help="every node's parameters (default, unit, range); check a params file")
+    p.add_argument("nodes", nargs="*", help="nodes to list (default: all)")
+    p.add_argument("--check", metavar="FILE", help="check a ROS 2 params file and print what it sets")
+    p.set_defaults(func=cmd_params)
 
     p = sub.add_parser("info", help="topics, types, counts and rates of a recording")
     p.add_argument("bag")

@@ -22,7 +22,14 @@ from gait_biofeedback.core.calibration.stream import CalibrationParams
 from gait_biofeedback.core.gait.stream import GaitEventsParams
 from gait_biofeedback.core.joints.stream import JointAnglesParams
 from gait_biofeedback.core.orientation.stream import OrientationParams
-from gait_biofeedback.core.params import ParameterError, check, from_mapping, spec_by_name, unknown_name
+from gait_biofeedback.core.params import (
+    ParameterError,
+    check,
+    from_mapping,
+    spec_by_name,
+    specs,
+    unknown_name,
+)
 from gait_biofeedback.io.params import RecorderParams, ReplayerParams
 
 NODE_PARAMETERS: dict[str, type] = {
@@ -127,3 +134,30 @@ def load_params_file(path: str | Path, nodes: list[str] | None = None) -> dict[s
         if nodes is not None and node not in nodes:
             stage_parameters(node, raw[node], f"{path}, node {node}")
     return out
+
+
+def _shown(value: Any) -> str:
+    if isinstance(value, bool):
+        return str(value).lower()
+    if isinstance(value, (tuple, list)):
+        return "[" + ", ".join(_shown(v) for v in value) + "]"
+    if isinstance(value, str):
+        return value if value else "''"
+    return repr(value) if isinstance(value, float) else str(value)
+
+
+def parameter_table(node: str) -> list[str]:
+    """Markdown rows (parameter, default, allowed, description) of one node's parameters: the
+    README's parameter list (a test keeps the two equal) and ``gait-biofeedback params``."""
+    rows = ["| parameter | default | allowed | what it does |", "|---|---|---|---|"]
+    seen: set[str] = set()
+    for s in specs(NODE_PARAMETERS[node]):
+        if s.key is not None:  # one row for the per-key family, e.g. <segment>.algorithm
+            if s.field in seen:
+                continue
+            seen.add(s.field)
+            name = s.name.replace(s.key, "<segment>", 1)
+        else:
+            name = s.name
+        rows.append(f"| `{name}` | `{_shown(s.default)}` | {s.allowed()} | {s.description} |")
+    return rows

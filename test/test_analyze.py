@@ -31,6 +31,11 @@ PARAMS = {
 }
 # The live graph of the comparison, and what its recorder leaves out, to keep the load of one Python
 # process low enough that the best-effort raw topics lose nothing at 2x (activity is not compared).
+# joint-angle RMSE against the truth of the offline path, deg: twice the worse side's value measured
+# (madgwick, seed 2: hip flexion 3.9/4.3, knee flexion 3.6/2.4, ankle dorsiflexion 0.6/1.8, ...)
+RMSE_LIMIT_DEG = {"hip_flexion": 8.5, "hip_adduction": 2.0, "hip_internal_rotation": 5.8, "knee_flexion": 7.2,
+                  "knee_adduction": 4.4, "knee_internal_rotation": 3.4, "ankle_dorsiflexion": 3.7,
+                  "ankle_inversion": 5.1, "ankle_internal_rotation": 4.0}
 UNHEARD_TOPIC = "/ground_truth/calibration/sensor_to_segment"
 LIVE_NODES = ["orientation_filter", "calibration", "joint_angles", "gait_events"]
 NOT_RECORDED = [f"/{s}/imu/{kind}" for s in SEGMENTS for kind in ("data_raw", "mag", "data")] + [
@@ -165,9 +170,12 @@ def test_analyze_gives_the_numbers_of_the_live_graph(session_bag, tmp_path):
 
     # and the report reads the offline bag as it reads a graph recording
     off_report = session_report(tmp_path / "offline")
-    assert max(off_report.joint_rmse.values()) < np.radians(8)
-    assert off_report.events["ic"].sensitivity > 0.9
-    assert max(e["error"] for e in off_report.calibration.values() if "error" in e) < np.radians(3)
+    for name, rmse in off_report.joint_rmse.items():  # about twice what madgwick reaches on this session
+        kind = name.split("_", 1)[1]
+        assert np.degrees(rmse) < RMSE_LIMIT_DEG[kind], f"{name}: RMSE {np.degrees(rmse):.2f} deg"
+    assert len(off_report.joint_rmse) == 18
+    assert off_report.events["ic"].sensitivity == off_report.events["tc"].sensitivity == 1.0
+    assert max(e["error"] for e in off_report.calibration.values() if "error" in e) < np.radians(0.15)
 
 
 def test_analyze_refuses_a_bag_without_imu_topics(tmp_path, capsys):

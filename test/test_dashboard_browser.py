@@ -180,13 +180,18 @@ def test_dashboard_in_headless_chromium(ros_context, walk_session, tmp_path):
                                  and s["strideCurves"] >= 4 and s["curvePoints"] > 300, timeout=40)
         assert state["fps"] >= 20, f"page renders at {state['fps']:.1f} fps"
         assert state["samplesReceived"] > state["figureUpdates"]  # 100 Hz samples, figure decimated
-        # the clinician calibrates (walking protocol: quiet standing, then >= 8 straight steps)
+        # the clinician calibrates (walking protocol: quiet standing, then >= 8 straight steps, i.e. at
+        # least 4 swings per leg: the walk starts at 5 s, the 4th swing of each leg is done by ~12 s)
+        browser.wait_for(lambda s: (s.get("lastAngleStamp") or 0.0) > 14.0, timeout=20)
         browser.evaluate("document.getElementById('protocol').value = 'walking';"
                          "document.getElementById('calibrate').click(); true")
         state = browser.wait_for(lambda s: s.get("lastCalibration") is not None, timeout=15)
-        message = state["lastCalibration"]["message"]
+        result = state["lastCalibration"]
+        assert result["success"], result["message"]
+        assert result["message"].startswith("calibrated ")
+        assert len(result["segments"]) == 8 and all(seg["valid"] for seg in result["segments"])
         shown = browser.evaluate("document.getElementById('calibration-message').textContent")
-        assert message and message in shown
+        assert result["message"] in shown and "✖" not in shown
         time.sleep(1.5)  # let the cue table and diagnostics refresh before the picture
         state = browser.state()
         assert state["cuesReceived"] > 0 and state["events"] > 0

@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 from gait_biofeedback.core import quaternion as quat
-from gait_biofeedback.core.joints.angles import JOINT_NAMES, angles_from_relative_rotation
+from gait_biofeedback.core.joints.angles import JOINT_NAMES, joint_angles_from_segments
 from gait_biofeedback.core.segments import GRAVITY, SEGMENTS
+from gait_biofeedback.sim.joints import joint_rotation
 from gait_biofeedback.sim.simulator import (
     SCENARIOS,
     Phase,
@@ -148,17 +149,28 @@ def test_walking_speed_and_sagittal_ranges(walk_clean):
 
 
 def test_truth_joint_angles_equal_jcs_of_true_segment_orientations(walk_clean):
+    """The simulator's truth (sim/joints.py, SciPy) and the code under test (core/joints/angles.py) are
+    two implementations of one definition: they agree on every angle of a walk."""
     tr = walk_clean.truth
     assert set(tr.joint_angles) == set(JOINT_NAMES)
-    q = tr.segment_orientation
-    for side in ("left", "right"):
-        rel = quat.multiply(quat.conjugate(q[f"{side}_shank"]), q[f"{side}_foot"])
-        dp, inv, _ = angles_from_relative_rotation("ankle", side, rel)
-        np.testing.assert_allclose(tr.joint_angles[f"{side}_ankle_dorsiflexion"], dp, atol=1e-12)
-        np.testing.assert_allclose(tr.joint_angles[f"{side}_ankle_inversion"], inv, atol=1e-12)
-        rel = quat.multiply(quat.conjugate(q["pelvis"]), q[f"{side}_thigh"])
-        fe, _, _ = angles_from_relative_rotation("hip", side, rel)
-        np.testing.assert_allclose(tr.joint_angles[f"{side}_hip_flexion"], fe, atol=1e-12)
+    core = joint_angles_from_segments(tr.segment_orientation)
+    for name in JOINT_NAMES:
+        np.testing.assert_allclose(core[name], tr.joint_angles[name], atol=1e-12, err_msg=name)
+    # both sides flex and rotate through the ranges of a walk (not a trivially zero angle)
+    assert min(np.ptp(tr.joint_angles[f"{s}_knee_flexion"]) for s in ("left", "right")) > 50 * DEG
+
+
+def test_simulator_joint_definition_by_hand():
+    """Hand-derived: knee flexion turns the shank backwards, i.e. by -θ about the thigh's z (right);
+    left adduction is a rotation by -θ about x (its z points medially); after a hip flexion of 90° the
+    thigh's y (knee → hip) points backwards, along the pelvis' -x: the knee is in front of the hip."""
+    theta = 0.3
+    np.testing.assert_allclose(joint_rotation("left", "knee", theta, 0.0, 0.0),
+                               [np.cos(-theta / 2), 0.0, 0.0, np.sin(-theta / 2)], atol=1e-15)
+    np.testing.assert_allclose(joint_rotation("left", "hip", 0.0, theta, 0.0),
+                               [np.cos(-theta / 2), np.sin(-theta / 2), 0.0, 0.0], atol=1e-15)
+    q = joint_rotation("right", "hip", np.pi / 2, 0.0, 0.0)
+    np.testing.assert_allclose(quat.rotate(q, [0.0, 1.0, 0.0]), [-1.0, 0.0, 0.0], atol=1e-15)
 
 
 def test_mounting_relation_and_aligned_mounting(walk_clean):

@@ -64,8 +64,6 @@ class Spec:
             what += f" in [{self.low:g}, {self.high:g}]{unit}"
         elif self.low is not None:
             what += f" >= {self.low:g}{unit}"
-        elif self.high is not None:
-            what += f" <= {self.high:g}{unit}"
         elif unit:
             what += f" ({unit.strip()})"
         return what

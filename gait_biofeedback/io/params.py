@@ -17,9 +17,10 @@ class ReplayerParams:
     bag: str = param("", "the recording to replay (rosbag2 folder or .mcap file)")
     speed: float = param(1.0, "replay speed factor (0 = as fast as possible)", "1", low=0.0, high=1000.0)
     loop: bool = param(False, "start again at the end (the stamps then jump back: downstream resets)")
-    start_offset: float = param(0.0, "start this far into the recording", "s", low=0.0, high=1e6)
+    start_offset: float = param(0.0, "start this far into the recording", "s", low=0.0,
+                                high=604800.0)
     stop_offset: float = param(0.0, "stop this far into the recording (0 = at its end)", "s",
-                               low=0.0, high=1e6)
+                               low=0.0, high=604800.0)
     publish_clock: bool = param(False, "publish /clock with the recording's time")
     topics: tuple[str, ...] = param((), "topics to replay (empty = all)")
     wait_for_subscribers: float = param(0.0, "wait this long for every topic to have a subscriber before "
@@ -38,8 +39,9 @@ class RecorderParams:
     output: str = param("", "bag folder to write ('' = recordings/session_<time>)")
     topics: tuple[str, ...] = param((), "topics to record (empty = every topic, discovered as it appears)")
     exclude: tuple[str, ...] = param((), "topics never recorded")
-    split_size: int = param(0, "start a new file after this many bytes (0 = never)", "B", low=0, high=2**62)
-    split_duration: float = param(0.0, "start a new file after this long (0 = never)", "s", low=0.0, high=1e6)
+    split_size: int = param(0, "start a new file after this many bytes (0 = never)", "B", low=0, high=10**12)
+    split_duration: float = param(0.0, "start a new file after this long (0 = never)", "s",
+                                  low=0.0, high=604800.0)
     flush_period: float = param(1.0, "longest time before written messages are closed into a chunk (what a "
                                 "crash can lose)", "s", low=0.05, high=60.0)
     compression: str = param("zstd", "chunk compression", choices=COMPRESSIONS)

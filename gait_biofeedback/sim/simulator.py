@@ -1,14 +1,16 @@
 """Synthetic multi-IMU gait sessions with exact ground truth (kinematic body model + IMU model).
 
-Body: pelvis, chest and per leg thigh, shank, foot with ISB anatomical frames (x anterior, y superior,
-z right). Orientations (segment→world, ENU) are built from the pelvis heading/attitude and clinical joint
-angles through the JCS of core/joint_angles.py (gait.md §1.8); positions by forward kinematics from the
-pelvis (origin at the mid-hip point). Loaded feet do not slide: the pelvis position is the weighted mean of
-``pin_c - r_c(t)`` over contacts c (left foot, right foot, "free" = bed/support), where ``r_c`` is the
-vector from the pelvis to the contact point (heel while the foot is toe-up, toe while toe-down: a rolling
-heel → flat → toe foot), weights are C² and sum to 1, and each pin is fixed in the world when its weight
-becomes positive (feet pinned at ground height z = 0). READING: during double support the two legs'
-geometries disagree by a few cm; the weight blend absorbs it as a small slide of the unloading foot.
+Body: pelvis, chest and per leg thigh, shank, foot with ISB anatomical frames (x anterior, y superior, z
+right). Orientations (segment→world, ENU) are built from the pelvis heading/attitude and clinical joint
+angles through the simulator's own JCS (:mod:`gait_biofeedback.sim.joints`, gait.md §1.8, written with
+SciPy apart from the code it tests; it also gives the true joint angles); positions by forward
+kinematics from the pelvis (origin at the mid-hip point). Loaded feet do not slide: the pelvis position
+is the weighted mean of ``pin_c - r_c(t)`` over contacts c (left foot, right foot, "free" =
+bed/support), where ``r_c`` is the vector from the pelvis to the contact point (heel while the foot is
+toe-up, toe while toe-down: a rolling heel → flat → toe foot), weights are C² and sum to 1, and each pin
+is fixed in the world when its weight becomes positive (feet pinned at ground height z = 0). READING:
+during double support the two legs' geometries disagree by a few cm; the weight blend absorbs it as a
+small slide of the unloading foot.
 
 Walking bouts (contiguous walk/turn phases): the pose blends from standing to the walking pattern frozen
 at mid double support (weights 0.5/0.5, so no weight jump), the cadence ramps up (C²), steps, ramps down to
@@ -41,8 +43,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from gait_biofeedback.core import quaternion as quat
-from gait_biofeedback.core.joints.angles import joint_angles_from_segments, relative_rotation_from_angles
 from gait_biofeedback.core.segments import GRAVITY, SEGMENTS, SIDES, ImuSeries
+from gait_biofeedback.sim.joints import joint_rotation, true_joint_angles
 from gait_biofeedback.sim.kinematics import (
     DEG,
     MAX_STANCE,
@@ -411,7 +413,7 @@ def _upright(yaw: np.ndarray) -> np.ndarray:
 
 
 def _zxy(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
-    return relative_rotation_from_angles("hip", "right", a, b, c)
+    return joint_rotation("right", "hip", a, b, c)
 
 
 class _Body:
@@ -428,14 +430,14 @@ class _Body:
         foot_len = cfg.heel_length + cfg.toe_length
         for side in SIDES:
             sgn = 1.0 if side == "right" else -1.0
-            thigh = quat.multiply(q["pelvis"], relative_rotation_from_angles(
-                "hip", side, g(f"{side}_hip_flexion"), g(f"{side}_hip_adduction"),
+            thigh = quat.multiply(q["pelvis"], joint_rotation(
+                side, "hip", g(f"{side}_hip_flexion"), g(f"{side}_hip_adduction"),
                 g(f"{side}_hip_internal_rotation")))
-            shank = quat.multiply(thigh, relative_rotation_from_angles(
-                "knee", side, g(f"{side}_knee_flexion"), g(f"{side}_knee_adduction"),
+            shank = quat.multiply(thigh, joint_rotation(
+                side, "knee", g(f"{side}_knee_flexion"), g(f"{side}_knee_adduction"),
                 g(f"{side}_knee_internal_rotation")))
-            foot_chain = quat.multiply(shank, relative_rotation_from_angles(
-                "ankle", side, g(f"{side}_ankle_dorsiflexion"), g(f"{side}_ankle_inversion"),
+            foot_chain = quat.multiply(shank, joint_rotation(
+                side, "ankle", g(f"{side}_ankle_dorsiflexion"), g(f"{side}_ankle_inversion"),
                 g(f"{side}_ankle_internal_rotation")))
             foot_ground = quat.multiply(_upright(psi + g(f"{side}_foot_yaw")),
                                         quat.from_axis_angle([0.0, 0.0, 1.0], g(f"{side}_foot_pitch")))
@@ -693,7 +695,7 @@ def simulate(config: SimulationConfig) -> SimulatedSession:
     truth = GroundTruth(
         t=t, segment_orientation=seg_q, sensor_orientation=sen_q, segment_position=seg_p,
         sensor_position=sen_p, mounting=mounting, lever_arm=levers, gyr_bias=biases,
-        joint_angles=joint_angles_from_segments(seg_q), initial_contacts=ics, terminal_contacts=tcs,
+        joint_angles=true_joint_angles(seg_q), initial_contacts=ics, terminal_contacts=tcs,
         steps=np.sort(np.concatenate([ics["left"], ics["right"]])), posture=posture, locomotion=locomotion,
         transitions=transitions, phases=phases)
     return SimulatedSession(config=cfg, imu=imu, truth=truth)
