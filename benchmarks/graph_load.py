@@ -49,7 +49,7 @@ def demo_calibration(bag: Path, session_dir: Path) -> None:
     """Write the demo's calibration (hip flexion, pressed at 36 s) to ``session_dir/calibration.yaml``,
     where the calibration node reloads it from (in force at once)."""
     from gait_biofeedback.analyze import analyze_recording
-    from gait_biofeedback.nodes.calibration import CALIBRATION_FILE
+    from gait_biofeedback.core.calibration.stream import CALIBRATION_FILE
 
     result = analyze_recording(bag, None, calibrate_at=[(calibration_time(), "hip_flexion")])
     attempt = result.calibrations[0]

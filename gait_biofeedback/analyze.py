@@ -44,14 +44,18 @@ from sensor_msgs.msg import Imu
 
 from gait_biofeedback.core.activity.stream import ActivityParams, ActivityStream
 from gait_biofeedback.core.calibration.sensor_to_segment import PROTOCOLS
-from gait_biofeedback.core.calibration.stream import CalibrationAttempt, CalibrationBuffer, CalibrationParams
+from gait_biofeedback.core.calibration.stream import (
+    CalibrationAttempt,
+    CalibrationBuffer,
+    CalibrationParams,
+    read_calibration_file,
+)
 from gait_biofeedback.core.gait.stream import GaitEventsParams, GaitEventStream
 from gait_biofeedback.core.joints.stream import STREAM_SEGMENTS, JointAnglesParams, JointAngleStream
 from gait_biofeedback.core.orientation.stream import OrientationParams, SegmentOrientationTracker
 from gait_biofeedback.core.stamps import NS_PER_S, s_to_ns
 from gait_biofeedback.io.bag import BagReader, BagWriter
 from gait_biofeedback.io.schemas import type_name_of
-from gait_biofeedback.nodes.calibration import load_calibration_file
 from gait_biofeedback.parameters import stage_parameters
 from gait_biofeedback.wire import topics
 from gait_biofeedback.wire.activity import activity_msg
@@ -177,7 +181,7 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
         path = Path(calibration_file)
         if not path.is_file():
             raise FileNotFoundError(f"calibration file {path} not found")
-        calibration = load_calibration_file(path)
+        calibration = read_calibration_file(path)
 
     # -- the core objects, set up from the nodes' parameters --------------------------------------
     o_params: OrientationParams = stages.get("orientation_filter") or OrientationParams()

@@ -10,9 +10,8 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Any
 
-from gait_biofeedback.core.params import param
+from gait_biofeedback.core.params import param, same_as
 
 
 @dataclass(frozen=True)
@@ -28,8 +27,19 @@ class BodyDimensions:
                                 low=0.2, high=0.9)
 
 
-def body_dimensions(params: Any) -> BodyDimensions:
-    """The :class:`BodyDimensions` of a stage's parameters (the fields it declares with
-    ``same_as(BodyDimensions, ...)``; the others at their defaults)."""
-    names = {f.name for f in dataclasses.fields(BodyDimensions)}
-    return BodyDimensions(**{n: getattr(params, n) for n in names if hasattr(params, n)})
+@dataclass(frozen=True)
+class StickFigureDimensions:
+    """The body dimensions a stick figure of the legs is drawn with: the parameters of every stage
+    that draws one (the ``skeleton`` markers, the dashboard)."""
+
+    thigh_length: float = same_as(BodyDimensions, "thigh_length")
+    shank_length: float = same_as(BodyDimensions, "shank_length")
+    hip_width: float = same_as(BodyDimensions, "hip_width")
+    foot_length: float = same_as(BodyDimensions, "foot_length")
+    ankle_height: float = same_as(BodyDimensions, "ankle_height")
+
+    @property
+    def body(self) -> BodyDimensions:
+        """These dimensions as :class:`BodyDimensions` (the others at their defaults)."""
+        names = (f.name for f in dataclasses.fields(StickFigureDimensions))
+        return BodyDimensions(**{name: getattr(self, name) for name in names})

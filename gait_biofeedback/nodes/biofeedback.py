@@ -53,7 +53,6 @@ from gait_biofeedback.core.biofeedback.evaluator import (
     sagittal_stick_figure,
     select_audio_cue,
 )
-from gait_biofeedback.core.body import body_dimensions
 from gait_biofeedback.core.calibration.sensor_to_segment import PROTOCOLS
 from gait_biofeedback.core.segments import SIDES
 from gait_biofeedback.core.stamps import NS_PER_S
@@ -107,7 +106,7 @@ class BiofeedbackNode(Node):
         self.stride_wait = p.stride_wait
         self.curve_strides = p.curve_strides
         self.feedback = {"side": p.feedback_side, "joint": p.feedback_joint}
-        self.lengths = body_dimensions(p)
+        self.lengths = p.body
         self.evaluator = BiofeedbackEvaluator(self.targets)
         self.muted = False
         # state shared with the server thread: references replaced whole, bounded deques

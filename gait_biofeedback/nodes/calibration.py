@@ -22,12 +22,18 @@ from __future__ import annotations
 from collections import deque
 from pathlib import Path
 
-import yaml
 from rclpy.context import Context
 from rclpy.node import Node
 
 from gait_biofeedback.core.calibration.sensor_to_segment import SessionCalibration
-from gait_biofeedback.core.calibration.stream import CalibrationAttempt, CalibrationBuffer, CalibrationParams
+from gait_biofeedback.core.calibration.stream import (
+    CALIBRATION_FILE,
+    CalibrationAttempt,
+    CalibrationBuffer,
+    CalibrationParams,
+    read_calibration_file,
+    write_calibration_file,
+)
 from gait_biofeedback.nodes.common import publisher, subscribe
 from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
 from gait_biofeedback.wire import topics
@@ -35,13 +41,6 @@ from gait_biofeedback.wire.calibration import calibration_msg, segment_messages
 from gait_biofeedback.wire.cdr import decode_imu
 from gait_biofeedback.wire.imu import orientation_sample
 from gait_biofeedback_msgs.srv import Calibrate
-
-CALIBRATION_FILE = "calibration.yaml"
-
-
-def load_calibration_file(path: Path) -> SessionCalibration:
-    """A ``calibration.yaml`` written by this node (ValueError/KeyError/TypeError/YAMLError if not)."""
-    return SessionCalibration.from_dict(yaml.safe_load(Path(path).read_text()))
 
 
 class CalibrationNode(Node):
@@ -74,10 +73,9 @@ class CalibrationNode(Node):
         if not self.calibration_file.exists():
             return
         try:
-            self.current = load_calibration_file(self.calibration_file)
-        except (ValueError, KeyError, TypeError, yaml.YAMLError) as exc:
-            self.get_logger().error(f"{self.calibration_file}: unreadable calibration ({exc}); "
-                                    "run the calibration again")
+            self.current = read_calibration_file(self.calibration_file)
+        except (ValueError, OSError) as exc:
+            self.get_logger().error(f"unreadable calibration ({exc}); run the calibration again")
             return
         self.get_logger().info(f"reloaded the calibration from {self.calibration_file}")
         self._pub.publish(calibration_msg(self.current, 0))
@@ -100,8 +98,7 @@ class CalibrationNode(Node):
         cal = attempt.calibration
         if attempt.success and cal is not None and attempt.applies_from_ns is not None:
             self.current = cal
-            self.session_dir.mkdir(parents=True, exist_ok=True)
-            self.calibration_file.write_text(yaml.safe_dump(cal.to_dict(), sort_keys=False))
+            write_calibration_file(self.calibration_file, cal)
             self._pub.publish(calibration_msg(cal, attempt.applies_from_ns))
 
     def calibrate(self, protocol: str, standing_duration: float = 0.0, motion_duration: float = 0.0,

@@ -39,10 +39,10 @@ import numpy as np
 import yaml
 
 from gait_biofeedback.core.biofeedback import normative as normative_gait
-from gait_biofeedback.core.body import BodyDimensions
+from gait_biofeedback.core.body import BodyDimensions, StickFigureDimensions
 from gait_biofeedback.core.joints.angles import joint_angle_names, relative_rotation_from_angles
 from gait_biofeedback.core.joints.skeleton import stick_figure
-from gait_biofeedback.core.params import param, same_as
+from gait_biofeedback.core.params import param
 from gait_biofeedback.core.quaternion import multiply
 from gait_biofeedback.core.segments import SIDES
 from gait_biofeedback.core.stamps import NS_PER_S
@@ -314,7 +314,7 @@ FEEDBACK_JOINTS = (*JOINT_GROUPS, "all")
 
 
 @dataclass(frozen=True)
-class BiofeedbackParams:
+class BiofeedbackParams(StickFigureDimensions):
     """Parameters of the biofeedback stage and its dashboard (node ``biofeedback``)."""
 
     targets_file: str = param("", "the therapist's targets ('' = config/targets.yaml)")
@@ -328,11 +328,6 @@ class BiofeedbackParams:
     feedback_side: str = param("both", "side whose errors are sounded", choices=FEEDBACK_SIDES)
     feedback_joint: str = param("all", "joint (or timing) whose errors are sounded", choices=FEEDBACK_JOINTS)
     diagnostics_period: float = param(1.0, "period of the /diagnostics status", "s", low=0.1, high=60.0)
-    thigh_length: float = same_as(BodyDimensions, "thigh_length")
-    shank_length: float = same_as(BodyDimensions, "shank_length")
-    hip_width: float = same_as(BodyDimensions, "hip_width")
-    foot_length: float = same_as(BodyDimensions, "foot_length")
-    ankle_height: float = same_as(BodyDimensions, "ankle_height")
 
 
 class BiofeedbackEvaluator:

@@ -12,9 +12,11 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
+import yaml
 
 from gait_biofeedback.core.calibration.sensor_to_segment import (
     PROTOCOLS,
@@ -25,6 +27,25 @@ from gait_biofeedback.core.calibration.windows import find_standing_then_motion
 from gait_biofeedback.core.params import param, require
 from gait_biofeedback.core.segments import SEGMENTS, ImuSeries
 from gait_biofeedback.core.stamps import NS_PER_S, s_to_ns
+
+CALIBRATION_FILE = "calibration.yaml"
+"""The file a session's calibration is saved to (in ``session_dir``) and reloaded from."""
+
+
+def read_calibration_file(path: str | Path) -> SessionCalibration:
+    """A calibration file written by :func:`write_calibration_file`; ValueError saying what is wrong
+    with it (unreadable YAML, missing fields, unknown protocol)."""
+    try:
+        return SessionCalibration.from_dict(yaml.safe_load(Path(path).read_text()))
+    except (KeyError, TypeError, AttributeError, yaml.YAMLError) as exc:
+        raise ValueError(f"{path}: not a calibration file ({type(exc).__name__}: {exc})") from None
+
+
+def write_calibration_file(path: str | Path, calibration: SessionCalibration) -> None:
+    """Save a calibration (YAML of :meth:`SessionCalibration.to_dict`), creating the folder."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(yaml.safe_dump(calibration.to_dict(), sort_keys=False))
 
 
 @dataclass(frozen=True)

@@ -13,14 +13,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gait_biofeedback.core.body import BodyDimensions, body_dimensions
+from gait_biofeedback.core.body import StickFigureDimensions
 from gait_biofeedback.core.in_force import InForceQueue
 from gait_biofeedback.core.joints.angles import JointAngleCalculator
-from gait_biofeedback.core.params import param, same_as
+from gait_biofeedback.core.params import param
 
 
 @dataclass(frozen=True)
-class JointAnglesParams:
+class JointAnglesParams(StickFigureDimensions):
     """Parameters of the joint-angle stage (node ``joint_angles``, and ``analyze``); the body
     dimensions draw the ``skeleton``."""
 
@@ -35,16 +35,6 @@ class JointAnglesParams:
     skeleton_every: int = param(5, "publish the skeleton markers every this many samples (0 = never)",
                                 "samples", low=0, high=10000)
     diagnostics_period: float = param(1.0, "period of the /diagnostics status", "s", low=0.1, high=60.0)
-    thigh_length: float = same_as(BodyDimensions, "thigh_length")
-    shank_length: float = same_as(BodyDimensions, "shank_length")
-    hip_width: float = same_as(BodyDimensions, "hip_width")
-    foot_length: float = same_as(BodyDimensions, "foot_length")
-    ankle_height: float = same_as(BodyDimensions, "ankle_height")
-
-    @property
-    def body(self) -> BodyDimensions:
-        """The body dimensions among these parameters."""
-        return body_dimensions(self)
 
 
 
