@@ -190,6 +190,22 @@ def test_step_count_of_synthetic_walk(rate: float, step_s: float) -> None:
     assert set(out["locomotion"][walking]) == {"level"}
 
 
+@pytest.mark.parametrize(("lean_deg", "counted"), [(0.0, True), (20.0, True), (40.0, False)])
+def test_steps_need_an_upright_trunk(lean_deg: float, counted: bool) -> None:
+    # the same 20 chest bounces with the trunk upright, leaning 20° (θ 18–22° with the sway) or leaning
+    # 40° (θ 38–42°, beyond the 30° upright limit [T §7.2.6]): only the upright ones are steps
+    tpl = Template(RATE).hold(4.0, 0.0).hold(2.0, lean_deg).walk(20).hold(3.0)
+    out = _run(tpl)
+    theta = np.degrees(out["trunk_inclination"][700:1700])
+    assert np.all(np.abs(theta - lean_deg) < 2.6)
+    if counted:
+        assert len(out["steps"]) == 20
+        assert max(min(abs(s - t) for t in tpl.steps) for s in out["steps"]) < 0.1
+    else:
+        assert out["steps"] == [] and set(out["locomotion"]) == {"none"}
+    assert out["transitions"] == [] and set(out["posture"]) == {"standing"}
+
+
 def test_no_transition_while_walking() -> None:
     tpl = Template(RATE).hold(4.0, 0.0).walk(80, step_s=0.5, amplitude=4.0).hold(4.0)
     out = _run(tpl)

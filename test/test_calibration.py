@@ -9,9 +9,12 @@ import yaml
 
 from gait_biofeedback.core import quaternion as quat
 from gait_biofeedback.core.calibration.sensor_to_segment import (
+    MIN_EXPLAINED_VARIANCE,
+    SegmentCalibrationResult,
     SessionCalibration,
     calibrate_segment,
     calibrate_session,
+    calibrate_trunk,
     heading_calibration,
     helical_angle,
     vertical_calibration,
@@ -71,13 +74,15 @@ def test_session_recovers_random_mountings(scenario, hip_flexion, walking):
     assert 1.5 < standing[1] <= 5.5 and motion[0] == standing[1]
     cal = calibrate_session(data, standing, motion, scenario, orientations=ori)
     assert cal.success, cal.message
-    # deg; thesis medians 6.2 / 16.5 / 11.8 (walking thigh: the simulated gait's functional axis is 8° off)
-    limits = {"thigh": 10.0, "shank": 6.0, "foot": 2.0, "pelvis": 2.0, "chest": 2.0}
-    if scenario == "hip_flexion":
-        limits.update(thigh=1.0, shank=1.0)
+    # deg, about twice the errors reached (measured hip flexion: thigh 0.09/0.10, shank 0.08/0.08, foot
+    # 0.010/0.012, pelvis 0.096, chest 0.15; walking: thigh 7.6/7.8, shank 3.4/2.4, foot 0.035/0.037,
+    # pelvis 0.12, chest 0.14). Thesis medians 6.2 / 16.5 / 11.8; the walking thigh's error is the
+    # simulated gait's functional axis, 8° off the anatomical one, which the method cannot avoid
+    limits = {"hip_flexion": {"thigh": 0.2, "shank": 0.17, "foot": 0.025, "pelvis": 0.2, "chest": 0.3},
+              "walking": {"thigh": 10.0, "shank": 6.0, "foot": 0.08, "pelvis": 0.25, "chest": 0.3}}[scenario]
     for seg, res in cal.segments.items():
         err = float(helical_angle(res.rotation, session.truth.mounting[seg])) / DEG
-        assert err < limits[seg.split("_")[-1]], f"{seg}: {err:.1f} deg"
+        assert err < limits[seg.split("_")[-1]], f"{seg}: {err:.3f} deg"
         assert 0.8 < res.quality <= 1.0 and res.standing_motion < 0.05
 
 
@@ -93,6 +98,126 @@ def test_calibrate_segment_recovers_a_hand_made_mounting():
                             w_seg @ to_sensor.T, 100.0, "hip_flexion")
     assert res.valid, res.message
     assert helical_angle(res.rotation, r) < 1e-6
+
+
+# ---- refusal gates, one at a time, on hand-made inputs (documented thresholds) -----------------------
+
+_R_THIGH = quat.multiply(quat.from_axis_angle([1, 0, 0], np.pi / 2),
+                         quat.from_axis_angle([0, 1, 0], np.pi / 6))
+_TO_SENSOR = quat.as_matrix(_R_THIGH)  # segment coords → sensor coords
+
+
+def _flexion_moves(seconds: float = 15.0, explained: float = 1.0) -> np.ndarray:
+    """Sensor gyro of hip flexion/extension at 1 Hz (one cycle per second, 2 rad/s about the segment z)
+    plus an uncorrelated rate about the segment x so that λ1/(λ1+λ2) = ``explained``."""
+    t = np.arange(round(seconds * 100)) / 100.0
+    lateral = 2.0 * np.sqrt((1.0 - explained) / explained)
+    w_seg = np.column_stack([lateral * np.sin(2 * np.pi * t), np.zeros_like(t), 2.0 * np.cos(2 * np.pi * t)])
+    return w_seg @ _TO_SENSOR.T
+
+
+def _alternating(n: int, rms: float) -> np.ndarray:
+    """Zero-mean (n even) samples whose RMS vector norm about the mean is ``rms``."""
+    return np.outer((-1.0) ** np.arange(n), np.ones(3)) * rms / np.sqrt(3.0)
+
+
+def _standing(gyro_rms: float = 0.0, acc_rms: float = 0.0, g: float = 9.81) -> tuple[np.ndarray, np.ndarray]:
+    acc = np.tile(_TO_SENSOR @ [0.0, g, 0.0], (300, 1)) + _alternating(300, acc_rms)
+    return acc, _alternating(300, gyro_rms)
+
+
+def _thigh_calibration(seconds: float = 15.0, explained: float = 1.0, **standing: float):
+    acc, gyr = _standing(**standing)
+    return calibrate_segment("left_thigh", acc, gyr, _flexion_moves(seconds, explained), 100.0, "hip_flexion")
+
+
+def test_the_hand_made_thigh_passes_every_gate():
+    res = _thigh_calibration()
+    assert res.valid and res.message == "", res.message
+    assert res.details["cycles"] == 15 and res.quality == pytest.approx(1.0, abs=1e-6)
+    assert helical_angle(res.rotation, _R_THIGH) < 1e-6
+
+
+@pytest.mark.parametrize(("explained", "valid"), [(0.55, False), (0.70, True)])
+def test_explained_variance_gate(explained: float, valid: bool):
+    res = _thigh_calibration(explained=explained)
+    assert res.quality == pytest.approx(explained, abs=1e-3) and res.details["cycles"] == 15
+    assert res.valid is valid
+    if not valid:
+        assert res.message == (f"left thigh: movement not in one plane (explained variance {explained:.2f} < "
+                               f"{MIN_EXPLAINED_VARIANCE}); repeat with clear forward-backward movements")
+
+
+@pytest.mark.parametrize(("seconds", "valid"), [(9, False), (10, True)])
+def test_minimum_number_of_flexion_cycles(seconds: int, valid: bool):
+    res = _thigh_calibration(seconds=seconds)  # one flexion per second
+    assert res.details["cycles"] == seconds and res.valid is valid
+    assert res.message == ("" if valid else "left thigh: only 9 flexion cycles detected, need 10")
+
+
+@pytest.mark.parametrize(
+    ("standing", "refusal"),
+    [({"gyro_rms": 0.12}, "subject moved during quiet standing (left thigh: 6.9 °/s, limit 4.6 °/s)"),
+     ({"gyro_rms": 0.06}, None),
+     ({"acc_rms": 0.8}, "subject moved during quiet standing (left thigh: accelerometer varies by 0.80 m/s², "
+                        "limit 0.5 m/s²)"),
+     ({"acc_rms": 0.3}, None),
+     ({"g": 7.8}, "left thigh: accelerometer reads 7.8 m/s² at rest, not ~9.8: check the sensor"),
+     ({"g": 9.0}, None)],
+    ids=["gyro", "gyro-ok", "acc", "acc-ok", "gravity", "gravity-ok"])
+def test_standing_gates(standing: dict, refusal: str | None):
+    # documented limits: gyro RMS 0.08 rad/s (4.6 °/s), accelerometer RMS 0.5 m/s², |mean| within
+    # 1.5 m/s² of 9.81; each refusal names its own figure
+    res = _thigh_calibration(**standing)
+    assert res.standing_motion == pytest.approx(standing.get("gyro_rms", 0.0), abs=1e-12)
+    if refusal is None:
+        assert res.valid and res.message == "", res.message
+    else:
+        assert not res.valid and res.message.startswith(refusal), res.message
+        assert "cycles" not in res.message and "plane" not in res.message
+
+
+_PELVIS_STANDING = quat.from_axis_angle([1, 0, 0], np.pi / 2)  # sensor y up, sensor x east
+
+
+def _thigh_facing(side: str, heading_deg: float) -> SegmentCalibrationResult:
+    """A valid thigh calibration (r = identity) whose anatomical x points at ``heading_deg`` (CCW from
+    east) in quiet standing."""
+    q = quat.multiply(quat.from_axis_angle([0, 0, 1], heading_deg * DEG), _PELVIS_STANDING)
+    return SegmentCalibrationResult(f"{side}_thigh", quat.IDENTITY.copy(), True, 1.0, "explained_variance",
+                                    0.0, details={"standing_orientation": [float(v) for v in q]})
+
+
+def _pelvis(thighs: list[SegmentCalibrationResult], up_in_sensor=(0.0, 1.0, 0.0)) -> SegmentCalibrationResult:
+    acc = np.tile(9.81 * np.asarray(up_in_sensor, dtype=float), (100, 1))
+    return calibrate_trunk("pelvis", acc, np.zeros((100, 3)), _PELVIS_STANDING, thighs)
+
+
+def test_trunk_heading_is_the_thighs_mean_heading():
+    res = _pelvis([_thigh_facing("left", 10.0), _thigh_facing("right", 30.0)])
+    assert res.valid, res.message
+    # the thighs' mean heading 20° from east, in the pelvis sensor (x east, y up, z south): (cos, 0, -sin)
+    np.testing.assert_allclose(quat.rotate(res.rotation, [1.0, 0.0, 0.0]),
+                               [np.cos(20 * DEG), 0.0, -np.sin(20 * DEG)], atol=1e-9)
+    np.testing.assert_allclose(quat.rotate(res.rotation, [0.0, 1.0, 0.0]), [0.0, 1.0, 0.0], atol=1e-9)
+    assert res.quality == pytest.approx(1.0 - 20.0 / 90.0)
+
+
+def test_trunk_refused_when_the_thigh_headings_disagree():
+    res = _pelvis([_thigh_facing("left", 0.0), _thigh_facing("right", 40.0)])
+    assert not res.valid
+    assert res.message == ("pelvis: left and right thigh headings differ by 40°: check the thigh sensors "
+                           "and the magnetic environment, then repeat")
+
+
+def test_trunk_refused_when_orientation_and_accelerometer_disagree_on_the_vertical():
+    # the thighs put the pelvis x at 20° (sensor (cos 20°, 0, -sin 20°)); an accelerometer whose "up" is
+    # only 10° from that direction leaves |x ⊥ up| = sin 10° = 0.17 < 0.3
+    x_target = np.array([np.cos(20 * DEG), 0.0, -np.sin(20 * DEG)])
+    up = np.cos(10 * DEG) * x_target + np.sin(10 * DEG) * np.array([0.0, 1.0, 0.0])
+    res = _pelvis([_thigh_facing("left", 10.0), _thigh_facing("right", 30.0)], up_in_sensor=up)
+    assert not res.valid
+    assert res.message == "pelvis: sensor orientation and accelerometer disagree on the vertical"
 
 
 def test_refuses_recording_without_motion_and_says_why():

@@ -36,6 +36,16 @@ WITH_ONLINE_BIAS = {
     "nazarahari_lkf": {"sigma_bw": 1e-3, "p0_bias": 1e-4},
 }
 GATING = {"mag_reject_norm": 0.05, "mag_reject_dip": math.radians(3.0)}
+# about twice what each filter reaches (deg; measured: inertial_cf 0.24, madgwick 0.71, mahony 0.58,
+# nazarahari_lkf 0.33, nazarahari_rekf 0.45, yi_cf 0.061, zihajehzadeh_ckf 0.34 RMS)
+ROTATING_RMS_DEG = {"inertial_cf": 0.5, "madgwick": 1.4, "mahony": 1.2, "nazarahari_lkf": 0.7,
+                    "nazarahari_rekf": 0.9, "yi_cf": 0.15, "zihajehzadeh_ckf": 0.7}
+# max heading error during / after a 10 s magnet (deg; measured inertial_cf 0.14 / 0.14, madgwick
+# 0.53 / 0.80, mahony 0.077 / 0.48, nazarahari_lkf 0.11 / 0.71, nazarahari_rekf 0.22 / 0.21, yi_cf
+# 0.10 / 0.064, zihajehzadeh_ckf 0.77 / 0.76)
+DISTURBED_HEADING_DEG = {"inertial_cf": (0.3, 0.3), "madgwick": (1.1, 1.6), "mahony": (0.15, 1.0),
+                         "nazarahari_lkf": (0.22, 1.4), "nazarahari_rekf": (0.44, 0.43), "yi_cf": (0.2, 0.13),
+                         "zihajehzadeh_ckf": (1.5, 1.5)}
 
 
 def synth(seconds: float, rotating: bool, bias=(0.0, 0.0, 0.0), seed: int = 0, q0=None, noise: float = 1.0):
@@ -101,7 +111,8 @@ def test_rotating_tracks_truth(name):
     est = run(name, gyr, acc, mag)
     err = np.degrees(quat.angle_between(est, q))
     assert err[0] < 1.5  # initial attitude from the vectors (TRIAD)
-    assert np.sqrt(np.mean(err**2)) < 3.0
+    rms = np.sqrt(np.mean(err**2))
+    assert rms < ROTATING_RMS_DEG[name], f"{name}: {rms:.3f} deg RMS"
 
 
 @pytest.mark.parametrize("name", ALL)
@@ -179,8 +190,9 @@ def test_magnetic_disturbance_rejected(name):
     disturbed[sl] += quat.rotate_inverse(q[sl], np.array([0.6 * 44.7e-6, 0.0, 0.0]))
     est = run(name, gyr, acc, disturbed, **GATING)
     head, _ = heading_inclination(est, q)
-    assert head[sl].max() < 5.0
-    assert head[1500:].max() < 5.0
+    during, after = DISTURBED_HEADING_DEG[name]
+    assert head[sl].max() < during, f"{name}: {head[sl].max():.3f} deg while disturbed"
+    assert head[1500:].max() < after, f"{name}: {head[1500:].max():.3f} deg after"
 
 
 @pytest.mark.parametrize("name", ALL)
@@ -287,7 +299,8 @@ def test_default_algorithm_accuracy_floor_on_broad():
     )
     ok = d["movement"].astype(bool) & np.isfinite(d["opt_quat"]).all(1)
     err = np.degrees(quat.angle_between(est[ok], d["opt_quat"][ok]))
-    assert np.sqrt(np.mean(err**2)) < 4.0
+    rms = np.sqrt(np.mean(err**2))
+    assert rms < 2.0, f"{rms:.2f} deg RMS"  # measured 0.98
 
 
 # ------------------------------------------------------------------ inertial_cf (the default)
@@ -360,6 +373,65 @@ def test_inertial_cf_magnet_never_tilts_and_new_field_becomes_reference():
     assert not any(flags[3100:])  # then the constant new field is the reference again
     assert f.state()["mag_reference"][0] == pytest.approx(
         np.linalg.norm(M_WORLD + extra) / np.linalg.norm(M_WORLD), rel=0.02)
+
+
+M_NORM, M_DIP = float(np.linalg.norm(M_WORLD)), math.atan2(40.0, 20.0)  # synth's field: 44.7 µT, 63.4°
+
+
+def _world_field(scale: float, heading_deg: float, dip: float) -> np.ndarray:
+    """A world field of ``scale`` × ‖M_WORLD‖, its horizontal part ``heading_deg`` east of north, its
+    dip ``dip`` rad below the horizon."""
+    h = math.radians(heading_deg)
+    horizontal = math.cos(dip)
+    return scale * M_NORM * np.array([math.sin(h) * horizontal, math.cos(h) * horizontal, -math.sin(dip)])
+
+
+@pytest.mark.parametrize(("scale", "dip_change_deg"), [(1.0, 25.0), (1.4, 0.0)], ids=["dip", "norm"])
+def test_inertial_cf_rejects_a_dip_change_alone_and_a_norm_change_alone(scale: float, dip_change_deg: float):
+    """10 s of a field turned 40° in heading whose dip alone changes (25°, threshold 10°) or whose norm
+    alone changes (+40 %, threshold 12.3 %): either is a disturbance, so the heading holds."""
+    gyr, acc, mag, q = synth(25.0, rotating=False, seed=21)
+    sl = slice(500, 1500)
+    disturbed = _world_field(scale, 40.0, M_DIP - math.radians(dip_change_deg))
+    mag[sl] += quat.rotate_inverse(q[sl], disturbed - M_WORLD)
+    f = InertialCF(RATE)
+    est, flags = [], []
+    for k in range(len(gyr)):
+        est.append(f.update(gyr[k], acc[k], mag[k]))
+        flags.append(f.state()["mag_disturbed"])
+    head, _ = heading_inclination(np.array(est), q)
+    assert all(flags[500:1500]) and not any(flags[:500]) and not any(flags[1600:])
+    # measured 0.29 / 0.19 deg (a 40° error, if accepted, would reach 25° in the 10 s)
+    assert head[sl].max() < 0.6, f"{head[sl].max():.2f} deg while rejected"
+    assert head[1500:].max() < 0.4, f"{head[1500:].max():.2f} deg after"
+
+
+def test_inertial_cf_rejection_timeout_then_fast_catch_up():
+    """A constant 40°-off field (norm +40 %) from 5 s to 20 s, mag_max_reject = 4 s (no new reference):
+    the heading holds until 9 s, then follows the disturbed field with tau_mag; when the true field is
+    back, the magnetometer stays in use (still the timeout) and, undisturbed for mag_accept_time, the
+    heading catches up with tau_mag_fast for fast_time, then tau_mag again. The expected error is that
+    piecewise first-order response to the hand-made 40° step (documented defaults)."""
+    p = InertialCF.DEFAULTS
+    tau, tau_fast = p["tau_mag"], p["tau_mag_fast"]
+    gyr, acc, mag, q = synth(30.0, rotating=False, seed=22)
+    sl = slice(500, 2000)
+    mag[sl] += quat.rotate_inverse(q[sl], _world_field(1.4, 40.0, M_DIP) - M_WORLD)
+    est = run("inertial_cf", gyr, acc, mag, mag_max_reject=4.0, mag_new_time=1000.0)
+    head, _ = heading_inclination(est, q)
+    t = np.arange(len(head)) / RATE
+    t_on, t_off = 5.0 + 4.0, 20.0
+    t_accept = t_off + p["mag_accept_time"]
+    t_slow = t_accept + p["fast_time"]
+    e_off = 40.0 * (1.0 - math.exp(-(t_off - t_on) / tau))
+    e_accept = e_off * math.exp(-(t_accept - t_off) / tau)
+    e_slow = e_accept * math.exp(-(t_slow - t_accept) / tau_fast)
+    model = np.select([t < t_on, t < t_off, t < t_accept, t < t_slow],
+                      [0.0 * t, 40.0 * (1.0 - np.exp(-(t - t_on) / tau)), e_off * np.exp(-(t - t_off) / tau),
+                       e_accept * np.exp(-(t - t_accept) / tau_fast)], e_slow * np.exp(-(t - t_slow) / tau))
+    assert model[1999] == pytest.approx(27.2, abs=0.05) and model[2400] < 1.7  # 40°·(1 − e^(−11/9.67))
+    dev = np.abs(head - model)
+    assert dev.max() < 0.5, f"{dev.max():.2f} deg from the expected response at t = {t[np.argmax(dev)]:.2f} s"
 
 
 def test_inertial_cf_defaults_are_the_shipped_tuned_values():

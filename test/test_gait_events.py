@@ -71,6 +71,44 @@ def test_80_percent_trend_rule(reversals: int, expected: list[int]):
     assert events_from_signal(s, 100.0)["tc"].tolist() == expected
 
 
+@pytest.mark.parametrize(("reversals", "expected"), [(3, [69]), (4, [])])
+def test_80_percent_trend_rule_before_the_ic_maximum(reversals: int, expected: list[int]):
+    s = _hand_made()
+    # one-sample downward reversals in the rise to the maximum (k=69): 12 of its 15 differences must
+    # rise (ceil(0.8 * 15)); with 4 reversals neither k=69 nor the bump at k=64 qualifies
+    for j in range(reversals):
+        k = 56 + 3 * j
+        s[k] = s[k - 1] - 0.005
+    events = events_from_signal(s, 100.0)
+    assert events["tc"].tolist() == [49]
+    assert events["ic"].tolist() == expected
+
+
+def test_maximum_below_the_threshold_is_no_initial_contact():
+    # after the TC at k=49 the toes rise only to -0.3 (k=69, below -0.2: no IC), dip to -0.45 at k=79,
+    # then rise to +0.2 at k=99: the IC is the maximum above the threshold
+    s = np.zeros(160)
+    s[30:50] = -0.6 * np.arange(1, 21) / 20
+    s[50:70] = -0.6 + 0.3 * np.arange(1, 21) / 20
+    s[70:80] = -0.3 - 0.15 * np.arange(1, 11) / 10
+    s[80:100] = -0.45 + 0.65 * np.arange(1, 21) / 20
+    s[100:120] = 0.2 - 0.2 * np.arange(1, 21) / 20
+    assert {k: v.tolist() for k, v in events_from_signal(s, 100.0).items()} == {"ic": [99], "tc": [49]}
+
+
+@pytest.mark.parametrize(("period", "spacing"), [(15, 30), (16, 16)])
+def test_refractory_is_strictly_more_than_15_samples(period: int, spacing: int):
+    # triangle wave -0.6 .. +0.2 with a 5-sample extremum window: minima (and maxima) `period` samples
+    # apart. Algorithm 1 needs k - k_TC > 15 at 100 Hz: 16 samples apart every extremum is an event,
+    # 15 apart every second one
+    phase = np.arange(40 * period) % period
+    half = period // 2
+    s = np.where(phase <= half, -0.6 + 0.8 * phase / half, 0.2 - 0.8 * (phase - half) / (period - half))
+    events = events_from_signal(s, 100.0, window_s=0.05)
+    for kind in ("tc", "ic"):
+        assert len(events[kind]) >= 19 and set(np.diff(events[kind]).tolist()) == {spacing}, kind
+
+
 def test_refractory_period_per_event_type():
     # triangle wave, period 12 samples, between -0.6 and +0.2; a 5-sample extremum window lets
     # events come faster than the 150 ms refractory period
@@ -183,8 +221,12 @@ def test_stride_parameters_from_hand_made_events():
     assert (left.stance_fraction, left.swing_fraction, left.cadence) == pytest.approx((0.6, 0.4, 2.0))
     assert left.step_time == pytest.approx(0.5)
     assert left.double_support_time == pytest.approx(0.1 + 0.1)  # 0→0.1 and 0.5→0.6
+    assert left.double_support_fraction == pytest.approx(0.2 / 1.0)  # of the stride, not the stance
     assert left.plausible and left.flag == "" and math.isnan(left.step_time_symmetry_index)
     assert right.step_time == pytest.approx(0.55) and right.stride_time == pytest.approx(1.05)
+    # right stride 0.5 → 1.55, its TC at 1.1: left TC 0.6 - 0.5 plus 1.1 - left IC 1.0
+    assert right.double_support_time == pytest.approx(0.2)
+    assert right.double_support_fraction == pytest.approx(0.2 / 1.05)
     assert right.step_time_symmetry_index == pytest.approx((0.5 - 0.55) / 0.525)
 
 
@@ -199,3 +241,39 @@ def test_implausible_strides_are_flagged_and_reset_forgets():
     tracker.reset("left")
     assert tracker.add(_ev("left", "ic", 5.0)) is None, "after a reset the next IC opens a stride"
     assert tracker.implausible["left"] == 2
+
+
+def test_implausible_stride_does_not_move_the_symmetry_index():
+    tracker = GaitCycleTracker(symmetry_window=10)
+    events = [("left", "ic", 0.0), ("right", "tc", 0.1), ("right", "ic", 0.5), ("left", "tc", 0.6),
+              ("left", "ic", 1.0), ("right", "tc", 1.1), ("right", "ic", 1.6)]
+    cycles = [c for s, k, t in events if (c := tracker.add(_ev(s, k, t))) is not None]
+    assert [c.step_time for c in cycles] == pytest.approx([0.5, 0.6])
+    before = (0.5 - 0.6) / (0.5 * (0.5 + 0.6))
+    assert cycles[-1].step_time_symmetry_index == pytest.approx(before)
+    # a left stride with two TCs of its own (a missed IC or a stumble): step 2.4 - 1.6 = 0.8 s is
+    # reported but kept out of the window, so the index stays; the next good stride does count
+    for side, kind, t in (("left", "tc", 1.7), ("left", "tc", 1.8)):
+        tracker.add(_ev(side, kind, t))
+    bad = tracker.add(_ev("left", "ic", 2.4))
+    assert not bad.plausible and "2 terminal contacts" in bad.flag and bad.step_time == pytest.approx(0.8)
+    assert bad.step_time_symmetry_index == pytest.approx(before)
+    assert tracker.symmetry_index() == pytest.approx(before)
+    tracker.add(_ev("right", "tc", 2.0))
+    right = tracker.add(_ev("right", "ic", 2.9))  # step 2.9 - 2.4
+    tracker.add(_ev("left", "tc", 3.0))
+    good = tracker.add(_ev("left", "ic", 3.45))  # step 3.45 - 2.9
+    assert right.plausible and good.plausible and good.step_time == pytest.approx(0.55)
+    mean_left, mean_right = (0.5 + 0.55) / 2, (0.6 + 0.5) / 2
+    assert good.step_time_symmetry_index == pytest.approx(
+        (mean_left - mean_right) / (0.5 * (mean_left + mean_right)))
+
+
+def test_step_time_is_from_the_last_other_foot_ic():
+    # the left stride 0 → 1.9 s holds two right ICs (0.5 and 1.4): its step starts at the later one
+    tracker = GaitCycleTracker()
+    for side, kind, t in (("left", "ic", 0.0), ("right", "ic", 0.5), ("left", "tc", 0.7),
+                          ("right", "tc", 1.0), ("right", "ic", 1.4)):
+        tracker.add(_ev(side, kind, t))
+    stride = tracker.add(_ev("left", "ic", 1.9))
+    assert stride.plausible and stride.step_time == pytest.approx(1.9 - 1.4)

@@ -118,3 +118,50 @@ def test_stick_figure_of_standing_pose():
     ends = {seg: end for seg, _start, end in lines}
     np.testing.assert_allclose(ends["right_foot"], [0.15, -0.10, -0.45 - 0.41 - 0.07], atol=1e-12)
     np.testing.assert_allclose(ends["left_thigh"], [0.0, 0.10, -0.45], atol=1e-12)
+
+
+def _knee_pose(knee_deg: float) -> dict[str, np.ndarray]:
+    """Sensor orientations of a standing pose with both knees flexed by ``knee_deg`` (hip, ankle 0)."""
+    segs = {"pelvis": quat.IDENTITY}
+    for side in ("left", "right"):
+        shank = relative_rotation_from_angles("knee", side, knee_deg * DEG, 0.0, 0.0)
+        segs.update({f"{side}_thigh": quat.IDENTITY, f"{side}_shank": shank, f"{side}_foot": shank})
+    return _sensor_quats(segs)
+
+
+def test_stream_standing_offset_restarts_at_an_incomplete_instant():
+    """1.5 s still at 10° knee flexion, one instant without the pelvis, then still at 20°: the 2 s
+    offset window restarts after the incomplete instant, so the offset is the 20° pose's (it reads 0
+    from 2 s after that instant); before, the raw 20° is published."""
+    from gait_biofeedback.core.joints.stream import JointAnglesParams, JointAngleStream
+
+    stream = JointAngleStream(JointAnglesParams(offset_window_s=2.0))
+    stream.set_calibration(dict(MOUNTS))
+    out = []
+    for k in range(500):
+        pose = _knee_pose(10.0 if k < 150 else 20.0)
+        for seg, q in pose.items():
+            if k == 150 and seg == "pelvis":
+                continue
+            out += stream.add(seg, k * 10_000_000, q, gyro_norm=0.0)  # |ω| = 0: every segment still
+    out += stream.flush(force=True)
+    assert stream.missing_counts["pelvis"] == 1
+    knee = {round(a.ns / 1e7): a.angles["right_knee_flexion"] / DEG for a in out}
+    assert knee[100] == pytest.approx(10.0, abs=1e-9) and knee[350] == pytest.approx(20.0, abs=1e-9)
+    assert knee[351] == pytest.approx(0.0, abs=1e-9) and knee[499] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_stream_standing_offset_needs_every_segment_still():
+    from gait_biofeedback.core.joints.stream import JointAnglesParams, JointAngleStream
+
+    stream = JointAngleStream(JointAnglesParams(offset_window_s=1.0, still_gyro=0.2))
+    stream.set_calibration(dict(MOUNTS))
+    out = []
+    for k in range(300):
+        pose = _knee_pose(10.0 if k < 100 else 20.0)
+        for seg, q in pose.items():  # the left shank turns at 0.3 rad/s for the first second
+            moving = seg == "left_shank" and k < 100
+            out += stream.add(seg, k * 10_000_000, q, gyro_norm=0.3 if moving else 0.19)
+    knee = {round(a.ns / 1e7): a.angles["right_knee_flexion"] / DEG for a in out}
+    assert knee[199] == pytest.approx(20.0, abs=1e-9)  # collecting since k = 100
+    assert knee[200] == pytest.approx(0.0, abs=1e-9) and knee[299] == pytest.approx(0.0, abs=1e-9)
