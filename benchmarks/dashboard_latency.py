@@ -76,7 +76,7 @@ def main() -> int:
     def client() -> None:
         from websockets.sync.client import connect
 
-        with connect(f"ws://127.0.0.1:{bio.port}/ws", max_size=None) as ws:
+        with connect(f"ws://127.0.0.1:{bio.port}/ws?token={bio.server.token}", max_size=None) as ws:
             ws_box["ws"] = ws
             while not stop.is_set():
                 try:

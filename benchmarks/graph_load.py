@@ -25,8 +25,6 @@ import tempfile
 import time
 from pathlib import Path
 
-import yaml
-
 from gait_biofeedback.cli import DEMO_BAG
 from gait_biofeedback.demo import calibration_time, ensure_demo_bag
 from gait_biofeedback.graph import replay_through_graph
@@ -49,15 +47,13 @@ def demo_calibration(bag: Path, session_dir: Path) -> None:
     """Write the demo's calibration (hip flexion, pressed at 36 s) to ``session_dir/calibration.yaml``,
     where the calibration node reloads it from (in force at once)."""
     from gait_biofeedback.analyze import analyze_recording
-    from gait_biofeedback.core.calibration.stream import CALIBRATION_FILE
+    from gait_biofeedback.core.calibration.stream import CALIBRATION_FILE, write_calibration_file
 
     result = analyze_recording(bag, None, calibrate_at=[(calibration_time(), "hip_flexion")])
     attempt = result.calibrations[0]
     if not attempt.success or attempt.calibration is None:
         raise RuntimeError(f"demo calibration refused: {attempt.message}")
-    session_dir.mkdir(parents=True, exist_ok=True)
-    text = yaml.safe_dump(attempt.calibration.to_dict(), sort_keys=False)
-    (session_dir / CALIBRATION_FILE).write_text(text)
+    write_calibration_file(session_dir / CALIBRATION_FILE, attempt.calibration, "benchmark")
 
 
 def run_rows(bag: Path, stages: list[list[str]], start: float, stop: float, speed: float,
@@ -71,7 +67,8 @@ def run_rows(bag: Path, stages: list[list[str]], start: float, stop: float, spee
             before = cpu_seconds()
             replay_through_graph(bag, out, speed=speed, nodes=stage, start_offset=start, stop_offset=stop,
                                  node_parameters={"calibration": {"session_dir": str(session_dir or
-                                                                                     Path(tmp) / "s")},
+                                                                                     Path(tmp) / "s"),
+                                                                  "reload_calibration": True},
                                                   "biofeedback": {"port": 0}})
             cpu = cpu_seconds() - before
             counts = BagReader(out).message_counts()

@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from rclpy.serialization import deserialize_message, serialize_message
+from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import Imu
 
 from gait_biofeedback.core.activity.stream import ActivityParams, ActivityStream
@@ -55,12 +55,13 @@ from gait_biofeedback.core.joints.stream import STREAM_SEGMENTS, JointAnglesPara
 from gait_biofeedback.core.orientation.stream import OrientationParams, SegmentOrientationTracker
 from gait_biofeedback.core.stamps import NS_PER_S, s_to_ns
 from gait_biofeedback.io.bag import BagReader, BagWriter
+from gait_biofeedback.io.bag_writer import check_output
 from gait_biofeedback.io.schemas import type_name_of
 from gait_biofeedback.parameters import stage_parameters
 from gait_biofeedback.wire import topics
 from gait_biofeedback.wire.activity import activity_msg
 from gait_biofeedback.wire.calibration import calibration_msg, entries, rotations
-from gait_biofeedback.wire.cdr import Stamped, decode_imu, decode_mag
+from gait_biofeedback.wire.cdr import Stamped, decode_imu, decode_mag, serialize
 from gait_biofeedback.wire.gait import cycle_msg, event_msg, foot_frame
 from gait_biofeedback.wire.imu import (
     angular_speed,
@@ -161,6 +162,8 @@ def analyze_recording(
     missing bag or calibration file.
     """
     stages = {node: stage_parameters(node, values) for node, values in (params or {}).items()}
+    if output is not None:
+        check_output(output, overwrite)  # before the analysis, not after it
     reader = BagReader(bag)
     try:
         return _analyze(reader, bag, output, list(calibrate_at or []), calibration_file, stages, overwrite)
@@ -181,7 +184,7 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
         path = Path(calibration_file)
         if not path.is_file():
             raise FileNotFoundError(f"calibration file {path} not found")
-        calibration = read_calibration_file(path)
+        calibration, saved_at = read_calibration_file(path)
 
     # -- the core objects, set up from the nodes' parameters --------------------------------------
     o_params: OrientationParams = stages.get("orientation_filter") or OrientationParams()
@@ -207,7 +210,7 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
     imu_type = topics.orientation("x").type_name
 
     def emit(topic: str, msg: Any, log_ns: int) -> None:
-        out.append((log_ns, topic, type_name_of(msg), serialize_message(msg)))
+        out.append((log_ns, topic, type_name_of(msg), serialize(msg)))
         result.counts[topic] = result.counts.get(topic, 0) + 1
         if keep:
             result.messages.append((topic, msg, log_ns))
@@ -259,7 +262,8 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
                     emit(topics.GAIT_CYCLES.absolute(), cycle_msg(cycle), log_ns)
 
     if calibration is not None:
-        publish_calibration(calibration_msg(calibration, 0), start_ns)
+        source = f"from {Path(calibration_file).absolute()} (saved {saved_at or 'at an unknown time'})"
+        publish_calibration(calibration_msg(calibration, 0, source), start_ns)
 
     segment_of = {topic: seg for seg, topic in raw_topics.items()}
     mag_of = {topic: seg for seg, topic in mag_topics.items()}

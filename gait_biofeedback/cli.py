@@ -38,12 +38,14 @@ def _progress(total: int, desc: str):
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
+    from gait_biofeedback.io.bag_writer import check_output
     from gait_biofeedback.sim.recording import write_simulated_bag
     from gait_biofeedback.sim.simulator import SCENARIOS, simulate
 
     if args.scenario not in SCENARIOS:
         print(f"unknown scenario {args.scenario!r}; choose one of {sorted(SCENARIOS)}", file=sys.stderr)
         return 2
+    check_output(args.output, args.overwrite)
     config = SCENARIOS[args.scenario]()
     config.rate_hz = args.rate
     config.seed = args.seed
@@ -59,8 +61,10 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 def cmd_import(args: argparse.Namespace) -> int:
     from gait_biofeedback.io.bag import write_imu_bag
+    from gait_biofeedback.io.bag_writer import check_output
     from gait_biofeedback.io.importers import import_recording
 
+    check_output(args.output)
     options = {}
     if args.mapping:
         options["mapping"] = args.mapping
@@ -280,7 +284,12 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     try:
         return int(args.func(args) or 0)
-    except (ValueError, FileNotFoundError, FileExistsError) as err:
+    except FileExistsError as err:
+        replaceable = hasattr(args, "overwrite") and "not empty" in str(err)
+        hint = " (or pass --overwrite to replace it)" if replaceable else ""
+        print(f"gait-biofeedback {args.command}: {err}{hint}", file=sys.stderr)
+        return 2
+    except (ValueError, OSError) as err:  # bad input, missing or unwritable files, a full disk: one line
         print(f"gait-biofeedback {args.command}: {err}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # the output was piped into e.g. `head`, which has closed it

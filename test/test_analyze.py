@@ -198,13 +198,12 @@ def test_analyze_refuses_a_bag_without_imu_topics(tmp_path, capsys):
 
 
 def test_cli_analyze_with_a_calibration_file(tmp_path, capsys):
-    import yaml
-
     from gait_biofeedback.cli import main
     from gait_biofeedback.core.calibration.sensor_to_segment import (
         SegmentCalibrationResult,
         SessionCalibration,
     )
+    from gait_biofeedback.core.calibration.stream import write_calibration_file
     from gait_biofeedback.sim.simulator import SCENARIOS
 
     config = SCENARIOS["walk"](duration=6.0, seed=5)
@@ -212,7 +211,7 @@ def test_cli_analyze_with_a_calibration_file(tmp_path, capsys):
     bag = write_simulated_bag(tmp_path / "walk", session)
     cal = SessionCalibration("walking", {s: SegmentCalibrationResult(s, r, True, 1.0, "x", 0.0)
                                          for s, r in session.truth.mounting.items()}, True, "")
-    (tmp_path / "calibration.yaml").write_text(yaml.safe_dump(cal.to_dict(), sort_keys=False))
+    write_calibration_file(tmp_path / "calibration.yaml", cal, "2026-12-01T10:00:00")
     assert main(["analyze", str(bag), "-o", str(tmp_path / "out"), "--calibration",
                  str(tmp_path / "calibration.yaml"), "--params", str(SESSION_PARAMS)]) == 0
     out = capsys.readouterr().out

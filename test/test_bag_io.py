@@ -294,8 +294,10 @@ def test_bad_paths_give_clear_errors(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match=r"empty.*without \.mcap files"):
         BagReader(tmp_path / "empty")
     write_in_flushed_batches(tmp_path / "taken", batches=1)
-    with pytest.raises(FileExistsError, match="overwrite=True"):
+    with pytest.raises(FileExistsError, match="exists and is not empty: write to another folder or remove"):
         BagWriter(tmp_path / "taken")
+    with pytest.raises(OSError, match=r"cannot write the bag folder /proc/gait_biofeedback_out .*: choose a"):
+        BagWriter("/proc/gait_biofeedback_out")  # a folder nobody may create, root included
     with pytest.raises(ValueError, match="compression"):
         BagWriter(tmp_path / "other", compression="gzip")
     with BagWriter(tmp_path / "typed") as writer:

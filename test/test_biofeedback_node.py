@@ -104,7 +104,7 @@ def test_node_cues_frames_and_commands(ros_context, session):
         with pytest.raises(urllib.error.HTTPError, match="404"):
             urllib.request.urlopen(base + "/../../setup.py", timeout=5)
 
-        reader = _Reader(f"ws://127.0.0.1:{node.port}/ws")
+        reader = _Reader(f"ws://127.0.0.1:{node.port}/ws?token={node.server.token}")
         reader.start()
         assert reader.opened.wait(5)
         assert spin_until(executor, lambda: reader.of("hello"), timeout=5)
@@ -189,7 +189,8 @@ def test_node_cues_frames_and_commands(ros_context, session):
         assert calls == ["walking"]
         cal = replies("calibrate")
         assert any(m["success"] and m["message"] == "stub: calibrated with walking" for m in cal)
-        assert any(not m["success"] and "unknown protocol" in m["message"] for m in cal)
+        refusal = "calibrate: protocol='jumping' refused; expected one of ['hip_flexion', 'walking']"
+        assert any(not m["success"] and m["message"] == refusal for m in cal)
         rec = replies("record_start")[0]
         assert not rec["success"] and "not available" in rec["message"]
         assert node.feedback == {"side": "left", "joint": "knee"}

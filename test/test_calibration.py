@@ -372,3 +372,26 @@ def test_gaitmap_foot_calibration_events_within_50_ms():
             detected = np.asarray(events[kind]) + series.t[0]
             errors = np.array([np.min(np.abs(detected - r)) for r in ref[side][kind]])
             assert np.mean(errors < 0.05) > 0.9, f"{side} {kind}: {np.mean(errors < 0.05):.2f} within 50 ms"
+
+
+def test_calibration_file_is_written_atomically_and_checked_on_load(tmp_path):
+    from gait_biofeedback.core.calibration.stream import read_calibration_file, write_calibration_file
+
+    segments = ("pelvis", "left_thigh", "left_shank")
+    results = {s: SegmentCalibrationResult(s, quat.IDENTITY.copy(), True, 1.0, "x", 0.0) for s in segments}
+    cal = SessionCalibration("walking", results, True, "calibrated")
+    path = tmp_path / "session" / "calibration.yaml"
+    write_calibration_file(path, cal, "2026-12-01T10:00:00")
+    assert sorted(p.name for p in path.parent.iterdir()) == ["calibration.yaml"], "no temporary file left"
+    loaded, saved_at = read_calibration_file(path, segments)
+    assert saved_at == "2026-12-01T10:00:00" and list(loaded.segments) == list(segments)
+    with pytest.raises(ValueError, match=r"no entry for right_thigh, right_shank; calibrate again"):
+        read_calibration_file(path, (*segments, "right_thigh", "right_shank"))
+    text = path.read_text()
+    for cut in (len(text) // 3, len(text) // 2, len(text) - 16):  # a crash in the middle of a write
+        path.write_text(text[:cut])
+        with pytest.raises(ValueError, match="not a usable calibration file"):
+            read_calibration_file(path, segments)
+    path.write_text(text.replace("- 1.0\n", "- .nan\n", 1))
+    with pytest.raises(ValueError, match="no valid rotation for pelvis"):
+        read_calibration_file(path, segments)

@@ -96,10 +96,22 @@ def test_service_calibrates_and_latched_result_reaches_late_subscriber(ros_conte
                 n.destroy_node()
         executor.shutdown()
 
-    reloaded = CalibrationNode(ros_context, segments=SEGMENTS, session_dir=str(tmp_path))
+    assert ours()[0].source.startswith("computed in this session at ") and ours()[0].computed_at.sec > 0
+    # a file in the session folder is not put in force unless asked: it may be another patient's
+    unasked = CalibrationNode(ros_context, segments=SEGMENTS, session_dir=str(tmp_path))
+    assert unasked.current is None
+    unasked.destroy_node()
+    reloaded = CalibrationNode(ros_context, segments=SEGMENTS, session_dir=str(tmp_path),
+                               reload_calibration=True)
     try:
         assert reloaded.current is not None
         np.testing.assert_allclose(quat.canonical(reloaded.current.segments["left_shank"].rotation),
                                    quat.canonical(node.current.segments["left_shank"].rotation), atol=1e-12)
     finally:
         reloaded.destroy_node()
+    # a file cut in half (a crash while it was written) is refused, not loaded in part
+    text = (tmp_path / "calibration.yaml").read_text()
+    (tmp_path / "calibration.yaml").write_text(text[: len(text) // 2])
+    cut = CalibrationNode(ros_context, segments=SEGMENTS, session_dir=str(tmp_path), reload_calibration=True)
+    assert cut.current is None
+    cut.destroy_node()

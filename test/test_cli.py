@@ -90,3 +90,19 @@ def test_repair_makes_a_cut_recording_whole(tmp_path, capsys):
     assert 0 < reader.message_count < BagReader(tmp_path / "full").message_count
     assert (cut / "metadata.yaml").exists()
     shutil.rmtree(tmp_path / "full")
+
+
+def test_an_unwritable_or_taken_output_is_refused_before_any_work(tmp_path, capsys):
+    assert main(["simulate", "--scenario", "calibration_walking", "-o", str(tmp_path / "walk")]) == 0
+    capsys.readouterr()
+    # the output is checked first: with a bag that does not even exist, the output is what is named
+    assert main(["analyze", str(tmp_path / "missing"), "-o", "/proc/gait_out"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("gait-biofeedback analyze: cannot write the bag folder /proc/gait_out")
+    assert "\n" not in err and "Traceback" not in err
+    assert main(["analyze", str(tmp_path / "walk"), "-o", str(tmp_path / "walk")]) == 2
+    err = capsys.readouterr().err
+    assert "exists and is not empty" in err and "pass --overwrite" in err and "overwrite=True" not in err
+    assert main(["import", "qmt_fullbody", "x.mat", "-o", str(tmp_path / "walk")]) == 2
+    err = capsys.readouterr().err
+    assert "exists and is not empty" in err and "--overwrite" not in err, "import has no such flag"

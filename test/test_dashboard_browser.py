@@ -169,7 +169,7 @@ def test_dashboard_in_headless_chromium(ros_context, walk_session, tmp_path):
     spinner = threading.Thread(target=lambda: spin_until(executor, stop.is_set), daemon=True)
     browser = None
     try:
-        browser = Browser(f"http://127.0.0.1:{bio.port}/")
+        browser = Browser(bio.server.url)
         replayer = ImuReplayer(ros_context, bag=str(bag), speed=1.0, wait_for_subscribers=5.0)
         nodes.append(replayer)
         executor.add_node(replayer)

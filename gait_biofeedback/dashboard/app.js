@@ -24,6 +24,7 @@ const state = {
   connected: false, hello: false, framesReceived: 0, framesRendered: 0, fps: 0,
   figureUpdates: 0, figureMotion: 0, curvePoints: 0, strideCurves: 0, samplesReceived: 0,
   events: 0, cuesReceived: 0, lastCalibration: null, lastReply: null, audio: null, muted: false,
+  readOnly: true, calibrationInForce: null,
   lastAngleStamp: null, lastFrameWall: null, feedback: { side: "both", joint: "all" },
 };
 window.dashboardState = state;
@@ -39,7 +40,10 @@ let dirty = true;
 
 // ---------------------------------------------------------------------------------------------- socket
 function connect() {
-  const url = (location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/ws";
+  // the session token of the link the node logged (…/?token=…) lets this page send commands
+  const token = new URLSearchParams(location.search).get("token");
+  const url = (location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/ws" +
+    (token ? "?token=" + encodeURIComponent(token) : "");
   ws = new WebSocket(url);
   ws.onopen = () => { state.connected = true; setBadge(true); };
   ws.onclose = () => { state.connected = false; setBadge(false); setTimeout(connect, 1000); };
@@ -73,12 +77,15 @@ function handle(msg) {
   if (msg.figure) onFigure(msg.figure);
   for (const m of msg.messages || []) onMessage(m);
   if (msg.activity) data.activity = msg.activity;
+  if ("calibration" in msg) showCalibrationInForce(msg.calibration);
   if (msg.diagnostics) data.diagnostics = msg.diagnostics;
   dirty = true;
 }
 
 function onHello(msg) {
   state.hello = true;
+  setReadOnly(msg.read_only);
+  showCalibrationInForce(msg.calibration);
   data.targets = msg.targets;
   state.feedback = msg.feedback;
   document.getElementById("side").value = msg.feedback.side;
@@ -91,6 +98,26 @@ function onHello(msg) {
   document.getElementById("sources").textContent = src ?
     "Reference curves: textbook key values of normal adult gait (" + src + "); band = reference ± tolerance set in config/targets.yaml, not a published SD." : "";
   dirty = true;
+}
+
+function setReadOnly(readOnly) {
+  state.readOnly = !!readOnly;
+  for (const el of document.querySelectorAll(".controls button, .controls select")) el.disabled = state.readOnly;
+  document.getElementById("read-only").hidden = !state.readOnly;
+}
+
+function showCalibrationInForce(c) {
+  state.calibrationInForce = c || null;
+  const el = document.getElementById("calibration-in-force");
+  if (!c) {
+    el.textContent = "No calibration in force: stand still, perform the protocol, press Calibrate.";
+    el.className = "fail";
+    return;
+  }
+  const from = c.in_force_from > 0 ? " from t = " + c.in_force_from.toFixed(1) + " s" : "";
+  el.textContent = "In force: " + c.protocol.replace("_", " ") + " calibration, " + c.source + from + " (" +
+    c.valid.length + " of " + c.segments + " segments).";
+  el.className = c.valid.length === c.segments ? "ok" : "pending";
 }
 
 function onFigure(fig) {

@@ -7,26 +7,45 @@ never waits on it: it hands over two callables,
 * ``build_frame() -> dict | None``: called in the server thread at ``frame_rate`` Hz while a page is
   connected; it must only read/drain thread-safe structures (the node's latest-state references and
   deques) and return the JSON-able frame (None: nothing new);
-* ``on_message(dict)``: called in the server thread for each message from a page; it must only queue it.
+* ``on_message(dict)``: called in the server thread for each command from a page allowed to send
+  commands; it must only queue it.
+
+Security (the page shows and drives a patient's session):
+
+* it binds the given host only (default 127.0.0.1);
+* every request must name this server in its ``Host`` header (``127.0.0.1:<port>``, ``localhost:<port>``
+  or ``[::1]:<port>`` for a loopback bind; ``<host>:<port>`` otherwise), so a web page that rebinds
+  its own DNS name to 127.0.0.1 cannot reach it; the websocket handshake must carry no ``Origin`` or
+  the origin of this server, so no other web page can open it. Refusals are HTTP 403, logged once per
+  origin or host;
+* commands need the session's token: a random string made at start (:attr:`DashboardServer.token`),
+  known only to whoever reads the node's log, which prints the link with it
+  (``http://127.0.0.1:8080/?token=...``, as Jupyter does). The page passes it on in the websocket URL;
+  a connection without it is read-only: it receives frames, and every command gets a refusal reply.
 
 Frames go to every page with ``websockets.broadcast`` (non-blocking); a page whose send buffer is above
-``max_buffer`` bytes skips frames until it catches up, so a stalled browser cannot grow memory. Binds the
-given host only (default 127.0.0.1); ``port`` 0 picks a free port (read :attr:`DashboardServer.port`).
+``max_buffer`` bytes skips frames until it catches up, so a stalled browser cannot grow memory.
+``port`` 0 picks a free port; a busy port is followed by the next free one of ``port + 1 ... port + 20``
+(read :attr:`DashboardServer.port`, said in the log).
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import errno
+import hmac
 import json
 import logging
 import mimetypes
+import secrets
 import threading
 import time
 from collections.abc import Callable
 from http import HTTPStatus
 from pathlib import Path
 from typing import Any
+from urllib.parse import parse_qs, urlsplit
 
 from websockets.asyncio.server import ServerConnection, broadcast, serve
 from websockets.datastructures import Headers
@@ -35,6 +54,8 @@ from websockets.http11 import Request, Response
 
 STATIC_DIR = Path(__file__).resolve().parent
 WEBSOCKET_PATH = "/ws"
+LOOPBACK_NAMES = ("127.0.0.1", "localhost", "[::1]")
+PORT_TRIES = 20
 _TYPES = {".html": "text/html; charset=utf-8", ".js": "text/javascript; charset=utf-8",
           ".css": "text/css; charset=utf-8", ".png": "image/png", ".svg": "image/svg+xml"}
 
@@ -45,7 +66,7 @@ class DashboardServer:
     def __init__(self, build_frame: Callable[[], dict | None], on_message: Callable[[dict], None],
                  hello: Callable[[], dict], host: str = "127.0.0.1", port: int = 8080,
                  frame_rate: float = 30.0, static_dir: Path = STATIC_DIR, max_buffer: int = 1 << 20,
-                 logger: Any = None) -> None:
+                 logger: Any = None, token: str | None = None) -> None:
         self.build_frame = build_frame
         self.on_message = on_message
         self.hello = hello
@@ -55,11 +76,15 @@ class DashboardServer:
         self.static_dir = Path(static_dir).resolve()
         self.max_buffer = int(max_buffer)
         self.log = logger
+        self.token = token or secrets.token_urlsafe(18)
         self.port: int | None = None
         self.frames_sent = 0
         self.frames_skipped = 0
+        self.refused = 0
         self.error: BaseException | None = None
         self._clients: set[ServerConnection] = set()
+        self._commanders: set[ServerConnection] = set()
+        self._refusals_logged: set[str] = set()
         self._ready = threading.Event()
         self._loop: asyncio.AbstractEventLoop | None = None
         self._stop: asyncio.Event | None = None
@@ -68,6 +93,16 @@ class DashboardServer:
     @property
     def clients(self) -> int:
         return len(self._clients)
+
+    @property
+    def url(self) -> str:
+        """The link that may send commands (it carries the token)."""
+        return f"http://{self.host}:{self.port}/?token={self.token}"
+
+    def _allowed_hosts(self) -> set[str]:
+        loopback = self.host in LOOPBACK_NAMES or self.host.startswith("127.")
+        names = LOOPBACK_NAMES if loopback else (self.host,)
+        return {f"{name}:{self.port}" for name in (*names, self.host)}
 
     def start(self, timeout: float = 5.0) -> int:
         """Start the server thread; return the bound port (raises if binding failed)."""
@@ -98,14 +133,31 @@ class DashboardServer:
             if self.log is not None:
                 self.log.error(f"dashboard server stopped: {exc}")
 
+    async def _serve(self):
+        """Bind the requested port, or the next free one when it is busy."""
+        ports = [self.requested_port] if self.requested_port == 0 else [
+            self.requested_port + k for k in range(PORT_TRIES + 1) if self.requested_port + k < 65536]
+        for port in ports:
+            try:
+                return await serve(self._handler, self.host, port, process_request=self._http,
+                                   max_size=1 << 16, compression=None)
+            except OSError as exc:
+                if exc.errno != errno.EADDRINUSE or port == ports[-1]:
+                    raise OSError(f"cannot serve the dashboard on {self.host}:{port} ({exc.strerror}): set "
+                                  "the biofeedback parameter 'port' to a free port (0 = any)") from None
+        raise AssertionError("unreachable")
+
     async def _main(self) -> None:
         self._loop = asyncio.get_running_loop()
         self._stop = asyncio.Event()
         # websockets logs every plain HTTP request it answers at INFO level: keep it quiet
         logging.getLogger("websockets").setLevel(logging.WARNING)
-        async with serve(self._handler, self.host, self.requested_port, process_request=self._http,
-                         max_size=1 << 16, compression=None) as server:
+        server = await self._serve()
+        async with server:
             self.port = server.sockets[0].getsockname()[1]
+            if self.requested_port and self.port != self.requested_port and self.log is not None:
+                self.log.warning(f"port {self.requested_port} is busy: the dashboard is on port {self.port} "
+                                 "instead (parameter 'port' of biofeedback)")
             self._ready.set()
             next_t = time.monotonic()
             while not self._stop.is_set():
@@ -140,10 +192,18 @@ class DashboardServer:
             broadcast(ready, text)
             self.frames_sent += 1
 
+    def _may_command(self, request: Request) -> bool:
+        given = parse_qs(urlsplit(request.path).query).get("token", [""])[0]
+        return hmac.compare_digest(given.encode(), self.token.encode())
+
     async def _handler(self, ws: ServerConnection) -> None:
         self._clients.add(ws)
+        commander = ws.request is not None and self._may_command(ws.request)
+        if commander:
+            self._commanders.add(ws)
         try:
-            await ws.send(json.dumps(self.hello(), separators=(",", ":"), allow_nan=False))
+            hello = {**self.hello(), "read_only": not commander}
+            await ws.send(json.dumps(hello, separators=(",", ":"), allow_nan=False))
             async for raw in ws:
                 try:
                     message = json.loads(raw)
@@ -152,22 +212,45 @@ class DashboardServer:
                 except ValueError as exc:
                     await ws.send(json.dumps({"type": "error", "message": f"bad message: {exc}"}))
                     continue
+                if not commander:
+                    self.refused += 1
+                    await ws.send(json.dumps({
+                        "type": "reply", "action": str(message.get("action", "?"))[:40], "success": False,
+                        "message": "read-only view: open the dashboard with the link the biofeedback node "
+                                   "logged (…/?token=…) to send commands"}))
+                    continue
                 self.on_message(message)
         except ConnectionClosed:
             pass
         finally:
             self._clients.discard(ws)
+            self._commanders.discard(ws)
+
+    def _refuse(self, connection: ServerConnection, why: str) -> Response:
+        self.refused += 1
+        if why not in self._refusals_logged and self.log is not None:
+            self._refusals_logged.add(why)
+            self.log.warning(f"dashboard refused a request: {why}")
+        return connection.respond(HTTPStatus.FORBIDDEN, f"refused: {why}\n")
 
     def _http(self, connection: ServerConnection, request: Request) -> Response | None:
-        path = request.path.split("?", 1)[0]
+        host = request.headers.get("Host", "")
+        if host not in self._allowed_hosts():
+            return self._refuse(connection, f"Host {host!r} is not this dashboard (a page rebinding its "
+                                            "address to this machine?)")
+        path = urlsplit(request.path).path
         if path == WEBSOCKET_PATH:
+            origin = request.headers.get("Origin")
+            if origin is not None and origin not in {f"http://{h}" for h in self._allowed_hosts()}:
+                return self._refuse(connection, f"websocket from the web page of origin {origin!r}")
             return None  # go on with the websocket handshake
         name = "index.html" if path in ("", "/") else path.lstrip("/")
         file = (self.static_dir / name).resolve()
-        if self.static_dir not in file.parents or not file.is_file():
+        if self.static_dir not in file.parents or not file.is_file() or file.suffix not in _TYPES:
             return connection.respond(HTTPStatus.NOT_FOUND, "not found\n")
         body = file.read_bytes()
         ctype = _TYPES.get(file.suffix) or mimetypes.guess_type(file.name)[0] or "application/octet-stream"
         headers = Headers([("Content-Type", ctype), ("Content-Length", str(len(body))),
-                           ("Cache-Control", "no-cache"), ("Connection", "close")])
+                           ("Cache-Control", "no-cache"), ("Connection", "close"),
+                           ("X-Frame-Options", "DENY"), ("Referrer-Policy", "no-referrer")])
         return Response(200, "OK", headers, body)

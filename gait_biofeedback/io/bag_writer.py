@@ -9,6 +9,7 @@ does not fsync: data survive a process crash, not a power cut.
 
 from __future__ import annotations
 
+import contextlib
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -16,7 +17,6 @@ from types import TracebackType
 from typing import Any, BinaryIO
 
 from mcap.writer import CompressionType, Writer
-from rclpy.serialization import serialize_message
 
 from gait_biofeedback.io.bag_metadata import (
     FileRecord,
@@ -28,6 +28,7 @@ from gait_biofeedback.io.bag_metadata import (
 )
 from gait_biofeedback.io.params import COMPRESSIONS as COMPRESSION_NAMES
 from gait_biofeedback.io.schemas import schema_text, type_description_hash, type_name_of
+from gait_biofeedback.wire.cdr import serialize
 
 COMPRESSIONS = dict(zip(COMPRESSION_NAMES, (CompressionType.ZSTD, CompressionType.LZ4, CompressionType.NONE),
                         strict=True))
@@ -41,6 +42,37 @@ def finish_open_chunk(writer: Writer) -> None:
     it; test_bag_io.test_open_chunk_reaches_disk_on_flush fails if a library change breaks it.
     """
     writer.flush()
+
+
+def check_output(path: str | Path, overwrite: bool = False) -> None:
+    """Raise, with a message that says what to do, unless a bag folder can be written at ``path``:
+    it must not be a file, an existing folder must be empty (or hold only a bag, replaced with
+    ``overwrite``), and a file must be creatable in it (tried, and removed again with any folder
+    created for the try)."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise FileExistsError(f"{path} exists and is not a folder; a bag is written as a folder")
+    if path.is_dir() and any(path.iterdir()):
+        if not overwrite:
+            raise FileExistsError(f"bag folder {path} exists and is not empty: write to another folder "
+                                  "or remove it first")
+        leftovers = [p for p in path.iterdir() if p.suffix != ".mcap" and p.name != "metadata.yaml"]
+        if leftovers:
+            raise FileExistsError(f"{path} holds files that are not part of a bag ({leftovers[0].name}); "
+                                  "refusing to overwrite it")
+    created = [p for p in (path, *path.parents) if not p.exists()]
+    probe = path / ".write-test"
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as exc:
+        raise OSError(f"cannot write the bag folder {path} ({exc.strerror}): choose a folder you can "
+                      "write to") from None
+    finally:
+        for folder in created:
+            with contextlib.suppress(OSError):
+                folder.rmdir()
 
 
 @dataclass
@@ -102,17 +134,8 @@ class BagWriter:
         self._part = self._open_part()
 
     def _prepare_folder(self, overwrite: bool) -> None:
-        if self.path.exists() and not self.path.is_dir():
-            raise FileExistsError(f"{self.path} exists and is not a folder; a bag is written as a folder")
-        if self.path.is_dir() and any(self.path.iterdir()):
-            if not overwrite:
-                raise FileExistsError(f"bag folder {self.path} exists and is not empty; pass overwrite=True")
-            leftovers = [p for p in self.path.iterdir() if p.suffix != ".mcap" and p.name != "metadata.yaml"]
-            if leftovers:
-                raise FileExistsError(
-                    f"{self.path} holds files that are not part of a bag ({leftovers[0].name}); "
-                    "refusing to overwrite it"
-                )
+        check_output(self.path, overwrite)
+        if self.path.is_dir():
             for p in self.path.iterdir():
                 p.unlink()
         self.path.mkdir(parents=True, exist_ok=True)
@@ -149,8 +172,8 @@ class BagWriter:
         return record
 
     def write(self, topic: str, msg: Any, log_time_ns: int, publish_time_ns: int | None = None) -> None:
-        """Serialise the rclpy message ``msg`` and write it at ``log_time_ns``."""
-        self.write_serialized(topic, type_name_of(msg), serialize_message(msg), log_time_ns, publish_time_ns)
+        """Serialise the rclpy message ``msg`` (exact CDR size) and write it at ``log_time_ns``."""
+        self.write_serialized(topic, type_name_of(msg), serialize(msg), log_time_ns, publish_time_ns)
 
     def write_serialized(
         self, topic: str, type_name: str, data: bytes, log_time_ns: int, publish_time_ns: int | None = None

@@ -16,7 +16,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from rclpy.serialization import serialize_message
 from sensor_msgs.msg import Imu, MagneticField
 
 from gait_biofeedback.core.segments import ImuSeries
@@ -31,6 +30,7 @@ from gait_biofeedback.wire.cdr import (
     LINEAR_ACCELERATION,
     MAG_DOUBLES,
     decode_stamped,
+    serialize,
 )
 from gait_biofeedback.wire.imu import encode_series, series_topics
 
@@ -56,7 +56,7 @@ def write_imu_bag(
         streams.append((imu_topic, imu_type, ns, imu_payloads))
         if mag_payloads is not None:
             streams.append((mag_name, mag_type, ns, mag_payloads))
-    extra_items = [(topic, type_name_of(msg), int(t), serialize_message(msg)) for topic, msg, t in extra]
+    extra_items = [(topic, type_name_of(msg), int(t), serialize(msg)) for topic, msg, t in extra]
     for topic, type_name, t, data in extra_items:
         streams.append((topic, type_name, np.array([t], dtype=np.int64), [data]))
 

@@ -18,12 +18,11 @@ from __future__ import annotations
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from rclpy.context import Context
-from rclpy.node import Node
 
 from gait_biofeedback.core.activity.monitor import ActivityState
 from gait_biofeedback.core.activity.stream import ActivityParams, ActivityStream
 from gait_biofeedback.core.segments import sensor_frame
-from gait_biofeedback.nodes.common import diagnostic_array, log_notices, publisher, subscribe
+from gait_biofeedback.nodes.common import GuardedNode, diagnostic_array, log_notices, publisher, subscribe
 from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
 from gait_biofeedback.wire import diagnostics, topics
 from gait_biofeedback.wire.activity import activity_msg
@@ -33,7 +32,7 @@ from gait_biofeedback.wire.imu import raw_sample
 from gait_biofeedback_msgs.msg import SegmentCalibrationArray
 
 
-class ActivityMonitorNode(Node):
+class ActivityMonitorNode(GuardedNode):
     """Chest activity monitor (see module docstring)."""
 
     def __init__(self, context: Context | None = None, **overrides: object) -> None:

@@ -36,13 +36,10 @@ from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.context import Context
-from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
 from gait_biofeedback.core.biofeedback.evaluator import (
-    FEEDBACK_JOINTS,
-    FEEDBACK_SIDES,
     BiofeedbackEvaluator,
     BiofeedbackParams,
     Cue,
@@ -56,14 +53,16 @@ from gait_biofeedback.core.biofeedback.evaluator import (
 from gait_biofeedback.core.calibration.sensor_to_segment import PROTOCOLS
 from gait_biofeedback.core.segments import SIDES
 from gait_biofeedback.core.stamps import NS_PER_S
-from gait_biofeedback.nodes.common import diagnostic_array, publisher, subscribe
+from gait_biofeedback.dashboard.commands import CommandError, parse_command
+from gait_biofeedback.nodes.common import GuardedNode, diagnostic_array, publisher, subscribe
 from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
 from gait_biofeedback.wire import diagnostics, topics
 from gait_biofeedback.wire.activity import state_of
 from gait_biofeedback.wire.biofeedback import cue_msg
 from gait_biofeedback.wire.gait import event_of, foot_frame, stride_of
 from gait_biofeedback.wire.joints import angles_of
-from gait_biofeedback_msgs.msg import ActivityState, GaitCycle, GaitEvent
+from gait_biofeedback.wire.stamps import stamp_to_ns
+from gait_biofeedback_msgs.msg import ActivityState, GaitCycle, GaitEvent, SegmentCalibrationArray
 from gait_biofeedback_msgs.srv import Calibrate
 
 _LOCOMOTION_TEXT = {"level": "level walking"}
@@ -94,7 +93,7 @@ def cue_to_json(c: Cue) -> dict[str, Any]:
             "t": c.stamp_ns / NS_PER_S}
 
 
-class BiofeedbackNode(Node):
+class BiofeedbackNode(GuardedNode):
     """Biofeedback cues and the dashboard server (see module docstring)."""
 
     def __init__(self, context: Context | None = None, **overrides: object) -> None:
@@ -117,6 +116,8 @@ class BiofeedbackNode(Node):
         self._commands: deque[dict[str, Any]] = deque(maxlen=100)
         self._recent_strides: deque[dict[str, Any]] = deque(maxlen=2 * max(self.curve_strides, 1))
         self._activity: dict[str, Any] | None = None
+        self._calibration: dict[str, Any] | None = None  # the one in force, for the page
+        self._sent_calibration: dict[str, Any] | None = None
         self._activity_version = 0
         self._sent_activity_version = -1
         self._diag: dict[str, dict[str, Any]] = {}
@@ -135,7 +136,8 @@ class BiofeedbackNode(Node):
 
         for topic, callback in ((topics.JOINT_STATES, self._on_joints), (topics.GAIT_CYCLES, self._on_cycle),
                                 (topics.GAIT_EVENTS, self._on_event), (topics.ACTIVITY, self._on_activity),
-                                (topics.DIAGNOSTICS, self._on_diagnostics)):
+                                (topics.DIAGNOSTICS, self._on_diagnostics),
+                                (topics.CALIBRATION, self._on_calibration)):
             subscribe(self, topic, callback)
         self._cues = publisher(self, topics.CUES)
         self._diagnostics = publisher(self, topics.DIAGNOSTICS)
@@ -153,7 +155,8 @@ class BiofeedbackNode(Node):
             self.server = DashboardServer(self.build_frame, self._commands.append, self.hello, host=p.host,
                                           port=p.port, frame_rate=p.frame_rate, logger=self.get_logger())
             self.port = self.server.start()
-            self.get_logger().info(f"dashboard: http://{self.server.host}:{self.port}/")
+            self.get_logger().info(f"dashboard: {self.server.url} (commands need this link: without its "
+                                   "token the page is a read-only view)")
 
     # -- ROS callbacks (executor thread): cheap, never wait ------------------------------------------
 
@@ -205,6 +208,14 @@ class BiofeedbackNode(Node):
                           "step_count": state["step_count"], "trunk_inclination": state["trunk_inclination"],
                           "t": state["stamp_ns"] / NS_PER_S}
         self._activity_version += 1
+
+    def _on_calibration(self, msg: SegmentCalibrationArray) -> None:
+        valid = [e.segment for e in msg.segments if e.valid]
+        computed = stamp_to_ns(msg.computed_at)
+        self._calibration = {"protocol": msg.protocol, "source": msg.source or "unknown source",
+                             "computed_at": computed / NS_PER_S if computed else None,
+                             "in_force_from": stamp_to_ns(msg.header.stamp) / NS_PER_S,
+                             "valid": valid, "segments": len(msg.segments)}
 
     def _on_diagnostics(self, msg: DiagnosticArray) -> None:
         for s in msg.status:
@@ -274,43 +285,39 @@ class BiofeedbackNode(Node):
                              **extra})
 
     def _handle(self, command: dict[str, Any]) -> None:
-        action = str(command.get("action", ""))
+        try:
+            action, fields = parse_command(command)
+        except CommandError as exc:
+            self._reply(str(command.get("action", "?"))[:40], False, str(exc))
+            return
         if action == "calibrate":
-            protocol = str(command.get("protocol", "hip_flexion"))
-            if protocol not in PROTOCOLS:
-                self._reply(action, False, f"unknown protocol {protocol!r}; use one of {list(PROTOCOLS)}")
-                return
+            protocol = fields.get("protocol", "hip_flexion")
             if not self._calibrate.service_is_ready():
                 self._reply(action, False,
                             "calibration service not available: is the calibration node running?")
                 return
             request = Calibrate.Request(protocol=protocol,
-                                        standing_duration=float(command.get("standing_duration", 0.0)),
-                                        motion_duration=float(command.get("motion_duration", 0.0)))
+                                        standing_duration=fields.get("standing_duration", 0.0),
+                                        motion_duration=fields.get("motion_duration", 0.0))
             self._reply(action, True, f"calibrating ({protocol}) ...", pending=True)
             future = self._calibrate.call_async(request)
-            future.add_done_callback(lambda f: self._service_done(action, f))
+            future.add_done_callback(self.guarded("calibrate reply", lambda f: self._service_done(action, f)))
         elif action in self._record:
             client = self._record[action]
             if not client.service_is_ready():
                 self._reply(action, False, "recorder service not available: is the recorder node running?")
                 return
             future = client.call_async(Trigger.Request())
-            future.add_done_callback(lambda f: self._service_done(action, f))
+            future.add_done_callback(self.guarded(f"{action} reply", lambda f: self._service_done(action, f)))
         elif action == "feedback":
-            side = str(command.get("side", self.feedback["side"]))
-            joint = str(command.get("joint", self.feedback["joint"]))
-            if side not in FEEDBACK_SIDES or joint not in FEEDBACK_JOINTS:
-                self._reply(action, False, f"unknown feedback choice side={side!r} joint={joint!r}")
-                return
-            self.feedback = {"side": side, "joint": joint}
-            self._reply(action, True, f"feedback on {side} / {joint}", feedback=dict(self.feedback))
+            self.feedback = {"side": fields.get("side", self.feedback["side"]),
+                             "joint": fields.get("joint", self.feedback["joint"])}
+            self._reply(action, True, f"feedback on {self.feedback['side']} / {self.feedback['joint']}",
+                        feedback=dict(self.feedback))
             self._update_audio()
-        elif action == "mute":
-            self.muted = bool(command.get("muted", not self.muted))
+        else:  # mute
+            self.muted = fields.get("muted", not self.muted)
             self._reply(action, True, "muted" if self.muted else "sound on", muted=self.muted)
-        else:
-            self._reply(action or "?", False, f"unknown action {action!r}")
 
     def _service_done(self, action: str, future: Any) -> None:
         try:
@@ -336,7 +343,7 @@ class BiofeedbackNode(Node):
         self._sent_activity_version = -1
         return {"type": "hello", "targets": self.targets_json, "feedback": dict(self.feedback),
                 "muted": self.muted, "protocols": list(PROTOCOLS), "audio": dict(self._audio),
-                "strides": list(self._recent_strides), "time": time.time()}
+                "strides": list(self._recent_strides), "calibration": self._calibration, "time": time.time()}
 
     def build_frame(self) -> dict[str, Any] | None:
         """One websocket frame: new samples, latest angles and stick figure, queued messages, state."""
@@ -357,6 +364,10 @@ class BiofeedbackNode(Node):
         if self._activity_version != self._sent_activity_version and self._activity is not None:
             self._sent_activity_version = self._activity_version
             frame["activity"] = self._activity
+        calibration = self._calibration  # replaced whole by the executor thread
+        if calibration is not self._sent_calibration:
+            self._sent_calibration = calibration
+            frame["calibration"] = calibration
         now = time.monotonic()
         if self._diag_version != self._sent_diag_version and now - self._last_diag_sent >= 0.5:
             self._sent_diag_version = self._diag_version

@@ -7,23 +7,25 @@ the protocol just performed (:func:`~gait_biofeedback.core.calibration.windows.f
 the last quiet standing of ``standing_duration`` s followed by the motion) and returns at once; the
 executor never blocks. :meth:`CalibrationNode.calibrate_at` instead calibrates on the window ending at
 a given sample stamp once the data gets there (replays; the offline ``analyze`` does the same).
-On success: publishes the result latched on ``calibration/sensor_to_segment`` and writes
-``<session_dir>/calibration.yaml``; on start it reloads that file and publishes it. The message's
-header.stamp is the sample stamp from which the calibration is in force: ``apply_delay`` s after the
-newest sample used (0 for a reloaded file: at once), so joint_angles and gait_events switch at the
-same sample whenever the message reaches them within that delay. A refused calibration keeps the
-previous one in force and publishes nothing.
+On success: publishes the result latched on ``calibration/sensor_to_segment`` (with its source:
+computed in this session, and when) and writes ``<session_dir>/calibration.yaml`` atomically. At start
+it puts that file in force only when asked (``reload_calibration``: a file found in a shared folder may
+belong to another patient or dataset), after checking it is complete and has every segment; otherwise
+it says the file is there and not used. The message's header.stamp is the sample stamp from which the
+calibration is in force: ``apply_delay`` s after the newest sample used (0 for a reloaded file: at once),
+so joint_angles and gait_events switch at the same sample whenever the message reaches them within that
+delay. A refused calibration keeps the previous one in force and publishes nothing.
 
 Parameters: :class:`~gait_biofeedback.core.calibration.stream.CalibrationParams`.
 """
 
 from __future__ import annotations
 
+import time
 from collections import deque
 from pathlib import Path
 
 from rclpy.context import Context
-from rclpy.node import Node
 
 from gait_biofeedback.core.calibration.sensor_to_segment import SessionCalibration
 from gait_biofeedback.core.calibration.stream import (
@@ -34,7 +36,7 @@ from gait_biofeedback.core.calibration.stream import (
     read_calibration_file,
     write_calibration_file,
 )
-from gait_biofeedback.nodes.common import publisher, subscribe
+from gait_biofeedback.nodes.common import GuardedNode, publisher, subscribe
 from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
 from gait_biofeedback.wire import topics
 from gait_biofeedback.wire.calibration import calibration_msg, segment_messages
@@ -43,7 +45,7 @@ from gait_biofeedback.wire.imu import orientation_sample
 from gait_biofeedback_msgs.srv import Calibrate
 
 
-class CalibrationNode(Node):
+class CalibrationNode(GuardedNode):
     """Sensor-to-segment calibration service (see module docstring)."""
 
     def __init__(self, context: Context | None = None, **overrides: object) -> None:
@@ -70,15 +72,22 @@ class CalibrationNode(Node):
         return self.session_dir / CALIBRATION_FILE
 
     def _reload(self) -> None:
-        if not self.calibration_file.exists():
+        path = self.calibration_file.absolute()
+        if not path.exists():
+            return
+        if not self.params.reload_calibration:
+            self.get_logger().info(f"an earlier calibration is saved in {path}; not used (set "
+                                   "reload_calibration:=true to put it in force): calibrate this session")
             return
         try:
-            self.current = read_calibration_file(self.calibration_file)
+            calibration, saved_at = read_calibration_file(path, self.segments)
         except (ValueError, OSError) as exc:
-            self.get_logger().error(f"unreadable calibration ({exc}); run the calibration again")
+            self.get_logger().error(f"calibration not reloaded: {exc}")
             return
-        self.get_logger().info(f"reloaded the calibration from {self.calibration_file}")
-        self._pub.publish(calibration_msg(self.current, 0))
+        self.current = calibration
+        source = f"reloaded from {path} (saved {saved_at or 'at an unknown time'})"
+        self.get_logger().info(f"calibration {source}")
+        self._pub.publish(calibration_msg(calibration, 0, source, path.stat().st_mtime_ns))
 
     def _on_imu(self, segment: str, data: bytes) -> None:
         self.core.add(segment, *orientation_sample(decode_imu(data)))
@@ -98,8 +107,15 @@ class CalibrationNode(Node):
         cal = attempt.calibration
         if attempt.success and cal is not None and attempt.applies_from_ns is not None:
             self.current = cal
-            write_calibration_file(self.calibration_file, cal)
-            self._pub.publish(calibration_msg(cal, attempt.applies_from_ns))
+            now = time.time_ns()
+            when = time.strftime("%H:%M:%S", time.localtime(now / 1e9))
+            until = "" if attempt.until_ns is None else f", data up to {attempt.until_ns / 1e9:.1f} s"
+            self._pub.publish(calibration_msg(cal, attempt.applies_from_ns,
+                                              f"computed in this session at {when}{until}", now))
+            try:
+                write_calibration_file(self.calibration_file, cal, time.strftime("%Y-%m-%dT%H:%M:%S%z"))
+            except OSError as exc:
+                self.get_logger().error(f"calibration in force but not saved: {exc}")
 
     def calibrate(self, protocol: str, standing_duration: float = 0.0, motion_duration: float = 0.0,
                   segments: list[str] | None = None) -> tuple[bool, str, SessionCalibration | None]:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import os
 import sys
 import time
+import traceback
 from collections.abc import Callable, Iterable, Sequence
 from typing import Any
 
@@ -28,8 +29,83 @@ from rclpy.subscription import Subscription
 from gait_biofeedback.core.notices import Notice
 from gait_biofeedback.core.params import ParameterError
 from gait_biofeedback.parameters import load_params_file
-from gait_biofeedback.wire import diagnostics
+from gait_biofeedback.wire import diagnostics, topics
 from gait_biofeedback.wire.topics import Topic
+
+
+class GuardedNode(Node):
+    """A node whose callbacks never end the process.
+
+    An exception in a subscription, timer, service or future callback (:meth:`guarded`) is logged
+    once per callback with its traceback, naming the node and the callback, counted in
+    :attr:`callback_errors` and reported on ``/diagnostics`` (``<node>: callbacks``, ERROR, every
+    second while there are errors); the node goes on with the next message. A failed service callback
+    answers with the default response (``success`` false where the service has it)."""
+
+    def __init__(self, node_name: str, **kwargs: Any) -> None:
+        super().__init__(node_name, **kwargs)
+        self.callback_errors: dict[str, int] = {}
+        self._error_publisher: Publisher | None = None
+        super().create_timer(1.0, self._report_errors)
+
+    def guarded(self, what: str, callback: Callable[..., Any]) -> Callable[..., Any]:
+        """``callback`` that logs, counts and swallows its exceptions (see class docstring)."""
+
+        def call(*args: Any, **kwargs: Any) -> Any:
+            try:
+                return callback(*args, **kwargs)
+            except Exception as exc:  # the process must not end on one bad message
+                self._failed(what, exc)
+                return None
+
+        return call
+
+    def _failed(self, what: str, exc: Exception) -> None:
+        count = self.callback_errors.get(what, 0) + 1
+        self.callback_errors[what] = count
+        if count == 1:
+            trace = "".join(traceback.format_exception(exc)).rstrip()
+            self.get_logger().error(f"{what} failed and was skipped ({type(exc).__name__}: {exc}); the node "
+                                    f"goes on; further failures are counted on /diagnostics\n{trace}")
+
+    def _report_errors(self) -> None:
+        if not self.callback_errors:
+            return
+        if self._error_publisher is None:
+            self._error_publisher = publisher(self, topics.DIAGNOSTICS)
+        total = sum(self.callback_errors.values())
+        worst = max(self.callback_errors, key=self.callback_errors.get)
+        status = diagnostics.status(f"{self.get_name()}: callbacks", diagnostics.ERROR,
+                                    f"{total} callback failure(s), skipped (most: {worst}); see the log",
+                                    values={k: v for k, v in self.callback_errors.items()})
+        self._error_publisher.publish(diagnostic_array(self, [status]))
+
+    def create_subscription(self, msg_type: Any, topic: str, callback: Callable[..., Any],
+                            qos_profile: Any, **kwargs: Any) -> Subscription:
+        wrapped = self.guarded(f"callback of {topic}", callback)
+        return super().create_subscription(msg_type, topic, wrapped, qos_profile, **kwargs)
+
+    def create_timer(self, timer_period_sec: float, callback: Callable[..., Any], *args: Any,
+                     **kwargs: Any) -> Any:
+        name = getattr(callback, "__name__", "timer").lstrip("_").replace("_", " ")
+        wrapped = self.guarded(f"timer {name}", callback)
+        return super().create_timer(timer_period_sec, wrapped, *args, **kwargs)
+
+    def create_service(self, srv_type: Any, srv_name: str, callback: Callable[..., Any],
+                       **kwargs: Any) -> Any:
+        guarded = self.guarded(f"service {srv_name}", callback)
+
+        def serve(request: Any, response: Any) -> Any:
+            answer = guarded(request, response)
+            if answer is None:  # the callback failed: answer anyway
+                if hasattr(response, "success"):
+                    response.success = False
+                if hasattr(response, "message"):
+                    response.message = f"{srv_name} failed inside the node; see its log"
+                return response
+            return answer
+
+        return super().create_service(srv_type, srv_name, serve, **kwargs)
 
 
 def log_notices(logger: Any, notices: Iterable[Notice]) -> None:

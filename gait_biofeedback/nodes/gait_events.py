@@ -26,11 +26,10 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from rclpy.context import Context
-from rclpy.node import Node
 
 from gait_biofeedback.core.gait.events import GaitEventDetector
 from gait_biofeedback.core.gait.stream import GaitEventsParams, GaitEventStream
-from gait_biofeedback.nodes.common import diagnostic_array, log_notices, publisher, subscribe
+from gait_biofeedback.nodes.common import GuardedNode, diagnostic_array, log_notices, publisher, subscribe
 from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
 from gait_biofeedback.wire import diagnostics, topics
 from gait_biofeedback.wire.calibration import entries
@@ -40,7 +39,7 @@ from gait_biofeedback.wire.imu import quaternion
 from gait_biofeedback_msgs.msg import SegmentCalibrationArray
 
 
-class GaitEventsNode(Node):
+class GaitEventsNode(GuardedNode):
     """Gait events and stride parameters of both feet (see module docstring)."""
 
     def __init__(self, context: Context | None = None, **overrides: object) -> None:

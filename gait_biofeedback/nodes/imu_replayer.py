@@ -17,17 +17,17 @@ import time
 from pathlib import Path
 
 from rclpy.context import Context
-from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 
 from gait_biofeedback.io.bag import BagReader, message_class
 from gait_biofeedback.io.params import ReplayerParams
+from gait_biofeedback.nodes.common import GuardedNode
 from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
 from gait_biofeedback.wire import topics
 from gait_biofeedback.wire.stamps import ns_to_stamp
 
 
-class ImuReplayer(Node):
+class ImuReplayer(GuardedNode):
     """Publishes a recording's messages at their recorded pace (see module docstring)."""
 
     def __init__(self, context: Context | None = None, **overrides: object) -> None:

@@ -23,7 +23,6 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from rclpy.context import Context
-from rclpy.node import Node
 
 from gait_biofeedback.core.joints.angles import JointAngleCalculator
 from gait_biofeedback.core.joints.stream import (
@@ -32,7 +31,7 @@ from gait_biofeedback.core.joints.stream import (
     JointAngleStream,
     SyncedAngles,
 )
-from gait_biofeedback.nodes.common import diagnostic_array, publisher, subscribe
+from gait_biofeedback.nodes.common import GuardedNode, diagnostic_array, publisher, subscribe
 from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
 from gait_biofeedback.wire import diagnostics, topics
 from gait_biofeedback.wire.calibration import rotations
@@ -42,7 +41,7 @@ from gait_biofeedback.wire.joints import joint_state_msg, skeleton_msg
 from gait_biofeedback_msgs.msg import SegmentCalibrationArray
 
 
-class JointAnglesNode(Node):
+class JointAnglesNode(GuardedNode):
     """Joint angles and stick figure (see module docstring)."""
 
     def __init__(self, context: Context | None = None, **overrides: object) -> None:

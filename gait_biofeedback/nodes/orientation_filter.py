@@ -20,18 +20,17 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from rclpy.context import Context
-from rclpy.node import Node
 
 from gait_biofeedback.core.orientation.stream import OrientationParams, SegmentOrientationTracker
 from gait_biofeedback.core.segments import sensor_frame
-from gait_biofeedback.nodes.common import diagnostic_array, log_notices, publisher, subscribe
+from gait_biofeedback.nodes.common import GuardedNode, diagnostic_array, log_notices, publisher, subscribe
 from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
 from gait_biofeedback.wire import diagnostics, topics
 from gait_biofeedback.wire.cdr import decode_imu, decode_mag
 from gait_biofeedback.wire.imu import mag_sample, orientation_payload, raw_sample
 
 
-class OrientationFilterNode(Node):
+class OrientationFilterNode(GuardedNode):
     """All segments' orientation filters (see module docstring)."""
 
     def __init__(self, context: Context | None = None, **overrides: object) -> None:

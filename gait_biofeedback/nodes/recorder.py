@@ -24,12 +24,12 @@ import time
 from pathlib import Path
 
 from rclpy.context import Context
-from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_srvs.srv import Trigger
 
 from gait_biofeedback.io.bag import BagWriter, message_class
 from gait_biofeedback.io.params import RecorderParams
+from gait_biofeedback.nodes.common import GuardedNode
 from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
 from gait_biofeedback.wire import topics
 from gait_biofeedback.wire.topics import RELIABLE_QOS, SENSOR_QOS
@@ -39,7 +39,7 @@ BATCH_WAIT = 0.01
 """Seconds the writer thread waits, once it has emptied the queue, before it blocks on it again."""
 
 
-class Recorder(Node):
+class Recorder(GuardedNode):
     """Records topics to a rosbag2/MCAP folder (see module docstring)."""
 
     def __init__(self, context: Context | None = None, **overrides: object) -> None:

@@ -32,11 +32,14 @@ def segment_messages(cal: SessionCalibration) -> list[SegmentCalibration]:
             for seg, r in cal.segments.items()]
 
 
-def calibration_msg(cal: SessionCalibration, applies_from_ns: int) -> SegmentCalibrationArray:
-    """The latched message of a result, in force from stamp ``applies_from_ns`` (0 = at once)."""
-    msg = SegmentCalibrationArray(protocol=cal.protocol, segments=segment_messages(cal))
+def calibration_msg(cal: SessionCalibration, applies_from_ns: int, source: str = "",
+                    computed_at_ns: int = 0) -> SegmentCalibrationArray:
+    """The latched message of a result, in force from stamp ``applies_from_ns`` (0 = at once);
+    ``source`` and ``computed_at_ns`` (wall clock) tell the clinician which calibration it is."""
+    msg = SegmentCalibrationArray(protocol=cal.protocol, source=source, segments=segment_messages(cal))
     msg.header.stamp = ns_to_stamp(applies_from_ns) if applies_from_ns > 0 else Time()
     msg.header.frame_id = WORLD_FRAME
+    msg.computed_at = ns_to_stamp(computed_at_ns)
     return msg
 
 

@@ -9,6 +9,8 @@ thesis ch. 3). Samples and the instant from which a result is in force are stamp
 
 from __future__ import annotations
 
+import contextlib
+import os
 from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -32,20 +34,45 @@ CALIBRATION_FILE = "calibration.yaml"
 """The file a session's calibration is saved to (in ``session_dir``) and reloaded from."""
 
 
-def read_calibration_file(path: str | Path) -> SessionCalibration:
-    """A calibration file written by :func:`write_calibration_file`; ValueError saying what is wrong
-    with it (unreadable YAML, missing fields, unknown protocol)."""
-    try:
-        return SessionCalibration.from_dict(yaml.safe_load(Path(path).read_text()))
-    except (KeyError, TypeError, AttributeError, yaml.YAMLError) as exc:
-        raise ValueError(f"{path}: not a calibration file ({type(exc).__name__}: {exc})") from None
-
-
-def write_calibration_file(path: str | Path, calibration: SessionCalibration) -> None:
-    """Save a calibration (YAML of :meth:`SessionCalibration.to_dict`), creating the folder."""
+def write_calibration_file(path: str | Path, calibration: SessionCalibration, saved_at: str) -> None:
+    """Save a calibration atomically (a temporary file renamed over the old one, so a crash leaves the
+    old file or the new one, never half of one): the YAML of :meth:`SessionCalibration.to_dict`,
+    ``saved_at`` (ISO time) and, last, ``complete: true``."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(yaml.safe_dump(calibration.to_dict(), sort_keys=False))
+    document = {**calibration.to_dict(), "saved_at": saved_at, "complete": True}
+    tmp = path.with_name(f".{path.name}.tmp")
+    try:
+        with open(tmp, "w") as f:
+            f.write(yaml.safe_dump(document, sort_keys=False))
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    finally:
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
+
+
+def read_calibration_file(path: str | Path,
+                          segments: Sequence[str] = ()) -> tuple[SessionCalibration, str]:
+    """(calibration, saved_at) of a file :func:`write_calibration_file` wrote. ValueError saying what
+    is wrong: unreadable, cut off (no ``complete: true`` at its end), a field missing, a rotation that
+    is not a unit quaternion, or one of ``segments`` absent (then nothing of it is used)."""
+    try:
+        document = yaml.safe_load(Path(path).read_text())
+        if not isinstance(document, dict) or document.get("complete") is not True:
+            raise ValueError("it is incomplete (cut off while it was written?)")
+        calibration = SessionCalibration.from_dict(document)
+    except (KeyError, TypeError, AttributeError, yaml.YAMLError, ValueError) as exc:
+        raise ValueError(f"{path} is not a usable calibration file: {exc}") from None
+    bad = [s for s, r in calibration.segments.items()
+           if not (np.all(np.isfinite(r.rotation)) and abs(np.linalg.norm(r.rotation) - 1.0) < 1e-6)]
+    missing = [s for s in segments if s not in calibration.segments]
+    if bad or missing:
+        what = "; ".join(part for part in (f"no valid rotation for {', '.join(bad)}" if bad else "",
+                                            f"no entry for {', '.join(missing)}" if missing else "") if part)
+        raise ValueError(f"{path} is not a usable calibration file: {what}; calibrate again")
+    return calibration, str(document.get("saved_at", ""))
 
 
 @dataclass(frozen=True)
@@ -54,7 +81,9 @@ class CalibrationParams:
 
     segments: tuple[str, ...] = param(SEGMENTS, "segments calibrated by every request", choices=SEGMENTS)
     buffer_s: float = param(90.0, "how far back a request looks for the protocol", "s", low=10.0, high=600.0)
-    session_dir: str = param("session", "folder where calibration.yaml is saved and reloaded on start")
+    session_dir: str = param("session", "folder where each calibration is saved (calibration.yaml)")
+    reload_calibration: bool = param(False, "put the calibration saved in session_dir in force at start "
+                                     "(only when it is this patient's: that is not checked)")
     default_standing_duration: float = param(3.0, "quiet standing a request needs when it names none", "s",
                                              low=0.5, high=30.0)
     apply_delay: float = param(0.5, "a result is in force from this long after the newest sample used "
