@@ -47,8 +47,8 @@ def test_readme_lists_every_parameter_as_declared():
     for node in NODE_PARAMETERS:
         table = "\n".join(parameter_table(node))
         assert f"#### `{node}`\n{table}\n" in readme, (
-            f"README's parameter table of {node} differs from its dataclass; regenerate it with "
-            f"`gait-biofeedback params {node}`")
+            f"README's parameter table of {node} differs from its dataclass; regenerate the tables with "
+            "`.venv/bin/python scripts/parameter_tables.py`")
 
 
 def _write(tmp_path: Path, text: str) -> Path:
