@@ -106,8 +106,14 @@ def cmd_replay(args: argparse.Namespace) -> int:
         result = replay_through_graph(args.bag, args.record, speed=args.speed, start_offset=args.start,
                                       stop_offset=args.stop, progress=bar.update,
                                       nodes=_node_list(args.nodes), node_parameters=params)
+    where = ", ".join(str(p) for p in result.outputs)
     print(f"replayed {result.published} messages in {result.wall_time:.1f} s"
-          + (f"; recorded {result.recorded} to {result.output}" if result.output else ""))
+          + (f"; recorded {result.recorded} to {where}" if result.outputs else ""))
+    if result.interrupted:
+        print("stopped by a signal before the end of the recording", file=sys.stderr)
+    if result.write_error:
+        print(f"warning: {result.write_error}", file=sys.stderr)
+        return 1
     return 0
 
 
@@ -289,12 +295,12 @@ def main(argv: list[str] | None = None) -> int:
         hint = " (or pass --overwrite to replace it)" if replaceable else ""
         print(f"gait-biofeedback {args.command}: {err}{hint}", file=sys.stderr)
         return 2
-    except (ValueError, OSError) as err:  # bad input, missing or unwritable files, a full disk: one line
-        print(f"gait-biofeedback {args.command}: {err}", file=sys.stderr)
-        return 2
     except BrokenPipeError:  # the output was piped into e.g. `head`, which has closed it
         sys.stdout = open(os.devnull, "w")  # noqa: SIM115 (stays open until exit)
         return 0
+    except (ValueError, OSError) as err:  # bad input, missing or unwritable files, a full disk: one line
+        print(f"gait-biofeedback {args.command}: {err}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

@@ -7,6 +7,7 @@ developer replays a session without launching processes.
 
 from __future__ import annotations
 
+import sys
 import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager, suppress
@@ -18,14 +19,15 @@ from rclpy.context import Context
 from rclpy.executors import Executor
 from rclpy.node import Node
 
-from gait_biofeedback.nodes.common import make_executor, spin_until
+from gait_biofeedback.nodes.common import STOP, init_ros, make_executor, spin_until, stop_on_signals
 from gait_biofeedback.nodes.imu_replayer import ImuReplayer
 from gait_biofeedback.nodes.recorder import Recorder
 from gait_biofeedback.parameters import stage_parameters
 
 NodeFactory = Callable[[Context], Node]
 Action = tuple[float, Callable[[dict[str, Node]], object]]
-"""(seconds into the recording, callback given the nodes by name) run once the replay gets there."""
+"""(seconds into the recording, callback given the nodes by name, the recorder as ``"recorder"``) run
+once the replay gets there."""
 
 
 def processing_nodes() -> dict[str, NodeFactory]:
@@ -77,6 +79,9 @@ class ReplayResult:
     recorded: int
     wall_time: float
     nodes: list[str] = field(default_factory=list)
+    outputs: list[Path] = field(default_factory=list)  # every bag folder (a stop/start opens a new one)
+    write_error: str | None = None  # the recorder stopped on a write error (a full disk)
+    interrupted: bool = False  # SIGINT / SIGTERM ended the replay before the recording did
 
 
 @dataclass
@@ -105,7 +110,8 @@ def running_graph(
 ) -> Iterator[RunningGraph]:
     """Context, executor, recorder (when ``output`` is given) and the processing ``nodes`` (default:
     all), created in data-flow order; the recorder is subscribed to every output before this
-    yields. Everything is destroyed (files closed) and rclpy shut down on exit, whatever happened."""
+    yields. SIGINT and SIGTERM end every spin loop (see :func:`stop_on_signals`). Everything is
+    destroyed (files closed, bags summarised) and rclpy shut down on exit, whatever happened."""
     factories = processing_nodes()
     chosen = list(factories) if nodes is None else list(nodes)
     unknown = [n for n in chosen if n not in factories]
@@ -115,22 +121,24 @@ def running_graph(
     for name, values in params.items():  # refused before anything starts
         stage_parameters(name, values)
     context = Context()
-    rclpy.init(args=args or [], context=context)
+    init_ros(args or [], context)
     graph = RunningGraph(context, make_executor(context), {}, None)
-    try:
-        if output is not None:
-            graph.recorder = graph.add(Recorder(context, output=str(output), **params.get("recorder", {})))
-        for name in chosen:
-            graph.nodes[name] = graph.add(factories[name](context, **params.get(name, {})))
-        if graph.recorder is not None:
-            _wait_until_recorded(graph.recorder, list(graph.nodes.values()))
-        yield graph
-    finally:
-        for node in reversed(graph.started):
-            node.destroy_node()
-        graph.executor.shutdown()
-        if context.ok():
-            rclpy.shutdown(context=context)
+    with stop_on_signals():
+        try:
+            if output is not None:
+                recorder = Recorder(context, output=str(output), **params.get("recorder", {}))
+                graph.recorder = graph.add(recorder)
+            for name in chosen:
+                graph.nodes[name] = graph.add(factories[name](context, **params.get(name, {})))
+            if graph.recorder is not None:
+                _wait_until_recorded(graph.recorder, list(graph.nodes.values()))
+            yield graph
+        finally:
+            for node in reversed(graph.started):
+                node.destroy_node()
+            graph.executor.shutdown()
+            if context.ok():
+                rclpy.shutdown(context=context)
 
 
 def replay_through_graph(
@@ -163,18 +171,20 @@ def replay_through_graph(
                 progress(replayer.published - last)
                 last = replayer.published
             while pending and replayer.position_ns - replayer.reader.start_time_ns >= pending[0][0] * 1e9:
-                pending.pop(0)[1](graph.nodes)
+                pending.pop(0)[1]({**graph.nodes, "recorder": graph.recorder})
             return replayer.finished.is_set()
 
-        if not spin_until(graph.executor, done, timeout=timeout):
+        if not spin_until(graph.executor, done, timeout=timeout) and not STOP.is_set():
             raise TimeoutError(f"replay of {bag} did not finish within {timeout} s")
+        interrupted = STOP.is_set()
         # let the last messages travel through the graph
         settle = time.monotonic() + 0.5
         spin_until(graph.executor, lambda: time.monotonic() > settle)
         recorder = graph.recorder
     recorded = recorder.written if recorder is not None else 0
-    return ReplayResult(Path(output) if output else None, replayer.published, recorded,
-                        time.monotonic() - t0, list(graph.nodes))
+    return ReplayResult(Path(output) if output else None, replayer.published, recorded, time.monotonic() - t0,
+                        list(graph.nodes), list(recorder.sessions) if recorder is not None else [],
+                        recorder.write_error if recorder is not None else None, interrupted)
 
 
 def run_live(nodes: Sequence[str] | None = None, output: str | Path | None = None,
@@ -185,4 +195,10 @@ def run_live(nodes: Sequence[str] | None = None, output: str | Path | None = Non
         print(f"running {names}" + (f", recording to {output}" if output else "") + "; Ctrl-C stops")
         with suppress(KeyboardInterrupt):
             spin_until(graph.executor, lambda: False)
+        recorder = graph.recorder
+    if recorder is not None:
+        print("recorded to " + ", ".join(str(p) for p in recorder.sessions))
+        if recorder.write_error:
+            print(f"warning: {recorder.write_error}", file=sys.stderr)
+            return 1
     return 0

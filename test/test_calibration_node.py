@@ -63,6 +63,11 @@ def test_service_calibrates_and_latched_result_reaches_late_subscriber(ros_conte
                 assert spin_until(executor, lambda k=k: all(len(node.buffers[s]) == k + 1 for s in SEGMENTS),
                                   timeout=5)
         assert spin_until(executor, client.service_is_ready, timeout=5)
+        # "pressed too early, try again": a refused press, then the right one, from the same call site
+        # (rclpy refuses to log at two severities from one line: that used to end the process)
+        future = client.call_async(Calibrate.Request(protocol="hip_flexion", standing_duration=40.0))
+        assert spin_until(executor, future.done, timeout=10)
+        assert not future.result().success and "quiet standing" in future.result().message
         future = client.call_async(Calibrate.Request(protocol="hip_flexion"))
         assert spin_until(executor, future.done, timeout=10)
         response = future.result()

@@ -39,7 +39,10 @@ def test_replayer_to_recorder_delivers_every_message(tmp_path):
     bag = write_imu_bag(tmp_path / "in", imu)
     result = replay_through_graph(bag, tmp_path / "out", speed=5.0, nodes=[], timeout=30)
     assert result.published == 8 * 100 * 2
-    assert result.recorded == result.published
+    counts = BagReader(tmp_path / "out").message_counts()
+    assert sum(n for t, n in counts.items() if "/imu/" in t) == result.published
+    assert result.recorded == sum(counts.values()), "the rest is the recorder's own /diagnostics"
+    assert set(counts) - {t for t in counts if "/imu/" in t} == {"/diagnostics"}
     _assert_same_imu(imu, read_imu_bag(tmp_path / "out"))
 
 
@@ -203,11 +206,11 @@ def test_recorder_splits_by_duration_and_keeps_every_message(tmp_path):
     imu = synthetic_imu(["left_shank"], duration=2.0, with_mag=False)
     bag = write_imu_bag(tmp_path / "in", imu)
     out = tmp_path / "out"
-    result = replay_through_graph(bag, out, speed=1.0, nodes=[], timeout=30,
-                                  node_parameters={"recorder": {"split_duration": 0.6}})
+    replay_through_graph(bag, out, speed=1.0, nodes=[], timeout=30,
+                         node_parameters={"recorder": {"split_duration": 0.6}})
     files = sorted(out.glob("*.mcap"))
     assert len(files) >= 3, files
-    assert result.recorded == 200
+    assert BagReader(out).message_counts()["/left_shank/imu/data_raw"] == 200
     np.testing.assert_array_equal(read_imu_bag(out)["left_shank"].t, imu["left_shank"].t)
 
 
@@ -257,35 +260,6 @@ def test_recorder_start_and_stop_services_make_one_bag_each(tmp_path, ros_contex
     second = [m.data for _, m, _ in BagReader(tmp_path / "session_1").messages()]
     assert first == [f"session 0 note {k}" for k in range(3)]
     assert second == [f"session 1 note {k}" for k in range(5)]
-
-
-def test_live_run_processes_topics_and_closes_the_bag_on_ctrl_c(tmp_path):
-    """`gait-biofeedback run` with the session parameter file: raw topics from another process in,
-    orientations out and recorded; SIGINT closes the bag cleanly (metadata.yaml written)."""
-    bag = write_imu_bag(tmp_path / "in", synthetic_imu(["chest"], duration=3.0, with_mag=False))
-    out = tmp_path / "live"
-    run = subprocess.Popen(
-        [sys.executable, "-m", "gait_biofeedback.cli", "run", "--nodes", "orientation_filter",
-         "--params", "config/session.yaml", "--record", str(out)],
-        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
-    replayer = None
-    try:
-        assert "running orientation_filter" in run.stdout.readline()
-        replayer = subprocess.run(
-            [sys.executable, "-m", "gait_biofeedback.nodes.imu_replayer", "--ros-args",
-             "-p", f"bag:={bag}", "-p", "speed:=3.0", "-p", "wait_for_subscribers:=10.0"],
-            timeout=30, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        time.sleep(1.0)
-        run.send_signal(signal.SIGINT)
-        assert run.wait(timeout=20) == 0
-    finally:
-        if run.poll() is None:
-            run.kill()
-            run.wait(timeout=10)
-    assert replayer is not None and replayer.returncode == 0
-    assert (out / "metadata.yaml").exists(), "a clean stop writes the rosbag2 metadata"
-    counts = BagReader(out).message_counts()
-    assert counts["/chest/imu/data"] >= 250 and counts["/chest/imu/data_raw"] >= 250
 
 
 def test_recorder_refuses_to_overwrite_a_recording(tmp_path, ros_context):

@@ -7,6 +7,7 @@ such a bag.
 
 from __future__ import annotations
 
+import contextlib
 import os
 from pathlib import Path
 from typing import Any
@@ -89,7 +90,14 @@ def _repair_file(file: Path) -> dict[str, Any]:
         if mcap.complete:
             return entry
         tmp = file.with_name(f".{file.name}.repair")
-        _rewrite(mcap, tmp)
+        try:
+            _rewrite(mcap, tmp)
+        except OSError as exc:  # e.g. the disk is full: leave everything as it was
+            with contextlib.suppress(OSError):
+                tmp.unlink()
+            raise OSError(f"cannot repair {file}: writing its repaired copy failed ({exc.strerror or exc}); "
+                          f"it needs about {file.stat().st_size / 1e6:.1f} MB free on its disk. Nothing was "
+                          "changed: free some space and repair again") from None
         entry.update(status="repaired", damage=mcap.damage)
     finally:
         mcap.close()

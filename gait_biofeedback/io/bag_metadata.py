@@ -120,7 +120,11 @@ def write_metadata(bag_dir: Path, document: dict[str, Any]) -> Path:
     """Write ``metadata.yaml`` atomically (temp file + rename) and return its path."""
     path = Path(bag_dir) / METADATA_FILE
     tmp = path.with_name(f".{METADATA_FILE}.tmp")
-    tmp.write_text(yaml.safe_dump(document, sort_keys=False, default_flow_style=False), encoding="utf-8")
+    try:
+        tmp.write_text(yaml.safe_dump(document, sort_keys=False, default_flow_style=False), encoding="utf-8")
+    except OSError:
+        tmp.unlink(missing_ok=True)
+        raise
     os.replace(tmp, path)
     return path
 

@@ -4,12 +4,15 @@ Each file is an MCAP file with profile ``ros2``: schema encoding ``ros2msg`` (fu
 dependencies), message encoding ``cdr``. The open chunk is written out and the file flushed to the
 OS at least every ``flush_period`` seconds of wall-clock time, so after a kill -9 the file is
 readable (and :func:`gait_biofeedback.io.bag.repair`-able) up to its last complete chunk. Flushing
-does not fsync: data survive a process crash, not a power cut.
+does not fsync: data survive a process crash, not a power cut. After a write error (a full disk)
+:meth:`BagWriter.abandon` cuts the open file back to its last complete chunk, so what is on disk reads
+cleanly.
 """
 
 from __future__ import annotations
 
 import contextlib
+import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -86,6 +89,8 @@ class _McapPart:
     channel_ids: dict[str, int] = field(default_factory=dict)
     record: FileRecord = field(default_factory=lambda: FileRecord(""))
     pending_bytes: int = 0
+    good_offset: int = 0  # end of the last complete chunk on disk
+    good_end_ns: int = 0  # log time of the newest message before it
 
     def size_estimate(self) -> int:
         """Bytes on disk plus the open chunk uncompressed (an upper bound of the final size)."""
@@ -145,8 +150,9 @@ class BagWriter:
         stream = open(path, "wb")  # noqa: SIM115 - closed in _close_part
         writer = Writer(stream, chunk_size=self._chunk_size, compression=self._compression)
         writer.start(profile="ros2", library=LIBRARY)
+        stream.flush()
         self.files.append(path)
-        part = _McapPart(path, stream, writer, record=FileRecord(path.name))
+        part = _McapPart(path, stream, writer, record=FileRecord(path.name), good_offset=stream.tell())
         self._records.append(part.record)
         return part
 
@@ -236,8 +242,10 @@ class BagWriter:
         """Write the open chunk to the file now and flush the file to the OS."""
         if self._closed:
             return
-        finish_open_chunk(self._part.writer)
-        self._part.pending_bytes = 0
+        part = self._part
+        finish_open_chunk(part.writer)
+        part.pending_bytes = 0
+        part.good_offset, part.good_end_ns = part.stream.tell(), part.record.end_time
         self._last_flush = time.monotonic()
 
     def maybe_flush(self) -> None:
@@ -245,15 +253,40 @@ class BagWriter:
         if time.monotonic() - self._last_flush >= self._flush_period:
             self.flush()
 
+    @property
+    def good_end_ns(self) -> int:
+        """Log time of the newest message known to be in a complete chunk on disk (0: none yet)."""
+        return self._part.good_end_ns
+
+    def abandon(self) -> None:
+        """After a write error: cut the open file back to its last complete chunk and close it
+        without a summary (readers recover it; ``repair`` completes it once there is space). Nothing
+        buffered is written any more. metadata.yaml is left to ``repair``. Idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        stream = self._part.stream
+        with contextlib.suppress(OSError, ValueError):
+            os.ftruncate(stream.fileno(), self._part.good_offset)
+        with contextlib.suppress(OSError, ValueError):
+            stream.raw.close()  # the buffered bytes can no longer reach any file
+        with contextlib.suppress(OSError, ValueError):
+            stream.close()
+
     def _write_metadata(self) -> None:
         write_metadata(self.path, bag_metadata(self._records, list(self._topics.values())))
 
     def close(self) -> None:
-        """Finish the open file (summary and indexes) and write metadata.yaml. Idempotent."""
+        """Finish the open file (summary and indexes) and write metadata.yaml. Idempotent. On a write
+        error the file is abandoned (:meth:`abandon`) and the error raised."""
         if self._closed:
             return
+        try:
+            self._close_part()
+        except OSError:
+            self.abandon()
+            raise
         self._closed = True
-        self._close_part()
         self._write_metadata()
 
     def __enter__(self) -> BagWriter:

@@ -11,11 +11,14 @@ called. ``GAIT_EXECUTOR=single`` selects the fallback.
 
 from __future__ import annotations
 
+import contextlib
 import os
+import signal
 import sys
+import threading
 import time
 import traceback
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from typing import Any
 
 import rclpy
@@ -24,6 +27,7 @@ from rclpy.context import Context
 from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.publisher import Publisher
+from rclpy.signals import SignalHandlerOptions
 from rclpy.subscription import Subscription
 
 from gait_biofeedback.core.notices import Notice
@@ -135,6 +139,40 @@ def diagnostic_array(node: Node, statuses: Iterable[DiagnosticStatus]) -> Diagno
     return diagnostics.array(node.get_clock().now().to_msg(), statuses)
 
 
+STOP = threading.Event()
+"""Set by SIGINT or SIGTERM while :func:`stop_on_signals` is active: every :func:`spin_until` ends."""
+
+
+def init_ros(args: list[str] | None, context: Context) -> None:
+    """``rclpy.init`` without rclpy's own signal handlers: :func:`stop_on_signals` handles SIGINT and
+    SIGTERM alike, so neither raises inside a callback (rclpy's handler makes Ctrl-C a KeyboardInterrupt
+    in whatever callback runs, and leaves SIGTERM to kill the process with its files open)."""
+    rclpy.init(args=args, context=context, signal_handler_options=SignalHandlerOptions.NO)
+
+
+@contextlib.contextmanager
+def stop_on_signals() -> Iterator[threading.Event]:
+    """While active (main thread only), SIGINT and SIGTERM set :data:`STOP`: the spin loops return and
+    the caller destroys its nodes, which closes their files; a second signal interrupts at once."""
+    if threading.current_thread() is not threading.main_thread():
+        yield STOP
+        return
+
+    def handler(signum: int, _frame: Any) -> None:
+        if STOP.is_set():
+            raise KeyboardInterrupt
+        STOP.set()
+
+    STOP.clear()
+    previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield STOP
+    finally:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
+        STOP.clear()
+
+
 def make_executor(context: Context | None = None) -> Executor:
     """The project's executor: EventsExecutor (driven by spin_once) unless GAIT_EXECUTOR=single."""
     if os.environ.get("GAIT_EXECUTOR", "events") == "single":
@@ -164,7 +202,7 @@ def spin_until(
     while True:
         now = monotonic()
         if now >= next_check:
-            if not context.ok() or done():
+            if not context.ok() or STOP.is_set() or done():
                 break
             if deadline is not None and now > deadline:
                 return False
@@ -190,15 +228,16 @@ def run_nodes(node_factories: Sequence[Callable[[Context], Node]], args: list[st
         print(f"{os.path.basename(args[0]) if args else 'node'}: {exc}", file=sys.stderr)
         return 2
     context = Context()
-    rclpy.init(args=args, context=context)
+    init_ros(args, context)
     nodes: list[Node] = []
     executor = make_executor(context)
     code = 0
     try:
-        for factory in node_factories:
-            nodes.append(factory(context))
-            executor.add_node(nodes[-1])
-        spin_until(executor, lambda: False)
+        with stop_on_signals():
+            for factory in node_factories:
+                nodes.append(factory(context))
+                executor.add_node(nodes[-1])
+            spin_until(executor, lambda: False)
     except KeyboardInterrupt:
         pass
     except ParameterError as exc:

@@ -112,7 +112,8 @@ class ImuReplayer(GuardedNode):
             if not self.loop or first_ns is None:
                 break
         self.finished.set()
-        self.get_logger().info(f"replay finished: {self.published} messages, {self.loops_done} pass(es)")
+        how = "stopped" if self._stop.is_set() else "finished"
+        self.get_logger().info(f"replay {how}: {self.published} messages, {self.loops_done} pass(es)")
 
     def destroy_node(self) -> None:
         self._stop.set()
@@ -125,16 +126,17 @@ def main(args: list[str] | None = None) -> int:
     """Console script: replay until the recording ends (or forever with loop:=true)."""
     import rclpy
 
-    from gait_biofeedback.nodes.common import make_executor, spin_until
+    from gait_biofeedback.nodes.common import init_ros, make_executor, spin_until, stop_on_signals
 
     context = Context()
-    rclpy.init(args=args, context=context)
+    init_ros(args, context)
     executor = make_executor(context)
     node = None
     try:
         node = ImuReplayer(context)
         executor.add_node(node)
-        spin_until(executor, node.finished.is_set)
+        with stop_on_signals():
+            spin_until(executor, node.finished.is_set)
     except KeyboardInterrupt:
         pass
     except ValueError as err:

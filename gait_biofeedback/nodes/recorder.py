@@ -29,9 +29,9 @@ from std_srvs.srv import Trigger
 
 from gait_biofeedback.io.bag import BagWriter, message_class
 from gait_biofeedback.io.params import RecorderParams
-from gait_biofeedback.nodes.common import GuardedNode
+from gait_biofeedback.nodes.common import GuardedNode, diagnostic_array, publisher
 from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
-from gait_biofeedback.wire import topics
+from gait_biofeedback.wire import diagnostics, topics
 from gait_biofeedback.wire.topics import RELIABLE_QOS, SENSOR_QOS
 
 ALWAYS_EXCLUDED = ("/parameter_events", "/rosout")
@@ -64,6 +64,9 @@ class Recorder(GuardedNode):
         self._written_before = 0
         self._recording = False
         self._recorded_topics: dict[str, object] = {}
+        self._latched_topics: set[str] = set()
+        self._latched: dict[str, tuple[str, bytes]] = {}  # the last message of each, for a new bag
+        self.write_error: str | None = None
         self._queue: queue.SimpleQueue = queue.SimpleQueue()
         # Log time = receive time in ns. Without use_sim_time the node's ROS_TIME clock is the system
         # clock, i.e. time.time_ns() (≈10× cheaper than get_clock().now() per message).
@@ -76,8 +79,10 @@ class Recorder(GuardedNode):
         self._thread.start()
         self.create_service(Trigger, topics.RECORDER_START_SERVICE, self._on_start)
         self.create_service(Trigger, topics.RECORDER_STOP_SERVICE, self._on_stop)
+        self._diagnostics = publisher(self, topics.DIAGNOSTICS)
         self._discover()
         self.create_timer(p.discovery_period, self._discover)
+        self.create_timer(1.0, self._publish_diagnostics)
 
     def _next_output(self) -> Path:
         if not self._base_output:
@@ -86,13 +91,20 @@ class Recorder(GuardedNode):
         return base if not self.sessions else base.with_name(f"{base.name}_{len(self.sessions)}")
 
     def start(self) -> Path:
-        """Open a new bag (a new folder per start) and record into it; returns its path."""
+        """Open a new bag (a new folder per start) and record into it; returns its path. A bag after
+        the first starts with the last message of every latched topic (the calibration in force)."""
         if self._recording and self.output is not None:
             return self.output
+        first = not self.sessions
         self.output = self._next_output()
         self.writer = BagWriter(self.output, **self._writer_options)
         self.sessions.append(self.output)
+        self.write_error = None
         self._recording = True
+        if not first:
+            now = self._now_ns()
+            for topic, (type_name, data) in self._latched.items():
+                self._queue.put((topic, type_name, data, now))
         self.get_logger().info(f"recording to {self.output}")
         return self.output
 
@@ -125,6 +137,8 @@ class Recorder(GuardedNode):
         if topic in self._recorded_topics or topic in self.excluded:
             return
         qos = self._qos_for(topic)
+        if qos.durability == DurabilityPolicy.TRANSIENT_LOCAL:
+            self._latched_topics.add(topic)
         self._recorded_topics[topic] = self.create_subscription(
             message_class(type_name), topic,
             lambda data, topic=topic, type_name=type_name: self._on_message(topic, type_name, data),
@@ -158,6 +172,8 @@ class Recorder(GuardedNode):
 
     def _on_message(self, topic: str, type_name: str, data: bytes) -> None:
         self.received += 1
+        if topic in self._latched_topics:
+            self._latched[topic] = (type_name, data)
         if not self._recording:
             self.dropped_while_stopped += 1
             return
@@ -165,9 +181,33 @@ class Recorder(GuardedNode):
 
     def _close_writer(self) -> None:
         if self.writer is not None:
-            self.writer.close()
+            try:
+                self.writer.close()
+            except OSError as err:
+                self._write_failed(err)
+                return
             self._written_before += self.writer.message_count
             self.writer = None
+
+    def _write_failed(self, err: OSError) -> None:
+        """A write error (a full disk): stop recording at the last complete chunk, say so once."""
+        writer, self.writer = self.writer, None
+        self._recording = False
+        if writer is None:
+            return
+        writer.abandon()
+        self._written_before += writer.message_count
+        good = writer.good_end_ns
+        if not good:
+            upto = "its start"
+        elif good > 1e18:  # wall-clock log times (live): a time of day
+            upto = time.strftime("%H:%M:%S", time.localtime(good / 1e9))
+        else:
+            upto = f"{good / 1e9:.1f} s"
+        self.write_error = (f"recording stopped: writing {writer.path} failed ({err.strerror or err}); it is "
+                            f"readable up to {upto}. Processing goes on: free space, then press Record to "
+                            "go on in a new folder")
+        self.get_logger().error(self.write_error)
 
     def _write_loop(self) -> None:
         while True:
@@ -179,21 +219,44 @@ class Recorder(GuardedNode):
                 if self._closed.is_set():
                     break
                 if self.writer is not None:
-                    self.writer.maybe_flush()
+                    try:
+                        self.writer.maybe_flush()
+                    except OSError as err:
+                        self._write_failed(err)
                 continue
             if item[0] == "__close__":
                 self._close_writer()
                 item[1].set()
                 continue
+            if self.writer is None:  # recording stopped by a write error
+                self.dropped_while_stopped += 1
+                continue
             try:
                 self.writer.write_serialized(*item)
-            except Exception as err:
+            except OSError as err:
+                self._write_failed(err)
+            except Exception as err:  # e.g. a type the writer cannot describe: that message only
                 self.dropped_by_writer += 1
-                self.get_logger().error(f"could not record a message on {item[0]}: {err}")
+                if self.dropped_by_writer == 1:
+                    self.get_logger().error(f"could not record a message on {item[0]} ({err}); further "
+                                            "ones are counted on /diagnostics")
             if self._queue.empty():
                 # let messages gather: a put that has to wake this thread costs the executor thread
                 # ~10 µs (GIL hand-over), one per message at ~2,600 messages/s
                 time.sleep(BATCH_WAIT)
+
+    def _publish_diagnostics(self) -> None:
+        values = {"received": self.received, "written": self.written, "bags": len(self.sessions),
+                  "dropped_while_stopped": self.dropped_while_stopped,
+                  "dropped_by_writer": self.dropped_by_writer}
+        if self.write_error:
+            level, text = diagnostics.ERROR, self.write_error
+        elif self._recording:
+            level, text = diagnostics.OK, f"recording to {self.output}"
+        else:
+            level, text = diagnostics.WARN, "not recording: press Record on the dashboard (recorder/start)"
+        self._diagnostics.publish(diagnostic_array(self, [diagnostics.status("recorder", level, text,
+                                                                             values=values)]))
 
     @property
     def written(self) -> int:

@@ -1,0 +1,235 @@
+"""Recording under faults (issue 12): a full disk, SIGTERM / Ctrl-C, a stop and start from the dashboard.
+
+The full disk is a write budget injected under the bag writer's file (no mount needed): every write
+beyond it fails with ENOSPC, as on a full filesystem.
+"""
+
+from __future__ import annotations
+
+import builtins
+import errno
+import io
+import os
+import signal
+import subprocess
+import sys
+import time
+import warnings
+
+import numpy as np
+import pytest
+from conftest import synthetic_imu
+
+from gait_biofeedback.graph import replay_through_graph
+from gait_biofeedback.io import bag_writer
+from gait_biofeedback.io.bag import BagReader, BagRecoveryWarning, repair, write_imu_bag
+
+pytestmark = [pytest.mark.ros, pytest.mark.timeout(90)]
+
+
+class SmallDisk:
+    """``open`` for the bag writer with ``budget`` bytes of free space shared by every file."""
+
+    def __init__(self, budget: int) -> None:
+        self.budget = budget
+        disk = self
+
+        class File(io.FileIO):
+            def write(self, data) -> int:
+                if len(data) > disk.budget:
+                    raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+                disk.budget -= len(data)
+                return super().write(data)
+
+        self._file = File
+
+    def open(self, path, mode="r", *args, **kwargs):
+        if "w" not in mode:
+            return builtins.open(path, mode, *args, **kwargs)
+        return io.BufferedWriter(self._file(path, "w"))
+
+
+def test_full_disk_stops_recording_once_and_processing_goes_on(tmp_path, monkeypatch, capfd):
+    segments = ["pelvis", "left_thigh", "left_shank", "left_foot"]
+    bag = write_imu_bag(tmp_path / "in", synthetic_imu(segments, duration=4.0, with_mag=False))
+    out = tmp_path / "out"
+    disk = SmallDisk(120_000)
+    monkeypatch.setattr(bag_writer, "open", disk.open, raising=False)
+    seen = {}
+
+    def keep_nodes(nodes):
+        seen.update(nodes)
+
+    result = replay_through_graph(bag, out, speed=1.0, nodes=["orientation_filter", "biofeedback"],
+                                  timeout=60, node_parameters={"recorder": {"flush_period": 0.2}},
+                                  actions=[(3.9, keep_nodes)])
+    assert result.published == 4 * 400, "the replay and the processing went on to the end"
+    assert result.write_error is not None
+    assert "No space left on device" in result.write_error and "press Record" in result.write_error
+    log = capfd.readouterr().err
+    assert log.count("recording stopped") == 1, "one ERROR, not one per message"
+    assert "Traceback" not in log
+    recorder, dashboard = seen["recorder"], seen["biofeedback"]
+    assert recorder.dropped_while_stopped > 0
+    # /diagnostics carries the error, and the dashboard (which shows every status) has it
+    status = dashboard._diag["recorder"]
+    assert status["level"] == 2 and "No space left" in status["message"]
+
+    # the file ends at its last complete chunk: read without loss of anything it holds
+    with pytest.warns(BagRecoveryWarning):
+        recovered = list(BagReader(out).raw_messages())
+    assert 100 < len(recovered) < result.recorded + 1
+    # on the still-full disk repair refuses in one line and changes nothing
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    monkeypatch.setattr("gait_biofeedback.io.bag.open", SmallDisk(0).open, raising=False)
+    with pytest.raises(OSError, match="Nothing was changed: free some space"):
+        repair(out)
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    monkeypatch.undo()  # space freed
+    report = repair(out)
+    assert report["message_count"] == len(recovered)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", BagRecoveryWarning)
+        assert [m[:2] for m in BagReader(out).raw_messages()] == [m[:2] for m in recovered]
+
+
+def test_record_again_after_a_write_error_opens_a_new_folder(tmp_path, monkeypatch):
+    """After the clinician frees space, Record goes on in the next folder; the latched calibration
+    (and every latched topic) opens it, as it opens a folder after a dashboard stop and start."""
+    from rclpy.context import Context
+    from rclpy.node import Node
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from std_msgs.msg import String
+
+    from gait_biofeedback.nodes.common import init_ros, make_executor, spin_until
+    from gait_biofeedback.nodes.recorder import Recorder
+
+    context = Context()
+    init_ros([], context)
+    disk = SmallDisk(6_000)
+    monkeypatch.setattr(bag_writer, "open", disk.open, raising=False)
+    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    source = Node("clinician", context=context)
+    calibration = source.create_publisher(String, "/calibration_note", latched)
+    notes = source.create_publisher(String, "/note", 300)
+    calibration.publish(String(data="calibration in force"))
+    recorder = Recorder(context, output=str(tmp_path / "session"), flush_period=0.05,
+                        topics=["/calibration_note", "/note"])
+    executor = make_executor(context)
+    for node in (source, recorder):
+        executor.add_node(node)
+    try:
+        assert spin_until(executor, lambda: recorder.received >= 1, timeout=10)
+        k = 0
+        while recorder.write_error is None and k < 2000:
+            notes.publish(String(data=f"note {k} " + "x" * 200))
+            k += 1
+            spin_until(executor, lambda: False, timeout=0.002)
+        assert recorder.write_error is not None, "the budget ran out"
+        monkeypatch.undo()
+        recorder.start()
+        for j in range(3):
+            notes.publish(String(data=f"after {j}"))
+        assert spin_until(executor, lambda: recorder.writer is not None
+                          and recorder.writer.message_count >= 4, timeout=10)
+    finally:
+        recorder.destroy_node()
+        source.destroy_node()
+        executor.shutdown()
+        context.try_shutdown()
+    assert recorder.sessions == [tmp_path / "session", tmp_path / "session_1"]
+    second = [m.data for _, m, _ in BagReader(tmp_path / "session_1").messages()]
+    assert second == ["calibration in force", "after 0", "after 1", "after 2"]
+
+
+def test_a_replay_stopped_and_started_lists_every_folder_and_keeps_the_calibration(tmp_path):
+    from gait_biofeedback.core.calibration.sensor_to_segment import (
+        SegmentCalibrationResult,
+        SessionCalibration,
+    )
+    from gait_biofeedback.core.calibration.stream import write_calibration_file
+
+    segments = ["chest", "pelvis"]
+    bag = write_imu_bag(tmp_path / "in", synthetic_imu(segments, duration=3.0, with_mag=False))
+    identity = np.array([1.0, 0, 0, 0])
+    results = {s: SegmentCalibrationResult(s, identity, True, 1.0, "x", 0.0) for s in segments}
+    write_calibration_file(tmp_path / "session" / "calibration.yaml",
+                           SessionCalibration("walking", results, True, ""), "2026-12-01T10:00:00")
+    out = tmp_path / "rec"
+
+    def stop(nodes):
+        nodes["recorder"].stop()
+
+    def start(nodes):
+        nodes["recorder"].start()
+
+    calibration = {"segments": segments, "session_dir": str(tmp_path / "session"), "reload_calibration": True}
+    result = replay_through_graph(bag, out, speed=2.0, nodes=["orientation_filter", "calibration"],
+                                  timeout=60, actions=[(1.0, stop), (1.5, start)],
+                                  node_parameters={"calibration": calibration})
+    assert result.outputs == [out, tmp_path / "rec_1"]
+    for folder in result.outputs:
+        counts = BagReader(folder).message_counts()
+        assert counts.get("/calibration/sensor_to_segment") == 1, f"{folder} lacks the calibration in force"
+        assert counts["/pelvis/imu/data_raw"] > 50
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_run_record_closes_the_bag_on_sigterm_and_ctrl_c(tmp_path, sig):
+    """`gait-biofeedback run` with the session parameter file: raw topics from another process in,
+    orientations out and recorded. SIGTERM is a clean stop like Ctrl-C: metadata.yaml and a summary,
+    exit 0, no traceback or "[FATAL] Exception in 'timers' callback" (which Ctrl-C used to print)."""
+    bag = write_imu_bag(tmp_path / "in", synthetic_imu(["chest"], duration=2.0, with_mag=False))
+    out = tmp_path / "live"
+    run = subprocess.Popen(
+        [sys.executable, "-m", "gait_biofeedback.cli", "run", "--nodes", "orientation_filter",
+         "--params", "config/session.yaml", "--record", str(out)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert "running orientation_filter" in run.stdout.readline()
+        replayer = subprocess.run(
+            [sys.executable, "-m", "gait_biofeedback.nodes.imu_replayer", "--ros-args",
+             "-p", f"bag:={bag}", "-p", "speed:=4.0", "-p", "wait_for_subscribers:=10.0"],
+            timeout=30, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        assert replayer.returncode == 0
+        time.sleep(0.5)
+        run.send_signal(sig)
+        stdout, stderr = run.communicate(timeout=20)
+    finally:
+        if run.poll() is None:
+            run.kill()
+            run.wait(timeout=10)
+    assert run.returncode == 0, stderr
+    assert "FATAL" not in stderr and "Traceback" not in stderr
+    assert f"recorded to {out}" in stdout
+    assert (out / "metadata.yaml").exists()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", BagRecoveryWarning)  # complete: summary and index written
+        counts = BagReader(out).message_counts()
+    assert counts["/chest/imu/data_raw"] == 200 and counts["/chest/imu/data"] >= 190
+
+
+def test_record_command_closes_the_bag_on_sigterm(tmp_path):
+    bag = write_imu_bag(tmp_path / "in", synthetic_imu(["left_foot"], duration=1.0, with_mag=False))
+    out = tmp_path / "raw"
+    record = subprocess.Popen([sys.executable, "-m", "gait_biofeedback.cli", "record", "-o", str(out)],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        subprocess.run([sys.executable, "-m", "gait_biofeedback.nodes.imu_replayer", "--ros-args",
+                        "-p", f"bag:={bag}", "-p", "wait_for_subscribers:=10.0"],
+                       timeout=30, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=True)
+        time.sleep(0.5)
+        record.send_signal(signal.SIGTERM)
+        _, stderr = record.communicate(timeout=20)
+    finally:
+        if record.poll() is None:
+            record.kill()
+            record.wait(timeout=10)
+    assert record.returncode == 0 and "Traceback" not in stderr
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", BagRecoveryWarning)
+        stamps = BagReader(out).raw_messages()
+        log = [m[-1] for m in stamps if m[0] == "/left_foot/imu/data_raw"]
+    assert (out / "metadata.yaml").exists() and len(log) == 100
+    assert np.all(np.diff(log) >= 0)
