@@ -34,6 +34,8 @@ the live graph does, so :mod:`gait_biofeedback.report.session` reads it unchange
 from __future__ import annotations
 
 import math
+import time
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -43,18 +45,20 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import Imu
 
 from gait_biofeedback.core.activity.stream import ActivityParams, ActivityStream
-from gait_biofeedback.core.calibration.sensor_to_segment import PROTOCOLS
+from gait_biofeedback.core.calibration.sensor_to_segment import PROTOCOLS, SessionCalibration
 from gait_biofeedback.core.calibration.stream import (
+    CALIBRATION_FILE,
     CalibrationAttempt,
     CalibrationBuffer,
     CalibrationParams,
     read_calibration_file,
+    write_calibration_file,
 )
 from gait_biofeedback.core.gait.stream import GaitEventsParams, GaitEventStream
 from gait_biofeedback.core.joints.stream import STREAM_SEGMENTS, JointAnglesParams, JointAngleStream
 from gait_biofeedback.core.orientation.stream import OrientationParams, SegmentOrientationTracker
 from gait_biofeedback.core.stamps import NS_PER_S, s_to_ns
-from gait_biofeedback.io.bag import BagReader, BagWriter
+from gait_biofeedback.io.bag import BagReader, BagRecoveryWarning, BagWriter
 from gait_biofeedback.io.bag_writer import check_output
 from gait_biofeedback.io.schemas import type_name_of
 from gait_biofeedback.parameters import stage_parameters
@@ -81,11 +85,14 @@ class AnalysisResult:
     ``output``: the bag written (None: nothing written, the messages are in ``messages`` as
     ``(topic, rclpy message, log_time_ns)``); ``counts``: messages per output topic;
     ``start_ns``: log time of the recording's first message, the zero of ``calibrate_at``;
-    ``calibrations``: every calibration request's outcome, in order;
-    ``warnings``: what the stages said (time going back, gaps, requests that never ran)."""
+    ``calibrations``: every calibration request's outcome, in order; ``calibration_file``: the
+    calibration in force at the end, saved as ``<output>/calibration.yaml`` (None: none in force or
+    nothing written); ``warnings``: what the stages said (time going back, gaps, requests that never
+    ran, chunks of the recording that could not be read)."""
 
     output: Path | None
     start_ns: int = 0
+    calibration_file: Path | None = None
     counts: dict[str, int] = field(default_factory=dict)
     calibrations: list[CalibrationAttempt] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
@@ -164,11 +171,11 @@ def analyze_recording(
     stages = {node: stage_parameters(node, values) for node, values in (params or {}).items()}
     if output is not None:
         check_output(output, overwrite)  # before the analysis, not after it
-    reader = BagReader(bag)
-    try:
-        return _analyze(reader, bag, output, list(calibrate_at or []), calibration_file, stages, overwrite)
-    finally:
-        reader.close()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", BagRecoveryWarning)  # they go into result.warnings
+        with BagReader(bag) as reader:
+            return _analyze(reader, bag, output, list(calibrate_at or []), calibration_file, stages,
+                            overwrite)
 
 
 def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
@@ -180,6 +187,8 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
         if protocol not in PROTOCOLS:
             raise ValueError(f"unknown calibration protocol {protocol!r}; use one of {list(PROTOCOLS)}")
     calibration = None
+    c_params: CalibrationParams = stages.get("calibration") or CalibrationParams()
+    calibration_file = calibration_file or c_params.calibration_file or None
     if calibration_file is not None:
         path = Path(calibration_file)
         if not path.is_file():
@@ -191,7 +200,7 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
     trackers: dict[str, SegmentOrientationTracker] = {
         seg: o_params.tracker(seg) for seg in o_params.segments if seg in raw_topics}
     variance = o_params.orientation_variance
-    buffer = CalibrationBuffer(stages.get("calibration") or CalibrationParams())
+    buffer = CalibrationBuffer(c_params)
     j_params: JointAnglesParams = stages.get("joint_angles") or JointAnglesParams()
     joints = JointAngleStream(j_params)
     gait = GaitEventStream(stages.get("gait_events") or GaitEventsParams())
@@ -226,7 +235,10 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
         for stream in streams:
             result.warnings.extend(n.text for n in stream.notices.pop() if n.level != "info")
 
-    def publish_calibration(msg: Any, log_ns: int) -> None:
+    in_force: list[SessionCalibration] = []
+
+    def publish_calibration(msg: Any, log_ns: int, calibration: SessionCalibration) -> None:
+        in_force[:] = [calibration]
         emit(topics.CALIBRATION.absolute(), msg, log_ns)
         joints.set_calibration(*rotations(msg))
         gait.apply_calibration(*entries(msg))
@@ -251,7 +263,7 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
                     result.calibrations.append(attempt)
                     if attempt.success and attempt.calibration is not None:
                         publish_calibration(calibration_msg(attempt.calibration, attempt.applies_from_ns),
-                                            log_ns)
+                                            log_ns, attempt.calibration)
         if segment in STREAM_SEGMENTS:
             publish_joints(joints.add(segment, imu.ns, quaternion(imu), angular_speed(imu)), log_ns)
         side = segment.removesuffix("_foot")
@@ -263,7 +275,7 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
 
     if calibration is not None:
         source = f"from {Path(calibration_file).absolute()} (saved {saved_at or 'at an unknown time'})"
-        publish_calibration(calibration_msg(calibration, 0, source), start_ns)
+        publish_calibration(calibration_msg(calibration, 0, source), start_ns, calibration)
 
     segment_of = {topic: seg for seg, topic in raw_topics.items()}
     mag_of = {topic: seg for seg, topic in mag_topics.items()}
@@ -292,12 +304,16 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
                 downstream(seg, decode_imu(filtered), log_ns)
         said()
     publish_joints(joints.flush(force=True), reader.end_time_ns)
+    result.warnings[:0] = reader.warnings  # a damaged file, a chunk skipped: the time range lost
     for until_ns, protocol in buffer.scheduled:
         at = (until_ns - start_ns) / NS_PER_S
         result.warnings.append(f"calibration ({protocol}) at {at:.2f} s never ran: "
                                "the recording ends before every sensor's data gets there")
     if output is not None:
         _write(Path(output), [*copied, *out], overwrite)
+        if in_force:
+            result.calibration_file = Path(output) / CALIBRATION_FILE
+            write_calibration_file(result.calibration_file, in_force[0], time.strftime("%Y-%m-%dT%H:%M:%S%z"))
     return result
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import warnings
 from pathlib import Path
 
 DEMO_BAG = Path("bags/demo_walk")
@@ -96,19 +97,48 @@ def cmd_run(args: argparse.Namespace) -> int:
     return run_live(_node_list(args.nodes), args.record, _session_parameters(args.params))
 
 
+def _print_calibrations(attempts: list, start_ns: int) -> None:
+    """Each calibration request: its outcome and the standing and motion windows it used (s into
+    the recording)."""
+    for attempt in attempts:
+        until = ("" if attempt.until_ns is None
+                 else f", data up to {(attempt.until_ns - start_ns) / 1e9:.2f} s")
+        print(f"calibrate ({attempt.protocol}{until}): " + ("" if attempt.success else "REFUSED: ")
+              + attempt.message)
+        cal = attempt.calibration
+        if cal is not None and cal.standing is not None and cal.motion is not None:
+            (s0, s1), (m0, m1) = ((t - start_ns / 1e9 for t in w) for w in (cal.standing, cal.motion))
+            print(f"  quiet standing {s0:.2f}-{s1:.2f} s, motion {m0:.2f}-{m1:.2f} s into the recording")
+
+
+def _calibration_options(args: argparse.Namespace, params: dict[str, dict]) -> list[tuple[float, str]]:
+    """--calibrate-at requests; --calibration goes into the calibration stage's parameters."""
+    from gait_biofeedback.analyze import parse_calibrate_at
+
+    if args.calibration is not None:
+        params.setdefault("calibration", {})["calibration_file"] = args.calibration
+    return [parse_calibrate_at(text) for text in args.calibrate_at or []]
+
+
 def cmd_replay(args: argparse.Namespace) -> int:
     from gait_biofeedback.graph import replay_through_graph
     from gait_biofeedback.io.bag import BagReader
 
     params = _session_parameters(args.params)
-    total = BagReader(args.bag).message_count
+    requests = _calibration_options(args, params)
+    with BagReader(args.bag) as reader:
+        total = reader.message_count
     with _progress(total, "replay") as bar:
         result = replay_through_graph(args.bag, args.record, speed=args.speed, start_offset=args.start,
                                       stop_offset=args.stop, progress=bar.update,
-                                      nodes=_node_list(args.nodes), node_parameters=params)
+                                      nodes=_node_list(args.nodes), node_parameters=params,
+                                      calibrate_at=requests)
+    _print_calibrations(result.calibrations, result.start_ns)
     where = ", ".join(str(p) for p in result.outputs)
     print(f"replayed {result.published} messages in {result.wall_time:.1f} s"
           + (f"; recorded {result.recorded} to {where}" if result.outputs else ""))
+    if result.calibration_file is not None:
+        print(f"calibration saved as {result.calibration_file}")
     if result.interrupted:
         print("stopped by a signal before the end of the recording", file=sys.stderr)
     if result.write_error:
@@ -118,24 +148,22 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
 
 def cmd_analyze(args: argparse.Namespace) -> int:
-    from gait_biofeedback.analyze import analyze_recording, parse_calibrate_at
+    from gait_biofeedback.analyze import analyze_recording
     from gait_biofeedback.report.session import format_report, session_report
 
-    requests = [parse_calibrate_at(text) for text in args.calibrate_at or []]
-    result = analyze_recording(args.bag, args.output, calibrate_at=requests,
-                               calibration_file=args.calibration, params=_session_parameters(args.params),
+    params = _session_parameters(args.params)
+    requests = _calibration_options(args, params)
+    result = analyze_recording(args.bag, args.output, calibrate_at=requests, params=params,
                                overwrite=args.overwrite)
-    for attempt in result.calibrations:
-        until = ("" if attempt.until_ns is None
-                 else f", data up to {(attempt.until_ns - result.start_ns) / 1e9:.2f} s")
-        print(f"calibrate ({attempt.protocol}{until}): "
-              + ("" if attempt.success else "REFUSED: ") + attempt.message)
+    _print_calibrations(result.calibrations, result.start_ns)
     if not requests and args.calibration is None:
         print("no calibration given (--calibrate-at or --calibration): orientations and activity only")
     for warning in result.warnings:
         print(f"warning: {warning}", file=sys.stderr)
     outputs = ", ".join(f"{t} {n}" for t, n in sorted(result.counts.items()) if "/imu/" not in t)
     print(f"wrote {result.output}: {outputs or 'orientations only'}")
+    if result.calibration_file is not None:
+        print(f"calibration in force saved as {result.calibration_file}")
     print("\n".join(format_report(session_report(result.output))))
     return 0
 
@@ -166,17 +194,27 @@ def cmd_record(args: argparse.Namespace) -> int:
 
 
 def cmd_info(args: argparse.Namespace) -> int:
-    from gait_biofeedback.io.bag import BagReader
+    from gait_biofeedback.io.bag import BagReader, BagRecoveryWarning
+    from gait_biofeedback.io.bag_info import bag_info
 
-    reader = BagReader(args.bag)
-    counts = reader.message_counts()
-    duration = reader.duration_ns * 1e-9
-    print(f"{args.bag}: {sum(counts.values())} messages, {duration:.2f} s, {len(counts)} topics")
-    for topic, type_name in sorted(reader.topics().items()):
-        n = counts.get(topic, 0)
-        rate = (n - 1) / duration if duration > 0 and n > 1 else 0.0
-        print(f"  {topic:42s} {type_name:42s} {n:8d}  {rate:7.1f} Hz")
-    return 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", BagRecoveryWarning)  # printed below as DAMAGED lines
+        with BagReader(args.bag) as reader:
+            per_topic, bad = bag_info(reader)
+            duration = reader.duration_ns * 1e-9
+            damaged = [w for w in reader.warnings if w not in bad]
+    total = sum(t.count for t in per_topic)
+    print(f"{args.bag}: {total} messages, {duration:.2f} s, {len(per_topic)} topics")
+    for t in per_topic:
+        note = "" if t.from_stamps else " (log time)"
+        if t.stamps_back:
+            note += f"; {t.stamps_back} stamps not after the one before"
+        print(f"  {t.topic:42s} {t.type_name:42s} {t.count:8d}  {t.rate_hz:7.1f} Hz{note}")
+    for text in [*damaged, *bad]:
+        print(f"DAMAGED: {text}")
+    if damaged or bad:
+        print(f"`gait-biofeedback repair {args.bag}` writes a whole copy of what is readable")
+    return 1 if damaged or bad else 0
 
 
 def cmd_repair(args: argparse.Namespace) -> int:
@@ -193,6 +231,14 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
     return run_demo(bag=Path(args.bag), output=Path(args.output), speed=args.speed,
                     dashboard_port=args.dashboard_port)
+
+
+def _calibration_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--calibrate-at", action="append", metavar="T:PROTOCOL",
+                   help="press Calibrate T seconds into the recording with PROTOCOL (hip_flexion or "
+                   "walking), e.g. 36:hip_flexion = 1 s after the demo's hip moves; repeat to recalibrate")
+    p.add_argument("--calibration", metavar="FILE",
+                   help="calibration.yaml (as the calibration node saves it) in force from the start")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -235,6 +281,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--stop", type=float, default=0.0, help="stop at this many s (0 = the end)")
     p.add_argument("--params", default=None, help="ROS 2 parameter file, e.g. config/session.yaml")
     p.add_argument("--nodes", help="comma-separated processing nodes (default: all)")
+    _calibration_arguments(p)
     p.set_defaults(func=cmd_replay)
 
     p = sub.add_parser(
@@ -246,11 +293,7 @@ def build_parser() -> argparse.ArgumentParser:
         "moves (--calibrate-at) or give a calibration.yaml from an earlier session (--calibration).")
     p.add_argument("bag", help="recording with /<segment>/imu/data_raw topics: rosbag2 folder or .mcap file")
     p.add_argument("-o", "--output", required=True, help="bag folder to write the outputs to")
-    p.add_argument("--calibrate-at", action="append", metavar="T:PROTOCOL",
-                   help="press Calibrate T seconds into the recording with PROTOCOL (hip_flexion or "
-                   "walking), e.g. 36:hip_flexion = 1 s after the demo's hip moves; repeat to recalibrate")
-    p.add_argument("--calibration", metavar="FILE",
-                   help="calibration.yaml (as the calibration node saves it) in force from the start")
+    _calibration_arguments(p)
     p.add_argument("--params", default=None, help="ROS 2 parameter file, e.g. config/session.yaml")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output")
     p.set_defaults(func=cmd_analyze)
@@ -271,7 +314,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--check", metavar="FILE", help="check a ROS 2 params file and print what it sets")
     p.set_defaults(func=cmd_params)
 
-    p = sub.add_parser("info", help="topics, types, counts and rates of a recording")
+    p = sub.add_parser("info", help="topics, types, counts and rates (from the stamps) of a recording; "
+                       "checks every chunk (exit 1 if any is damaged)")
     p.add_argument("bag")
     p.set_defaults(func=cmd_info)
 

@@ -91,25 +91,13 @@ def run_demo(bag: Path, output: Path, speed: float = 2.0, dashboard_port: int = 
     total = BagReader(bag).message_count
     from tqdm import tqdm
 
-    calibration_dir = output.parent / f"{output.name}_calibration"
-    shutil.rmtree(calibration_dir, ignore_errors=True)
-    start_ns = BagReader(bag).start_time_ns
-    calibration_nodes: list = []
-
-    def press_calibrate(nodes: dict) -> None:
-        # by stamp, not "now": the same samples whatever the replay speed (and `analyze` agrees)
-        if "calibration" in nodes:
-            calibration_nodes.append(nodes["calibration"])
-            nodes["calibration"].calibrate_at(start_ns + round(calibration_time() * 1e9), "hip_flexion")
-
     with tqdm(total=total, desc="replay", unit="msg", unit_scale=True, leave=False,
               disable=not sys.stderr.isatty()) as bar:
+        # by stamp, not "now": the same samples whatever the replay speed (and `analyze` agrees)
         result = replay_through_graph(
             bag, output, speed=speed, progress=bar.update,
-            node_parameters={"calibration": {"session_dir": str(calibration_dir)},
-                             "biofeedback": {"port": dashboard_port}},
-            actions=[(calibration_time(), press_calibrate)])
-    attempts = [node.last_attempt for node in calibration_nodes if node.last_attempt is not None]
-    said = [("" if a.success else "REFUSED: ") + a.message for a in attempts]
+            node_parameters={"biofeedback": {"port": dashboard_port}},
+            calibrate_at=[(calibration_time(), "hip_flexion")])
+    said = [("" if a.success else "REFUSED: ") + a.message for a in result.calibrations]
     print(summarize(bag, output, result.wall_time, result.published, " ".join(said)))
     return 0

@@ -19,6 +19,8 @@ from rclpy.context import Context
 from rclpy.executors import Executor
 from rclpy.node import Node
 
+from gait_biofeedback.core.calibration.stream import CalibrationAttempt
+from gait_biofeedback.io.bag import BagReader
 from gait_biofeedback.nodes.common import STOP, init_ros, make_executor, spin_until, stop_on_signals
 from gait_biofeedback.nodes.imu_replayer import ImuReplayer
 from gait_biofeedback.nodes.recorder import Recorder
@@ -82,6 +84,9 @@ class ReplayResult:
     outputs: list[Path] = field(default_factory=list)  # every bag folder (a stop/start opens a new one)
     write_error: str | None = None  # the recorder stopped on a write error (a full disk)
     interrupted: bool = False  # SIGINT / SIGTERM ended the replay before the recording did
+    calibrations: list[CalibrationAttempt] = field(default_factory=list)  # each request's outcome
+    start_ns: int = 0  # log time of the replayed recording's first message (the zero of calibrate_at)
+    calibration_file: Path | None = None  # where the calibration node saved its last result
 
 
 @dataclass
@@ -107,10 +112,13 @@ def running_graph(
     output: str | Path | None = None,
     node_parameters: dict[str, dict] | None = None,
     args: list[str] | None = None,
+    use_sim_time: bool = False,
 ) -> Iterator[RunningGraph]:
     """Context, executor, recorder (when ``output`` is given) and the processing ``nodes`` (default:
     all), created in data-flow order; the recorder is subscribed to every output before this
-    yields. SIGINT and SIGTERM end every spin loop (see :func:`stop_on_signals`). Everything is
+    yields. ``use_sim_time``: every node follows ``/clock`` (a replayer's). With ``output``, the
+    calibration is saved in it unless the calibration's ``session_dir`` is set. SIGINT and SIGTERM end
+    every spin loop (see :func:`stop_on_signals`). Everything is
     destroyed (files closed, bags summarised) and rclpy shut down on exit, whatever happened."""
     factories = processing_nodes()
     chosen = list(factories) if nodes is None else list(nodes)
@@ -120,6 +128,10 @@ def running_graph(
     params = node_parameters or {}
     for name, values in params.items():  # refused before anything starts
         stage_parameters(name, values)
+    if use_sim_time:
+        params = {n: {**params.get(n, {}), "use_sim_time": True} for n in {*chosen, "recorder", *params}}
+    if output is not None and not params.get("calibration", {}).get("session_dir"):
+        params = {**params, "calibration": {**params.get("calibration", {}), "session_dir": str(output)}}
     context = Context()
     init_ros(args or [], context)
     graph = RunningGraph(context, make_executor(context), {}, None)
@@ -152,16 +164,28 @@ def replay_through_graph(
     progress: Callable[[int], None] | None = None,
     node_parameters: dict[str, dict] | None = None,
     actions: Sequence[Action] = (),
+    calibrate_at: Sequence[tuple[float, str]] = (),
 ) -> ReplayResult:
     """Replay ``bag`` through the processing ``nodes`` (default: all that exist) and record every
     topic to ``output`` (None: no recording). ``actions`` run on the executor thread when the replay
-    reaches their time (e.g. the clinician pressing "calibrate"). Returns when the replay has ended
-    and the graph has settled; ``timeout`` (s) bounds the whole run (TimeoutError)."""
+    reaches their time (e.g. the clinician pressing "calibrate"). ``calibrate_at``: (s into the
+    recording, protocol) requests to the calibration node, on the window ending at that sample stamp
+    (the same samples as ``analyze --calibrate-at``, whatever the speed). Returns when
+    the replay has ended and the graph has settled; ``timeout`` (s) bounds the whole run
+    (TimeoutError).
+
+    The replayer publishes ``/clock`` and every node runs with ``use_sim_time``: the recording's
+    stamps (``/diagnostics`` included) and log times are all in the replayed recording's time base."""
     t0 = time.monotonic()
-    with running_graph(nodes, output, node_parameters) as graph:
+    with BagReader(bag) as reader:
+        start_ns = reader.start_time_ns
+    for t, protocol in calibrate_at:
+        actions = [*actions, (t, _calibration_request(start_ns + round(t * 1e9), protocol))]
+    with running_graph(nodes, output, node_parameters, use_sim_time=True) as graph:
         replayer = graph.add(ImuReplayer(
             graph.context, bag=str(bag), speed=float(speed), start_offset=float(start_offset),
-            stop_offset=float(stop_offset), wait_for_subscribers=5.0))
+            stop_offset=float(stop_offset), wait_for_subscribers=5.0, publish_clock=True,
+            use_sim_time=True))
         last = 0
         pending = sorted(actions, key=lambda a: a[0])
 
@@ -182,9 +206,20 @@ def replay_through_graph(
         spin_until(graph.executor, lambda: time.monotonic() > settle)
         recorder = graph.recorder
     recorded = recorder.written if recorder is not None else 0
+    calibration = graph.nodes.get("calibration")
     return ReplayResult(Path(output) if output else None, replayer.published, recorded, time.monotonic() - t0,
                         list(graph.nodes), list(recorder.sessions) if recorder is not None else [],
-                        recorder.write_error if recorder is not None else None, interrupted)
+                        recorder.write_error if recorder is not None else None, interrupted,
+                        list(getattr(calibration, "attempts", [])), start_ns,
+                        getattr(calibration, "saved_file", None))
+
+
+def _calibration_request(stamp_ns: int, protocol: str) -> Callable[[dict[str, Node]], None]:
+    def press(nodes: dict[str, Node]) -> None:
+        if "calibration" in nodes:
+            nodes["calibration"].calibrate_at(stamp_ns, protocol)
+
+    return press
 
 
 def run_live(nodes: Sequence[str] | None = None, output: str | Path | None = None,

@@ -219,3 +219,42 @@ def test_cli_analyze_with_a_calibration_file(tmp_path, capsys):
     counts = BagReader(tmp_path / "out").message_counts()
     assert counts["/calibration/sensor_to_segment"] == 1 and counts["/ground_truth/joint_states"] > 0
     assert counts["/left_foot/imu/data"] == counts["/left_foot/imu/data_raw"]
+
+
+def test_replay_and_analyze_take_the_same_calibration_options(session_bag, tmp_path, capsys):
+    """`replay --calibrate-at` and `analyze --calibrate-at` calibrate on the same samples, print the
+    windows they used and save calibration.yaml with their outputs; a recording without truth gets
+    no "error to true mounting" line; the saved file is accepted by --calibration."""
+    from gait_biofeedback.cli import main
+    from gait_biofeedback.core.calibration.stream import read_calibration_file
+    from gait_biofeedback.io.bag import write_imu_bag
+
+    bag, session = session_bag
+    sensors_only = write_imu_bag(tmp_path / "sensors", session.imu)  # a real recording has no truth
+    request = ["--calibrate-at", f"{CALIBRATE_AT:g}:hip_flexion", "--params", str(SESSION_PARAMS)]
+    assert main(["analyze", str(sensors_only), "-o", str(tmp_path / "offline"), *request]) == 0
+    out = capsys.readouterr().out
+    assert "calibrate (hip_flexion, data up to 36.00 s): calibrated" in out
+    # the standing found before the hip moves (phases: stand 0-5 s, hip flexion 5-35 s, starting
+    # slowly: the first 0.4 s are still quiet enough)
+    windows = next(line for line in out.splitlines() if "quiet standing" in line)
+    standing, motion = windows.split(", motion ")
+    s0, s1 = (float(x) for x in standing.split()[-2].split("-"))
+    m0, m1 = (float(x) for x in motion.split()[0].split("-"))
+    assert 0.0 <= s0 < s1 <= 5.5 and s1 == m0 and m1 == 36.0
+    assert "calibration: left_thigh ok" in out and "true" not in out and "truth" not in out
+    offline, _ = read_calibration_file(tmp_path / "offline" / "calibration.yaml", SEGMENTS)
+
+    assert main(["replay", str(sensors_only), "--record", str(tmp_path / "live"), "--speed", "4",
+                 "--nodes", "orientation_filter,calibration", *request]) == 0
+    out = capsys.readouterr().out
+    assert "calibrate (hip_flexion, data up to 36.00 s): calibrated" in out and "quiet standing" in out
+    assert f"calibration saved as {tmp_path / 'live' / 'calibration.yaml'}" in out
+    live, _ = read_calibration_file(tmp_path / "live" / "calibration.yaml", SEGMENTS)
+    for segment in SEGMENTS:
+        np.testing.assert_allclose(live.segments[segment].rotation, offline.segments[segment].rotation,
+                                   rtol=0, atol=1e-12)
+
+    assert main(["analyze", str(sensors_only), "-o", str(tmp_path / "again"), "--calibration",
+                 str(tmp_path / "live" / "calibration.yaml"), "--params", str(SESSION_PARAMS)]) == 0
+    assert "/joint_states" in capsys.readouterr().out

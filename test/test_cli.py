@@ -6,10 +6,10 @@ import shutil
 
 import numpy as np
 import pytest
-from conftest import shared_data
+from conftest import shared_data, synthetic_imu
 
 from gait_biofeedback.cli import main
-from gait_biofeedback.io.bag import BagReader, read_imu_bag
+from gait_biofeedback.io.bag import BagReader, read_imu_bag, write_imu_bag
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -106,3 +106,21 @@ def test_an_unwritable_or_taken_output_is_refused_before_any_work(tmp_path, caps
     assert main(["import", "qmt_fullbody", "x.mat", "-o", str(tmp_path / "walk")]) == 2
     err = capsys.readouterr().err
     assert "exists and is not empty" in err and "--overwrite" not in err, "import has no such flag"
+
+
+def test_info_takes_rates_from_the_stamps_and_reports_going_back(tmp_path, capsys):
+    """A 100 Hz stream recorded at 2x (log times twice as dense) is 100 Hz; a sample stamped before
+    the one before it is counted."""
+    from gait_biofeedback.io.bag import BagWriter
+
+    source = write_imu_bag(tmp_path / "in", synthetic_imu(["left_foot"], duration=2.0, with_mag=False))
+    messages = list(BagReader(source).raw_messages())
+    t0 = messages[0][3]
+    with BagWriter(tmp_path / "fast") as writer:
+        for k, (topic, type_name, data, log_ns) in enumerate(messages):
+            if k == 50:
+                data = messages[40][2]  # an old sample again
+            writer.write_serialized(topic, type_name, data, t0 + (log_ns - t0) // 2)
+    assert main(["info", str(tmp_path / "fast")]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if "/left_foot/imu/data_raw" in x)
+    assert " 100.0 Hz" in line and "1 stamps not after the one before" in line

@@ -184,7 +184,7 @@ def test_replayer_start_stop_offsets_loop_and_clock(tmp_path, ros_context):
     from rosgraph_msgs.msg import Clock
     from sensor_msgs.msg import Imu
 
-    from gait_biofeedback.wire.stamps import stamp_to_s
+    from gait_biofeedback.wire.stamps import stamp_to_ns, stamp_to_s
 
     bag = write_imu_bag(tmp_path / "in", synthetic_imu(["pelvis"], duration=1.0, with_mag=False, t0=50.0))
     got = _collect(ros_context, bag, Imu, "pelvis/imu/data_raw", speed=0.0, start_offset=0.2,
@@ -198,8 +198,12 @@ def test_replayer_start_stop_offsets_loop_and_clock(tmp_path, ros_context):
     assert np.sum(np.diff(stamps) < 0) == 1, "one jump back to the start per loop"
     assert stamps[100] == pytest.approx(50.0)
 
-    clock = _collect(ros_context, bag, Clock, "/clock", speed=0.0, publish_clock=True)
-    assert len(clock) == 100 and stamp_to_s(clock[-1].clock) == pytest.approx(50.99)
+    clock = _collect(ros_context, bag, Clock, "/clock", speed=0.0, publish_clock=True, clock_period=0.02)
+    ticks = np.array([stamp_to_ns(c.clock) for c in clock])
+    # the start time while it waits for subscribers, then every 20 ms of recording time (each 2nd sample)
+    start = int(np.sum(ticks == 50_000_000_000))
+    assert start >= 2 and np.all(np.diff(ticks) >= 0)
+    np.testing.assert_array_equal(ticks[start - 1:], 50_000_000_000 + 20_000_000 * np.arange(50))
 
 
 def test_recorder_splits_by_duration_and_keeps_every_message(tmp_path):
@@ -274,3 +278,17 @@ def test_recorder_refuses_to_overwrite_a_recording(tmp_path, ros_context):
         Recorder(ros_context, output=str(earlier))
     assert threading.active_count() == threads
     assert BagReader(earlier).message_count == 20, "the earlier recording is untouched"
+
+
+def test_a_replay_recording_has_one_time_base(tmp_path):
+    """Data stamps, /diagnostics stamps and log times are all in the replayed recording's time
+    (the replayer's /clock), not a mix of it and the wall clock."""
+    bag = write_imu_bag(tmp_path / "in", synthetic_imu(["chest", "pelvis"], duration=3.0, t0=1000.0))
+    out = tmp_path / "out"
+    replay_through_graph(bag, out, speed=1.0, nodes=["orientation_filter"], timeout=60)
+    reader = BagReader(out)
+    assert reader.start_time_ns / 1e9 >= 1000.0 and reader.end_time_ns / 1e9 <= 1003.0
+    stamps = [m.header.stamp.sec + m.header.stamp.nanosec / 1e9
+              for _, m, _ in reader.messages(["/diagnostics"])]
+    assert len(stamps) >= 2 and all(1000.0 <= s <= 1003.0 for s in stamps), stamps
+    assert "/clock" not in reader.topics(), "the replayer's clock is not recorded"

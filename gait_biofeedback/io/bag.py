@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -42,10 +43,12 @@ __all__ = [
 def repair(path: str | Path) -> dict[str, Any]:
     """Make a cut-off recording whole again; return a report of what was done.
 
-    Every .mcap file without a valid summary is rewritten as a complete MCAP file (summary,
-    chunk and message indexes) holding every message of its complete chunks; the original is
-    kept as ``<file>.orig``. For a bag folder, metadata.yaml is rebuilt from the files when it is
-    missing or disagrees with them (the old one is kept as ``metadata.yaml.orig``).
+    Every chunk of every .mcap file is checked (decompression, CRC). A file without a valid
+    summary, or with a chunk that fails its check, is rewritten as a complete MCAP file (summary,
+    chunk and message indexes) holding every message of its readable chunks; the original is kept
+    as ``<file>.orig`` and ``damage`` names what was lost (bad chunks with their time range into the
+    recording). For a bag folder, metadata.yaml is rebuilt from the files when it is missing or
+    disagrees with them (the old one is kept as ``metadata.yaml.orig``).
     Report: ``{"path", "files": [{"file", "status": "ok"|"repaired", "messages", "damage",
     "original"}], "message_count", "metadata": "ok"|"created"|"rebuilt"|"not a folder"}``.
     """
@@ -58,8 +61,13 @@ def repair(path: str | Path) -> dict[str, Any]:
     report: dict[str, Any] = {"path": str(path), "files": [], "message_count": 0}
     file_records: list[FileRecord] = []
     topics: dict[str, TopicRecord] = {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", BagRecoveryWarning)  # what is wrong goes into the report
+        with BagReader(path) as reader:
+            reader.verify()
+            lost = {str(f.path): [reader.describe(b) for b in f.bad_chunks] for f in reader.files}
     for file in files:
-        entry = _repair_file(file)
+        entry = _repair_file(file, lost.get(str(file), []))
         report["files"].append(entry)
         mcap = McapFile.open(file)
         try:
@@ -77,7 +85,7 @@ def repair(path: str | Path) -> dict[str, Any]:
     return report
 
 
-def _repair_file(file: Path) -> dict[str, Any]:
+def _repair_file(file: Path, bad_chunks: list[str]) -> dict[str, Any]:
     mcap = McapFile.open(file)
     try:
         entry = {
@@ -87,7 +95,7 @@ def _repair_file(file: Path) -> dict[str, Any]:
             "damage": "",
             "original": None,
         }
-        if mcap.complete:
+        if mcap.complete and not bad_chunks:
             return entry
         tmp = file.with_name(f".{file.name}.repair")
         try:
@@ -98,7 +106,9 @@ def _repair_file(file: Path) -> dict[str, Any]:
             raise OSError(f"cannot repair {file}: writing its repaired copy failed ({exc.strerror or exc}); "
                           f"it needs about {file.stat().st_size / 1e6:.1f} MB free on its disk. Nothing was "
                           "changed: free some space and repair again") from None
-        entry.update(status="repaired", damage=mcap.damage)
+        damage = [mcap.damage] if mcap.damage else []
+        entry.update(status="repaired", damage="; ".join([*damage, *bad_chunks]),
+                     messages=mcap.message_count)
     finally:
         mcap.close()
     original = _free_name(file.with_name(file.name + ".orig"))

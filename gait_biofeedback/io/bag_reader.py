@@ -12,12 +12,12 @@ from typing import Any
 
 from rclpy.serialization import deserialize_message
 
-from gait_biofeedback.io.mcap_file import McapFile
+from gait_biofeedback.io.mcap_file import BadChunk, McapFile
 from gait_biofeedback.io.schemas import message_class
 
 
 class BagRecoveryWarning(UserWarning):
-    """A file of the bag is damaged; only its complete chunks are read."""
+    """A file of the bag is damaged; only its readable chunks are read."""
 
 
 def bag_files(path: Path) -> list[Path]:
@@ -35,7 +35,9 @@ class BagReader:
     """Messages of a bag folder or .mcap file, in log-time order across its split files.
 
     A file without a valid summary (recording cut off) is read up to its last complete chunk; a
-    :class:`BagRecoveryWarning` names the file and the number of messages recovered.
+    :class:`BagRecoveryWarning` names the file and the number of messages recovered. A chunk that
+    fails its CRC is skipped with a :class:`BagRecoveryWarning` naming the time range lost, when it
+    is met while reading or by :meth:`verify`; every warning is also kept in :attr:`warnings`.
     """
 
     def __init__(self, path: str | Path) -> None:
@@ -64,6 +66,38 @@ class BagReader:
                 )
                 self.warnings.append(text)
                 warnings.warn(text, BagRecoveryWarning, stacklevel=2)
+            for bad in f.bad_chunks:
+                self._bad_chunk(f, bad, warn=False)
+            f.on_bad_chunk = self._bad_chunk
+
+    def _bad_chunk(self, f: McapFile, bad: BadChunk, warn: bool = True) -> None:
+        text = f"{f.path}: {self.describe(bad)}"
+        self.warnings.append(text)
+        if warn:
+            warnings.warn(text, BagRecoveryWarning, stacklevel=3)
+
+    def describe(self, bad: BadChunk) -> str:
+        """A bad chunk in words: where, why, which time range of the recording it took away."""
+        t0 = self.start_time_ns
+        lost = "" if bad.messages is None else f", {bad.messages} messages"
+        return (f"chunk at byte {bad.offset} unreadable ({bad.reason}): data from "
+                f"{(bad.start_ns - t0) / 1e9:.2f} s to {(bad.end_ns - t0) / 1e9:.2f} s into the recording "
+                f"skipped{lost}")
+
+    def verify(self) -> list[str]:
+        """Check every chunk of every file (a full read); the bad ones in words (see :meth:`describe`)."""
+        out = []
+        for f in self.files:
+            known = len(f.bad_chunks)
+            f.on_bad_chunk = None
+            try:
+                f.verify()
+            finally:
+                f.on_bad_chunk = self._bad_chunk
+            for bad in f.bad_chunks[known:]:
+                self._bad_chunk(f, bad, warn=False)
+            out += [f"{f.path}: {self.describe(b)}" for b in f.bad_chunks]
+        return out
 
     def topics(self) -> dict[str, str]:
         """``{topic: type name}``, e.g. ``{"/left_foot/imu/data_raw": "sensor_msgs/msg/Imu"}``."""

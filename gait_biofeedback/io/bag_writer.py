@@ -21,6 +21,7 @@ from typing import Any, BinaryIO
 
 from mcap.writer import CompressionType, Writer
 
+from gait_biofeedback.core.calibration.stream import CALIBRATION_FILE
 from gait_biofeedback.io.bag_metadata import (
     FileRecord,
     TopicRecord,
@@ -49,17 +50,17 @@ def finish_open_chunk(writer: Writer) -> None:
 
 def check_output(path: str | Path, overwrite: bool = False) -> None:
     """Raise, with a message that says what to do, unless a bag folder can be written at ``path``:
-    it must not be a file, an existing folder must be empty (or hold only a bag, replaced with
-    ``overwrite``), and a file must be creatable in it (tried, and removed again with any folder
-    created for the try)."""
+    it must not be a file, an existing folder must be empty or hold only the session's
+    calibration.yaml (or hold only a bag, replaced with ``overwrite``), and a file must be creatable
+    in it (tried, and removed again with any folder created for the try)."""
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise FileExistsError(f"{path} exists and is not a folder; a bag is written as a folder")
-    if path.is_dir() and any(path.iterdir()):
+    if path.is_dir() and any(p.name != CALIBRATION_FILE for p in path.iterdir()):
         if not overwrite:
             raise FileExistsError(f"bag folder {path} exists and is not empty: write to another folder "
                                   "or remove it first")
-        leftovers = [p for p in path.iterdir() if p.suffix != ".mcap" and p.name != "metadata.yaml"]
+        leftovers = [p for p in path.iterdir() if not _bag_part(p)]
         if leftovers:
             raise FileExistsError(f"{path} holds files that are not part of a bag ({leftovers[0].name}); "
                                   "refusing to overwrite it")
@@ -76,6 +77,10 @@ def check_output(path: str | Path, overwrite: bool = False) -> None:
         for folder in created:
             with contextlib.suppress(OSError):
                 folder.rmdir()
+
+
+def _bag_part(path: Path) -> bool:
+    return path.suffix == ".mcap" or path.name in ("metadata.yaml", CALIBRATION_FILE)
 
 
 @dataclass
@@ -140,7 +145,7 @@ class BagWriter:
 
     def _prepare_folder(self, overwrite: bool) -> None:
         check_output(self.path, overwrite)
-        if self.path.is_dir():
+        if self.path.is_dir() and overwrite:
             for p in self.path.iterdir():
                 p.unlink()
         self.path.mkdir(parents=True, exist_ok=True)

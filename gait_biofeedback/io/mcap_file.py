@@ -1,10 +1,13 @@
 """Low-level, damage-tolerant reading of one MCAP file.
 
 A complete file is indexed from its summary section (schemas, channels, statistics, chunk
-indexes). A file without a valid footer (recorder killed, disk full, copied while open) is
-scanned record by record from the start; the scan stops at the first record that does not fit in
-the file or whose chunk does not decompress or fails its CRC, so every complete chunk before that
-point is recovered. The file is memory-mapped, not read into memory.
+indexes) once the summary passes its CRC. A file without a valid footer or summary (recorder
+killed, disk full, copied while open, a flipped bit) is scanned record by record from the start;
+a chunk that does not decompress or fails its CRC is set aside as a :class:`BadChunk` and the scan
+goes on with the next record, and the scan stops at the first record that does not fit in the
+file, so every readable chunk is recovered. Reading checks every chunk's CRC: a bad chunk is
+skipped (its messages are not counted any more) and reported to :attr:`McapFile.on_bad_chunk`, so
+changed data are never returned. The file is memory-mapped, not read into memory.
 """
 
 from __future__ import annotations
@@ -14,7 +17,7 @@ import mmap
 import struct
 import zlib
 from collections import Counter
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import NamedTuple
@@ -24,7 +27,7 @@ import zstandard
 
 MAGIC = b"\x89MCAP0\r\n"
 OP_HEADER, OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK = 0x01, 0x02, 0x03, 0x04, 0x05, 0x06
-OP_CHUNK_INDEX, OP_STATISTICS, OP_METADATA, OP_DATA_END = 0x08, 0x0B, 0x0C, 0x0F
+OP_MESSAGE_INDEX, OP_CHUNK_INDEX, OP_STATISTICS, OP_METADATA, OP_DATA_END = 0x07, 0x08, 0x0B, 0x0C, 0x0F
 _RECORD_HEAD = struct.Struct("<BQ")
 _MESSAGE_HEAD = struct.Struct("<HIQQ")
 _FOOTER_SIZE = 1 + 8 + 20
@@ -71,6 +74,18 @@ class ChunkRef:
     start: int
     end: int
     channel_ids: frozenset[int] | None = None
+    message_index: dict[int, int] | None = None  # channel id → offset of its message index record
+
+
+@dataclass(frozen=True)
+class BadChunk:
+    """A chunk whose data cannot be trusted (does not decompress, fails its CRC, overruns)."""
+
+    offset: int  # of the chunk record in the file
+    start_ns: int  # log times it covers, as its header or index says
+    end_ns: int
+    messages: int | None  # how many it held, from the file's message indexes (None: unknown)
+    reason: str
 
 
 @dataclass
@@ -91,6 +106,9 @@ class McapFile:
     channel_counts: Counter[int] = field(default_factory=Counter)
     start_time: int | None = None
     end_time: int | None = None
+    bad_chunks: list[BadChunk] = field(default_factory=list)
+    on_bad_chunk: Callable[[McapFile, BadChunk], None] | None = None  # called once per bad chunk found
+    _summary_problem: str = ""
     _buf: mmap.mmap | bytes = b""
 
     @classmethod
@@ -117,6 +135,7 @@ class McapFile:
         self.schemas.clear()
         self.channels.clear()
         self.chunks.clear()
+        self.bad_chunks.clear()
         self.channel_counts.clear()
         self.start_time = self.end_time = None
 
@@ -144,8 +163,11 @@ class McapFile:
         footer_at = size - 8 - _FOOTER_SIZE
         if footer_at < 8 or buf[size - 8 :] != MAGIC or buf[footer_at] != OP_FOOTER:
             return False
-        summary_start, _ = struct.unpack_from("<QQ", buf, footer_at + 9)
+        summary_start, _, crc = struct.unpack_from("<QQI", buf, footer_at + 9)
         if not 8 < summary_start <= footer_at:
+            return False
+        if crc and zlib.crc32(buf[summary_start : footer_at + 25]) != crc:
+            self._summary_problem = "its summary section fails its CRC"
             return False
         self._parse_header()
         has_chunk_index = has_statistics = False
@@ -158,8 +180,9 @@ class McapFile:
                 has_chunk_index = True
                 start, stop, chunk_offset = struct.unpack_from("<QQQ", buf, body)
                 (map_len,) = struct.unpack_from("<I", buf, body + 32)
-                ids = [struct.unpack_from("<H", buf, p)[0] for p in range(body + 36, body + 36 + map_len, 10)]
-                self.chunks.append(ChunkRef(chunk_offset + 9, start, stop, frozenset(ids)))
+                entries = range(body + 36, body + 36 + map_len, 10)
+                index = dict(struct.unpack_from("<HQ", buf, p) for p in entries)
+                self.chunks.append(ChunkRef(chunk_offset + 9, start, stop, frozenset(index), index))
             elif op == OP_STATISTICS:
                 has_statistics = True
                 self._parse_statistics(body)
@@ -205,20 +228,27 @@ class McapFile:
                 self.damage = f"record at byte {pos} is cut off ({self.size - body} of {length} bytes)"
                 break
             if op in (OP_DATA_END, OP_FOOTER):
-                self.damage = "summary section missing or unreadable"
+                self.damage = self._summary_problem or "summary section missing or unreadable"
                 break
+            if op == OP_CHUNK:
+                try:
+                    self._index_chunk(body)
+                except _DAMAGE_ERRORS as err:  # set aside; the records after it are still framed
+                    self._set_aside(body, None, f"{type(err).__name__}: {err}")
+                pos = end
+                continue
             try:
                 self._scan_record(op, body, end)
             except _DAMAGE_ERRORS as err:
                 self.damage = f"record at byte {pos} is corrupt ({type(err).__name__}: {err})"
                 break
             pos = end
+        if self.bad_chunks:
+            self.damage += f"; {len(self.bad_chunks)} unreadable chunk(s) set aside"
 
     def _scan_record(self, op: int, body: int, end: int) -> None:
         buf = self._buf
-        if op == OP_CHUNK:
-            self._index_chunk(body)
-        elif op == OP_SCHEMA:
+        if op == OP_SCHEMA:
             self._add_schema(buf, body)
         elif op == OP_CHANNEL:
             self._add_channel(buf, body)
@@ -288,14 +318,53 @@ class McapFile:
             raise ValueError("CRC mismatch")
         return data
 
+    def _set_aside(self, body: int, chunk: ChunkRef | None, reason: str) -> None:
+        """Record a bad chunk once: uncount its messages (per the message indexes), tell the owner."""
+        if any(b.offset == body - 9 for b in self.bad_chunks):
+            return
+        if chunk is None:
+            try:
+                start, end, _, _ = _chunk_head(self._buf, body)
+            except struct.error:
+                start = end = 0
+        else:
+            start, end = chunk.start, chunk.end
+            self.chunks.remove(chunk)
+        counts = self._indexed_counts(chunk) if chunk is not None else None
+        if counts is not None:
+            self.channel_counts.subtract(counts)
+        bad = BadChunk(body - 9, start, end, None if counts is None else sum(counts.values()), reason)
+        self.bad_chunks.append(bad)
+        if self.on_bad_chunk is not None:
+            self.on_bad_chunk(self, bad)
+
+    def _indexed_counts(self, chunk: ChunkRef) -> dict[int, int] | None:
+        """Messages per channel in ``chunk`` from its message index records (16 bytes per entry)."""
+        if not chunk.message_index:
+            return None
+        counts = {}
+        try:
+            for channel_id, offset in chunk.message_index.items():
+                op, _, _, n = struct.unpack_from("<BQHI", self._buf, offset)
+                if op != OP_MESSAGE_INDEX:
+                    return None
+                counts[channel_id] = n // 16
+        except struct.error:
+            return None
+        return counts
+
+    def verify(self) -> list[BadChunk]:
+        """Check every chunk (decompress, CRC, record framing): the bad ones, now set aside."""
+        for chunk in list(self.chunks):
+            self._chunk_messages(chunk, None)
+        return list(self.bad_chunks)
+
     def _chunk_messages(self, chunk: ChunkRef, channel_ids: frozenset[int] | None) -> list[RawMessage]:
         try:
-            records = list(_chunk_records(self._chunk_data(chunk.offset)))
+            records = list(_chunk_records(self._chunk_data(chunk.offset, check_crc=True)))
         except _DAMAGE_ERRORS as err:
-            raise ValueError(
-                f"{self.path}: chunk at byte {chunk.offset - 9} is corrupt ({type(err).__name__}: {err}); "
-                "the file's index is intact but its data is not"
-            ) from err
+            self._set_aside(chunk.offset, chunk, f"{type(err).__name__}: {err}")
+            return []
         out = []
         for op, data, p, q in records:
             if op == OP_MESSAGE:

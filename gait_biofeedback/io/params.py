@@ -21,7 +21,10 @@ class ReplayerParams:
                                 high=604800.0)
     stop_offset: float = param(0.0, "stop this far into the recording (0 = at its end)", "s",
                                low=0.0, high=604800.0)
-    publish_clock: bool = param(False, "publish /clock with the recording's time")
+    publish_clock: bool = param(False, "publish /clock with the recording's log time (for nodes with "
+                                "use_sim_time: their stamps and the recorder's log times then follow it)")
+    clock_period: float = param(0.01, "publish /clock at least this often in recording time (and at the "
+                                "start time while waiting for subscribers)", "s", low=0.001, high=1.0)
     topics: tuple[str, ...] = param((), "topics to replay (empty = all)")
     wait_for_subscribers: float = param(0.0, "wait this long for every topic to have a subscriber before "
                                         "starting (0 = start at once)", "s", low=0.0, high=600.0)

@@ -22,7 +22,7 @@ from rclpy.context import Context
 from gait_biofeedback.core.activity.monitor import ActivityState
 from gait_biofeedback.core.activity.stream import ActivityParams, ActivityStream
 from gait_biofeedback.core.segments import sensor_frame
-from gait_biofeedback.nodes.common import GuardedNode, diagnostic_array, log_notices, publisher, subscribe
+from gait_biofeedback.nodes.common import GuardedNode, log_notices, publisher, subscribe
 from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
 from gait_biofeedback.wire import diagnostics, topics
 from gait_biofeedback.wire.activity import activity_msg
@@ -43,7 +43,6 @@ class ActivityMonitorNode(GuardedNode):
         self._newest_ns = 0
         self.published = 0
         self._pub = publisher(self, topics.ACTIVITY)
-        self._diagnostics = publisher(self, topics.DIAGNOSTICS)
         subscribe(self, topics.raw_imu(self.segment), self._on_imu, raw=True)
         subscribe(self, topics.CALIBRATION, self._on_calibration)
         self.create_timer(self.params.publish_period, self._periodic)
@@ -75,8 +74,8 @@ class ActivityMonitorNode(GuardedNode):
             self._publish(latest)
         level = DiagnosticStatus.OK if latest is not None else DiagnosticStatus.WARN
         message = "monitoring" if latest is not None else "waiting for chest data"
-        self._diagnostics.publish(diagnostic_array(self, [diagnostics.status(
-            "activity_monitor", level, message, sensor_frame(self.segment), self.counts)]))
+        self.publish_diagnostics([diagnostics.status(
+            "activity_monitor", level, message, sensor_frame(self.segment), self.counts)])
 
 
 def main(args: list[str] | None = None) -> int:

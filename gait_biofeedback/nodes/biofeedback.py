@@ -54,7 +54,7 @@ from gait_biofeedback.core.calibration.sensor_to_segment import PROTOCOLS
 from gait_biofeedback.core.segments import SIDES
 from gait_biofeedback.core.stamps import NS_PER_S
 from gait_biofeedback.dashboard.commands import CommandError, parse_command
-from gait_biofeedback.nodes.common import GuardedNode, diagnostic_array, publisher, subscribe
+from gait_biofeedback.nodes.common import GuardedNode, publisher, subscribe
 from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
 from gait_biofeedback.wire import diagnostics, topics
 from gait_biofeedback.wire.activity import state_of
@@ -140,7 +140,6 @@ class BiofeedbackNode(GuardedNode):
                                 (topics.CALIBRATION, self._on_calibration)):
             subscribe(self, topic, callback)
         self._cues = publisher(self, topics.CUES)
-        self._diagnostics = publisher(self, topics.DIAGNOSTICS)
         self._calibrate = self.create_client(Calibrate, topics.CALIBRATE_SERVICE)
         self._record = {"record_start": self.create_client(Trigger, topics.RECORDER_START_SERVICE),
                         "record_stop": self.create_client(Trigger, topics.RECORDER_STOP_SERVICE)}
@@ -393,8 +392,7 @@ class BiofeedbackNode(GuardedNode):
                 level, text = DiagnosticStatus.ERROR, f"dashboard server failed: {self.server.error}"
         if level == DiagnosticStatus.OK and self.counts["joint_states"] == 0:
             level, text = DiagnosticStatus.WARN, "no joint angles yet: calibrate, then walk"
-        self._diagnostics.publish(diagnostic_array(self, [diagnostics.status("biofeedback", level, text,
-                                                                             values=values)]))
+        self.publish_diagnostics([diagnostics.status("biofeedback", level, text, values=values)])
 
     def destroy_node(self) -> None:
         if self.server is not None:

@@ -11,10 +11,12 @@ On success: publishes the result latched on ``calibration/sensor_to_segment`` (w
 computed in this session, and when) and writes ``<session_dir>/calibration.yaml`` atomically. At start
 it puts that file in force only when asked (``reload_calibration``: a file found in a shared folder may
 belong to another patient or dataset), after checking it is complete and has every segment; otherwise
-it says the file is there and not used. The message's header.stamp is the sample stamp from which the
-calibration is in force: ``apply_delay`` s after the newest sample used (0 for a reloaded file: at once),
-so joint_angles and gait_events switch at the same sample whenever the message reaches them within that
-delay. A refused calibration keeps the previous one in force and publishes nothing.
+it says the file is there and not used; ``calibration_file`` names a file to put in force instead
+(an unusable one is refused at start with the reason). The message's header.stamp is the sample stamp
+from which the calibration is in force: ``apply_delay`` s after the newest sample used (0 for a
+reloaded file: at once), so joint_angles and gait_events switch at the same sample whenever the
+message reaches them within that delay. A refused calibration keeps the previous one in force and
+publishes nothing.
 
 Parameters: :class:`~gait_biofeedback.core.calibration.stream.CalibrationParams`.
 """
@@ -52,10 +54,12 @@ class CalibrationNode(GuardedNode):
         super().__init__("calibration", context=context, parameter_overrides=node_overrides(overrides))
         self.params: CalibrationParams = declare_parameters(self, CalibrationParams)
         self.segments = list(self.params.segments)
-        self.session_dir = Path(self.params.session_dir)
+        self.session_dir = Path(self.params.session_dir or "session")
         self.core = CalibrationBuffer(self.params)
         self.current: SessionCalibration | None = None
         self.last_attempt: CalibrationAttempt | None = None
+        self.attempts: list[CalibrationAttempt] = []  # every request's outcome, in order
+        self.saved_file: Path | None = None  # where the last result in force was saved
         for seg in self.segments:
             subscribe(self, topics.orientation(seg), lambda m, s=seg: self._on_imu(s, m), raw=True)
         self._pub = publisher(self, topics.CALIBRATION)
@@ -72,6 +76,13 @@ class CalibrationNode(GuardedNode):
         return self.session_dir / CALIBRATION_FILE
 
     def _reload(self) -> None:
+        if self.params.calibration_file:
+            path = Path(self.params.calibration_file).absolute()
+            if not path.is_file():
+                raise ValueError(f"calibration: parameter 'calibration_file': {path} not found")
+            calibration, saved_at = read_calibration_file(path, self.segments)  # ValueError says why
+            self._put_in_force(calibration, path, saved_at)
+            return
         path = self.calibration_file.absolute()
         if not path.exists():
             return
@@ -84,9 +95,12 @@ class CalibrationNode(GuardedNode):
         except (ValueError, OSError) as exc:
             self.get_logger().error(f"calibration not reloaded: {exc}")
             return
+        self._put_in_force(calibration, path, saved_at)
+
+    def _put_in_force(self, calibration: SessionCalibration, path: Path, saved_at: str) -> None:
         self.current = calibration
-        source = f"reloaded from {path} (saved {saved_at or 'at an unknown time'})"
-        self.get_logger().info(f"calibration {source}")
+        source = f"from {path} (saved {saved_at or 'at an unknown time'})"
+        self.get_logger().info(f"calibration in force {source}")
         self._pub.publish(calibration_msg(calibration, 0, source, path.stat().st_mtime_ns))
 
     def _on_imu(self, segment: str, data: bytes) -> None:
@@ -104,6 +118,7 @@ class CalibrationNode(GuardedNode):
     def _accept(self, attempt: CalibrationAttempt) -> None:
         """Keep, save and publish a successful result (a refused one changes nothing)."""
         self.last_attempt = attempt
+        self.attempts.append(attempt)
         cal = attempt.calibration
         if attempt.success and cal is not None and attempt.applies_from_ns is not None:
             self.current = cal
@@ -114,6 +129,7 @@ class CalibrationNode(GuardedNode):
                                               f"computed in this session at {when}{until}", now))
             try:
                 write_calibration_file(self.calibration_file, cal, time.strftime("%Y-%m-%dT%H:%M:%S%z"))
+                self.saved_file = self.calibration_file.absolute()
             except OSError as exc:
                 self.get_logger().error(f"calibration in force but not saved: {exc}")
 

@@ -22,7 +22,8 @@ from collections.abc import Callable, Iterable, Iterator, Sequence
 from typing import Any
 
 import rclpy
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticStatus
+from rclpy.clock import Clock, ClockType
 from rclpy.context import Context
 from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.node import Node
@@ -38,19 +39,32 @@ from gait_biofeedback.wire.topics import Topic
 
 
 class GuardedNode(Node):
-    """A node whose callbacks never end the process.
+    """A node whose callbacks never end the process, and whose timers run on the steady clock.
 
     An exception in a subscription, timer, service or future callback (:meth:`guarded`) is logged
     once per callback with its traceback, naming the node and the callback, counted in
     :attr:`callback_errors` and reported on ``/diagnostics`` (``<node>: callbacks``, ERROR, every
     second while there are errors); the node goes on with the next message. A failed service callback
-    answers with the default response (``success`` false where the service has it)."""
+    answers with the default response (``success`` false where the service has it).
+
+    Timers count wall seconds also under ``use_sim_time`` (a replay at 10x must not run the
+    dashboard or the diagnostics 10x as often); only stamps follow ``/clock``."""
 
     def __init__(self, node_name: str, **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
         self.callback_errors: dict[str, int] = {}
-        self._error_publisher: Publisher | None = None
-        super().create_timer(1.0, self._report_errors)
+        self._steady_clock = Clock(clock_type=ClockType.STEADY_TIME)
+        self._diagnostics_publisher = publisher(self, topics.DIAGNOSTICS)
+        super().create_timer(1.0, self._report_errors, clock=self._steady_clock)
+
+    def publish_diagnostics(self, statuses: Iterable[DiagnosticStatus]) -> None:
+        """Publish ``statuses`` on ``/diagnostics``, stamped with the node's clock. Under
+        ``use_sim_time`` nothing is published until the first ``/clock`` (a stamp of 0 would put the
+        status in another time base than the data)."""
+        now = self.get_clock().now()
+        if now.nanoseconds == 0 and self.get_parameter("use_sim_time").value:
+            return
+        self._diagnostics_publisher.publish(diagnostics.array(now.to_msg(), statuses))
 
     def guarded(self, what: str, callback: Callable[..., Any]) -> Callable[..., Any]:
         """``callback`` that logs, counts and swallows its exceptions (see class docstring)."""
@@ -75,14 +89,12 @@ class GuardedNode(Node):
     def _report_errors(self) -> None:
         if not self.callback_errors:
             return
-        if self._error_publisher is None:
-            self._error_publisher = publisher(self, topics.DIAGNOSTICS)
         total = sum(self.callback_errors.values())
         worst = max(self.callback_errors, key=self.callback_errors.get)
         status = diagnostics.status(f"{self.get_name()}: callbacks", diagnostics.ERROR,
                                     f"{total} callback failure(s), skipped (most: {worst}); see the log",
                                     values={k: v for k, v in self.callback_errors.items()})
-        self._error_publisher.publish(diagnostic_array(self, [status]))
+        self.publish_diagnostics([status])
 
     def create_subscription(self, msg_type: Any, topic: str, callback: Callable[..., Any],
                             qos_profile: Any, **kwargs: Any) -> Subscription:
@@ -93,6 +105,7 @@ class GuardedNode(Node):
                      **kwargs: Any) -> Any:
         name = getattr(callback, "__name__", "timer").lstrip("_").replace("_", " ")
         wrapped = self.guarded(f"timer {name}", callback)
+        kwargs.setdefault("clock", self._steady_clock)
         return super().create_timer(timer_period_sec, wrapped, *args, **kwargs)
 
     def create_service(self, srv_type: Any, srv_name: str, callback: Callable[..., Any],
@@ -132,11 +145,6 @@ def publisher(node: Node, topic: Topic) -> Publisher:
 def subscribe(node: Node, topic: Topic, callback: Callable[[Any], None], raw: bool = False) -> Subscription:
     """A subscription to ``topic`` with its message type and QoS; ``raw``: the callback gets CDR bytes."""
     return node.create_subscription(topic.msg_type, topic.name, callback, topic.qos, raw=raw)
-
-
-def diagnostic_array(node: Node, statuses: Iterable[DiagnosticStatus]) -> DiagnosticArray:
-    """DiagnosticArray of ``statuses`` stamped with the node clock."""
-    return diagnostics.array(node.get_clock().now().to_msg(), statuses)
 
 
 STOP = threading.Event()
@@ -179,6 +187,11 @@ def make_executor(context: Context | None = None) -> Executor:
         return SingleThreadedExecutor(context=context)
     from rclpy.experimental import EventsExecutor
 
+    try:
+        sys.stderr.fileno()
+    except (AttributeError, OSError):  # e.g. Jupyter, captured output: EventsExecutor's
+        with contextlib.redirect_stderr(sys.__stderr__):  # faulthandler.enable() needs a real file
+            return EventsExecutor(context=context)
     return EventsExecutor(context=context)
 
 

@@ -29,7 +29,7 @@ from rclpy.context import Context
 
 from gait_biofeedback.core.gait.events import GaitEventDetector
 from gait_biofeedback.core.gait.stream import GaitEventsParams, GaitEventStream
-from gait_biofeedback.nodes.common import GuardedNode, diagnostic_array, log_notices, publisher, subscribe
+from gait_biofeedback.nodes.common import GuardedNode, log_notices, publisher, subscribe
 from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
 from gait_biofeedback.wire import diagnostics, topics
 from gait_biofeedback.wire.calibration import entries
@@ -52,7 +52,6 @@ class GaitEventsNode(GuardedNode):
         self._stopped: dict[str, bool] = {s: False for s in self.sides}
         self._events = publisher(self, topics.GAIT_EVENTS)
         self._cycles = publisher(self, topics.GAIT_CYCLES)
-        self._diagnostics = publisher(self, topics.DIAGNOSTICS)
         for side in self.sides:
             subscribe(self, topics.orientation(foot_frame(side)), lambda data, s=side: self._on_imu(s, data),
                       raw=True)
@@ -113,7 +112,7 @@ class GaitEventsNode(GuardedNode):
             statuses.append(diagnostics.status(f"gait_events: {side} foot", level, message, foot_frame(side),
                                                {**self.counts[side],
                                                 "waiting_for_ic": self.detectors[side].waiting_for_ic}))
-        self._diagnostics.publish(diagnostic_array(self, statuses))
+        self.publish_diagnostics(statuses)
 
 
 def main(args: list[str] | None = None) -> int:

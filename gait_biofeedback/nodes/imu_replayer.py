@@ -64,17 +64,27 @@ class ImuReplayer(GuardedNode):
         self._thread = threading.Thread(target=self._run, name="imu_replayer", daemon=True)
         self._thread.start()
         self.get_logger().info(
-            f"replaying {bag}: {len(self.topics)} topics at {self.speed or 'max'}x"
+            f"replaying {bag}: {len(self.topics)} topics "
+            + (f"at {self.speed:g}x" if self.speed else "as fast as possible")
             + (", looping" if self.loop else ""))
 
-    def _wait_for_subscribers(self) -> None:
+    def _tick(self, log_ns: int) -> None:
+        if self._clock_pub is not None:
+            self._clock_pub.publish(Clock(clock=ns_to_stamp(log_ns)))
+
+    def _wait_for_subscribers(self, first_ns: int) -> None:
+        """Wait for subscribers, ticking /clock at the start time meanwhile, so that nodes with
+        use_sim_time have the recording's time before its first message."""
         deadline = time.monotonic() + self.wait_for_subscribers
         while time.monotonic() < deadline and not self._stop.is_set():
+            self._tick(first_ns)
             if all(pub.get_subscription_count() > 0 for pub in self._topic_publishers.values()):
                 # the writer has matched every reader; give the readers time to match the writer
                 # too, or the first best-effort messages are dropped on their side (0.25 s was
                 # not enough on a loaded 2-core machine)
-                time.sleep(1.0)
+                for _ in range(20):
+                    time.sleep(0.05)
+                    self._tick(first_ns)
                 return
             time.sleep(0.01)
         lonely = [t for t, pub in self._topic_publishers.items() if pub.get_subscription_count() == 0]
@@ -87,9 +97,11 @@ class ImuReplayer(GuardedNode):
         return start, stop
 
     def _run(self) -> None:
-        if self.wait_for_subscribers > 0:
-            self._wait_for_subscribers()
         start_ns, stop_ns = self._window_ns()
+        if self.wait_for_subscribers > 0:
+            self._wait_for_subscribers(start_ns or self.reader.start_time_ns)
+        period_ns = round(self.params.clock_period * 1e9)
+        next_tick = 0
         while not self._stop.is_set():
             wall0 = time.perf_counter()
             first_ns = None
@@ -103,8 +115,9 @@ class ImuReplayer(GuardedNode):
                     delay = wall0 + (log_ns - first_ns) * 1e-9 / self.speed - time.perf_counter()
                     if delay > 0 and self._stop.wait(delay):
                         break
-                if self._clock_pub is not None:
-                    self._clock_pub.publish(Clock(clock=ns_to_stamp(log_ns)))
+                if log_ns >= next_tick or log_ns < next_tick - period_ns:  # (a loop jumps back)
+                    self._tick(log_ns)
+                    next_tick = log_ns + period_ns
                 self._topic_publishers[topic].publish(data)
                 self.published += 1
                 self.position_ns = log_ns

@@ -31,7 +31,7 @@ from gait_biofeedback.core.joints.stream import (
     JointAngleStream,
     SyncedAngles,
 )
-from gait_biofeedback.nodes.common import GuardedNode, diagnostic_array, publisher, subscribe
+from gait_biofeedback.nodes.common import GuardedNode, publisher, subscribe
 from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
 from gait_biofeedback.wire import diagnostics, topics
 from gait_biofeedback.wire.calibration import rotations
@@ -55,7 +55,6 @@ class JointAnglesNode(GuardedNode):
         subscribe(self, topics.CALIBRATION, self._on_calibration)
         self._joints = publisher(self, topics.JOINT_STATES)
         self._skeleton = publisher(self, topics.SKELETON)
-        self._diagnostics = publisher(self, topics.DIAGNOSTICS)
         self.create_timer(max(self.params.max_wait / 2, 0.01), self._flush)
         self.create_timer(self.params.diagnostics_period, self._publish_diagnostics)
 
@@ -106,7 +105,7 @@ class JointAnglesNode(GuardedNode):
             values = {f"missing_{s}": n for s, n in self.missing_counts.items()}
             values["published"] = self.published
             status = diagnostics.status("joint_angles", level, text, values=values)
-        self._diagnostics.publish(diagnostic_array(self, [status]))
+        self.publish_diagnostics([status])
 
 
 def main(args: list[str] | None = None) -> int:

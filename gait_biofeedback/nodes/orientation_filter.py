@@ -23,7 +23,7 @@ from rclpy.context import Context
 
 from gait_biofeedback.core.orientation.stream import OrientationParams, SegmentOrientationTracker
 from gait_biofeedback.core.segments import sensor_frame
-from gait_biofeedback.nodes.common import GuardedNode, diagnostic_array, log_notices, publisher, subscribe
+from gait_biofeedback.nodes.common import GuardedNode, log_notices, publisher, subscribe
 from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
 from gait_biofeedback.wire import diagnostics, topics
 from gait_biofeedback.wire.cdr import decode_imu, decode_mag
@@ -51,7 +51,6 @@ class OrientationFilterNode(GuardedNode):
             subscribe(self, topics.raw_imu(segment), lambda data, s=segment: self._on_imu(s, data), raw=True)
             subscribe(self, topics.magnetometer(segment), lambda data, s=segment: self._on_mag(s, data),
                       raw=True)
-        self._diagnostics = publisher(self, topics.DIAGNOSTICS)
         self.create_timer(self.params.diagnostics_period, self._publish_diagnostics)
         self.get_logger().info(
             "tracking " + ", ".join(f"{s} ({t.algorithm})" for s, t in self.trackers.items()))
@@ -104,8 +103,7 @@ class OrientationFilterNode(GuardedNode):
 
     def _publish_diagnostics(self) -> None:
         now = time.monotonic()
-        self._diagnostics.publish(diagnostic_array(
-            self, (self._segment_status(s, now) for s in self.trackers)))
+        self.publish_diagnostics(self._segment_status(s, now) for s in self.trackers)
 
 
 def main(args: list[str] | None = None) -> int:

@@ -14,6 +14,9 @@ calibration is recorded even when it was published before the recorder started.
 Parameters: :class:`~gait_biofeedback.io.params.RecorderParams`. Services ``recorder/start`` and
 ``recorder/stop`` (std_srvs/Trigger) open a new bag folder
 (``<output>_1``, ``<output>_2``, … after the first) and close it, e.g. from the dashboard.
+
+Log time is the receive time: the system clock, or with ``use_sim_time`` the ``/clock`` (a replay
+recording then has one time base, the recording's; messages before the first tick are logged at it).
 """
 
 from __future__ import annotations
@@ -29,12 +32,13 @@ from std_srvs.srv import Trigger
 
 from gait_biofeedback.io.bag import BagWriter, message_class
 from gait_biofeedback.io.params import RecorderParams
-from gait_biofeedback.nodes.common import GuardedNode, diagnostic_array, publisher
+from gait_biofeedback.nodes.common import GuardedNode
 from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
 from gait_biofeedback.wire import diagnostics, topics
 from gait_biofeedback.wire.topics import RELIABLE_QOS, SENSOR_QOS
 
-ALWAYS_EXCLUDED = ("/parameter_events", "/rosout")
+ALWAYS_EXCLUDED = ("/parameter_events", "/rosout", "/clock")
+"""Never recorded: ROS bookkeeping, and a replayer's clock (a recording's time is its log time)."""
 BATCH_WAIT = 0.01
 """Seconds the writer thread waits, once it has emptied the queue, before it blocks on it again."""
 
@@ -70,8 +74,9 @@ class Recorder(GuardedNode):
         self._queue: queue.SimpleQueue = queue.SimpleQueue()
         # Log time = receive time in ns. Without use_sim_time the node's ROS_TIME clock is the system
         # clock, i.e. time.time_ns() (≈10× cheaper than get_clock().now() per message).
-        use_sim_time = self.get_parameter("use_sim_time").value
-        self._now_ns = (lambda: self.get_clock().now().nanoseconds) if use_sim_time else time.time_ns
+        self._sim_time = bool(self.get_parameter("use_sim_time").value)
+        self._now_ns = (lambda: self.get_clock().now().nanoseconds) if self._sim_time else time.time_ns
+        self._before_clock: list[tuple[str, str, bytes]] = []  # received before the first /clock
         self._closed = threading.Event()
         self._thread = threading.Thread(target=self._write_loop, name="recorder_writer", daemon=True)
         if p.autostart:
@@ -79,7 +84,6 @@ class Recorder(GuardedNode):
         self._thread.start()
         self.create_service(Trigger, topics.RECORDER_START_SERVICE, self._on_start)
         self.create_service(Trigger, topics.RECORDER_STOP_SERVICE, self._on_stop)
-        self._diagnostics = publisher(self, topics.DIAGNOSTICS)
         self._discover()
         self.create_timer(p.discovery_period, self._discover)
         self.create_timer(1.0, self._publish_diagnostics)
@@ -177,7 +181,14 @@ class Recorder(GuardedNode):
         if not self._recording:
             self.dropped_while_stopped += 1
             return
-        self._queue.put((topic, type_name, data, self._now_ns()))
+        now = self._now_ns()
+        if self._sim_time:
+            if now == 0:  # no /clock yet: logged at its first tick, not at 0 (another time base)
+                self._before_clock.append((topic, type_name, data))
+                return
+            while self._before_clock:
+                self._queue.put((*self._before_clock.pop(0), now))
+        self._queue.put((topic, type_name, data, now))
 
     def _close_writer(self) -> None:
         if self.writer is not None:
@@ -255,8 +266,7 @@ class Recorder(GuardedNode):
             level, text = diagnostics.OK, f"recording to {self.output}"
         else:
             level, text = diagnostics.WARN, "not recording: press Record on the dashboard (recorder/start)"
-        self._diagnostics.publish(diagnostic_array(self, [diagnostics.status("recorder", level, text,
-                                                                             values=values)]))
+        self.publish_diagnostics([diagnostics.status("recorder", level, text, values=values)])
 
     @property
     def written(self) -> int:

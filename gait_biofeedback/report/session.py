@@ -160,7 +160,9 @@ def format_report(report: SessionReport) -> list[str]:
             parts = [f"{s} {'ok' if e['valid'] else 'REFUSED'}"
                      + (f" {_deg(e['error']).strip()}°" if "error" in e else "")
                      for s, e in estimated.items()]
-            lines.append("calibration (error to true mounting): " + ", ".join(parts))
+            truth = any("error" in e for e in estimated.values())
+            lines.append(("calibration (error to true mounting): " if truth else "calibration: ")
+                         + ", ".join(parts))
         else:
             lines.append("calibration: none in force (no joint angles, no gait events)")
     if report.joint_rmse:

@@ -81,9 +81,12 @@ class CalibrationParams:
 
     segments: tuple[str, ...] = param(SEGMENTS, "segments calibrated by every request", choices=SEGMENTS)
     buffer_s: float = param(90.0, "how far back a request looks for the protocol", "s", low=10.0, high=600.0)
-    session_dir: str = param("session", "folder where each calibration is saved (calibration.yaml)")
+    session_dir: str = param("", "folder where each calibration is saved (calibration.yaml); '' = the "
+                             "recording's folder when the graph records (run/replay --record), else session")
     reload_calibration: bool = param(False, "put the calibration saved in session_dir in force at start "
                                      "(only when it is this patient's: that is not checked)")
+    calibration_file: str = param("", "a calibration.yaml (e.g. this patient's earlier session) in force "
+                                  "from the start ('' = none; overrides reload_calibration)")
     default_standing_duration: float = param(3.0, "quiet standing a request needs when it names none", "s",
                                              low=0.5, high=30.0)
     apply_delay: float = param(0.5, "a result is in force from this long after the newest sample used "

@@ -1,0 +1,99 @@
+"""A corrupt byte in a complete recording is never read as data (issue 12, line 8).
+
+Every chunk's CRC and the summary's CRC are checked; a bad chunk is skipped with a warning naming
+the time range it took away; ``info`` and ``repair`` report it; ``repair`` keeps every readable
+chunk; ``analyze`` goes on without it.
+"""
+
+from __future__ import annotations
+
+import shutil
+import warnings
+
+import numpy as np
+from conftest import synthetic_imu
+
+from gait_biofeedback.cli import main
+from gait_biofeedback.io.bag import BagReader, BagRecoveryWarning, repair, write_imu_bag
+from gait_biofeedback.io.mcap_file import McapFile
+
+
+def _bag(tmp_path):
+    imu = synthetic_imu(["pelvis", "left_foot"], duration=20.0, with_mag=False)
+    return write_imu_bag(tmp_path / "good", imu, chunk_size=64 * 1024)
+
+
+def _read(path) -> tuple[list[tuple[str, bytes, int]], list[str]]:
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", BagRecoveryWarning)
+        with BagReader(path) as reader:
+            messages = [(t, bytes(d), log) for t, _, d, log in reader.raw_messages()]
+    return messages, [str(w.message) for w in caught if issubclass(w.category, BagRecoveryWarning)]
+
+
+def _flip(folder, position: int) -> None:
+    (file,) = folder.glob("*.mcap")
+    data = bytearray(file.read_bytes())
+    data[position] ^= 0x5A
+    file.write_bytes(bytes(data))
+
+
+def test_no_single_byte_flip_is_read_silently_as_data(tmp_path):
+    good = _bag(tmp_path)
+    original, said = _read(good)
+    assert not said and len(original) == 4000
+    known = set(original)
+    (file,) = good.glob("*.mcap")
+    size = file.stat().st_size
+    for k, position in enumerate(np.linspace(40, size - 9, 31).astype(int)):
+        copy = tmp_path / f"flip{k}"
+        shutil.copytree(good, copy)
+        _flip(copy, int(position))
+        try:
+            messages, said = _read(copy)
+        except ValueError:  # refused as a whole (e.g. the header's magic): nothing read wrongly
+            continue
+        assert set(messages) <= known, f"byte {position}: changed data were read as data"
+        if len(messages) < len(original):
+            assert said, f"byte {position}: {len(original) - len(messages)} messages lost without a word"
+
+
+def test_info_repair_and_analyze_name_the_bad_chunk(tmp_path, capsys):
+    good = _bag(tmp_path)
+    original, _ = _read(good)
+    mcap = McapFile.open(next(good.glob("*.mcap")))
+    chunks = sorted(mcap.chunks, key=lambda c: c.offset)
+    assert len(chunks) >= 4
+    middle = chunks[len(chunks) // 2]
+    t0 = (middle.start - mcap.start_time) / 1e9
+    in_middle = {(m.log_time, m.data) for m in mcap._chunk_messages(middle, None)}
+    mcap.close()
+    bad = tmp_path / "bad"
+    shutil.copytree(good, bad)
+    _flip(bad, middle.offset + 200)  # inside its compressed records
+
+    assert main(["info", str(bad)]) == 1
+    out = capsys.readouterr().out
+    assert f"DAMAGED: {next(bad.glob('*.mcap'))}: chunk at byte {middle.offset - 9} unreadable" in out
+    assert f"data from {t0:.2f} s" in out and "gait-biofeedback repair" in out
+    kept = [m for m in original if (m[2], m[1]) not in in_middle]
+    lost = len(original) - len(kept)
+    assert f"{len(kept)} messages" in out.splitlines()[0], "the counts leave out what cannot be read"
+
+    messages, said = _read(bad)
+    assert messages == kept and len(said) == 1 and f"{lost} messages" in said[0]
+
+    report = repair(bad)
+    (entry,) = report["files"]
+    assert entry["status"] == "repaired" and "unreadable" in entry["damage"]
+    assert report["message_count"] == len(kept)
+    messages, said = _read(bad)
+    assert messages == kept and not said, "the repaired file is whole and holds every readable chunk"
+
+    capsys.readouterr()
+    shutil.rmtree(bad)
+    shutil.copytree(good, bad)
+    _flip(bad, middle.offset + 200)
+    assert main(["analyze", str(bad), "-o", str(tmp_path / "out")]) == 0
+    err = capsys.readouterr().err
+    assert "unreadable" in err and f"data from {t0:.2f} s" in err and "skipped" in err
