@@ -229,7 +229,7 @@ def test_replay_and_analyze_take_the_same_calibration_options(session_bag, tmp_p
     from gait_biofeedback.core.calibration.stream import read_calibration_file
     from gait_biofeedback.io.bag import write_imu_bag
 
-    bag, session = session_bag
+    _, session = session_bag
     sensors_only = write_imu_bag(tmp_path / "sensors", session.imu)  # a real recording has no truth
     request = ["--calibrate-at", f"{CALIBRATE_AT:g}:hip_flexion", "--params", str(SESSION_PARAMS)]
     assert main(["analyze", str(sensors_only), "-o", str(tmp_path / "offline"), *request]) == 0
@@ -246,7 +246,7 @@ def test_replay_and_analyze_take_the_same_calibration_options(session_bag, tmp_p
     offline, _ = read_calibration_file(tmp_path / "offline" / "calibration.yaml", SEGMENTS)
 
     assert main(["replay", str(sensors_only), "--record", str(tmp_path / "live"), "--speed", "4",
-                 "--nodes", "orientation_filter,calibration", *request]) == 0
+                 "--stop", "37", "--nodes", "orientation_filter,calibration", *request]) == 0
     out = capsys.readouterr().out
     assert "calibrate (hip_flexion, data up to 36.00 s): calibrated" in out and "quiet standing" in out
     assert f"calibration saved as {tmp_path / 'live' / 'calibration.yaml'}" in out

@@ -166,7 +166,7 @@ def _collect(ros_context, bag, topic_type, topic, until=None, **params):
     sink.create_subscription(topic_type, topic, got.append, SENSOR_QOS)
     executor = make_executor(ros_context)
     executor.add_node(sink)
-    replayer = ImuReplayer(ros_context, bag=str(bag), wait_for_subscribers=5.0, **params)
+    replayer = ImuReplayer(ros_context, bag=str(bag), **{"wait_for_subscribers": 5.0, **params})
     executor.add_node(replayer)
     try:
         done = replayer.finished.is_set if until is None else (lambda: until(got))
@@ -198,7 +198,8 @@ def test_replayer_start_stop_offsets_loop_and_clock(tmp_path, ros_context):
     assert np.sum(np.diff(stamps) < 0) == 1, "one jump back to the start per loop"
     assert stamps[100] == pytest.approx(50.0)
 
-    clock = _collect(ros_context, bag, Clock, "/clock", speed=0.0, publish_clock=True, clock_period=0.02)
+    clock = _collect(ros_context, bag, Clock, "/clock", speed=0.0, publish_clock=True, clock_period=0.02,
+                     wait_for_subscribers=1.0)  # nobody subscribes the data topic: a shorter wait
     ticks = np.array([stamp_to_ns(c.clock) for c in clock])
     # the start time while it waits for subscribers, then every 20 ms of recording time (each 2nd sample)
     start = int(np.sum(ticks == 50_000_000_000))
