@@ -70,6 +70,10 @@ def cmd_import(args: argparse.Namespace) -> int:
     if args.mapping:
         options["mapping"] = args.mapping
     if args.units:
+        bad = [u for u in args.units if "=" not in u]
+        if bad:
+            raise ValueError(f"--units {' '.join(bad)}: expected QUANTITY=UNIT pairs, e.g. --units acc=g "
+                             "gyr=deg/s mag=uT time=ms")
         options["units"] = dict(u.split("=", 1) for u in args.units)
     if args.rate:
         options["rate_hz"] = args.rate

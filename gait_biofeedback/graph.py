@@ -21,7 +21,14 @@ from rclpy.node import Node
 
 from gait_biofeedback.core.calibration.stream import CalibrationAttempt
 from gait_biofeedback.io.bag import BagReader
-from gait_biofeedback.nodes.common import STOP, init_ros, make_executor, spin_until, stop_on_signals
+from gait_biofeedback.nodes.common import (
+    STOP,
+    init_ros,
+    make_executor,
+    refuse_other_graph,
+    spin_until,
+    stop_on_signals,
+)
 from gait_biofeedback.nodes.imu_replayer import ImuReplayer
 from gait_biofeedback.nodes.recorder import Recorder
 from gait_biofeedback.parameters import stage_parameters
@@ -137,6 +144,7 @@ def running_graph(
     graph = RunningGraph(context, make_executor(context), {}, None)
     with stop_on_signals():
         try:
+            refuse_other_graph(context, [*chosen, *(["recorder"] if output is not None else [])])
             if output is not None:
                 recorder = Recorder(context, output=str(output), **params.get("recorder", {}))
                 graph.recorder = graph.add(recorder)

@@ -124,3 +124,63 @@ def test_info_takes_rates_from_the_stamps_and_reports_going_back(tmp_path, capsy
     assert main(["info", str(tmp_path / "fast")]) == 0
     line = next(x for x in capsys.readouterr().out.splitlines() if "/left_foot/imu/data_raw" in x)
     assert " 100.0 Hz" in line and "1 stamps not after the one before" in line
+
+
+def _walk_csv(tmp_path, gyr_factor=1.0, time_factor=1.0, bom=False):
+    """A simulated walk's left foot as a CSV (acc m/s², gyr rad/s × gyr_factor, t s × time_factor)."""
+    from gait_biofeedback.sim.simulator import SCENARIOS, simulate
+
+    foot = simulate(SCENARIOS["walk"](duration=8.0, seed=3)).imu["left_foot"]
+    rows = ["time,ax,ay,az,gx,gy,gz"] + [
+        ",".join(f"{v:.6g}" for v in (t * time_factor, *a, *(g * gyr_factor)))
+        for t, a, g in zip(foot.t, foot.acc, foot.gyr, strict=True)]
+    csv = tmp_path / "walk.csv"
+    csv.write_text(("\ufeff" if bom else "") + "\n".join(rows) + "\n", encoding="utf-8")
+    mapping = tmp_path / "map.yaml"
+    mapping.write_text("left_foot: {acc: [ax, ay, az], gyr: [gx, gy, gz]}\n")
+    return csv, mapping, foot
+
+
+def test_import_csv_reads_a_bom_and_refuses_ms_declared_as_s(tmp_path, capsys):
+    csv, mapping, foot = _walk_csv(tmp_path, bom=True)
+    assert main(["import", "csv", str(csv), "--mapping", str(mapping), "-o", str(tmp_path / "a")]) == 0
+    assert capsys.readouterr().err == "", "no warning for a plausible recording"
+    np.testing.assert_allclose(read_imu_bag(tmp_path / "a")["left_foot"].gyr, foot.gyr, rtol=1e-5, atol=1e-5)
+
+    csv, mapping, _ = _walk_csv(tmp_path, time_factor=1000.0)  # a time column in ms
+    assert main(["import", "csv", str(csv), "--mapping", str(mapping), "-o", str(tmp_path / "b")]) == 2
+    err = capsys.readouterr().err
+    assert "median sample interval of 10 s (0.1 Hz" in err and "--units time=ms" in err
+    assert not (tmp_path / "b").exists()
+    assert main(["import", "csv", str(csv), "--mapping", str(mapping), "--units", "time=ms",
+                 "-o", str(tmp_path / "b")]) == 0
+
+
+def test_import_csv_warns_of_deg_per_s_declared_as_rad_per_s(tmp_path, capsys):
+    csv, mapping, _ = _walk_csv(tmp_path, gyr_factor=np.degrees(1.0))
+    assert main(["import", "csv", str(csv), "--mapping", str(mapping), "-o", str(tmp_path / "a")]) == 0
+    err = capsys.readouterr().err
+    assert "left_foot: 99th percentile |gyr|" in err and "--units gyr=deg/s" in err
+    assert main(["import", "csv", str(csv), "--mapping", str(mapping), "--units", "gyr=deg/s",
+                 "-o", str(tmp_path / "b")]) == 0
+    assert capsys.readouterr().err == ""
+    # and the other way round: rad/s declared as deg/s barely turns while the foot walks
+    csv, mapping, _ = _walk_csv(tmp_path)
+    assert main(["import", "csv", str(csv), "--mapping", str(mapping), "--units", "gyr=deg/s",
+                 "-o", str(tmp_path / "c")]) == 0
+    assert "if the file is in rad/s, say so with --units gyr=rad/s" in capsys.readouterr().err
+
+
+def test_import_csv_refuses_unknown_segments_and_malformed_units(tmp_path, capsys):
+    csv, mapping, _ = _walk_csv(tmp_path)
+    mapping.write_text("left_fot: {acc: [ax, ay, az], gyr: [gx, gy, gz]}\n")
+    assert main(["import", "csv", str(csv), "--mapping", str(mapping), "-o", str(tmp_path / "a")]) == 2
+    assert "unknown segment 'left_fot' (did you mean 'left_foot'?)" in capsys.readouterr().err
+    mapping.write_text("left_foot: {acc: [ax, ay, az], gyr: [gx, gy, gz]}\n")
+    assert main(["import", "csv", str(csv), "--mapping", str(mapping), "--units", "acc:g",
+                 "-o", str(tmp_path / "a")]) == 2
+    assert "--units acc:g: expected QUANTITY=UNIT pairs, e.g. --units acc=g" in capsys.readouterr().err
+    # the file's acc is in m/s²; declared as g, its median |acc| is about 10 g
+    assert main(["import", "csv", str(csv), "--mapping", str(mapping), "--units", "acc=g",
+                 "-o", str(tmp_path / "b")]) == 0
+    assert "if the file is in m/s², say so with --units acc=m/s2" in capsys.readouterr().err

@@ -293,3 +293,24 @@ def test_a_replay_recording_has_one_time_base(tmp_path):
               for _, m, _ in reader.messages(["/diagnostics"])]
     assert len(stamps) >= 2 and all(1000.0 <= s <= 1003.0 for s in stamps), stamps
     assert "/clock" not in reader.topics(), "the replayer's clock is not recorded"
+
+
+def test_a_second_graph_on_the_same_domain_is_refused_before_it_opens_anything(tmp_path):
+    """Two graphs on one ROS domain would process each other's data: the second one refuses to
+    start, naming the domain and what to do, and creates no recording."""
+    from gait_biofeedback.graph import running_graph
+    from gait_biofeedback.nodes.common import DomainInUseError
+
+    bag = write_imu_bag(tmp_path / "in", synthetic_imu(["chest"], duration=0.5, with_mag=False))
+    with running_graph(["orientation_filter", "calibration"]) as first:
+        assert "orientation_filter" in first.nodes
+        domain = os.environ["ROS_DOMAIN_ID"]
+        with pytest.raises(DomainInUseError, match=rf"already runs calibration, orientation_filter on "
+                           rf"ROS_DOMAIN_ID={domain}; .* Stop it, or start this one on a domain"):
+            replay_through_graph(bag, tmp_path / "second", nodes=["orientation_filter", "calibration"],
+                                 timeout=30)
+    assert not (tmp_path / "second").exists(), "nothing opened for a refused graph"
+    # once the first has stopped, the same graph starts
+    result = replay_through_graph(bag, tmp_path / "second", speed=0.0, nodes=["orientation_filter"],
+                                  timeout=30)
+    assert result.published == 50

@@ -19,6 +19,7 @@ Use :func:`import_recording` with ``kind="auto"`` to pick the importer from the 
 from __future__ import annotations
 
 import csv
+import difflib
 import math
 import re
 from collections.abc import Callable, Mapping
@@ -28,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from gait_biofeedback.core.segments import GRAVITY, STANDARD_GRAVITY, ImuSeries
+from gait_biofeedback.core.segments import GRAVITY, SEGMENTS, STANDARD_GRAVITY, ImuSeries
 
 DEG_TO_RAD = math.pi / 180.0
 MICROTESLA_TO_TESLA = 1e-6
@@ -355,6 +356,12 @@ def import_generic_csv(
     if not segment_map:
         raise ValueError(f"mapping for {path} names no segment; "
                          "give segment -> {'acc': [...], 'gyr': [...]}")
+    for segment in segment_map:
+        if segment not in SEGMENTS:
+            close = difflib.get_close_matches(str(segment), SEGMENTS, n=1)
+            raise ValueError(f"mapping for {path} names an unknown segment '{segment}'"
+                             + (f" (did you mean '{close[0]}'?)" if close else "")
+                             + f"; the segments are {list(SEGMENTS)}")
     merged_units = {**DEFAULT_UNITS, **dict(mapping_dict.get("units") or {}), **dict(units or {})}
     factors = _unit_factors(merged_units)
 
@@ -374,6 +381,7 @@ def import_generic_csv(
 
     t = _csv_time(path, data.shape[0], mapping_dict.get("time"), header, column, rate_hz,
                   factors["time"])
+    _check_sample_rate(path, t, None if rate_hz is not None else merged_units["time"])
     imu: dict[str, ImuSeries] = {}
     warnings: list[str] = []
     for segment, columns in segment_map.items():
@@ -435,7 +443,7 @@ def _unit_factors(units: Mapping[str, str]) -> dict[str, float]:
 
 
 def _read_header(path: Path) -> tuple[list[str], str]:
-    with path.open(newline="") as handle:
+    with path.open(newline="", encoding="utf-8-sig") as handle:  # a BOM (Excel's UTF-8) is not a name
         first_line = handle.readline()
     if not first_line.strip():
         raise ValueError(f"{path}: empty file or empty header line; expected one row of column names")
@@ -479,18 +487,89 @@ def _csv_time(
     return t
 
 
+PLAUSIBLE_RATE_HZ = (5.0, 5000.0)
+"""Sampling rates an IMU recording can have; outside them the time unit is wrong."""
+GYRO_RANGE = 35.0  # rad/s (2000 deg/s): no body segment turns faster; beyond it the unit is deg/s
+REST_GYRO = 0.3  # rad/s (17 deg/s): more than any gyro bias while the accelerometer says "at rest"
+TURN_PER_SHAKE = 0.05
+"""Below this 99th percentile |gyr| (rad/s) per m/s² of |acc| standard deviation a moving segment
+does not turn (rad/s read as deg/s). Real recordings (hapt waist, ipol feet and back, gaitmap feet,
+qmt full body) are at 0.8-2.5, the simulator's walk at 0.13 or more; read as deg/s they fall to 1/57."""
+
+
+def _check_sample_rate(path: Path, t: np.ndarray, unit: str | None) -> None:
+    """Refuse a time base whose median sample interval is no IMU's (ms declared as s: 0.1 Hz);
+    ``unit`` None: the rate was given, not read from a column."""
+    if len(t) < 2:
+        return
+    dt = float(np.median(np.diff(t)))
+    lo, hi = PLAUSIBLE_RATE_HZ
+    if lo <= 1.0 / dt <= hi:
+        return
+    found = f"a median sample interval of {dt:.3g} s ({1.0 / dt:.3g} Hz, {t[-1] - t[0]:.4g} s in all)"
+    if unit is None:
+        raise ValueError(f"{path}: the rate given gives {found}; an IMU samples at {lo:g}-{hi:g} Hz")
+    raw = dt / UNIT_FACTORS["time"][unit]
+    fits = [u for u in ("s", "ms", "us", "ns") if lo <= 1.0 / (raw * UNIT_FACTORS["time"][u]) <= hi]
+    hint = (f": if the time column is in {fits[0]}, say so with --units time={fits[0]} "
+            f"(Python: units={{'time': '{fits[0]}'}})" if fits else "")
+    raise ValueError(f"{path}: the time column read in {unit} gives {found}, not an IMU's rate "
+                     f"({lo:g}-{hi:g} Hz){hint}")
+
+
+def _rest_blocks(series: ImuSeries) -> np.ndarray:
+    """Indices of the samples in 1 s blocks where the accelerometer norm barely moves (at rest)."""
+    if len(series) < 3:
+        return np.zeros(0, dtype=int)
+    n = max(round(series.rate_hz), 2)
+    keep = []
+    for start in range(0, len(series) - n + 1, n):
+        norm = np.linalg.norm(series.acc[start:start + n], axis=1)
+        if np.all(np.isfinite(norm)) and np.std(norm) < 0.02 * GRAVITY:
+            keep.append(np.arange(start, start + n))
+    return np.concatenate(keep) if keep else np.zeros(0, dtype=int)
+
+
 def _unit_plausibility_warnings(series: ImuSeries, units: Mapping[str, str]) -> list[str]:
-    """Warn when magnitudes suggest a wrong unit (checked on median norms; silent when unsure)."""
+    """Warn when magnitudes suggest a wrong unit: median |acc| far from 1 g, gyro rates beyond any
+    body segment's or moving while the accelerometer is at rest (deg/s read as rad/s), or barely
+    moving while the accelerometer moves (rad/s read as deg/s), |mag| far from Earth's field.
+    Silent when unsure."""
     warnings: list[str] = []
-    acc_norm = np.nanmedian(np.linalg.norm(series.acc, axis=1)) if len(series) else math.nan
-    if np.isfinite(acc_norm) and acc_norm < 0.3 * GRAVITY:
-        warnings.append(f"{series.segment}: median |acc| is {acc_norm:.3g} m/s² with acc unit "
-                        f"'{units['acc']}'; if the file is in g, pass units={{'acc': 'g'}}")
-    if series.mag is not None and len(series):
+    name = series.segment
+
+    def unit_hint(quantity: str, unit: str) -> str:
+        return f"say so with --units {quantity}={unit} (Python: units={{'{quantity}': '{unit}'}})"
+
+    if not len(series):
+        return warnings
+    acc_norm = np.linalg.norm(series.acc, axis=1)
+    acc_median = np.nanmedian(acc_norm)
+    if np.isfinite(acc_median) and acc_median < 0.3 * GRAVITY:
+        warnings.append(f"{name}: median |acc| is {acc_median:.3g} m/s² with acc unit '{units['acc']}'; "
+                        f"if the file is in g, {unit_hint('acc', 'g')}")
+    elif np.isfinite(acc_median) and acc_median > 3.0 * GRAVITY:
+        warnings.append(f"{name}: median |acc| is {acc_median:.3g} m/s² with acc unit '{units['acc']}'; "
+                        f"if the file is in m/s², {unit_hint('acc', 'm/s2')}")
+    gyr_norm = np.linalg.norm(series.gyr, axis=1)
+    rest = _rest_blocks(series)
+    at_rest = float(np.nanmedian(gyr_norm[rest])) if len(rest) else math.nan
+    fastest = float(np.nanpercentile(gyr_norm, 99)) if np.isfinite(gyr_norm).any() else math.nan
+    if fastest > GYRO_RANGE or at_rest > REST_GYRO:
+        what = (f"99th percentile |gyr| {fastest:.3g} rad/s" if fastest > GYRO_RANGE
+                else f"median |gyr| {at_rest:.3g} rad/s while the accelerometer is at rest")
+        warnings.append(f"{name}: {what} with gyr unit '{units['gyr']}'; if the file is in deg/s, "
+                        f"{unit_hint('gyr', 'deg/s')}")
+    elif (units["gyr"] != "rad/s" and (shaking := np.nanstd(acc_norm)) > 0.05 * GRAVITY
+          and fastest < TURN_PER_SHAKE * shaking):
+        warnings.append(f"{name}: the gyro barely turns (99th percentile {fastest:.3g} rad/s) while the "
+                        f"accelerometer moves, with gyr unit '{units['gyr']}'; if the file is in rad/s, "
+                        f"{unit_hint('gyr', 'rad/s')}")
+    if series.mag is not None:
         mag_norm = np.nanmedian(np.linalg.norm(series.mag, axis=1))
         if np.isfinite(mag_norm) and not 1e-6 <= mag_norm <= 1e-3:
-            warnings.append(f"{series.segment}: median |mag| is {mag_norm:.3g} T with mag unit "
-                            f"'{units['mag']}' (Earth: 25-65 µT); check units['mag']")
+            warnings.append(f"{name}: median |mag| is {mag_norm:.3g} T with mag unit '{units['mag']}' "
+                            "(Earth: 25-65 µT); check it (--units mag=uT, mag=gauss or mag=T)")
     return warnings
 
 

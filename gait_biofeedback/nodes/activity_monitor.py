@@ -35,8 +35,10 @@ from gait_biofeedback_msgs.msg import SegmentCalibrationArray
 class ActivityMonitorNode(GuardedNode):
     """Chest activity monitor (see module docstring)."""
 
+    NODE_NAME = "activity_monitor"
+
     def __init__(self, context: Context | None = None, **overrides: object) -> None:
-        super().__init__("activity_monitor", context=context, parameter_overrides=node_overrides(overrides))
+        super().__init__(self.NODE_NAME, context=context, parameter_overrides=node_overrides(overrides))
         self.params: ActivityParams = declare_parameters(self, ActivityParams)
         self.segment = self.params.segment
         self.stream = ActivityStream(self.params)

@@ -96,8 +96,10 @@ def cue_to_json(c: Cue) -> dict[str, Any]:
 class BiofeedbackNode(GuardedNode):
     """Biofeedback cues and the dashboard server (see module docstring)."""
 
+    NODE_NAME = "biofeedback"
+
     def __init__(self, context: Context | None = None, **overrides: object) -> None:
-        super().__init__("biofeedback", context=context, parameter_overrides=node_overrides(overrides))
+        super().__init__(self.NODE_NAME, context=context, parameter_overrides=node_overrides(overrides))
         self.params: BiofeedbackParams = declare_parameters(self, BiofeedbackParams)
         p = self.params
         self.targets = load_targets(p.targets_file or str(default_targets_path()))

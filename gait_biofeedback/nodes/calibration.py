@@ -50,8 +50,10 @@ from gait_biofeedback_msgs.srv import Calibrate
 class CalibrationNode(GuardedNode):
     """Sensor-to-segment calibration service (see module docstring)."""
 
+    NODE_NAME = "calibration"
+
     def __init__(self, context: Context | None = None, **overrides: object) -> None:
-        super().__init__("calibration", context=context, parameter_overrides=node_overrides(overrides))
+        super().__init__(self.NODE_NAME, context=context, parameter_overrides=node_overrides(overrides))
         self.params: CalibrationParams = declare_parameters(self, CalibrationParams)
         self.segments = list(self.params.segments)
         self.session_dir = Path(self.params.session_dir or "session")

@@ -229,6 +229,39 @@ def params_files(args: Sequence[str]) -> list[str]:
     return [args[i + 1] for i, a in enumerate(args[:-1]) if a == "--params-file"]
 
 
+class DomainInUseError(ValueError):
+    """Another process on this ROS domain runs a node this one is about to start (a ValueError: the
+    CLI prints it in one line)."""
+
+
+def refuse_other_graph(context: Context, names: Iterable[str], settle: float = 0.2) -> None:
+    """Raise :class:`DomainInUseError` when another process on this ROS domain (and namespace) already runs
+    a node called one of ``names``: two graphs on one domain process each other's data (joint states
+    of both patients in one bag). Checked before the nodes exist (no file is opened), for ``settle`` s
+    of discovery. Two graphs started within that time of each other are not caught."""
+    probe = Node(f"_gait_biofeedback_probe_{os.getpid()}", context=context)
+    try:
+        namespace = probe.get_namespace()
+        wanted = set(names)
+        deadline = time.monotonic() + settle
+        while True:
+            taken = sorted({n for n, ns in probe.get_node_names_and_namespaces()
+                            if n in wanted and ns == namespace})
+            if taken or time.monotonic() > deadline:
+                break
+            time.sleep(0.02)
+    finally:
+        probe.destroy_node()
+    if taken:
+        domain = context.get_domain_id()
+        where = f"namespace {namespace} of " if namespace != "/" else ""
+        raise DomainInUseError(
+            f"another gait_biofeedback graph already runs {', '.join(taken)} on {where}ROS_DOMAIN_ID="
+            f"{domain}; two graphs on one domain process each other's data. Stop it, or start this one on "
+            f"a domain of its own (e.g. ROS_DOMAIN_ID={(domain + 1) % 101} gait-biofeedback ...) or in a "
+            "namespace of its own (console scripts: --ros-args -r __ns:=/patient2)")
+
+
 def run_nodes(node_factories: Sequence[Callable[[Context], Node]], args: list[str] | None = None) -> int:
     """Console-script body: check the ``--params-file`` files, init rclpy with ``args`` (``--ros-args``
     work), spin the nodes until Ctrl-C / SIGTERM, destroy them (each node's ``destroy_node`` closes its
@@ -247,13 +280,14 @@ def run_nodes(node_factories: Sequence[Callable[[Context], Node]], args: list[st
     code = 0
     try:
         with stop_on_signals():
+            refuse_other_graph(context, [getattr(f, "NODE_NAME", "") for f in node_factories])
             for factory in node_factories:
                 nodes.append(factory(context))
                 executor.add_node(nodes[-1])
             spin_until(executor, lambda: False)
     except KeyboardInterrupt:
         pass
-    except ParameterError as exc:
+    except (ParameterError, DomainInUseError) as exc:
         print(f"{os.path.basename(args[0]) if args else 'node'}: {exc}", file=sys.stderr)
         code = 2
     finally:

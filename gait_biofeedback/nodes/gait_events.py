@@ -42,8 +42,10 @@ from gait_biofeedback_msgs.msg import SegmentCalibrationArray
 class GaitEventsNode(GuardedNode):
     """Gait events and stride parameters of both feet (see module docstring)."""
 
+    NODE_NAME = "gait_events"
+
     def __init__(self, context: Context | None = None, **overrides: object) -> None:
-        super().__init__("gait_events", context=context, parameter_overrides=node_overrides(overrides))
+        super().__init__(self.NODE_NAME, context=context, parameter_overrides=node_overrides(overrides))
         self.params: GaitEventsParams = declare_parameters(self, GaitEventsParams)
         self.stream = GaitEventStream(self.params)
         self.sides = self.stream.sides

@@ -30,8 +30,10 @@ from gait_biofeedback.wire.stamps import ns_to_stamp
 class ImuReplayer(GuardedNode):
     """Publishes a recording's messages at their recorded pace (see module docstring)."""
 
+    NODE_NAME = "imu_replayer"
+
     def __init__(self, context: Context | None = None, **overrides: object) -> None:
-        super().__init__("imu_replayer", context=context, parameter_overrides=node_overrides(overrides))
+        super().__init__(self.NODE_NAME, context=context, parameter_overrides=node_overrides(overrides))
         p: ReplayerParams = declare_parameters(self, ReplayerParams)
         self.params = p
         bag = p.bag

@@ -44,8 +44,10 @@ from gait_biofeedback_msgs.msg import SegmentCalibrationArray
 class JointAnglesNode(GuardedNode):
     """Joint angles and stick figure (see module docstring)."""
 
+    NODE_NAME = "joint_angles"
+
     def __init__(self, context: Context | None = None, **overrides: object) -> None:
-        super().__init__("joint_angles", context=context, parameter_overrides=node_overrides(overrides))
+        super().__init__(self.NODE_NAME, context=context, parameter_overrides=node_overrides(overrides))
         self.params: JointAnglesParams = declare_parameters(self, JointAnglesParams)
         self.body = self.params.body
         self.stream = JointAngleStream(self.params)

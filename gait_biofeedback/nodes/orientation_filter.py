@@ -33,8 +33,10 @@ from gait_biofeedback.wire.imu import mag_sample, orientation_payload, raw_sampl
 class OrientationFilterNode(GuardedNode):
     """All segments' orientation filters (see module docstring)."""
 
+    NODE_NAME = "orientation_filter"
+
     def __init__(self, context: Context | None = None, **overrides: object) -> None:
-        super().__init__("orientation_filter", context=context, parameter_overrides=node_overrides(overrides))
+        super().__init__(self.NODE_NAME, context=context, parameter_overrides=node_overrides(overrides))
         self.params: OrientationParams = declare_parameters(self, OrientationParams)
         self.orientation_variance = self.params.orientation_variance
         self.stale_after = self.params.stale_after

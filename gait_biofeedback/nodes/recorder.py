@@ -46,8 +46,10 @@ BATCH_WAIT = 0.01
 class Recorder(GuardedNode):
     """Records topics to a rosbag2/MCAP folder (see module docstring)."""
 
+    NODE_NAME = "recorder"
+
     def __init__(self, context: Context | None = None, **overrides: object) -> None:
-        super().__init__("recorder", context=context, parameter_overrides=node_overrides(overrides))
+        super().__init__(self.NODE_NAME, context=context, parameter_overrides=node_overrides(overrides))
         p: RecorderParams = declare_parameters(self, RecorderParams)
         self.params = p
         self._base_output = p.output
