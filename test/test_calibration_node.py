@@ -120,3 +120,18 @@ def test_service_calibrates_and_latched_result_reaches_late_subscriber(ros_conte
     cut = CalibrationNode(ros_context, segments=SEGMENTS, session_dir=str(tmp_path), reload_calibration=True)
     assert cut.current is None
     cut.destroy_node()
+    # a named calibration_file (e.g. this patient's earlier session) is in force from the start, and
+    # an unusable one is refused at start with the reason
+    (tmp_path / "earlier").mkdir()
+    (tmp_path / "earlier" / "calibration.yaml").write_text(text)
+    named = CalibrationNode(ros_context, segments=SEGMENTS, session_dir=str(tmp_path / "new"),
+                            calibration_file=str(tmp_path / "earlier" / "calibration.yaml"))
+    try:
+        np.testing.assert_allclose(quat.canonical(named.current.segments["left_shank"].rotation),
+                                   quat.canonical(node.current.segments["left_shank"].rotation), atol=1e-12)
+    finally:
+        named.destroy_node()
+    with pytest.raises(ValueError, match=r"incomplete \(cut off"):
+        CalibrationNode(ros_context, segments=SEGMENTS, calibration_file=str(tmp_path / "calibration.yaml"))
+    with pytest.raises(ValueError, match="not found"):
+        CalibrationNode(ros_context, segments=SEGMENTS, calibration_file=str(tmp_path / "nowhere.yaml"))
