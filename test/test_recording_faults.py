@@ -175,33 +175,37 @@ def test_a_replay_stopped_and_started_lists_every_folder_and_keeps_the_calibrati
         assert counts["/pelvis/imu/data_raw"] > 50
 
 
+def _stopped_by(sig: int, command: list[str], bag, speed: float = 1.0) -> tuple[int, str, str]:
+    """Start ``gait-biofeedback COMMAND``, replay ``bag`` to it from another process, send ``sig``;
+    (exit status, stdout, stderr)."""
+    process = subprocess.Popen([sys.executable, "-m", "gait_biofeedback.cli", *command],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        subprocess.run([sys.executable, "-m", "gait_biofeedback.nodes.imu_replayer", "--ros-args",
+                        "-p", f"bag:={bag}", "-p", f"speed:={speed}", "-p", "wait_for_subscribers:=10.0"],
+                       timeout=30, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=True)
+        time.sleep(0.5)
+        process.send_signal(sig)
+        stdout, stderr = process.communicate(timeout=20)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait(timeout=10)
+    return process.returncode, stdout, stderr
+
+
 def test_run_record_closes_the_bag_on_sigterm(tmp_path):
     """`gait-biofeedback run` with the session parameter file: raw topics from another process in,
     orientations out and recorded. SIGTERM is a clean stop like Ctrl-C: metadata.yaml and a summary,
     exit 0, no traceback."""
     bag = write_imu_bag(tmp_path / "in", synthetic_imu(["chest"], duration=2.0, with_mag=False))
     out = tmp_path / "live"
-    run = subprocess.Popen(
-        [sys.executable, "-m", "gait_biofeedback.cli", "run", "--nodes", "orientation_filter",
-         "--params", "config/session.yaml", "--record", str(out)],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        assert "running orientation_filter" in run.stdout.readline()
-        replayer = subprocess.run(
-            [sys.executable, "-m", "gait_biofeedback.nodes.imu_replayer", "--ros-args",
-             "-p", f"bag:={bag}", "-p", "speed:=4.0", "-p", "wait_for_subscribers:=10.0"],
-            timeout=30, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        assert replayer.returncode == 0
-        time.sleep(0.5)
-        run.send_signal(signal.SIGTERM)
-        stdout, stderr = run.communicate(timeout=20)
-    finally:
-        if run.poll() is None:
-            run.kill()
-            run.wait(timeout=10)
-    assert run.returncode == 0, stderr
+    command = ["run", "--nodes", "orientation_filter", "--params", "config/session.yaml",
+               "--record", str(out)]
+    code, stdout, stderr = _stopped_by(signal.SIGTERM, command, bag, speed=4.0)
+    assert code == 0, stderr
     assert "FATAL" not in stderr and "Traceback" not in stderr
-    assert f"recorded to {out}" in stdout
+    assert "running orientation_filter" in stdout and f"recorded to {out}" in stdout
     assert (out / "metadata.yaml").exists()
     with warnings.catch_warnings():
         warnings.simplefilter("error", BagRecoveryWarning)  # complete: summary and index written
@@ -214,23 +218,10 @@ def test_record_command_closes_the_bag_on_ctrl_c(tmp_path):
     handler raised KeyboardInterrupt inside whichever callback ran)."""
     bag = write_imu_bag(tmp_path / "in", synthetic_imu(["left_foot"], duration=1.0, with_mag=False))
     out = tmp_path / "raw"
-    record = subprocess.Popen([sys.executable, "-m", "gait_biofeedback.cli", "record", "-o", str(out)],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    try:
-        subprocess.run([sys.executable, "-m", "gait_biofeedback.nodes.imu_replayer", "--ros-args",
-                        "-p", f"bag:={bag}", "-p", "wait_for_subscribers:=10.0"],
-                       timeout=30, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=True)
-        time.sleep(0.5)
-        record.send_signal(signal.SIGINT)
-        _, stderr = record.communicate(timeout=20)
-    finally:
-        if record.poll() is None:
-            record.kill()
-            record.wait(timeout=10)
-    assert record.returncode == 0 and "Traceback" not in stderr and "FATAL" not in stderr
+    code, _, stderr = _stopped_by(signal.SIGINT, ["record", "-o", str(out)], bag)
+    assert code == 0 and "Traceback" not in stderr and "FATAL" not in stderr
     with warnings.catch_warnings():
         warnings.simplefilter("error", BagRecoveryWarning)
-        stamps = BagReader(out).raw_messages()
-        log = [m[-1] for m in stamps if m[0] == "/left_foot/imu/data_raw"]
+        log = [m[-1] for m in BagReader(out).raw_messages() if m[0] == "/left_foot/imu/data_raw"]
     assert (out / "metadata.yaml").exists() and len(log) == 100
     assert np.all(np.diff(log) >= 0)
