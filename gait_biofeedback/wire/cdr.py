@@ -256,11 +256,31 @@ def _elements_end(values: Any, element_type: str, pos: int) -> int:
     return pos
 
 
+def _has_sequence(msg: Any) -> bool:
+    """True when ``msg``'s type (or a message inside it) has a sequence field."""
+    for name, field_type in msg.get_fields_and_field_types().items():
+        if field_type.startswith("sequence<"):
+            return True
+        if "/" in field_type and not field_type.endswith("]") and _has_sequence(getattr(msg, name)):
+            return True
+    return False
+
+
+_MAY_OVERRUN: dict[type, bool] = {}
+
+
 def serialize(msg: Any) -> bytes:
     """``serialize_message`` of any rclpy message, cut to its exact XCDR1 size.
 
     rclpy's buffer can run past the encoding (a sensor_msgs/JointState with empty ``velocity`` and
     ``effort`` gets 8 trailing bytes); DDS sends the exact size, and strict readers (the PyPI
-    ``rosbags``) refuse the longer form, so every message the project writes goes through here."""
+    ``rosbags``) refuse the longer form, so every message the project writes goes through here. Only
+    an empty sequence makes that padding: types without sequences (Imu, MagneticField) are not
+    measured."""
     data = serialize_message(msg)
+    overrun = _MAY_OVERRUN.get(type(msg))
+    if overrun is None:
+        overrun = _MAY_OVERRUN[type(msg)] = _has_sequence(msg)
+    if not overrun:
+        return data
     return data[: len(CDR_LE) + _message_end(msg, 0)] if data[:4] == CDR_LE else data
