@@ -142,6 +142,7 @@ def running_graph(
     context = Context()
     init_ros(args or [], context)
     graph = RunningGraph(context, make_executor(context), {}, None)
+    ready = False
     with stop_on_signals():
         try:
             refuse_other_graph(context, [*chosen, *(["recorder"] if output is not None else [])])
@@ -152,10 +153,13 @@ def running_graph(
                 graph.nodes[name] = graph.add(factories[name](context, **params.get(name, {})))
             if graph.recorder is not None:
                 _wait_until_recorded(graph.recorder, list(graph.nodes.values()))
+            ready = True
             yield graph
         finally:
             for node in reversed(graph.started):
                 node.destroy_node()
+            if not ready and graph.recorder is not None:  # a node refused: no recording to keep
+                graph.recorder.discard()
             graph.executor.shutdown()
             if context.ok():
                 rclpy.shutdown(context=context)

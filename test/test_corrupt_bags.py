@@ -11,6 +11,7 @@ import shutil
 import warnings
 
 import numpy as np
+import pytest
 from conftest import synthetic_imu
 
 from gait_biofeedback.cli import main
@@ -97,3 +98,30 @@ def test_info_repair_and_analyze_name_the_bad_chunk(tmp_path, capsys):
     assert main(["analyze", str(bad), "-o", str(tmp_path / "out")]) == 0
     err = capsys.readouterr().err
     assert "unreadable" in err and f"data from {t0:.2f} s" in err and "skipped" in err
+
+
+def test_a_cut_recording_with_a_bad_first_chunk_keeps_its_later_chunks(tmp_path):
+    """The writer defines each topic only in the chunk of its first message: when that chunk is bad
+    in a file without a summary (a crash), its definitions are taken from it (with a warning) so the
+    later chunks stay readable, and the counts say what is readable."""
+    good = _bag(tmp_path)
+    original, _ = _read(good)
+    (file,) = good.glob("*.mcap")
+    mcap = McapFile.open(file)
+    chunks = sorted(mcap.chunks, key=lambda c: c.offset)
+    first = chunks[0]
+    in_first = {(m.log_time, m.data) for m in mcap._chunk_messages(first, None)}
+    summary_at = max(c.offset for c in chunks) + 60_000  # cut inside the data after the last chunk
+    mcap.close()
+    data = bytearray(file.read_bytes())
+    data[first.offset + 300] ^= 0x5A
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(bytes(data[: min(summary_at, len(data) - 100)]))
+    messages, said = _read(cut)
+    assert messages and set(messages) <= set(original)
+    assert not {(m[2], m[1]) for m in messages} & in_first
+    assert len(messages) >= len(original) - len(in_first) - 2 * len(original) // len(chunks)
+    assert any("topic definition(s) taken from an unreadable chunk" in w for w in said)
+    with pytest.warns(BagRecoveryWarning), BagReader(cut) as reader:
+        assert reader.message_count == len(messages)
+        assert sorted(reader.topics()) == ["/left_foot/imu/data_raw", "/pelvis/imu/data_raw"]

@@ -171,3 +171,24 @@ def test_a_busy_port_moves_the_dashboard_to_the_next_free_one(ros_context):
             assert node.server.url == f"http://127.0.0.1:{node.port}/?token={node.server.token}"
         finally:
             node.destroy_node()
+
+
+def test_allowed_hosts_for_loopback_wildcard_and_proxied_binds():
+    """Host names compare case-insensitively, IPv6 in brackets; a wildcard bind serves loopback and
+    the names given in allowed_hosts; a proxy's https origin on its default port is accepted."""
+    from gait_biofeedback.dashboard.server import DashboardServer, _origins
+
+    def server(host, extra=()):
+        made = DashboardServer(dict, print, dict, host=host, port=8080, allowed_hosts=extra)
+        made.port = 8080  # as start() sets it once bound
+        return made
+
+    assert server("127.0.0.1")._allowed_hosts() == {"127.0.0.1:8080", "localhost:8080", "[::1]:8080"}
+    assert "[::1]:8080" in server("::1")._allowed_hosts()
+    wild = server("0.0.0.0", ("Gait-Lab.local", "proxy.example:443"))
+    assert {"gait-lab.local:8080", "proxy.example:443", "localhost:8080"} <= wild._allowed_hosts()
+    assert "evil.example:8080" not in wild._allowed_hosts()
+    assert wild.url.startswith("http://127.0.0.1:8080/?token=")
+    origins = _origins(wild._allowed_hosts())
+    assert {"https://proxy.example", "http://gait-lab.local:8080"} <= origins
+    assert "http://evil.example:8080" not in origins

@@ -82,7 +82,7 @@ def test_full_disk_stops_recording_once_and_processing_goes_on(tmp_path, monkeyp
     # on the still-full disk repair refuses in one line and changes nothing
     before = {p.name: p.read_bytes() for p in out.iterdir()}
     monkeypatch.setattr("gait_biofeedback.io.bag.open", SmallDisk(0).open, raising=False)
-    with pytest.raises(OSError, match="Nothing was changed: free some space"):
+    with pytest.raises(OSError, match="Nothing was changed in it: free some space"):
         repair(out)
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
     monkeypatch.undo()  # space freed
@@ -225,3 +225,51 @@ def test_record_command_closes_the_bag_on_ctrl_c(tmp_path):
         log = [m[-1] for m in BagReader(out).raw_messages() if m[0] == "/left_foot/imu/data_raw"]
     assert (out / "metadata.yaml").exists() and len(log) == 100
     assert np.all(np.diff(log) >= 0)
+
+
+def test_a_recording_that_cannot_start_leaves_nothing_and_can_be_retried(tmp_path, monkeypatch):
+    """Record pressed on a full disk: the reply says why, no folder is left to block the next try;
+    the calibration latched while stopped opens the first bag too. A graph that a node refuses to
+    start (an unusable calibration_file) leaves no recording folder behind."""
+    from rclpy.context import Context
+    from rclpy.node import Node
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from std_msgs.msg import String
+
+    from gait_biofeedback.nodes.common import init_ros, make_executor, spin_until
+    from gait_biofeedback.nodes.recorder import Recorder
+
+    context = Context()
+    init_ros([], context)
+    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    source = Node("clinician", context=context)
+    source.create_publisher(String, "/calibration_note", latched).publish(String(data="in force"))
+    recorder = Recorder(context, output=str(tmp_path / "session"), autostart=False,
+                        topics=["/calibration_note"])
+    executor = make_executor(context)
+    for node in (source, recorder):
+        executor.add_node(node)
+    try:
+        assert spin_until(executor, lambda: recorder.received >= 1, timeout=10)
+        monkeypatch.setattr(bag_writer, "open", SmallDisk(0).open, raising=False)
+        response = recorder._on_start(None, type("R", (), {})())
+        assert not response.success and "could not start recording" in response.message
+        assert not (tmp_path / "session").exists() and recorder.sessions == []
+        monkeypatch.undo()
+        assert recorder.start() == tmp_path / "session"
+        assert spin_until(executor, lambda: recorder.written >= 1, timeout=10)
+    finally:
+        recorder.destroy_node()
+        source.destroy_node()
+        executor.shutdown()
+        context.try_shutdown()
+    assert [m.data for _, m, _ in BagReader(tmp_path / "session").messages()] == ["in force"]
+
+    bag = write_imu_bag(tmp_path / "in", synthetic_imu(["chest"], duration=0.5, with_mag=False))
+    (tmp_path / "bad.yaml").write_text("protocol: walking\n")
+    refused = {"calibration": {"calibration_file": str(tmp_path / "bad.yaml")}}
+    with pytest.raises(ValueError, match="not a usable calibration file"):
+        replay_through_graph(bag, tmp_path / "out", nodes=["calibration"], timeout=30,
+                             node_parameters=refused)
+    assert not (tmp_path / "out").exists()

@@ -41,7 +41,7 @@ import mimetypes
 import secrets
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from http import HTTPStatus
 from pathlib import Path
 from typing import Any
@@ -55,6 +55,20 @@ from websockets.http11 import Request, Response
 STATIC_DIR = Path(__file__).resolve().parent
 WEBSOCKET_PATH = "/ws"
 LOOPBACK_NAMES = ("127.0.0.1", "localhost", "[::1]")
+WILDCARDS = ("0.0.0.0", "::", "")
+
+
+def _origins(hosts: set[str]) -> set[str]:
+    """The page origins of ``hosts`` (host:port): http and https, without a scheme's default port."""
+    out = {f"{scheme}://{h}" for h in hosts for scheme in ("http", "https")}
+    out |= {f"http://{h[:-3]}" for h in hosts if h.endswith(":80")}
+    out |= {f"https://{h[:-4]}" for h in hosts if h.endswith(":443")}
+    return out
+
+
+def _bracketed(host: str) -> str:
+    """An IPv6 address as a Host header writes it (``[::1]``)."""
+    return f"[{host}]" if ":" in host and not host.startswith("[") else host
 PORT_TRIES = 20
 _TYPES = {".html": "text/html; charset=utf-8", ".js": "text/javascript; charset=utf-8",
           ".css": "text/css; charset=utf-8", ".png": "image/png", ".svg": "image/svg+xml"}
@@ -66,11 +80,12 @@ class DashboardServer:
     def __init__(self, build_frame: Callable[[], dict | None], on_message: Callable[[dict], None],
                  hello: Callable[[], dict], host: str = "127.0.0.1", port: int = 8080,
                  frame_rate: float = 30.0, static_dir: Path = STATIC_DIR, max_buffer: int = 1 << 20,
-                 logger: Any = None, token: str | None = None) -> None:
+                 logger: Any = None, token: str | None = None, allowed_hosts: Sequence[str] = ()) -> None:
         self.build_frame = build_frame
         self.on_message = on_message
         self.hello = hello
         self.host = host
+        self.extra_hosts = tuple(allowed_hosts)
         self.requested_port = int(port)
         self.period = 1.0 / max(float(frame_rate), 1.0)
         self.static_dir = Path(static_dir).resolve()
@@ -97,12 +112,19 @@ class DashboardServer:
     @property
     def url(self) -> str:
         """The link that may send commands (it carries the token)."""
-        return f"http://{self.host}:{self.port}/?token={self.token}"
+        host = "127.0.0.1" if self.host in WILDCARDS else _bracketed(self.host)
+        return f"http://{host}:{self.port}/?token={self.token}"
 
     def _allowed_hosts(self) -> set[str]:
-        loopback = self.host in LOOPBACK_NAMES or self.host.startswith("127.")
-        names = LOOPBACK_NAMES if loopback else (self.host,)
-        return {f"{name}:{self.port}" for name in (*names, self.host)}
+        """``Host`` values of this server, lower case: its address (loopback names for a loopback or
+        wildcard bind) and ``allowed_hosts``, each with and without this port."""
+        loopback = self.host in LOOPBACK_NAMES or self.host.startswith("127.") or self.host in WILDCARDS
+        names = [*(LOOPBACK_NAMES if loopback else ()), _bracketed(self.host), *self.extra_hosts]
+        out = set()
+        for name in (n.lower() for n in names):
+            has_port = name.rsplit(":", 1)[-1].isdigit() and not name.endswith("]")
+            out.add(name if has_port else f"{name}:{self.port}")
+        return out
 
     def start(self, timeout: float = 5.0) -> int:
         """Start the server thread; return the bound port (raises if binding failed)."""
@@ -235,13 +257,14 @@ class DashboardServer:
 
     def _http(self, connection: ServerConnection, request: Request) -> Response | None:
         host = request.headers.get("Host", "")
-        if host not in self._allowed_hosts():
+        allowed = self._allowed_hosts()
+        if host.lower() not in allowed:
             return self._refuse(connection, f"Host {host!r} is not this dashboard (a page rebinding its "
                                             "address to this machine?)")
         path = urlsplit(request.path).path
         if path == WEBSOCKET_PATH:
             origin = request.headers.get("Origin")
-            if origin is not None and origin not in {f"http://{h}" for h in self._allowed_hosts()}:
+            if origin is not None and origin.lower() not in _origins(allowed):
                 return self._refuse(connection, f"websocket from the web page of origin {origin!r}")
             return None  # go on with the websocket handshake
         name = "index.html" if path in ("", "/") else path.lstrip("/")

@@ -105,7 +105,7 @@ def _repair_file(file: Path, bad_chunks: list[str]) -> dict[str, Any]:
                 tmp.unlink()
             raise OSError(f"cannot repair {file}: writing its repaired copy failed ({exc.strerror or exc}); "
                           f"it needs about {file.stat().st_size / 1e6:.1f} MB free on its disk. Nothing was "
-                          "changed: free some space and repair again") from None
+                          "changed in it: free some space and repair again") from None
         damage = [mcap.damage] if mcap.damage else []
         entry.update(status="repaired", damage="; ".join([*damage, *bad_chunks]),
                      messages=mcap.message_count)

@@ -78,7 +78,9 @@ class BagReader:
 
     def describe(self, bad: BadChunk) -> str:
         """A bad chunk in words: where, why, which time range of the recording it took away."""
-        t0 = self.start_time_ns
+        starts = [self.start_time_ns] if self.message_count else []
+        starts += [b.start_ns for f in self.files for b in f.bad_chunks if b.start_ns > 0]
+        t0 = min(starts, default=0)
         lost = "" if bad.messages is None else f", {bad.messages} messages"
         return (f"chunk at byte {bad.offset} unreadable ({bad.reason}): data from "
                 f"{(bad.start_ns - t0) / 1e9:.2f} s to {(bad.end_ns - t0) / 1e9:.2f} s into the recording "

@@ -94,8 +94,9 @@ class _McapPart:
     channel_ids: dict[str, int] = field(default_factory=dict)
     record: FileRecord = field(default_factory=lambda: FileRecord(""))
     pending_bytes: int = 0
-    good_offset: int = 0  # end of the last complete chunk on disk
+    good_offset: int = 0  # end of the last complete chunk handed to the OS
     good_end_ns: int = 0  # log time of the newest message before it
+    good_messages: int = 0  # messages before it
 
     def size_estimate(self) -> int:
         """Bytes on disk plus the open chunk uncompressed (an upper bound of the final size)."""
@@ -128,7 +129,6 @@ class BagWriter:
         if flush_period <= 0:
             raise ValueError(f"flush_period must be > 0 s, got {flush_period}")
         self.path = Path(path)
-        self._prepare_folder(overwrite)
         self._compression = COMPRESSIONS[compression]
         self._flush_period = flush_period
         self._split_size = split_size
@@ -141,7 +141,15 @@ class BagWriter:
         self._closed = False
         self.files: list[Path] = []
         self.message_count = 0
-        self._part = self._open_part()
+        created = not self.path.exists()
+        try:
+            self._prepare_folder(overwrite)
+            self._part = self._open_part()
+        except OSError:  # e.g. a full disk: leave nothing behind that would block the next try
+            if created:
+                with contextlib.suppress(OSError):
+                    self.path.rmdir()
+            raise
 
     def _prepare_folder(self, overwrite: bool) -> None:
         check_output(self.path, overwrite)
@@ -153,10 +161,17 @@ class BagWriter:
     def _open_part(self) -> _McapPart:
         path = self.path / f"{self.path.name}_{len(self.files)}.mcap"
         stream = open(path, "wb")  # noqa: SIM115 - closed in _close_part
-        writer = Writer(stream, chunk_size=self._chunk_size, compression=self._compression)
-        writer.start(profile="ros2", library=LIBRARY)
-        stream.flush()
         self.files.append(path)
+        try:
+            writer = Writer(stream, chunk_size=self._chunk_size, compression=self._compression)
+            writer.start(profile="ros2", library=LIBRARY)
+            stream.flush()
+        except OSError:  # e.g. a full disk: no half-started file is left behind
+            with contextlib.suppress(OSError, ValueError):
+                stream.raw.close()
+            self.files.pop()
+            path.unlink(missing_ok=True)
+            raise
         part = _McapPart(path, stream, writer, record=FileRecord(path.name), good_offset=stream.tell())
         self._records.append(part.record)
         return part
@@ -164,6 +179,7 @@ class BagWriter:
     def _close_part(self) -> None:
         self._part.writer.finish()
         self._part.stream.close()
+        self._part.good_messages = self._part.record.message_count
 
     # -- writing --------------------------------------------------------------------------------
 
@@ -215,9 +231,18 @@ class BagWriter:
         file_record.message_count += 1
         record.message_count += 1
         self.message_count += 1
-        if part.pending_bytes > self._chunk_size:
-            part.pending_bytes = 0  # the mcap writer has closed the chunk by itself
+        if part.pending_bytes > 0.9 * self._chunk_size and part.stream.tell() != part.good_offset:
+            # the mcap writer has closed the chunk by itself (this message included): hand it to the
+            # OS, so that after a write error the file is cut back to here, not to the last flush
+            part.stream.flush()
+            self._mark_good(part)
         self.maybe_flush()
+
+    @staticmethod
+    def _mark_good(part: _McapPart) -> None:
+        part.pending_bytes = 0
+        part.good_offset, part.good_end_ns = part.stream.tell(), part.record.end_time
+        part.good_messages = part.record.message_count
 
     def _register(self, part: _McapPart, record: TopicRecord) -> int:
         schema_id = part.schema_ids.get(record.type_name)
@@ -249,8 +274,7 @@ class BagWriter:
             return
         part = self._part
         finish_open_chunk(part.writer)
-        part.pending_bytes = 0
-        part.good_offset, part.good_end_ns = part.stream.tell(), part.record.end_time
+        self._mark_good(part)
         self._last_flush = time.monotonic()
 
     def maybe_flush(self) -> None:
@@ -262,6 +286,12 @@ class BagWriter:
     def good_end_ns(self) -> int:
         """Log time of the newest message known to be in a complete chunk on disk (0: none yet)."""
         return self._part.good_end_ns
+
+    @property
+    def good_message_count(self) -> int:
+        """Messages known to be in complete chunks on disk (every closed split file, and the open
+        one up to its last complete chunk): what is left after :meth:`abandon`."""
+        return self.message_count - self._part.record.message_count + self._part.good_messages
 
     def abandon(self) -> None:
         """After a write error: cut the open file back to its last complete chunk and close it

@@ -107,6 +107,7 @@ class McapFile:
     start_time: int | None = None
     end_time: int | None = None
     bad_chunks: list[BadChunk] = field(default_factory=list)
+    salvaged_definitions: int = 0  # channels known only from a chunk that failed its CRC
     on_bad_chunk: Callable[[McapFile, BadChunk], None] | None = None  # called once per bad chunk found
     _summary_problem: str = ""
     _buf: mmap.mmap | bytes = b""
@@ -136,6 +137,7 @@ class McapFile:
         self.channels.clear()
         self.chunks.clear()
         self.bad_chunks.clear()
+        self.salvaged_definitions = 0
         self.channel_counts.clear()
         self.start_time = self.end_time = None
 
@@ -147,7 +149,8 @@ class McapFile:
 
     @property
     def message_count(self) -> int:
-        return sum(self.channel_counts.values())
+        """Readable messages: those on a channel the file defines."""
+        return sum(n for c, n in self.channel_counts.items() if c in self.channels)
 
     def topic_types(self) -> dict[str, str]:
         """``{topic: schema name}`` of the channels in this file."""
@@ -235,6 +238,7 @@ class McapFile:
                     self._index_chunk(body)
                 except _DAMAGE_ERRORS as err:  # set aside; the records after it are still framed
                     self._set_aside(body, None, f"{type(err).__name__}: {err}")
+                    self._salvage_definitions(body)
                 pos = end
                 continue
             try:
@@ -245,6 +249,9 @@ class McapFile:
             pos = end
         if self.bad_chunks:
             self.damage += f"; {len(self.bad_chunks)} unreadable chunk(s) set aside"
+        if self.salvaged_definitions:
+            self.damage += (f"; {self.salvaged_definitions} topic definition(s) taken from an unreadable "
+                            "chunk (check the topic names)")
 
     def _scan_record(self, op: int, body: int, end: int) -> None:
         buf = self._buf
@@ -261,18 +268,35 @@ class McapFile:
             self.metadata.append((name, _string_map(buf, p)))
 
     def _index_chunk(self, body: int) -> None:
-        """Decompress, check and parse a chunk; index it only if all of it is readable."""
-        start, end, _, _ = _chunk_head(self._buf, body)
+        """Decompress, check and parse a chunk; index it only if all of it is readable. Its time
+        range comes from its messages (the CRC does not cover the chunk header's)."""
         records = list(_chunk_records(self._chunk_data(body, check_crc=True)))
         messages = [_message(data, p, q) for op, data, p, q in records if op == OP_MESSAGE]
+        self._add_definitions(records)
+        for message in messages:
+            self._count(message)
+        times = [m.log_time for m in messages] or [0]
+        self.chunks.append(ChunkRef(body, min(times), max(times), frozenset(m.channel_id for m in messages)))
+
+    def _add_definitions(self, records: list[tuple[int, bytes, int, int]]) -> None:
         for op, data, p, _ in records:
             if op == OP_SCHEMA:
                 self._add_schema(data, p)
             elif op == OP_CHANNEL:
                 self._add_channel(data, p)
-        for message in messages:
-            self._count(message)
-        self.chunks.append(ChunkRef(body, start, end, frozenset(m.channel_id for m in messages)))
+
+    def _salvage_definitions(self, body: int) -> None:
+        """The schemas and channels of a chunk that fails its CRC but still decompresses: the writer
+        puts each topic's definition only in the chunk of its first message, so without them every
+        later message of the topic would be lost too. Its messages stay set aside."""
+        try:
+            records = list(_chunk_records(self._chunk_data(body, check_crc=False)))
+            known = len(self.channels)
+            self._add_definitions([r for r in records if r[0] in (OP_SCHEMA, OP_CHANNEL)])
+        except _DAMAGE_ERRORS:
+            return
+        if len(self.channels) > known:
+            self.salvaged_definitions += len(self.channels) - known
 
     def _count(self, message: RawMessage) -> None:
         self.channel_counts[message.channel_id] += 1

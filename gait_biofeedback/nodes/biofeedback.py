@@ -154,7 +154,8 @@ class BiofeedbackNode(GuardedNode):
             from gait_biofeedback.dashboard.server import DashboardServer
 
             self.server = DashboardServer(self.build_frame, self._commands.append, self.hello, host=p.host,
-                                          port=p.port, frame_rate=p.frame_rate, logger=self.get_logger())
+                                          port=p.port, frame_rate=p.frame_rate, logger=self.get_logger(),
+                                          allowed_hosts=p.allowed_hosts)
             self.port = self.server.start()
             self.get_logger().info(f"dashboard: {self.server.url} (commands need this link: without its "
                                    "token the page is a read-only view)")

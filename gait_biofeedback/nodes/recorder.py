@@ -21,6 +21,7 @@ recording then has one time base, the recording's; messages before the first tic
 
 from __future__ import annotations
 
+import contextlib
 import queue
 import threading
 import time
@@ -97,28 +98,30 @@ class Recorder(GuardedNode):
         return base if not self.sessions else base.with_name(f"{base.name}_{len(self.sessions)}")
 
     def start(self) -> Path:
-        """Open a new bag (a new folder per start) and record into it; returns its path. A bag after
-        the first starts with the last message of every latched topic (the calibration in force)."""
+        """Open a new bag (a new folder per start) and record into it; returns its path. The bag
+        starts with the last message of every latched topic received so far (the calibration in
+        force, also when it came while recording was stopped). Raises OSError (nothing left behind,
+        the next start tries the same folder again) when the folder cannot be written."""
         if self._recording and self.output is not None:
             return self.output
-        first = not self.sessions
-        self.output = self._next_output()
-        self.writer = BagWriter(self.output, **self._writer_options)
-        self.sessions.append(self.output)
+        output = self._next_output()
+        self.writer = BagWriter(output, **self._writer_options)
+        self.output = output
+        self.sessions.append(output)
         self.write_error = None
         self._recording = True
-        if not first:
-            now = self._now_ns()
-            for topic, (type_name, data) in self._latched.items():
-                self._queue.put((topic, type_name, data, now))
+        for topic, (type_name, data) in self._latched.items():
+            self._log(topic, type_name, data)
         self.get_logger().info(f"recording to {self.output}")
         return self.output
 
     def stop(self) -> Path | None:
-        """Stop recording and close the bag (the writer thread closes it; this waits for that)."""
+        """Stop recording and close the bag (the writer thread closes it; this waits for that).
+        None when not recording; after it, :attr:`write_error` says whether closing failed."""
         if not self._recording:
             return None
         self._recording = False
+        self._before_clock.clear()
         done = threading.Event()
         self._queue.put(("__close__", done))
         done.wait(timeout=30.0)
@@ -127,15 +130,21 @@ class Recorder(GuardedNode):
 
     def _on_start(self, _request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         was = self._recording
-        path = self.start()
+        try:
+            path = self.start()
+        except OSError as exc:
+            response.success = False
+            response.message = f"could not start recording: {exc}"
+            self.get_logger().error(response.message)
+            return response
         response.success = True
         response.message = f"already recording to {path}" if was else f"recording to {path}"
         return response
 
     def _on_stop(self, _request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         path = self.stop()
-        response.success = path is not None
-        response.message = f"saved {path}" if path else "not recording"
+        response.success = path is not None and self.write_error is None
+        response.message = (self.write_error or f"saved {path}") if path else "not recording"
         return response
 
     def subscribe(self, topic: str, type_name: str) -> None:
@@ -183,6 +192,9 @@ class Recorder(GuardedNode):
         if not self._recording:
             self.dropped_while_stopped += 1
             return
+        self._log(topic, type_name, data)
+
+    def _log(self, topic: str, type_name: str, data: bytes) -> None:
         now = self._now_ns()
         if self._sim_time:
             if now == 0:  # no /clock yet: logged at its first tick, not at 0 (another time base)
@@ -209,7 +221,7 @@ class Recorder(GuardedNode):
         if writer is None:
             return
         writer.abandon()
-        self._written_before += writer.message_count
+        self._written_before += writer.good_message_count
         good = writer.good_end_ns
         if not good:
             upto = "its start"
@@ -273,7 +285,18 @@ class Recorder(GuardedNode):
     @property
     def written(self) -> int:
         """Messages handed to the files so far, over every start/stop."""
-        return self._written_before + (self.writer.message_count if self.writer is not None else 0)
+        writer = self.writer  # read once: the writer thread may drop it after a write error
+        return self._written_before + (writer.message_count if writer is not None else 0)
+
+    def discard(self) -> None:
+        """After :meth:`destroy_node` of a graph that never started (a node refused to start):
+        remove the bag files it created, so that the corrected command can use the same folder."""
+        for folder in self.sessions:
+            for file in [*folder.glob("*.mcap"), folder / "metadata.yaml"]:
+                file.unlink(missing_ok=True)
+            with contextlib.suppress(OSError):
+                folder.rmdir()
+        self.sessions.clear()
 
     def destroy_node(self) -> None:
         for sub in self._recorded_topics.values():

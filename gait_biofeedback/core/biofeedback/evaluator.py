@@ -320,6 +320,9 @@ class BiofeedbackParams(StickFigureDimensions):
     targets_file: str = param("", "the therapist's targets ('' = config/targets.yaml)")
     serve_dashboard: bool = param(True, "serve the clinician's dashboard")
     host: str = param("127.0.0.1", "address the dashboard binds (keep 127.0.0.1 unless behind a proxy)")
+    allowed_hosts: tuple[str, ...] = param((), "more names the page may be opened under (host or host:port, "
+                                           "e.g. this machine's LAN name, or a proxy's); needed when host is "
+                                           "not 127.0.0.1")
     port: int = param(8080, "dashboard port (0 = any free port)", low=0, high=65535)
     frame_rate: float = param(30.0, "dashboard frames per second", "Hz", low=1.0, high=120.0)
     stride_wait: float = param(0.5, "longest wait for a stride's joint angles before it is evaluated "
