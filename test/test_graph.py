@@ -6,6 +6,7 @@ a hard time limit, so a hung executor fails the test instead of hanging CI.
 
 from __future__ import annotations
 
+import gc
 import os
 import signal
 import subprocess
@@ -66,10 +67,15 @@ def _arrival_offsets(tmp_path, ros_context, speed: float) -> tuple[np.ndarray, n
     executor.add_node(sink)
     replayer = ImuReplayer(ros_context, bag=str(bag), speed=speed, wait_for_subscribers=5.0)
     executor.add_node(replayer)
+    # the objects the earlier tests left are frozen: a full collection of them (tens of ms late in
+    # the suite) would stall the replayer thread, which is not what this measures
+    gc.collect()
+    gc.freeze()
     try:
         assert spin_until(executor, replayer.finished.is_set, timeout=20)
         spin_until(executor, lambda: len(arrivals) >= 100, timeout=2)
     finally:
+        gc.unfreeze()
         replayer.destroy_node()
         sink.destroy_node()
         executor.shutdown()
