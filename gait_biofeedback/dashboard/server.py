@@ -117,7 +117,7 @@ class DashboardServer:
 
     def _allowed_hosts(self) -> set[str]:
         """``Host`` values of this server, lower case: its address (loopback names for a loopback or
-        wildcard bind) and ``allowed_hosts``, each with and without this port."""
+        wildcard bind) and ``allowed_hosts``, each with this port unless it names its own."""
         loopback = self.host in LOOPBACK_NAMES or self.host.startswith("127.") or self.host in WILDCARDS
         names = [*(LOOPBACK_NAMES if loopback else ()), _bracketed(self.host), *self.extra_hosts]
         out = set()
