@@ -277,6 +277,14 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
         source = f"from {Path(calibration_file).absolute()} (saved {saved_at or 'at an unknown time'})"
         publish_calibration(calibration_msg(calibration, 0, source), start_ns, calibration)
 
+    last_raw: dict[str, Any] = {}
+
+    def orientations(seg: str, samples: list, log_ns: int) -> None:
+        for sample in samples:
+            filtered = orientation_payload(seg, sample, last_raw[seg], variance)
+            emit_imu(topics.orientation(seg).absolute(), filtered, log_ns)
+            downstream(seg, decode_imu(filtered), log_ns)
+
     segment_of = {topic: seg for seg, topic in raw_topics.items()}
     mag_of = {topic: seg for seg, topic in mag_topics.items()}
     copied: list[tuple[int, str, str, bytes]] = []
@@ -298,11 +306,13 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
                 emit(topics.ACTIVITY.absolute(), state, log_ns)
         tracker = trackers.get(seg)
         if tracker is not None:
-            for sample in tracker.update(*raw_sample(raw)):
-                filtered = orientation_payload(seg, sample, raw, variance)
-                emit_imu(topics.orientation(seg).absolute(), filtered, log_ns)
-                downstream(seg, decode_imu(filtered), log_ns)
+            last_raw[seg] = raw
+            orientations(seg, tracker.update(*raw_sample(raw)), log_ns)
         said()
+    for seg, tracker in trackers.items():  # what the reorder windows still hold (the node: on silence)
+        if seg in last_raw:
+            orientations(seg, tracker.flush(), reader.end_time_ns)
+    said()
     publish_joints(joints.flush(force=True), reader.end_time_ns)
     result.warnings[:0] = reader.warnings  # a damaged file, a chunk skipped: the time range lost
     for until_ns, protocol in buffer.scheduled:

@@ -68,6 +68,7 @@ from gait_biofeedback.io.importers import (
     import_recording,
 )
 from gait_biofeedback.report.session import SessionReport, format_report, session_report
+from gait_biofeedback.sim.faults import Dropout, Reorder, Spike, StampJump, inject, write_faulty_bag
 from gait_biofeedback.sim.recording import write_simulated_bag
 from gait_biofeedback.sim.simulator import SCENARIOS, Phase, SimulatedSession, SimulationConfig, simulate
 
@@ -90,6 +91,7 @@ __all__ = [
     "BagReader",
     "BagWriter",
     "BodyDimensions",
+    "Dropout",
     "EventScore",
     "GaitCycle",
     "GaitCycleTracker",
@@ -99,12 +101,15 @@ __all__ = [
     "JointAngleCalculator",
     "Phase",
     "Recording",
+    "Reorder",
     "SegmentCalibrationResult",
     "SegmentOrientationTracker",
     "SessionCalibration",
     "SessionReport",
     "SimulatedSession",
     "SimulationConfig",
+    "Spike",
+    "StampJump",
     "UnitMismatchWarning",
     "align_headings",
     "analyze_recording",
@@ -125,6 +130,7 @@ __all__ = [
     "import_gaitmap",
     "import_qmt_fullbody",
     "import_recording",
+    "inject",
     "joint_angles_from_segments",
     "load_tuned",
     "match_events",
@@ -140,6 +146,7 @@ __all__ = [
     "simulate",
     "track_orientation",
     "vertical_calibration",
+    "write_faulty_bag",
     "write_imu_bag",
     "write_simulated_bag",
 ]

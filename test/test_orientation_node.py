@@ -52,27 +52,37 @@ def test_live_graph_equals_offline_tracker(walk_bag, tmp_path):
         assert np.median(err[100:]) < 5.0, f"{segment}: median error {np.median(err[100:]):.1f} deg"
 
 
-def test_tracker_skips_nan_and_duplicates_and_resets_on_backwards_time():
+def test_tracker_skips_nan_duplicates_and_bad_stamps_and_resets_only_on_a_real_restart():
     tracker = SegmentOrientationTracker("chest", rate_hz=100.0, startup_s=0.5)
     still = ((0.0, 0.0, 0.0), (0.0, 0.0, 9.81))
     out = []
     ms = 1_000_000
     for k in range(100):
         out += tracker.update(10_000 * ms + k * 10 * ms, *still)
-    assert len(out) == 100 and tracker.startup_quiet
+    assert len(out) == 97 and tracker.startup_quiet, "30 ms (3 samples) held by the reorder window"
     assert tracker.update(11_000 * ms, (np.nan, 0.0, 0.0), (0.0, 0.0, 9.81)) == []
-    assert tracker.update(10_990 * ms, *still) == [], "same stamp as the last sample: a duplicate"
+    assert tracker.update(10_990 * ms, *still) == [], "same stamp as a sample before: a duplicate"
+    assert tracker.update(11_000 * ms, (0.0, 0.0, 0.0), (0.0, 0.0, 1e6)) == [], "out of range: a glitch"
     assert tracker.counts["nan_skipped"] == 1 and tracker.counts["duplicates"] == 1
+    assert tracker.counts["out_of_range"] == 1
     tracker.notices.pop()
-    assert tracker.update(5_000 * ms, *still) == [], "backwards: filter reset, start-up collects again"
-    assert tracker.counts["time_resets"] == 1
+    # one stamp 6 s back (5.99 s behind the newest sample), the stream goes on: dropped, nothing reset
+    assert tracker.update(5_000 * ms, *still) == []
+    assert len(tracker.update(11_000 * ms, *still)) == 1
+    assert tracker.counts["bad_stamps"] == 1 and tracker.counts["time_resets"] == 0
     (notice,) = tracker.notices.pop()
-    assert notice.level == "warn" and "time went back" in notice.text
+    assert "dropped 1 sample(s) stamped 5.990 s behind the stream (a clock glitch)" in notice.text
+    # the stream goes on from 5 s (a recording replayed again): a reset, once 3 samples confirm it
     more = []
-    for k in range(1, 60):
+    for k in range(60):
         more += tracker.update(5_000 * ms + k * 10 * ms, *still)
-    assert len(more) == 60, "the start-up window releases every buffered sample"
-    assert tracker.update(8_000 * ms, *still) and tracker.counts["gaps"] == 1
+    assert tracker.counts["time_resets"] == 1
+    assert any("time went back 6.000 s and went on from there" in n.text for n in tracker.notices.pop())
+    more += tracker.flush()
+    assert len(more) == 3 + 60, "the 3 held before the restart, then every sample of the new start-up"
+    for k in range(4):
+        more += tracker.update(8_000 * ms + k * 10 * ms, *still)
+    assert tracker.counts["gaps"] == 1, "2.4 s without data, confirmed by the samples after it"
 
 
 def test_node_counts_bad_samples_and_reports_them(ros_context):

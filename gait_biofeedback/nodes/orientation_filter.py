@@ -29,6 +29,9 @@ from gait_biofeedback.wire import diagnostics, topics
 from gait_biofeedback.wire.cdr import decode_imu, decode_mag
 from gait_biofeedback.wire.imu import mag_sample, orientation_payload, raw_sample
 
+FLUSH_AFTER = 0.25
+"""Wall-clock seconds without a sample after which a stream's reorder window is flushed."""
+
 
 class OrientationFilterNode(GuardedNode):
     """All segments' orientation filters (see module docstring)."""
@@ -53,7 +56,9 @@ class OrientationFilterNode(GuardedNode):
             subscribe(self, topics.raw_imu(segment), lambda data, s=segment: self._on_imu(s, data), raw=True)
             subscribe(self, topics.magnetometer(segment), lambda data, s=segment: self._on_mag(s, data),
                       raw=True)
+        self._last_raw: dict[str, object] = {}
         self.create_timer(self.params.diagnostics_period, self._publish_diagnostics)
+        self.create_timer(FLUSH_AFTER / 2, self._flush_silent)
         self.get_logger().info(
             "tracking " + ", ".join(f"{s} ({t.algorithm})" for s, t in self.trackers.items()))
 
@@ -76,12 +81,24 @@ class OrientationFilterNode(GuardedNode):
         raw = decode_imu(data)
         if raw.frame_id != self._frames[segment]:
             self._check_frame(segment, raw.frame_id)
+        self._last_raw[segment] = raw
         tracker = self.trackers[segment]
-        samples = tracker.update(*raw_sample(raw))
-        log_notices(self.get_logger(), tracker.notices.pop())
+        self._publish(segment, tracker.update(*raw_sample(raw)), raw)
+
+    def _publish(self, segment: str, samples: list, raw: object) -> None:
+        log_notices(self.get_logger(), self.trackers[segment].notices.pop())
         publish = self._out[segment].publish
         for sample in samples:
             publish(orientation_payload(segment, sample, raw, self.orientation_variance))
+
+    def _flush_silent(self) -> None:
+        """A stream that stopped (a recording ended, a sensor went silent) releases what its reorder
+        window still holds, as the offline analysis does at the end of a recording."""
+        now = time.monotonic()
+        for segment, tracker in self.trackers.items():
+            last = self._last_arrival.get(segment)
+            if last is not None and now - last > FLUSH_AFTER and tracker.sequencer.holding:
+                self._publish(segment, tracker.flush(), self._last_raw[segment])
 
     def _segment_status(self, segment: str, now: float) -> DiagnosticStatus:
         info = self.trackers[segment].diagnostics()

@@ -25,11 +25,12 @@ SENSOR_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100, reliability=
                         durability=DurabilityPolicy.VOLATILE)
 """Raw sensor streams (DESIGN.md: best effort, depth 100)."""
 
-RELIABLE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=300, reliability=ReliabilityPolicy.RELIABLE,
+RELIABLE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000, reliability=ReliabilityPolicy.RELIABLE,
                           durability=DurabilityPolicy.VOLATILE)
-"""Derived streams: orientations, joint states, events, cues. Depth 300, not DESIGN.md's 100: the
-orientation filter releases its start-up window (1 s = 100 samples at 100 Hz, 200 at 200 Hz) in one
-burst, and a KEEP_LAST history as deep as the burst drops its first samples."""
+"""Derived streams: orientations, joint states, events, cues. Depth 1000, not DESIGN.md's 100: the
+orientation filter releases its start-up window (1 s) and the re-acquisition window after a gap
+(``recover_s``, 2 s: 400 samples at 200 Hz, 800 at 400 Hz) in one burst, and a KEEP_LAST history
+shallower than the burst drops its first samples."""
 
 LATCHED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)

@@ -336,6 +336,18 @@ class ActivityMonitor:
         self.forward_axis = forward
         self._forward_cos_sin = (math.cos(heading), math.sin(heading))
 
+    def keep_mounting(self, previous: ActivityMonitor) -> None:
+        """Take the upright reference (sensor mounting) and forward axis of the monitor this one
+        replaces after a gap: the sensor is still on the same trunk, and a reference taken again
+        while the wearer walks would be wrong. GA then starts from the first sample (as with a given
+        ``reference_acc``)."""
+        if previous._rot is None:
+            return
+        self._rot = list(previous._rot)
+        self.forward_axis = previous.forward_axis
+        self._forward_cos_sin = previous._forward_cos_sin
+        self._prime = True
+
     def keep_wearer_history(self, previous: ActivityMonitor) -> None:
         """Carry the wearer's walking-sway history over from the monitor this one replaces (a
         restart after a gap), so the adaptive stairs threshold does not start again."""

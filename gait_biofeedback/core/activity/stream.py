@@ -1,20 +1,26 @@
 """The chest activity monitor on a live stream: the input rules around :class:`ActivityMonitor`.
 
 Shared by the ``activity_monitor`` node and the offline ``analyze`` path, so both see the same
-states. NaN/inf samples and repeated stamps are skipped and counted; a stamp going backwards or a gap
+states. NaN/inf samples are skipped and counted. Samples pass a
+:class:`~gait_biofeedback.core.sequencer.StreamSequencer` (``reorder_window`` s of re-sequencing;
+duplicates, late samples and single bad stamps dropped and counted); a confirmed jump back or a gap
 longer than ``max_gap`` s restarts the monitor (its upright reference is taken again from the next
-``reference_s`` s); a state is "changed" when posture, locomotion or the last transition differ from
-the last changed one. A trunk forward axis (from the chest's sensor-to-segment calibration) is handed
-to the monitor at the first sample at or after its "in force" stamp, or at once if that has passed,
-as the calibration is for the other consumers (the monitor applies it to the states it emits from
-then on, see ``ActivityMonitor.set_forward_axis``). A restart keeps the forward axis and the wearer's
-walking-sway history. Warnings go to :attr:`ActivityStream.notices`.
+``reference_s`` s after a restart, kept after a gap), keeping the step count, the posture and the
+wearer's history, so a dropout does not set the count back to 0 (issue 13). A state is "changed"
+when posture, locomotion or the last transition differ from the last changed one. A trunk forward
+axis (from the chest's sensor-to-segment calibration) is handed to the monitor at the first sample
+at or after its "in force" stamp, or at once if that has passed, as the calibration is for the other
+consumers (the monitor applies it to the states it emits from then on, see
+``ActivityMonitor.set_forward_axis``). A restart keeps the forward axis and the wearer's
+walking-sway history. The last ``reorder_window`` s of a stream stay held: the monitor labels a
+sample 3 s after it anyway. Warnings go to :attr:`ActivityStream.notices`.
 
 Samples are identified by their stamps (int ns); the stage's parameters are :class:`ActivityParams`.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -34,9 +40,11 @@ from gait_biofeedback.core.in_force import InForceQueue
 from gait_biofeedback.core.notices import Notices
 from gait_biofeedback.core.params import param, same_as
 from gait_biofeedback.core.segments import SEGMENTS
+from gait_biofeedback.core.sequencer import StreamSequencer
 from gait_biofeedback.core.stamps import NS_PER_S
 
 UNITS = ("m/s2", "g")
+_DROPPED = ("duplicates", "late", "bad_stamps")
 
 
 @dataclass(frozen=True)
@@ -55,6 +63,8 @@ class ActivityParams:
         (1.0, 0.0, 0.0), "trunk forward in chest-sensor axes until a calibration gives it (decides upstairs "
         "vs downstairs only)", "1", length=3)
     max_gap: float = param(0.5, "longest stamp gap before the monitor restarts", "s", low=0.01, high=60.0)
+    reorder_window: float = param(0.03, "samples out of order by less than this are re-sequenced (added "
+                                  "latency)", "s", low=0.0, high=1.0)
     publish_period: float = param(1.0, "the state is also published this often (besides every change)", "s",
                                   low=0.05, high=60.0)
 
@@ -70,7 +80,10 @@ class ActivityStream:
         self.options = {"units": p.units, "reference_s": p.reference_s, "thigh_length_m": p.thigh_length,
                         "initial_posture": p.initial_posture, "forward_axis": list(p.forward_axis)}
         self.monitor = ActivityMonitor(self.rate_hz, **self.options)
-        self.counts = {"samples": 0, "nan_skipped": 0, "duplicates": 0, "restarts": 0}
+        self.sequencer = StreamSequencer(window=p.reorder_window)
+        self.counts = {"samples": 0, "nan_skipped": 0, "duplicates": 0, "late": 0, "bad_stamps": 0,
+                       "restarts": 0}
+        self._steps_before = 0  # steps counted by the monitors a restart replaced
         self.notices = Notices()
         self.latest: ActivityState | None = None
         self._last_ns: int | None = None
@@ -121,31 +134,58 @@ class ActivityStream:
         return ""
 
     def update(self, stamp_ns: int, acc: tuple[float, float, float]) -> tuple[ActivityState | None, bool]:
-        """One sample → (the newest state or None, whether it changed)."""
+        """One sample → (the newest state released or None, whether any state released changed)."""
         self.counts["samples"] += 1
         if not all(math.isfinite(v) for v in acc):
             self.counts["nan_skipped"] += 1
             return None, False
+        return self._released(self.sequencer.push(stamp_ns, tuple(acc)))
+
+    def _released(self, released: list) -> tuple[ActivityState | None, bool]:
+        dropped = sum(self.counts[k] for k in _DROPPED)
+        for key in _DROPPED:
+            self.counts[key] = self.sequencer.counts[key]
+        if sum(self.counts[k] for k in _DROPPED) > dropped and dropped < 3:
+            self.notices.say("warn", f"{self.params.segment}: dropped {self.sequencer.last_dropped}")
+        latest, changed = None, False
+        for r in released:
+            for state, change in self._sample(r.stamp_ns, r.payload, r.restart_s):
+                latest, changed = state, changed or change
+        return latest, changed
+
+    def _sample(self, stamp_ns: int, acc: tuple, restart_s: float) -> list[tuple[ActivityState, bool]]:
         segment = self.params.segment
-        if self._last_ns is not None:
-            dt = stamp_ns / NS_PER_S - self._last_ns / NS_PER_S
-            if dt == 0.0:
-                self.counts["duplicates"] += 1
-                return None, False
-            if dt < 0.0 or dt > self.max_gap:
-                self.counts["restarts"] += 1
-                cause = f"time went back {-dt:.3f} s" if dt < 0.0 else f"{dt:.2f} s without data"
-                self.notices.say("warn", f"{segment}: {cause}: activity monitor restarted")
-                previous, self.monitor = self.monitor, ActivityMonitor(self.rate_hz, **self.options)
-                self.monitor.keep_wearer_history(previous)
+        out: list[tuple[ActivityState, bool]] = []
+        dt = None if self._last_ns is None else (stamp_ns - self._last_ns) / NS_PER_S
+        if restart_s or (dt is not None and dt > self.max_gap):
+            self.counts["restarts"] += 1
+            cause = (f"time went back {restart_s:.3f} s and went on from there" if restart_s
+                     else f"{dt:.2f} s without data")
+            kept = "the upright reference taken again" if restart_s else "the upright reference kept"
+            self.notices.say("warn", f"{segment}: {cause}: activity monitor restarted (steps, posture and "
+                                     f"history kept; {kept})")
+            previous = self.monitor
+            out = [self._state(st) for st in previous.flush()]  # its last DELAY_S s, steps included
+            self._steps_before += previous._emitted_steps
+            options = {**self.options, "initial_posture": previous.posture}
+            self.monitor = ActivityMonitor(self.rate_hz, **options)
+            self.monitor.keep_wearer_history(previous)
+            if not restart_s:
+                self.monitor.keep_mounting(previous)
         self._last_ns = stamp_ns
         for forward in self._waiting_forward.due(stamp_ns):
             problem = self._apply_forward(forward)
             if problem:
                 self.notices.say("warn", f"{segment}: {problem}")
         state = self.monitor.update(stamp_ns, acc)
-        if state is None:
-            return None, False
+        if state is not None:
+            out.append(self._state(state))
+        return out
+
+    def _state(self, state: ActivityState) -> tuple[ActivityState, bool]:
+        """A state of the current monitor, counted on from the monitors a restart replaced."""
+        if self._steps_before:
+            state = dataclasses.replace(state, step_count=state.step_count + self._steps_before)
         self.latest = state
         key = (state.posture, state.locomotion, state.last_transition, state.last_transition_ns)
         changed = key != self._key

@@ -8,11 +8,17 @@ arrive on their own stream, and bad input. The ``orientation_filter`` node and t
 Samples are identified by their stamps, int ns (``docs/conventions.md``, Time); dt is computed from
 them in float seconds. The stage's parameters are :class:`OrientationParams`.
 
-Rules (issue 3):
-- dt comes from the stamps. A NaN/inf sample is skipped and counted. A repeated stamp (duplicate
-  packet) is skipped and counted. A stamp going backwards (a bag that loops, a driver restart)
-  resets the filter and the start-up step, with a message. A gap > ``max_gap`` s re-initialises the
-  attitude from the accelerometer (+ magnetometer); the gyro bias estimate is kept.
+Rules (issues 3 and 13):
+- dt comes from the stamps. A NaN/inf sample is skipped and counted. A sample outside the sensor's
+  physical range (``acc_range``, ``gyr_range``: a glitch, not motion) is rejected and counted as
+  out of range.
+- Samples pass a :class:`~gait_biofeedback.core.sequencer.StreamSequencer`: ``reorder_window`` s
+  re-sequence samples that arrive out of order (that much latency added); a duplicate, a late
+  sample or a single stamp that jumps is dropped and counted, with a message saying which. Only a
+  confirmed jump back (a bag that loops, a driver restart) resets the filter and the start-up step.
+  A gap > ``max_gap`` s re-initialises the attitude from the accelerometer (+ magnetometer); the
+  gyro bias estimate is kept. :meth:`SegmentOrientationTracker.flush` releases what the window still
+  holds at the end of a recording.
 - Start-up (thesis §5.3.1): the first ``startup_s`` seconds are buffered; if the sensor was still,
   they give the static gyro bias, reference norms and initial attitude
   (:func:`~gait_biofeedback.core.orientation.filters.calibrate_from_rest`); if it moved, a message says so and
@@ -44,11 +50,14 @@ from gait_biofeedback.core.orientation.filters import (
     quiet_samples,
 )
 from gait_biofeedback.core.orientation.filters.config import load_tuned
+from gait_biofeedback.core.orientation.reacquire import attitude_after_gap
 from gait_biofeedback.core.params import param, require
 from gait_biofeedback.core.segments import SEGMENTS, ImuSeries
+from gait_biofeedback.core.sequencer import StreamSequencer
 from gait_biofeedback.core.stamps import NS_PER_S, ns_to_seconds, seconds_to_ns
 
 _CHOICES = tuple(sorted(ALGORITHMS))
+_DROPPED = ("duplicates", "late", "bad_stamps")
 
 
 @dataclass(frozen=True)
@@ -66,6 +75,15 @@ class OrientationParams:
                              "s", low=0.1, high=30.0)
     max_gap: float = param(0.5, "longest stamp gap before the attitude is re-initialised from the "
                            "accelerometer", "s", low=0.01, high=60.0)
+    recover_s: float = param(2.0, "after a gap, the attitude is re-acquired from this much data (one "
+                             "stride or more; the samples come out that much later, marked as recovering)",
+                             "s", low=0.05, high=10.0)
+    reorder_window: float = param(0.03, "samples out of order by less than this are re-sequenced (added "
+                                  "latency)", "s", low=0.0, high=1.0)
+    acc_range: float = param(16 * 9.80665, "largest accelerometer reading per axis a sample may have "
+                             "(beyond: a glitch, rejected)", "m/s^2", low=1.0, high=10000.0)
+    gyr_range: float = param(2000 * math.pi / 180, "largest gyro reading per axis a sample may have "
+                             "(beyond: a glitch, rejected)", "rad/s", low=0.1, high=1000.0)
     mag_max_age: float = param(0.05, "oldest magnetometer sample a sample may use, beyond the fixed 50 ms "
                                "look-back", "s", low=0.0, high=1.0)
     orientation_variance: float = param(0.0012, "diagonal of the published orientation_covariance", "rad^2",
@@ -86,7 +104,9 @@ class OrientationParams:
         """The stream of one segment with these parameters."""
         return SegmentOrientationTracker(segment, rate_hz=self.rate_hz, algorithm=self.algorithm_of(segment),
                                          startup_s=self.startup_s, max_gap=self.max_gap,
-                                         mag_max_age=self.mag_max_age)
+                                         mag_max_age=self.mag_max_age, reorder_window=self.reorder_window,
+                                         acc_range=self.acc_range, gyr_range=self.gyr_range,
+                                         recover_s=self.recover_s)
 
 
 @dataclass(frozen=True)
@@ -98,6 +118,7 @@ class OrientationSample:
     q: np.ndarray
     gyr: np.ndarray
     acc: np.ndarray
+    recovering: bool = False  # in the window that re-acquired the attitude after a gap
 
     @property
     def t(self) -> float:
@@ -110,7 +131,9 @@ class SegmentOrientationTracker:
 
     def __init__(self, segment: str, rate_hz: float = 100.0, algorithm: str | None = None,
                  params: dict[str, Any] | None = None, startup_s: float = 1.0, max_gap: float = 0.5,
-                 mag_max_age: float = 0.05, mag_delay: float = 0.05) -> None:
+                 mag_max_age: float = 0.05, mag_delay: float = 0.05, reorder_window: float = 0.03,
+                 acc_range: float = 16 * 9.80665, gyr_range: float = 2000 * math.pi / 180,
+                 recover_s: float = 2.0) -> None:
         self.segment = segment
         self.algorithm = algorithm or DEFAULT_ALGORITHM
         if self.algorithm not in ALGORITHMS:
@@ -123,8 +146,12 @@ class SegmentOrientationTracker:
         self.mag_max_age = float(mag_max_age)
         self.mag_delay = float(mag_delay)
         self.filter = ALGORITHMS[self.algorithm](self.rate_hz, **self.params)
-        self.counts = {"samples": 0, "published": 0, "nan_skipped": 0, "duplicates": 0,
-                       "time_resets": 0, "gaps": 0, "mag_samples": 0}
+        self.recover_s = float(recover_s)
+        self.acc_range = float(acc_range)
+        self.gyr_range = float(gyr_range)
+        self.sequencer = StreamSequencer(window=reorder_window)
+        self.counts = {"samples": 0, "published": 0, "nan_skipped": 0, "out_of_range": 0, "duplicates": 0,
+                       "late": 0, "bad_stamps": 0, "time_resets": 0, "gaps": 0, "mag_samples": 0}
         self.startup_quiet: bool | None = None
         self.notices = Notices()
         self._mag: deque[tuple[float, tuple[float, float, float]]] = deque(maxlen=64)
@@ -133,6 +160,8 @@ class SegmentOrientationTracker:
     def _restart(self) -> None:
         self._t_last: float | None = None
         self._startup: list[tuple[float, tuple, tuple, tuple | None, int]] | None = []
+        self._recover: list[tuple[float, tuple, tuple, tuple | None, int]] | None = None
+        self._last_q: np.ndarray | None = None
 
     def _say(self, level: str, text: str) -> None:
         self.notices.say(level, f"{self.segment}: {text}")
@@ -152,30 +181,73 @@ class SegmentOrientationTracker:
         return None
 
     def update(self, stamp_ns: int, gyr: Any, acc: Any) -> list[OrientationSample]:
-        """One IMU sample (rad/s, m/s²) stamped ``stamp_ns`` → the samples ready now (usually one)."""
+        """One IMU sample (rad/s, m/s²) stamped ``stamp_ns`` → the samples ready now (usually one,
+        ``reorder_window`` s after its stamp)."""
         self.counts["samples"] += 1
-        t = stamp_ns / NS_PER_S
         g = tuple(float(v) for v in gyr)
         a = tuple(float(v) for v in acc)
-        if not all(math.isfinite(v) for v in g + a) or not math.isfinite(t):
+        if not all(math.isfinite(v) for v in g + a):
             self.counts["nan_skipped"] += 1
             return []
+        if max(map(abs, a)) > self.acc_range or max(map(abs, g)) > self.gyr_range:
+            self.counts["out_of_range"] += 1
+            if self.counts["out_of_range"] == 1:
+                self._say("warn", f"sample out of the sensor's range (acc {max(map(abs, a)):.3g} m/s², gyro "
+                                  f"{max(map(abs, g)):.3g} rad/s; limits {self.acc_range:.3g}, "
+                                  f"{self.gyr_range:.3g}): rejected as a glitch; further ones are counted")
+            return []
+        before = self.dropped
+        released = self.sequencer.push(stamp_ns, (g, a))
+        if self.dropped > before:
+            self._said_dropped()
+        out: list[OrientationSample] = []
+        for r in released:
+            out += self._process(r.stamp_ns, *r.payload, restart_s=r.restart_s)
+        return out
+
+    def flush(self) -> list[OrientationSample]:
+        """The samples the reorder window still holds (at the end of a recording)."""
+        out: list[OrientationSample] = []
+        for r in self.sequencer.flush():
+            out += self._process(r.stamp_ns, *r.payload, restart_s=r.restart_s)
+        return out
+
+    @property
+    def dropped(self) -> int:
+        """Samples the sequencer dropped: duplicates, late ones, bad stamps (also in :attr:`counts`)."""
+        for key in _DROPPED:
+            self.counts[key] = self.sequencer.counts[key]
+        return sum(self.counts[key] for key in _DROPPED)
+
+    def _said_dropped(self) -> None:
+        dropped = self.dropped
+        if dropped <= 3 or dropped % 100 == 0:
+            more = "" if dropped < 3 else f" ({dropped} so far; counted on /diagnostics)"
+            self._say("warn", f"dropped {self.sequencer.last_dropped}{more}")
+
+    def _process(self, stamp_ns: int, g: tuple, a: tuple, restart_s: float = 0.0) -> list[OrientationSample]:
+        t = stamp_ns / NS_PER_S
+        if restart_s:
+            self.counts["time_resets"] += 1
+            self._say("warn", f"time went back {restart_s:.3f} s and went on from there (a recording "
+                              "replayed again, or the driver or sensor restarted): orientation filter "
+                              "reset, start-up step repeated")
+            self.filter.reset()
+            self._restart()
         if self._t_last is not None:
             dt = t - self._t_last
-            if dt == 0.0:
-                self.counts["duplicates"] += 1
-                return []
-            if dt < 0.0:
-                self.counts["time_resets"] += 1
-                self._say("warn", f"time went back {-dt:.3f} s (bag loop or driver restart): "
-                                  "orientation filter reset, start-up step repeated")
-                self.filter.reset()
-                self._restart()
-            elif dt > self.max_gap:
+            if dt > self.max_gap and self._startup is None and self._recover is None:
                 self.counts["gaps"] += 1
-                self._say("warn", f"{dt:.2f} s without data: attitude re-initialised from the accelerometer")
-                self.filter.initialize(a, self._mag_for(t))
+                self._say("warn", f"{dt:.2f} s without data: attitude re-acquired from the next "
+                                  f"{self.recover_s:g} s (those samples are marked as recovering)")
+                self._recover = []
         m = self._mag_for(t)
+        if self._recover is not None:
+            self._recover.append((t, g, a, m, stamp_ns))
+            self._t_last = t
+            if t - self._recover[0][0] + 1.0 / self.rate_hz < self.recover_s:
+                return []
+            return self._finish_recovery()
         if self._startup is not None:
             self._startup.append((t, g, a, m, stamp_ns))
             self._t_last = t
@@ -209,12 +281,30 @@ class SegmentOrientationTracker:
             previous = t
         return out
 
+    def _finish_recovery(self) -> list[OrientationSample]:
+        samples, self._recover = self._recover, None
+        bias = self.filter.gyro_bias()
+        mag = np.array([s[3] if s[3] is not None else (np.nan,) * 3 for s in samples])
+        q0 = attitude_after_gap([s[0] for s in samples], np.array([s[1] for s in samples]),
+                                np.array([s[2] for s in samples]), mag, bias, self._last_q)
+        self.filter.reset(q0)
+        t0, g0, a0, _, stamp0 = samples[0]
+        self.counts["published"] += 1
+        self._last_q = q0
+        out = [OrientationSample(stamp0, q0, np.array(g0) - bias, np.array(a0), True)]
+        previous = t0
+        for t, g, a, m, stamp_ns in samples[1:]:
+            out.append(self._step(g, a, m, t - previous, stamp_ns, recovering=True))
+            previous = t
+        return out
+
     def _step(self, g: tuple, a: tuple, m: tuple | None, dt: float | None,
-              stamp_ns: int) -> OrientationSample:
+              stamp_ns: int, recovering: bool = False) -> OrientationSample:
         q = self.filter.update(g, a, m, dt)
+        self._last_q = q
         bias = self.filter.gyro_bias()
         self.counts["published"] += 1
-        return OrientationSample(stamp_ns, q, np.array(g) - bias, np.array(a))
+        return OrientationSample(stamp_ns, q, np.array(g) - bias, np.array(a), recovering)
 
     def diagnostics(self) -> dict[str, Any]:
         """Counters and filter state for /diagnostics."""
@@ -249,6 +339,7 @@ def track_orientation(series: ImuSeries, **options: Any) -> tuple[np.ndarray, np
         if mag is not None:
             tracker.add_mag(stamp_ns, mag[k])
         out.extend(tracker.update(stamp_ns, series.gyr[k], series.acc[k]))
+    out.extend(tracker.flush())
     if not out:
         return np.zeros(0), np.zeros((0, 4)), np.zeros((0, 3))
     return (ns_to_seconds(np.array([s.stamp_ns for s in out])), np.array([s.q for s in out]),
