@@ -69,6 +69,7 @@ from gait_biofeedback.wire.cdr import Stamped, decode_imu, decode_mag, serialize
 from gait_biofeedback.wire.gait import cycle_msg, event_msg, foot_frame
 from gait_biofeedback.wire.imu import (
     angular_speed,
+    is_recovering,
     mag_sample,
     orientation_payload,
     orientation_sample,
@@ -249,7 +250,8 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
         nonlocal emitted_joints
         for synced in emitted:
             if synced.angles:
-                emit(topics.JOINT_STATES.absolute(), joint_state_msg(synced.angles, synced.ns), log_ns)
+                msg = joint_state_msg(synced.angles, synced.ns, synced.recovering)
+                emit(topics.JOINT_STATES.absolute(), msg, log_ns)
             emitted_joints += 1
             every = j_params.skeleton_every
             if every > 0 and emitted_joints % every == 0:
@@ -265,10 +267,11 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
                         publish_calibration(calibration_msg(attempt.calibration, attempt.applies_from_ns),
                                             log_ns, attempt.calibration)
         if segment in STREAM_SEGMENTS:
-            publish_joints(joints.add(segment, imu.ns, quaternion(imu), angular_speed(imu)), log_ns)
+            publish_joints(joints.add(segment, imu.ns, quaternion(imu), angular_speed(imu),
+                                      recovering=is_recovering(imu)), log_ns)
         side = segment.removesuffix("_foot")
         if segment == foot_frame(side) and side in gait.detectors:
-            for event, cycle in gait.update(side, imu.ns, quaternion(imu)):
+            for event, cycle in gait.update(side, imu.ns, quaternion(imu), is_recovering(imu)):
                 emit(topics.GAIT_EVENTS.absolute(), event_msg(event), log_ns)
                 if cycle is not None:
                     emit(topics.GAIT_CYCLES.absolute(), cycle_msg(cycle), log_ns)

@@ -152,7 +152,7 @@ def test_a_failing_callback_is_skipped_counted_and_reported(dashboard, ros_conte
         while (not reports or node._latest is None) and time.monotonic() < deadline:
             executor.spin_once(timeout_sec=0.05)
         assert node.callback_errors == {"callback of joint_states": 1}
-        assert node._latest == (1.0, {"left_knee_flexion": 0.2}), "the next good message was processed"
+        assert node._latest == (1.0, {"left_knee_flexion": 0.2}, ()), "the next good message was processed"
         assert reports and reports[0].level == b"\x02" and "1 callback failure" in reports[0].message
     finally:
         source.destroy_node()

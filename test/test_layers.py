@@ -51,7 +51,8 @@ def test_core_and_simulator_are_ros_free_and_import_nothing_above_them():
              "gait_biofeedback.cli", "gait_biofeedback.batch", "gait_biofeedback.parameters",
              "gait_biofeedback.dashboard", "gait_biofeedback.sim")
     assert _layer_violations("gait_biofeedback.core", above) == []
-    recording = ("gait_biofeedback.sim.recording",)  # the simulator's bags: io and wire, above it
+    # the simulator's bags and the faults injected into them: io and wire, above it
+    recording = ("gait_biofeedback.sim.recording", "gait_biofeedback.sim.faults")
     assert _layer_violations("gait_biofeedback.sim", above[:-1], allowed=recording) == []
 
 

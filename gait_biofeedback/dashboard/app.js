@@ -280,7 +280,10 @@ function drawFigure() {
     }).join("  ");
     g.fillText(side + ": " + txt, 10, c.height - 28 + 16 * k);
   });
-  document.getElementById("figure-time").textContent = data.angles ? "t = " + data.angles.t.toFixed(2) + " s" : "";
+  const recovering = data.angles && data.angles.recovering && data.angles.recovering.length
+    ? "  — sensor dropout, recovering: " + data.angles.recovering.join(", ") + " (no feedback)" : "";
+  document.getElementById("figure-time").textContent =
+    data.angles ? "t = " + data.angles.t.toFixed(2) + " s" + recovering : "";
 }
 
 function drawEvents() {

@@ -8,6 +8,8 @@ Subscribes ``joint_states`` (sensor_msgs/JointState, rad), ``gait/cycles`` (Gait
 (GaitEvent), ``activity/state`` (ActivityState) and ``/diagnostics``. At each plausible stride it waits
 until the joint angles reach the closing IC (at most ``stride_wait`` s, then the kinematic quantities are
 left out) and publishes one ``biofeedback/cues`` (BiofeedbackCue) per targeted quantity, in band or not.
+Joint states marked as recovering from a sensor dropout (:mod:`gait_biofeedback.wire.joints`) are
+shown, marked, but never evaluated: a stride that contains them gets no kinematic cue.
 
 Dashboard (``serve_dashboard``): :class:`~gait_biofeedback.dashboard.server.DashboardServer` on
 ``host``:``port`` (127.0.0.1:8080; port 0 = a free port, see :attr:`BiofeedbackNode.port`), page at
@@ -60,7 +62,7 @@ from gait_biofeedback.wire import diagnostics, topics
 from gait_biofeedback.wire.activity import state_of
 from gait_biofeedback.wire.biofeedback import cue_msg
 from gait_biofeedback.wire.gait import event_of, foot_frame, stride_of
-from gait_biofeedback.wire.joints import angles_of
+from gait_biofeedback.wire.joints import angles_of, recovering_of
 from gait_biofeedback.wire.stamps import stamp_to_ns
 from gait_biofeedback_msgs.msg import ActivityState, GaitCycle, GaitEvent, SegmentCalibrationArray
 from gait_biofeedback_msgs.srv import Calibrate
@@ -111,7 +113,7 @@ class BiofeedbackNode(GuardedNode):
         self.evaluator = BiofeedbackEvaluator(self.targets)
         self.muted = False
         # state shared with the server thread: references replaced whole, bounded deques
-        self._latest: tuple[float, dict[str, float]] | None = None
+        self._latest: tuple[float, dict[str, float], tuple[str, ...]] | None = None
         self._latest_sent: float | None = None
         self._samples: deque[list[float]] = deque(maxlen=500)
         self._outbox: deque[dict[str, Any]] = deque(maxlen=5000)
@@ -131,8 +133,8 @@ class BiofeedbackNode(GuardedNode):
         self._latest_cues: dict[tuple[str, str], Cue] = {}
         self._pending: list[tuple[Stride, float]] = []
         self._seq = 0
-        self.counts = {"joint_states": 0, "strides": 0, "strides_without_angles": 0, "implausible": 0,
-                       "cues": 0, "frames": 0, "commands": 0}
+        self.counts = {"joint_states": 0, "recovering_joint_states": 0, "strides": 0,
+                       "strides_without_angles": 0, "implausible": 0, "cues": 0, "frames": 0, "commands": 0}
         self._index_names: tuple[str, ...] = ()
         self._index: list[int | None] = []
 
@@ -172,9 +174,13 @@ class BiofeedbackNode(GuardedNode):
         stamp_ns, angles = angles_of(msg)
         t = stamp_ns / NS_PER_S
         self.counts["joint_states"] += 1
-        self._latest = (t, angles)
+        recovering = recovering_of(msg)
+        self._latest = (t, angles, recovering)
         row = [t] + [float(pos[i]) if i is not None else math.nan for i in self._index]
         self._samples.append(row)
+        if recovering:  # shown, marked; no stride is evaluated from them (the history has a gap)
+            self.counts["recovering_joint_states"] += 1
+            return
         for k, side in enumerate(SIDES):
             hip, knee, ankle = row[1 + 3 * k: 4 + 3 * k]
             if not (math.isnan(hip) or math.isnan(knee) or math.isnan(ankle)):
@@ -199,7 +205,7 @@ class BiofeedbackNode(GuardedNode):
     def _on_event(self, msg: GaitEvent) -> None:
         side, kind, stamp_ns, index = event_of(msg)
         self._outbox.append({"type": "event", "side": side, "kind": kind.upper(), "t": stamp_ns / NS_PER_S,
-                             "index": index})
+                             "index": index, "flag": msg.flag})
 
     def _on_activity(self, msg: ActivityState) -> None:
         state = state_of(msg)
@@ -355,9 +361,10 @@ class BiofeedbackNode(GuardedNode):
             frame["samples"] = [[round(v, 5) if not math.isnan(v) else None for v in row] for row in samples]
         latest = self._latest
         if latest is not None and latest[0] != self._latest_sent:
-            t, angles = latest
+            t, angles, recovering = latest
             self._latest_sent = t
-            frame["angles"] = {"t": t, "values": {k: float(v) for k, v in angles.items()}}
+            frame["angles"] = {"t": t, "values": {k: float(v) for k, v in angles.items()},
+                               "recovering": list(recovering)}
             frame["figure"] = [[seg, round(x0, 4), round(y0, 4), round(x1, 4), round(y1, 4)]
                                for seg, x0, y0, x1, y1 in sagittal_stick_figure(angles, self.lengths)]
         messages = _drain(self._outbox)

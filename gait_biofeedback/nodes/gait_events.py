@@ -35,7 +35,7 @@ from gait_biofeedback.wire import diagnostics, topics
 from gait_biofeedback.wire.calibration import entries
 from gait_biofeedback.wire.cdr import decode_imu
 from gait_biofeedback.wire.gait import cycle_msg, event_msg, foot_frame
-from gait_biofeedback.wire.imu import quaternion
+from gait_biofeedback.wire.imu import is_recovering, quaternion
 from gait_biofeedback_msgs.msg import SegmentCalibrationArray
 
 
@@ -82,7 +82,7 @@ class GaitEventsNode(GuardedNode):
         self._last_arrival[side] = time.monotonic()
         self._stopped[side] = False
         imu = decode_imu(data)
-        for event, cycle in self.stream.update(side, imu.ns, quaternion(imu)):
+        for event, cycle in self.stream.update(side, imu.ns, quaternion(imu), is_recovering(imu)):
             self._events.publish(event_msg(event))
             if cycle is not None:
                 self._cycles.publish(cycle_msg(cycle))

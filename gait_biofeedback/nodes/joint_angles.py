@@ -12,6 +12,7 @@ first ``offset_window_s`` s after calibration during which every segment is stil
 ``still_gyro`` rad/s) is subtracted from then on.
 
 Publishes ``joint_states`` (sensor_msgs/JointState, names from JOINT_NAMES, rad, stamp = sample stamp)
+(marked in ``header.frame_id`` while a segment recovers from a dropout, :mod:`gait_biofeedback.wire.joints`)
 and ``skeleton`` (visualization_msgs/MarkerArray, one LINE_LIST in frame "world", pelvis at the origin,
 every ``skeleton_every`` samples), drawn with the body dimensions. Parameters:
 :class:`~gait_biofeedback.core.joints.stream.JointAnglesParams`.
@@ -36,7 +37,7 @@ from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
 from gait_biofeedback.wire import diagnostics, topics
 from gait_biofeedback.wire.calibration import rotations
 from gait_biofeedback.wire.cdr import decode_imu
-from gait_biofeedback.wire.imu import angular_speed, quaternion
+from gait_biofeedback.wire.imu import angular_speed, is_recovering, quaternion
 from gait_biofeedback.wire.joints import joint_state_msg, skeleton_msg
 from gait_biofeedback_msgs.msg import SegmentCalibrationArray
 
@@ -78,7 +79,8 @@ class JointAnglesNode(GuardedNode):
 
     def _on_imu(self, segment: str, data: bytes) -> None:
         imu = decode_imu(data)
-        self._publish(self.stream.add(segment, imu.ns, quaternion(imu), angular_speed(imu), time.monotonic()))
+        self._publish(self.stream.add(segment, imu.ns, quaternion(imu), angular_speed(imu), time.monotonic(),
+                                      is_recovering(imu)))
 
     def _flush(self) -> None:
         self._publish(self.stream.flush(time.monotonic()))
@@ -86,7 +88,7 @@ class JointAnglesNode(GuardedNode):
     def _publish(self, emitted: list[SyncedAngles]) -> None:
         for synced in emitted:
             if synced.angles:
-                self._joints.publish(joint_state_msg(synced.angles, synced.ns))
+                self._joints.publish(joint_state_msg(synced.angles, synced.ns, synced.recovering))
             self.published += 1
             every = self.params.skeleton_every
             if every > 0 and self.published % every == 0:
@@ -106,6 +108,7 @@ class JointAnglesNode(GuardedNode):
                 text = f"publishing; standing offset pending: stand still {self.params.offset_window_s:g} s"
             values = {f"missing_{s}": n for s, n in self.missing_counts.items()}
             values["published"] = self.published
+            values["recovering_instants"] = self.stream.recovering_count
             status = diagnostics.status("joint_angles", level, text, values=values)
         self.publish_diagnostics([status])
 

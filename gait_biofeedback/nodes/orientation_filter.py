@@ -57,6 +57,7 @@ class OrientationFilterNode(GuardedNode):
             subscribe(self, topics.magnetometer(segment), lambda data, s=segment: self._on_mag(s, data),
                       raw=True)
         self._last_raw: dict[str, object] = {}
+        self._reported: dict[str, dict[str, int]] = {}  # counts at the last /diagnostics
         self.create_timer(self.params.diagnostics_period, self._publish_diagnostics)
         self.create_timer(FLUSH_AFTER / 2, self._flush_silent)
         self.get_logger().info(
@@ -101,8 +102,11 @@ class OrientationFilterNode(GuardedNode):
                 self._publish(segment, tracker.flush(), self._last_raw[segment])
 
     def _segment_status(self, segment: str, now: float) -> DiagnosticStatus:
-        info = self.trackers[segment].diagnostics()
+        tracker = self.trackers[segment]
+        info = tracker.diagnostics()
         info["wrong_frame_id"] = self.wrong_frame[segment]
+        conditions = tracker.conditions(self._reported.get(segment, {}))
+        self._reported[segment] = dict(tracker.counts)
         last = self._last_arrival.get(segment)
         level, message = DiagnosticStatus.OK, "tracking"
         if last is None:
@@ -117,6 +121,9 @@ class OrientationFilterNode(GuardedNode):
             message = ("magnetic disturbance: heading from gyro only" if info["mag_disturbed"]
                        else "wrong frame_id on the raw stream" if self.wrong_frame[segment]
                        else "moved during start-up: gyro bias not removed")
+        if conditions and last is not None and now - last <= self.stale_after:
+            message = "; ".join(conditions if message == "tracking" else [message, *conditions])
+            level = max(level, DiagnosticStatus.WARN)
         return diagnostics.status(f"orientation_filter: {segment}", level, message, sensor_frame(segment),
                                   info)
 

@@ -32,7 +32,7 @@ def event_msg(event: GaitEvent) -> GaitEventMsg:
     """``gait/events`` message of a core event (stamp = the event sample's stamp)."""
     out = GaitEventMsg(side=SIDE_CODES[event.side], type=KIND_CODES[event.kind],
                        detection_latency=float(event.latency), signal_value=float(event.signal),
-                       event_index=int(event.index))
+                       event_index=int(event.index), flag=event.flag)
     out.header.stamp = ns_to_stamp(event.stamp_ns)
     out.header.frame_id = foot_frame(event.side)
     return out

@@ -4,6 +4,11 @@
 sensor_msgs/Imu stores the quaternion (x, y, z, w); the core uses (w, x, y, z) (``docs/conventions.md``):
 :func:`quaternion` is the one place that reorders. A raw Imu has ``orientation_covariance[0] = -1``
 (orientation unknown) and 0 elsewhere (unknown covariances).
+
+A filtered sample whose orientation is being re-acquired after a dropout (``recovering``) carries
+``RECOVERING_VARIANCE`` on the diagonal of ``orientation_covariance`` instead of the parameter
+``orientation_variance`` (whose range stays below it): the standard field says "this orientation is
+uncertain", and :func:`is_recovering` is how every consumer reads it.
 """
 
 from __future__ import annotations
@@ -27,6 +32,7 @@ from gait_biofeedback.wire.cdr import (
     LINEAR_ACCELERATION_COV,
     MAGNETIC_FIELD,
     ORIENTATION,
+    ORIENTATION_COV,
     Stamped,
     encode_stamped,
     pack_imu,
@@ -34,6 +40,9 @@ from gait_biofeedback.wire.cdr import (
 from gait_biofeedback.wire.stamps import ns_to_stamp
 
 Vector = tuple[float, float, float]
+
+RECOVERING_VARIANCE = math.radians(10.0) ** 2
+"""rad², the orientation variance of a sample published while the attitude is re-acquired."""
 
 
 def quaternion(imu: Stamped) -> tuple[float, float, float, float]:
@@ -59,6 +68,11 @@ def orientation_sample(imu: Stamped) -> tuple[int, Vector, Vector, tuple[float, 
     return imu.ns, v[LINEAR_ACCELERATION], v[ANGULAR_VELOCITY], quaternion(imu)
 
 
+def is_recovering(imu: Stamped) -> bool:
+    """The filtered sample's orientation is being re-acquired after a dropout (module docstring)."""
+    return imu.values[ORIENTATION_COV][0] >= RECOVERING_VARIANCE
+
+
 def angular_speed(imu: Stamped) -> float:
     """|ω| (rad/s) of a decoded Imu."""
     return math.hypot(*imu.values[ANGULAR_VELOCITY])
@@ -67,10 +81,10 @@ def angular_speed(imu: Stamped) -> float:
 def orientation_payload(segment: str, sample: OrientationSample, raw: Stamped, variance: float) -> bytes:
     """Serialized ``<segment>/imu/data`` of one filtered sample, as the ``orientation_filter`` node
     publishes it: the sample's stamp, the sensor frame, q, the bias-corrected gyro, the raw
-    acceleration, a diagonal orientation covariance and the raw covariances of the message that
-    released the sample."""
+    acceleration, a diagonal orientation covariance (``RECOVERING_VARIANCE`` while recovering) and
+    the raw covariances of the message that released the sample."""
     w, x, y, z = sample.q.tolist()
-    v = variance
+    v = RECOVERING_VARIANCE if sample.recovering else variance
     values = (x, y, z, w, v, 0.0, 0.0, 0.0, v, 0.0, 0.0, 0.0, v, *sample.gyr.tolist(),
               *raw.values[ANGULAR_VELOCITY_COV], *sample.acc.tolist(), *raw.values[LINEAR_ACCELERATION_COV])
     return pack_imu(sample.stamp_ns, sensor_frame(segment), values)

@@ -1,9 +1,15 @@
 """``joint_states`` (sensor_msgs/JointState, names from JOINT_NAMES, rad) and the ``skeleton``
-stick figure (visualization_msgs/MarkerArray) ↔ the core's joint-angle stream."""
+stick figure (visualization_msgs/MarkerArray) ↔ the core's joint-angle stream.
+
+JointState has no quality field and joint states have no frame, so the header's ``frame_id`` carries
+the project's one mark: empty normally, ``"recovering: <segments>"`` when the orientation of those
+segments was being re-acquired after a sensor dropout. Such angles are shown (marked) and recorded,
+but no biofeedback is computed from them (:func:`recovering_of`).
+"""
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 from geometry_msgs.msg import Point
 from sensor_msgs.msg import JointState
@@ -16,12 +22,24 @@ from gait_biofeedback.core.joints.stream import SyncedAngles
 from gait_biofeedback.core.segments import WORLD_FRAME
 from gait_biofeedback.wire.stamps import ns_to_stamp, stamp_to_ns
 
+RECOVERING = "recovering: "
 
-def joint_state_msg(angles: Mapping[str, float], stamp_ns: int) -> JointState:
-    """``joint_states`` of one instant (names from JOINT_NAMES, rad, stamp = the samples' stamp)."""
+
+def joint_state_msg(angles: Mapping[str, float], stamp_ns: int,
+                    recovering: Sequence[str] = ()) -> JointState:
+    """``joint_states`` of one instant (names from JOINT_NAMES, rad, stamp = the samples' stamp),
+    marked when segments were ``recovering`` (module docstring)."""
     msg = JointState(name=list(angles), position=[float(v) for v in angles.values()])
     msg.header.stamp = ns_to_stamp(stamp_ns)
+    if recovering:
+        msg.header.frame_id = RECOVERING + ",".join(recovering)
     return msg
+
+
+def recovering_of(msg: JointState) -> tuple[str, ...]:
+    """The segments a ``joint_states`` message is marked as recovering (empty: not marked)."""
+    frame = msg.header.frame_id
+    return tuple(frame[len(RECOVERING):].split(",")) if frame.startswith(RECOVERING) else ()
 
 
 def angles_of(msg: JointState) -> tuple[int, dict[str, float]]:

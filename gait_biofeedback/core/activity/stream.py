@@ -39,11 +39,13 @@ from gait_biofeedback.core.calibration.sensor_to_segment import SegmentEntry
 from gait_biofeedback.core.in_force import InForceQueue
 from gait_biofeedback.core.notices import Notices
 from gait_biofeedback.core.params import param, same_as
+from gait_biofeedback.core.rate import RateCheck
 from gait_biofeedback.core.segments import SEGMENTS
 from gait_biofeedback.core.sequencer import StreamSequencer
 from gait_biofeedback.core.stamps import NS_PER_S
 
 UNITS = ("m/s2", "g")
+MIN_RATE_HZ, MAX_RATE_HZ = 20.0, 200.0  # the monitor's filters are designed for these rates
 _DROPPED = ("duplicates", "late", "bad_stamps")
 
 
@@ -52,7 +54,8 @@ class ActivityParams:
     """Parameters of the activity stage (node ``activity_monitor``, and ``analyze``)."""
 
     segment: str = param("chest", "segment whose raw accelerometer is monitored", choices=SEGMENTS)
-    rate_hz: float = param(100.0, "nominal sample rate of that IMU (the filters are designed for it)", "Hz",
+    rate_hz: float = param(100.0, "nominal sample rate of that IMU (the filters are designed for it; the "
+                           "rate measured from the stamps is used when it differs by over 10 %)", "Hz",
                            low=20.0, high=200.0)
     units: str = param("m/s2", "unit of the accelerometer readings", choices=UNITS)
     reference_s: float = param(2.0, "upright standing at the start taken as the trunk's reference", "s",
@@ -81,6 +84,9 @@ class ActivityStream:
                         "initial_posture": p.initial_posture, "forward_axis": list(p.forward_axis)}
         self.monitor = ActivityMonitor(self.rate_hz, **self.options)
         self.sequencer = StreamSequencer(window=p.reorder_window)
+        self.rate = RateCheck(p.rate_hz)
+        self._every = 1  # keep every this many samples (a sensor faster than MAX_RATE_HZ)
+        self._skip = 0
         self.counts = {"samples": 0, "nan_skipped": 0, "duplicates": 0, "late": 0, "bad_stamps": 0,
                        "restarts": 0}
         self._steps_before = 0  # steps counted by the monitors a restart replaced
@@ -173,6 +179,13 @@ class ActivityStream:
             if not restart_s:
                 self.monitor.keep_mounting(previous)
         self._last_ns = stamp_ns
+        rate_note = self.rate.update(stamp_ns)
+        if rate_note:
+            self._set_rate(rate_note)
+        if self._every > 1:
+            self._skip = (self._skip + 1) % self._every
+            if self._skip:
+                return out
         for forward in self._waiting_forward.due(stamp_ns):
             problem = self._apply_forward(forward)
             if problem:
@@ -181,6 +194,21 @@ class ActivityStream:
         if state is not None:
             out.append(self._state(state))
         return out
+
+    def _set_rate(self, note: str) -> None:
+        """The stream's rate is not the configured one: a new monitor designed for it (at the start of
+        the stream: nothing is lost but its first samples); above MAX_RATE_HZ every k-th sample."""
+        measured = self.rate.rate_hz
+        self._every = max(1, math.ceil(measured / MAX_RATE_HZ - 1e-9))
+        self.rate_hz = measured / self._every
+        if self.rate_hz < MIN_RATE_HZ:
+            self.notices.say("error", f"{self.params.segment}: {note}; below {MIN_RATE_HZ:g} Hz the monitor "
+                                      "cannot count steps: it keeps the configured rate")
+            self.rate_hz, self._every = self.params.rate_hz, 1
+            return
+        thinned = f", every {self._every}th sample kept" if self._every > 1 else ""
+        self.notices.say("warn", f"{self.params.segment}: {note}{thinned}")
+        self.monitor = ActivityMonitor(self.rate_hz, **self.options)
 
     def _state(self, state: ActivityState) -> tuple[ActivityState, bool]:
         """A state of the current monitor, counted on from the monitors a restart replaced."""

@@ -84,8 +84,10 @@ class GaitCycleTracker:
         self._ics[side].clear()
         self._tcs[side].clear()
 
-    def add(self, event: GaitEvent) -> GaitCycle | None:
-        """One event; the stride it closes (an IC after an earlier IC of the same foot), else None."""
+    def add(self, event: GaitEvent, doubt: tuple[int, str] | None = None) -> GaitCycle | None:
+        """One event; the stride it closes (an IC after an earlier IC of the same foot), else None.
+        ``doubt``: (stamp ns, why) of the foot's latest doubtful sample; a stride containing it is
+        not plausible, with that flag."""
         side = event.side
         if event.kind == TERMINAL_CONTACT:
             self._tcs[side].append(event)
@@ -97,14 +99,15 @@ class GaitCycleTracker:
         ics.append(event)
         if previous is None:
             return None
-        return self._cycle(side, previous, event)
+        return self._cycle(side, previous, event, doubt)
 
-    def _cycle(self, side: str, opening: GaitEvent, closing: GaitEvent) -> GaitCycle:
+    def _cycle(self, side: str, opening: GaitEvent, closing: GaitEvent,
+               doubt: tuple[int, str] | None) -> GaitCycle:
         start, end = opening.t, closing.t
         other = SIDES[1 - SIDES.index(side)]
         stride = end - start
         own_tcs = [e for e in self._tcs[side] if start < e.t < end]
-        flags = []
+        flags = [doubt[1]] if doubt is not None and doubt[0] >= opening.stamp_ns else []
         if not self.min_stride_s <= stride <= self.max_stride_s:
             flags.append(f"stride time {stride:.2f} s outside {self.min_stride_s:g}-{self.max_stride_s:g} s")
         if len(own_tcs) != 1:

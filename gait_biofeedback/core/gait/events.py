@@ -55,7 +55,7 @@ class GaitEvent:
     """One detected event of one foot. ``stamp_ns``: stamp of the event (extremum) sample;
     ``detected_ns``: stamp of the sample that confirmed it (one sample later); ``signal``: the
     detector's signal at the event (-sin(beta) for Algorithm 1); ``index``: running count of events of
-    this side and type."""
+    this side and type; ``flag``: why the event is doubtful (set by the stream), empty otherwise."""
 
     side: str
     kind: str
@@ -63,6 +63,7 @@ class GaitEvent:
     detected_ns: int
     signal: float
     index: int
+    flag: str = ""
 
     @property
     def t(self) -> float:
@@ -112,14 +113,20 @@ class GaitEventDetector:
         if not rate_hz > 0:
             raise ValueError(f"rate_hz must be > 0, got {rate_hz}")
         self.side = side
-        self.rate_hz = float(rate_hz)
         self.threshold = float(threshold)
-        self.window = samples_for(window_s, rate_hz)
-        self.refractory = samples_for(refractory_s, rate_hz)
-        self.min_trend = math.ceil(trend_fraction * self.window - 1e-9)
+        self._durations = (float(window_s), float(refractory_s), float(trend_fraction))
+        self.set_rate(rate_hz)
         self.set_mounting(mounting)
         self.counts = {INITIAL_CONTACT: 0, TERMINAL_CONTACT: 0}
         self.reset()
+
+    def set_rate(self, rate_hz: float) -> None:
+        """Count the windows (stated in seconds) at ``rate_hz``; call :meth:`reset` after a change."""
+        window_s, refractory_s, trend_fraction = self._durations
+        self.rate_hz = float(rate_hz)
+        self.window = samples_for(window_s, rate_hz)
+        self.refractory = samples_for(refractory_s, rate_hz)
+        self.min_trend = math.ceil(trend_fraction * self.window - 1e-9)
 
     def set_mounting(self, mounting: np.ndarray | None) -> None:
         """Use a new calibration rotation r (segment → sensor)."""

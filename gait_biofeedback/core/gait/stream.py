@@ -13,6 +13,12 @@
   new calibration resets the foot's detector and strides.
 - Bad input: a non-finite or zero quaternion is skipped; a stamp going backwards or a gap
   > ``max_gap`` s resets that foot (detector and strides), counted and said (:attr:`notices`).
+- Rate: each foot's rate is measured from its first stamps (:class:`~gait_biofeedback.core.rate.RateCheck`);
+  more than 10 % off ``rate_hz``, the detector counts its windows at the measured rate, and says so.
+- Sensor dropouts (issue 13): an event detected on a sample whose orientation was being re-acquired
+  after a dropout (``recovering``) carries the flag "sensor dropout: orientation recovering"; a
+  stride that contains such a sample, or a stamp gap > ``dropout_gap`` s, is not plausible (flag
+  "sensor dropout: ..."), so no cue is given from it.
   A stream that stopped (the node's wall-clock check) is reported with :meth:`stream_stopped`.
 
 Samples are identified by their stamps (int ns); the stage's parameters are :class:`GaitEventsParams`.
@@ -22,7 +28,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -40,10 +46,12 @@ from gait_biofeedback.core.gait.events import (
 from gait_biofeedback.core.in_force import InForceQueue
 from gait_biofeedback.core.notices import Notices
 from gait_biofeedback.core.params import param, require
+from gait_biofeedback.core.rate import RateCheck
 from gait_biofeedback.core.segments import SIDES
 from gait_biofeedback.core.stamps import NS_PER_S
 
 FOOT_SIDES = SIDES
+RECOVERING_FLAG = "sensor dropout: orientation recovering"
 
 
 @dataclass(frozen=True)
@@ -51,7 +59,8 @@ class GaitEventsParams:
     """Parameters of the gait-event stage (node ``gait_events``, and ``analyze``)."""
 
     sides: tuple[str, ...] = param(FOOT_SIDES, "feet whose events are detected", choices=FOOT_SIDES)
-    rate_hz: float = param(100.0, "nominal sample rate: Algorithm 1 counts samples (windows of 15 at 100 Hz)",
+    rate_hz: float = param(100.0, "nominal sample rate: Algorithm 1 counts samples (windows of 15 at 100 "
+                           "Hz); the rate measured from the stamps is used when it differs by over 10 %",
                            "Hz", low=20.0, high=1000.0)
     threshold: float = param(THRESHOLD, "-sin(foot pitch) threshold of Algorithm 1 (thesis §6.2.2)", "1",
                              low=-1.0, high=1.0)
@@ -62,6 +71,8 @@ class GaitEventsParams:
     trend_fraction: float = param(TREND_FRACTION, "share of monotone differences the extremum rule needs",
                                   "1", low=0.0, high=1.0)
     max_gap: float = param(0.5, "longest stamp gap before a foot's state is reset", "s", low=0.01, high=60.0)
+    dropout_gap: float = param(0.1, "a stamp gap longer than this inside a stride makes it implausible "
+                               "(sensor dropout)", "s", low=0.01, high=60.0)
     use_standing_reference: bool = param(False, "before a calibration, take the foot's anterior axis from "
                                          "its first orientation (IMU x made horizontal, thesis §6.2.2)")
     symmetry_window: int = param(10, "steps per side in the step-time symmetry index", "steps",
@@ -114,6 +125,8 @@ class GaitEventStream:
         self.notes: dict[str, str] = {s: "" for s in self.sides}
         self.notices = Notices()
         self._last_ns: dict[str, int | None] = {s: None for s in self.sides}
+        self._doubtful: dict[str, tuple[int, str] | None] = {s: None for s in self.sides}
+        self.rates = {s: RateCheck(p.rate_hz) for s in self.sides}
         self._waiting: dict[str, InForceQueue[np.ndarray]] = {s: InForceQueue() for s in self.sides}
 
     def set_calibration(self, side: str, rotation: np.ndarray | None, valid: bool = True, message: str = "",
@@ -157,14 +170,20 @@ class GaitEventStream:
         self.reset(side, "stream stopped")
         self.notices.say("warn", f"{side} foot: no data for {seconds:.1f} s, state reset")
 
-    def update(self, side: str, stamp_ns: int,
-               q: tuple[float, float, float, float]) -> list[tuple[GaitEvent, GaitCycle | None]]:
-        """One orientation sample (sensor→world w, x, y, z) of ``side``'s foot stamped ``stamp_ns`` →
-        the events it confirmed, each with the stride it closed (or None)."""
+    def update(self, side: str, stamp_ns: int, q: tuple[float, float, float, float],
+               recovering: bool = False) -> list[tuple[GaitEvent, GaitCycle | None]]:
+        """One orientation sample (sensor→world w, x, y, z) of ``side``'s foot stamped ``stamp_ns``
+        (``recovering``: its orientation is being re-acquired after a dropout) → the events it
+        confirmed, each with the stride it closed (or None)."""
         counts = self.counts[side]
         counts["samples"] += 1
         if not all(math.isfinite(v) for v in q) or tuple(q) == (0.0, 0.0, 0.0, 0.0):
             return []
+        rate_note = self.rates[side].update(stamp_ns)
+        if rate_note:
+            self.detectors[side].set_rate(self.rates[side].rate_hz)
+            self.detectors[side].reset()
+            self.notices.say("warn", f"{side} foot: {rate_note}")
         for rotation in self._waiting[side].due(stamp_ns):
             self._apply(side, rotation)
         if not self.calibrated[side]:
@@ -180,12 +199,18 @@ class GaitEventStream:
                 why = "time went backwards" if t <= last else f"{t - last:.2f} s gap in the stamps"
                 self.reset(side, why)
                 self.notices.say("warn", f"{side} foot: {self.notes[side]}")
+            elif t - last > self.params.dropout_gap:
+                self._doubtful[side] = (stamp_ns, f"sensor dropout: {t - last:.2f} s without data")
+        if recovering:
+            self._doubtful[side] = (stamp_ns, RECOVERING_FLAG)
         self._last_ns[side] = stamp_ns
         event = self.detectors[side].update(stamp_ns, q)
         if event is None:
             return []
+        if recovering:
+            event = replace(event, flag=RECOVERING_FLAG)
         counts[event.kind] += 1
-        cycle = self.tracker.add(event)
+        cycle = self.tracker.add(event, self._doubtful[side])
         if cycle is not None:
             counts["strides"] += 1
             if not cycle.plausible:

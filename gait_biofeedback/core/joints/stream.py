@@ -46,12 +46,14 @@ STREAM_SEGMENTS: tuple[str, ...] = ("pelvis", "left_thigh", "left_shank", "left_
 @dataclass(frozen=True)
 class SyncedAngles:
     """One emitted instant: stamp (ns), the angles (rad, offset removed; empty when no joint had both
-    segments), the sensor→world orientations present, and the calibration rotations in force."""
+    segments), the sensor→world orientations present, the calibration rotations in force, and the
+    segments whose orientation was being re-acquired after a dropout (its angles are doubtful)."""
 
     ns: int
     angles: dict[str, float]
     sensor_quats: dict[str, np.ndarray]
     rotations: dict[str, np.ndarray]
+    recovering: tuple[str, ...] = ()
 
 
 class JointAngleStream:
@@ -66,6 +68,8 @@ class JointAngleStream:
     Samples are ignored while no calibration is in force or waiting. Each calibration starts a new
     calculator and, with ``remove_standing_offset``, a new standing-offset collection of
     ``offset_window_s`` s of still samples (every segment present with |ω| < ``still_gyro`` rad/s).
+    A sample marked ``recovering`` (its orientation re-acquired after a dropout) names its segment in
+    the instant's :attr:`SyncedAngles.recovering` and never counts as still.
     """
 
     def __init__(self, params: JointAnglesParams | None = None,
@@ -79,9 +83,10 @@ class JointAngleStream:
         self.still_gyro = p.still_gyro
         self.calculator: JointAngleCalculator | None = None
         self._waiting: InForceQueue[JointAngleCalculator] = InForceQueue()
-        self.pending: dict[int, dict[str, tuple[np.ndarray, float]]] = {}
+        self.pending: dict[int, dict[str, tuple[np.ndarray, float, bool]]] = {}
         self.first_arrival: dict[int, float] = {}
         self.missing_counts: dict[str, int] = {s: 0 for s in self.segments}
+        self.recovering_count = 0  # emitted instants with a recovering segment
 
     def _new_calculator(self, rotations: dict[str, np.ndarray]) -> JointAngleCalculator:
         calculator = JointAngleCalculator(rotations)
@@ -110,11 +115,12 @@ class JointAngleStream:
         return [] if calculator is None else [s for s in self.segments if s in calculator.rotations]
 
     def add(self, segment: str, ns: int, q: np.ndarray, gyro_norm: float,
-            arrival: float | None = None) -> list[SyncedAngles]:
+            arrival: float | None = None, recovering: bool = False) -> list[SyncedAngles]:
         """One sample (sensor→world q, |ω| rad/s) of ``segment`` at stamp ``ns``; the instants ready now."""
         if not self.active or segment not in self.segments:
             return []
-        self.pending.setdefault(ns, {})[segment] = (np.asarray(q, dtype=float), float(gyro_norm))
+        self.pending.setdefault(ns, {})[segment] = (np.asarray(q, dtype=float), float(gyro_norm),
+                                                    bool(recovering))
         self.first_arrival.setdefault(ns, arrival if arrival is not None else math.inf)
         return self.flush(arrival)
 
@@ -139,7 +145,7 @@ class JointAngleStream:
                 out.append(emitted)
         return out
 
-    def _emit(self, ns: int, samples: dict[str, tuple[np.ndarray, float]],
+    def _emit(self, ns: int, samples: dict[str, tuple[np.ndarray, float, bool]],
               wanted: list[str]) -> SyncedAngles | None:
         for calculator in self._waiting.due(ns):
             self.calculator = calculator
@@ -148,7 +154,10 @@ class JointAngleStream:
         for seg in wanted:
             if seg not in samples:
                 self.missing_counts[seg] += 1
-        quats = {s: q for s, (q, _) in samples.items()}
-        still = all(w < self.still_gyro for _, w in samples.values()) and len(samples) == len(wanted)
+        quats = {s: q for s, (q, _, _) in samples.items()}
+        recovering = tuple(s for s, (_, _, r) in samples.items() if r)
+        self.recovering_count += bool(recovering)
+        still = (not recovering and len(samples) == len(wanted)
+                 and all(w < self.still_gyro for _, w, _ in samples.values()))
         angles = self.calculator.update(ns, quats, still=still)
-        return SyncedAngles(ns, angles, quats, self.calculator.rotations)
+        return SyncedAngles(ns, angles, quats, self.calculator.rotations, recovering)

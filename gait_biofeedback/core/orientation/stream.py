@@ -19,6 +19,9 @@ Rules (issues 3 and 13):
   A gap > ``max_gap`` s re-initialises the attitude from the accelerometer (+ magnetometer); the
   gyro bias estimate is kept. :meth:`SegmentOrientationTracker.flush` releases what the window still
   holds at the end of a recording.
+- Rate: the rate measured from the stamps of the start-up window
+  (:class:`~gait_biofeedback.core.rate.RateCheck`) replaces ``rate_hz`` when it differs by more
+  than 10 %, with a message naming both.
 - Start-up (thesis §5.3.1): the first ``startup_s`` seconds are buffered; if the sensor was still,
   they give the static gyro bias, reference norms and initial attitude
   (:func:`~gait_biofeedback.core.orientation.filters.calibrate_from_rest`); if it moved, a message says so and
@@ -52,6 +55,7 @@ from gait_biofeedback.core.orientation.filters import (
 from gait_biofeedback.core.orientation.filters.config import load_tuned
 from gait_biofeedback.core.orientation.reacquire import attitude_after_gap
 from gait_biofeedback.core.params import param, require
+from gait_biofeedback.core.rate import RateCheck
 from gait_biofeedback.core.segments import SEGMENTS, ImuSeries
 from gait_biofeedback.core.sequencer import StreamSequencer
 from gait_biofeedback.core.stamps import NS_PER_S, ns_to_seconds, seconds_to_ns
@@ -69,7 +73,8 @@ class OrientationParams:
     segment_algorithm: dict[str, str] = param(
         "", "orientation filter of this segment ('' = the 'algorithm' parameter)", choices=("", *_CHOICES),
         keys=SEGMENTS, name="{key}.algorithm")
-    rate_hz: float = param(100.0, "nominal sample rate, for the filters' defaults (dt comes from the stamps)",
+    rate_hz: float = param(100.0, "nominal sample rate, for the filters' defaults (dt comes from the stamps; "
+                           "the rate measured at start-up is used when it differs by over 10 %)",
                            "Hz", low=1.0, high=2000.0)
     startup_s: float = param(1.0, "quiet standing at the start used for the gyro bias and initial attitude",
                              "s", low=0.1, high=30.0)
@@ -86,8 +91,9 @@ class OrientationParams:
                              "(beyond: a glitch, rejected)", "rad/s", low=0.1, high=1000.0)
     mag_max_age: float = param(0.05, "oldest magnetometer sample a sample may use, beyond the fixed 50 ms "
                                "look-back", "s", low=0.0, high=1.0)
-    orientation_variance: float = param(0.0012, "diagonal of the published orientation_covariance", "rad^2",
-                                        low=0.0, high=10.0)
+    orientation_variance: float = param(0.0012, "diagonal of the published orientation_covariance (while "
+                                        "recovering from a dropout: (10°)², which this stays below)", "rad^2",
+                                        low=0.0, high=0.03)
     stale_after: float = param(1.0, "time without data before a segment is reported stale on /diagnostics",
                                "s", low=0.1, high=60.0)
     diagnostics_period: float = param(1.0, "period of the /diagnostics status", "s", low=0.1, high=60.0)
@@ -150,9 +156,12 @@ class SegmentOrientationTracker:
         self.acc_range = float(acc_range)
         self.gyr_range = float(gyr_range)
         self.sequencer = StreamSequencer(window=reorder_window)
+        self.rate = RateCheck(rate_hz)
+        self._rate_note: str | None = None
         self.counts = {"samples": 0, "published": 0, "nan_skipped": 0, "out_of_range": 0, "duplicates": 0,
                        "late": 0, "bad_stamps": 0, "time_resets": 0, "gaps": 0, "mag_samples": 0}
         self.startup_quiet: bool | None = None
+        self.last_gap_s = 0.0
         self.notices = Notices()
         self._mag: deque[tuple[float, tuple[float, float, float]]] = deque(maxlen=64)
         self._restart()
@@ -238,9 +247,11 @@ class SegmentOrientationTracker:
             dt = t - self._t_last
             if dt > self.max_gap and self._startup is None and self._recover is None:
                 self.counts["gaps"] += 1
+                self.last_gap_s = dt
                 self._say("warn", f"{dt:.2f} s without data: attitude re-acquired from the next "
                                   f"{self.recover_s:g} s (those samples are marked as recovering)")
                 self._recover = []
+        self._rate_note = self.rate.update(stamp_ns) or self._rate_note
         m = self._mag_for(t)
         if self._recover is not None:
             self._recover.append((t, g, a, m, stamp_ns))
@@ -260,6 +271,11 @@ class SegmentOrientationTracker:
 
     def _finish_startup(self) -> list[OrientationSample]:
         samples, self._startup = self._startup, None
+        note, self._rate_note = self._rate_note or self.rate.decide(), None
+        if note:
+            self._say("warn", note)
+            self.rate_hz = self.rate.rate_hz
+            self.filter = ALGORITHMS[self.algorithm](self.rate_hz, **self.params)
         gyr = np.array([s[1] for s in samples])
         acc = np.array([s[2] for s in samples])
         n = quiet_samples(gyr, acc, self.rate_hz, max_s=self.startup_s)
@@ -306,6 +322,37 @@ class SegmentOrientationTracker:
         self.counts["published"] += 1
         return OrientationSample(stamp_ns, q, np.array(g) - bias, np.array(a), recovering)
 
+    @property
+    def recovering(self) -> bool:
+        """The attitude is being re-acquired after a gap (its samples are held, then marked)."""
+        return self._recover is not None
+
+    def conditions(self, before: dict[str, int]) -> list[str]:
+        """What is wrong now, or happened since the counts ``before`` (a copy of :attr:`counts` taken
+        at the last report): the warnings /diagnostics names."""
+        new = {k: v - before.get(k, 0) for k, v in self.counts.items()}
+        out = []
+        if self.recovering:
+            out.append(f"sensor dropout: re-acquiring the attitude ({self.recover_s:g} s; those samples are "
+                       "marked, no feedback from them)")
+        elif new["gaps"]:
+            out.append(f"sensor dropout: {self.last_gap_s:.2f} s without data (attitude re-acquired)")
+        if new["time_resets"]:
+            out.append("time went back: filter reset (recording replayed again, or driver restart)")
+        if new["out_of_range"]:
+            out.append(f"{new['out_of_range']} sample(s) out of range rejected (glitch)")
+        dropped = [f"{new[k]} {k.replace('_', ' ')}" for k in _DROPPED if new[k]]
+        if dropped:
+            out.append("dropped " + ", ".join(dropped))
+        if new["nan_skipped"]:
+            out.append(f"{new['nan_skipped']} sample(s) with NaN skipped")
+        if self.rate.mismatch:
+            out.append(f"rate {self.rate.measured_hz:.1f} Hz measured, {self.rate.configured_hz:g} "
+                       "configured: using the measured rate")
+        if self.startup_quiet is not None and not self.counts["mag_samples"]:
+            out.append("6D (no magnetometer): heading from the gyro only, it drifts")
+        return out
+
     def diagnostics(self) -> dict[str, Any]:
         """Counters and filter state for /diagnostics."""
         state = self.filter.state()
@@ -318,6 +365,10 @@ class SegmentOrientationTracker:
             "rest": bool(state["rest"]),
             "mag_disturbed": bool(state["mag_disturbed"]),
             "filter_skipped": state.get("skipped_samples", 0),
+            "recovering": self.recovering,
+            "rate_hz": self.rate_hz,
+            "measured_rate_hz": None if self.rate.measured_hz is None else round(self.rate.measured_hz, 2),
+            "magnetometer": bool(self.counts["mag_samples"]),
         }
 
 

@@ -1,0 +1,58 @@
+"""The sample rate of a stream, measured from its stamps (issue 13).
+
+Every rate-dependent constant of the core is stated in seconds and turned into samples with a rate;
+a sensor that runs at another rate than configured (a driver set to 50 Hz, a logger at 400 Hz)
+would silently scale every window. :class:`RateCheck` measures the rate as the median of the
+first ``intervals`` stamp intervals (a median: a gap or a duplicate does not move it) and decides
+once which rate a stage uses: the configured one if the measured one is within ``tolerance`` of
+it, else the measured one, with a message naming both. Later changes of rate are said, not acted on
+(a stage rebuilt mid-walk would lose its state).
+"""
+
+from __future__ import annotations
+
+from statistics import median
+
+from gait_biofeedback.core.stamps import NS_PER_S
+
+TOLERANCE = 0.10
+"""Relative difference between the measured and the configured rate above which the measured one is
+used (issue 13: "a mismatch over 10 %")."""
+
+
+class RateCheck:
+    """Measured rate of one stream, compared once with ``configured_hz`` (module docstring)."""
+
+    def __init__(self, configured_hz: float, intervals: int = 20, tolerance: float = TOLERANCE) -> None:
+        self.configured_hz = float(configured_hz)
+        self.rate_hz = float(configured_hz)  # the rate in use
+        self.measured_hz: float | None = None
+        self.intervals = int(intervals)
+        self.tolerance = float(tolerance)
+        self._dts: list[float] = []
+        self._last_ns: int | None = None
+
+    @property
+    def mismatch(self) -> bool:
+        """The measured rate differs from the configured one by more than the tolerance."""
+        return self.measured_hz is not None and self.rate_hz != self.configured_hz
+
+    def update(self, stamp_ns: int) -> str | None:
+        """One stamp (in order). Returns a message the first time the rate is decided and it is not
+        the configured one (the stage then switches to :attr:`rate_hz`), else None."""
+        last, self._last_ns = self._last_ns, stamp_ns
+        if self.measured_hz is not None or last is None or stamp_ns <= last:
+            return None
+        self._dts.append((stamp_ns - last) / NS_PER_S)
+        return self.decide() if len(self._dts) >= self.intervals else None
+
+    def decide(self) -> str | None:
+        """Decide now with the intervals seen so far (none: keep the configured rate); as :meth:`update`."""
+        if self.measured_hz is not None or not self._dts:
+            return None
+        self.measured_hz = 1.0 / median(self._dts)
+        if abs(self.measured_hz / self.configured_hz - 1.0) <= self.tolerance:
+            return None
+        self.rate_hz = round(self.measured_hz, 3)
+        return (f"samples arrive at {self.measured_hz:.1f} Hz, configured rate_hz is {self.configured_hz:g}: "
+                f"using {self.rate_hz:g} Hz (set rate_hz to the sensor's rate to silence this)")
