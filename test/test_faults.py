@@ -1,0 +1,192 @@
+"""Fault injection (issue 13): the simulator's walk with the sensor faults of a real body network, alone
+and together, through ``analyze`` (the live graph's core objects) and the orientation stream.
+
+Truth is the simulator's own joint angles (its SciPy joint definitions) and the clean run of the same
+session; the faults are :mod:`gait_biofeedback.sim.faults`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from gait_biofeedback.batch import (
+    SCENARIOS,
+    BagReader,
+    Dropout,
+    Reorder,
+    SegmentOrientationTracker,
+    Spike,
+    StampJump,
+    analyze_recording,
+    session_report,
+    simulate,
+    write_faulty_bag,
+    write_simulated_bag,
+)
+from gait_biofeedback.core.gait.cycles import GaitCycleTracker
+from gait_biofeedback.core.gait.events import GaitEvent
+from gait_biofeedback.wire.gait import stride_of
+from gait_biofeedback.wire.joints import recovering_of
+
+CALIBRATE_AT = 12.0  # "walking" protocol: 7 s of walking before it
+DROPOUT = Dropout(18.0, 2.0)
+FAULTS = [DROPOUT, Reorder("left_shank", 22.0), Spike("right_foot", 24.0), StampJump("left_thigh", 26.0)]
+RECOVER_S = 2.0  # OrientationParams.recover_s
+FLEXION = ("left_knee_flexion", "right_knee_flexion", "left_ankle_dorsiflexion", "right_ankle_dorsiflexion")
+
+
+def _ns(stamp) -> int:
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    """(clean analysis, faulty analysis, recording start ns) of a 30 s walk, seed 3."""
+    tmp = tmp_path_factory.mktemp("faults")
+    clean_bag = write_simulated_bag(tmp / "clean", simulate(SCENARIOS["walk"](30.0, seed=3)))
+    faulty_bag = write_faulty_bag(clean_bag, tmp / "faulty", FAULTS)
+    with BagReader(clean_bag) as reader:
+        start_ns = reader.start_time_ns
+    clean = analyze_recording(clean_bag, tmp / "clean_out", calibrate_at=[(CALIBRATE_AT, "walking")])
+    faulty = analyze_recording(faulty_bag, tmp / "faulty_out", calibrate_at=[(CALIBRATE_AT, "walking")])
+    return clean, faulty, start_ns
+
+
+def _read(path, topic):
+    with BagReader(path) as reader:
+        return [msg for _, msg, _ in reader.messages([topic])]
+
+
+def _worst_flexion_error(path, skip: list[tuple[int, int]]) -> float:
+    true = {_ns(m.header.stamp): dict(zip(m.name, m.position, strict=True))
+            for m in _read(path, "/ground_truth/joint_states")}
+    worst = 0.0
+    for m in _read(path, "/joint_states"):
+        ns = _ns(m.header.stamp)
+        if ns not in true or any(a <= ns < b for a, b in skip):
+            continue
+        for name, value in zip(m.name, m.position, strict=True):
+            if name in FLEXION:
+                worst = max(worst, abs(value - true[ns][name]))
+    return worst
+
+
+def test_outside_the_faults_the_angles_are_as_good_as_clean(runs):
+    clean, faulty, start = runs
+    skip = [(start + round(f.span[0] * 1e9), start + round((f.span[1] + 1.0) * 1e9)) for f in FAULTS]
+    clean_worst = _worst_flexion_error(clean.output, [])
+    assert clean_worst < math.radians(6.0)
+    assert _worst_flexion_error(faulty.output, skip) <= clean_worst + math.radians(2.0)
+
+
+def test_no_plausible_stride_across_the_dropout_and_recovering_strides_flagged(runs):
+    _, faulty, start = runs
+    gap = (start + round(DROPOUT.span[0] * 1e9), start + round((DROPOUT.span[1] + RECOVER_S) * 1e9))
+    cycles = [(stride_of(m), m.flag) for m in _read(faulty.output, "/gait/cycles")]
+    touching = [(s, flag) for s, flag in cycles if s.start_ns < gap[1] and s.end_ns > gap[0]]
+    assert touching, "strides are detected again right after the dropout"
+    assert all(not s.plausible and "sensor dropout" in flag for s, flag in touching)
+    assert sum(s.plausible for s, _ in cycles) >= 0.7 * len(cycles)
+
+
+def test_recovering_angles_and_events_are_marked(runs):
+    _, faulty, start = runs
+    window = (start + round(DROPOUT.span[1] * 1e9), start + round((DROPOUT.span[1] + RECOVER_S) * 1e9))
+    marked = [_ns(m.header.stamp) for m in _read(faulty.output, "/joint_states") if recovering_of(m)]
+    assert marked and min(marked) >= window[0] and max(marked) < window[1] + 20_000_000
+    first = next(m for m in _read(faulty.output, "/joint_states") if recovering_of(m))
+    assert set(recovering_of(first)) == {"pelvis", "left_thigh", "left_shank", "left_foot", "right_thigh",
+                                         "right_shank", "right_foot"}
+    events = _read(faulty.output, "/gait/events")
+    flagged = [_ns(e.header.stamp) for e in events if e.flag]
+    assert flagged and all(window[0] <= ns < window[1] + 20_000_000 for ns in flagged)
+
+
+def test_steps_survive_and_each_fault_is_named(runs):
+    clean, faulty, _ = runs
+    steps_clean, steps_faulty = session_report(clean.output).steps, session_report(faulty.output).steps
+    assert steps_clean >= 45 and abs(steps_faulty - steps_clean) <= 4
+    said = " | ".join(faulty.warnings)
+    assert "2.01 s without data: attitude re-acquired" in said
+    assert "right_foot: sample out of the sensor's range" in said
+    assert "left_thigh: dropped 1 sample(s) stamped 0.490 s behind" in said
+    reorder = [w for w in faulty.warnings if "left_shank" in w and "without data" not in w]
+    assert reorder == [] and "time went back" not in said, "a reorder is silent and resets nothing"
+    assert not any("dropped" in w or "without data" in w for w in clean.warnings)
+
+
+def _stream(tracker, t, gyr=(0.0, 0.0, 0.0), acc=(0.0, 0.0, 9.81)):
+    out = []
+    for stamp in t:
+        out += tracker.update(round(stamp * 1e9), gyr, acc)
+    return out
+
+
+def test_each_fault_is_named_in_the_diagnostics_conditions():
+    tracker = SegmentOrientationTracker("pelvis", startup_s=0.2)
+    _stream(tracker, np.arange(0.0, 1.0, 0.01))
+    six_d = "6D (no magnetometer): heading from the gyro only, it drifts"
+    assert tracker.conditions(dict(tracker.counts)) == [six_d]
+    before = dict(tracker.counts)
+    _stream(tracker, [1.0, 1.02, 1.01, 1.03])  # one pair swapped: re-sequenced, nothing said
+    tracker.update(round(1.04e9), (0.0, 0.0, 0.0), (1e6, 0.0, 0.0))
+    _stream(tracker, [1.04, 1.04, 0.5, 1.05])  # a duplicate and a stamp 0.5 s back
+    said = tracker.conditions(before)
+    assert "1 sample(s) out of range rejected (glitch)" in said
+    assert "dropped 1 duplicates, 1 bad stamps" in said
+    before = dict(tracker.counts)
+    _stream(tracker, np.arange(3.0, 3.5, 0.01))
+    assert tracker.conditions(before)[0].startswith("sensor dropout: re-acquiring the attitude")
+    _stream(tracker, np.arange(3.5, 5.5, 0.01))
+    assert tracker.conditions(before)[0] == "sensor dropout: 1.95 s without data (attitude re-acquired)"
+
+
+@pytest.mark.parametrize("rate_hz", [50.0, 200.0, 400.0])
+def test_a_rate_other_than_configured_is_measured_and_used(rate_hz):
+    tracker = SegmentOrientationTracker("pelvis", rate_hz=100.0, startup_s=0.5)
+    _stream(tracker, np.arange(0.0, 1.0, 1.0 / rate_hz))
+    assert tracker.rate_hz == pytest.approx(rate_hz, rel=1e-3)
+    assert tracker.startup_quiet is True, "the start-up window is judged at the measured rate"
+    said = [n.text for n in tracker.notices.pop()]
+    assert any(f"samples arrive at {rate_hz:.1f} Hz, configured rate_hz is 100" in s for s in said)
+    assert any(s.startswith("rate ") for s in tracker.conditions(dict(tracker.counts)))
+
+
+def test_a_stride_containing_a_doubtful_sample_is_implausible_and_says_why():
+    tracker = GaitCycleTracker()
+
+    def event(kind, t, index):
+        return GaitEvent("left", kind, round(t * 1e9), round(t * 1e9) + 10_000_000, 0.0, index)
+
+    tracker.add(event("ic", 0.0, 1))
+    tracker.add(event("tc", 0.6, 1))
+    doubt = (round(0.3e9), "sensor dropout: 0.30 s without data")
+    first = tracker.add(event("ic", 1.0, 2), doubt)
+    assert not first.plausible and first.flag == "sensor dropout: 0.30 s without data"
+    tracker.add(event("tc", 1.6, 2))
+    second = tracker.add(event("ic", 2.0, 3), doubt)  # the doubt is before this stride's opening IC
+    assert second.plausible and second.flag == ""
+
+
+def _events_and_steps(tmp_path, rate_hz):
+    session = simulate(SCENARIOS["walk"](20.0, seed=2, rate_hz=rate_hz))
+    bag = write_simulated_bag(tmp_path / f"bag_{rate_hz:g}", session)
+    result = analyze_recording(bag, tmp_path / f"out_{rate_hz:g}", calibrate_at=[(12.0, "walking")])
+    events = [(m.side, m.type, _ns(m.header.stamp)) for m in _read(result.output, "/gait/events")]
+    return events, session_report(result.output).steps
+
+
+def test_the_same_motion_at_50_to_400_hz_gives_the_same_events_and_steps(tmp_path):
+    """rate_hz stays 100 (the default) whatever the sensor sends: the stages measure the rate."""
+    reference, steps = _events_and_steps(tmp_path, 100.0)
+    assert len(reference) >= 30 and steps >= 25
+    for rate_hz in (50.0, 200.0, 400.0):
+        events, other_steps = _events_and_steps(tmp_path, rate_hz)
+        assert other_steps == steps, rate_hz
+        assert len(events) == len(reference), rate_hz
+        coarse = round(1e9 / min(rate_hz, 100.0))  # one sample of the coarser of the two rates
+        for (side, kind, ns), (side2, kind2, ns2) in zip(sorted(reference), sorted(events), strict=True):
+            assert (side, kind) == (side2, kind2) and abs(ns - ns2) <= coarse, (rate_hz, ns / 1e9)
