@@ -15,6 +15,7 @@ Two parts:
 A last table times the per-message conversions (rclpy objects vs :mod:`gait_biofeedback.wire.cdr`).
 
     .venv/bin/python benchmarks/graph_load.py [--seconds 15] [--speed 1] [--part all|start|calibrated|codec]
+    .venv/bin/python benchmarks/graph_load.py --part rates   # 8 sensors at 100, 200, 400 Hz
 """
 
 from __future__ import annotations
@@ -57,9 +58,9 @@ def demo_calibration(bag: Path, session_dir: Path) -> None:
 
 
 def run_rows(bag: Path, stages: list[list[str]], start: float, stop: float, speed: float,
-             session_dir: Path | None) -> None:
+             session_dir: Path | None, rate_hz: float = 100.0) -> None:
     seconds = stop - start
-    expected = round(seconds * 100) * 8
+    expected = round(seconds * rate_hz) * 8
     print(f"{'nodes (each row adds one)':36s}{'CPU % of a core':>16s}{'raw kept':>10s}{'orient.':>9s}")
     for stage in stages:
         with tempfile.TemporaryDirectory() as tmp:
@@ -78,6 +79,23 @@ def run_rows(bag: Path, stages: list[list[str]], start: float, stop: float, spee
         load = 100.0 * cpu / (seconds / speed)
         print(f"{label:36s}{load:15.0f}%{100.0 * raw / expected:9.1f}%"
               f"{100.0 * orientations / expected if stage else float('nan'):8.1f}%", flush=True)
+
+
+def sustained_rates(seconds: float, speed: float, rates: tuple[float, ...] = (100.0, 200.0, 400.0)) -> None:
+    """What the graph and the recorder keep with 8 sensors at each rate: the demo session simulated at
+    that rate, calibrated, from 36 s (standing, then walking); the nodes keep their default
+    ``rate_hz`` 100 and measure the rate."""
+    from gait_biofeedback.batch import SCENARIOS, simulate, write_simulated_bag
+
+    start = CALIBRATED_WINDOW[0]
+    for rate_hz in rates:
+        with tempfile.TemporaryDirectory() as tmp:
+            bag = write_simulated_bag(Path(tmp) / "bag", simulate(SCENARIOS["demo"](seed=1, rate_hz=rate_hz)))
+            session = Path(tmp) / "session"
+            demo_calibration(bag, session)
+            print(f"\n8 sensors at {rate_hz:g} Hz, {start:g}-{start + seconds:g} s at {speed:g}x, "
+                  f"calibrated; {round(seconds * rate_hz) * 8} raw IMU samples expected")
+            run_rows(bag, [[], CHAIN], start, start + seconds, speed, session, rate_hz)
 
 
 def time_codec(bag: Path, n: int = 2000) -> None:
@@ -113,8 +131,11 @@ def main() -> None:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seconds", type=float, default=15.0)
     parser.add_argument("--speed", type=float, default=1.0)
-    parser.add_argument("--part", choices=["all", "start", "calibrated", "codec"], default="all")
+    parser.add_argument("--part", choices=["all", "start", "calibrated", "codec", "rates"], default="all")
     args = parser.parse_args()
+    if args.part == "rates":
+        sustained_rates(args.seconds, args.speed)
+        return
     bag, _ = ensure_demo_bag(DEMO_BAG)
     if args.part in ("all", "start"):
         print(f"demo session, first {args.seconds:g} s at {args.speed:g}x, not calibrated; "

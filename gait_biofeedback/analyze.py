@@ -69,6 +69,7 @@ from gait_biofeedback.wire.cdr import Stamped, decode_imu, decode_mag, serialize
 from gait_biofeedback.wire.gait import cycle_msg, event_msg, foot_frame
 from gait_biofeedback.wire.imu import (
     angular_speed,
+    has_heading,
     is_recovering,
     mag_sample,
     orientation_payload,
@@ -259,7 +260,7 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
 
     def downstream(segment: str, imu: Stamped, log_ns: int) -> None:
         if segment in buffer.buffers:
-            buffer.add(segment, *orientation_sample(imu))
+            buffer.add(segment, *orientation_sample(imu), heading=has_heading(imu))
             if buffer.scheduled:
                 for attempt in buffer.run_due():
                     result.calibrations.append(attempt)

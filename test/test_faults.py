@@ -190,3 +190,14 @@ def test_the_same_motion_at_50_to_400_hz_gives_the_same_events_and_steps(tmp_pat
         coarse = round(1e9 / min(rate_hz, 100.0))  # one sample of the coarser of the two rates
         for (side, kind, ns), (side2, kind2, ns2) in zip(sorted(reference), sorted(events), strict=True):
             assert (side, kind) == (side2, kind2) and abs(ns - ns2) <= coarse, (rate_hz, ns / 1e9)
+
+
+def test_sensors_without_magnetometer_are_named_and_their_calibration_marked(tmp_path):
+    session = simulate(SCENARIOS["calibration_hip_flexion"](seed=4, with_magnetometer=False))
+    bag = write_simulated_bag(tmp_path / "bag", session)
+    result = analyze_recording(bag, tmp_path / "out", calibrate_at=[(33.0, "hip_flexion")])
+    attempt = result.calibrations[0]  # refused (the thigh headings disagree) or not, the cause is named
+    assert "6D (no magnetometer)" in attempt.message and "pelvis" in attempt.message
+    entries = attempt.calibration.segments
+    assert all(e.details.get("heading") == "6D (no magnetometer)" for e in entries.values())
+    assert all("6D (no magnetometer)" in e.message for e in entries.values())

@@ -43,7 +43,7 @@ from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
 from gait_biofeedback.wire import topics
 from gait_biofeedback.wire.calibration import calibration_msg, segment_messages
 from gait_biofeedback.wire.cdr import decode_imu
-from gait_biofeedback.wire.imu import orientation_sample
+from gait_biofeedback.wire.imu import has_heading, orientation_sample
 from gait_biofeedback_msgs.srv import Calibrate
 
 
@@ -106,7 +106,8 @@ class CalibrationNode(GuardedNode):
         self._pub.publish(calibration_msg(calibration, 0, source, path.stat().st_mtime_ns))
 
     def _on_imu(self, segment: str, data: bytes) -> None:
-        self.core.add(segment, *orientation_sample(decode_imu(data)))
+        imu = decode_imu(data)
+        self.core.add(segment, *orientation_sample(imu), heading=has_heading(imu))
         if self.core.scheduled:
             for attempt in self.core.run_due():
                 self._accept(attempt)

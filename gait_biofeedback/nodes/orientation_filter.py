@@ -29,6 +29,9 @@ from gait_biofeedback.wire import diagnostics, topics
 from gait_biofeedback.wire.cdr import decode_imu, decode_mag
 from gait_biofeedback.wire.imu import mag_sample, orientation_payload, raw_sample
 
+FALLING_BEHIND_S = 0.5
+"""A sample processed this long after its stamp (by the node's clock) means the node falls behind."""
+
 FLUSH_AFTER = 0.25
 """Wall-clock seconds without a sample after which a stream's reorder window is flushed."""
 
@@ -58,6 +61,7 @@ class OrientationFilterNode(GuardedNode):
                       raw=True)
         self._last_raw: dict[str, object] = {}
         self._reported: dict[str, dict[str, int]] = {}  # counts at the last /diagnostics
+        self._lag: dict[str, float] = {}  # largest (clock now - sample stamp) since the last /diagnostics
         self.create_timer(self.params.diagnostics_period, self._publish_diagnostics)
         self.create_timer(FLUSH_AFTER / 2, self._flush_silent)
         self.get_logger().info(
@@ -80,6 +84,9 @@ class OrientationFilterNode(GuardedNode):
     def _on_imu(self, segment: str, data: bytes) -> None:
         self._last_arrival[segment] = time.monotonic()
         raw = decode_imu(data)
+        now_ns = self.get_clock().now().nanoseconds
+        if now_ns:
+            self._lag[segment] = max(self._lag.get(segment, 0.0), (now_ns - raw.ns) / 1e9)
         if raw.frame_id != self._frames[segment]:
             self._check_frame(segment, raw.frame_id)
         self._last_raw[segment] = raw
@@ -107,6 +114,12 @@ class OrientationFilterNode(GuardedNode):
         info["wrong_frame_id"] = self.wrong_frame[segment]
         conditions = tracker.conditions(self._reported.get(segment, {}))
         self._reported[segment] = dict(tracker.counts)
+        lag = self._lag.pop(segment, None)
+        if lag is not None:
+            info["lag_s"] = round(lag, 3)
+            if lag > FALLING_BEHIND_S:
+                conditions.insert(0, f"falling behind: samples processed up to {lag:.2f} s after their "
+                                     "stamps")
         last = self._last_arrival.get(segment)
         level, message = DiagnosticStatus.OK, "tracking"
         if last is None:

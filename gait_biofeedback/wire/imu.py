@@ -8,7 +8,10 @@ sensor_msgs/Imu stores the quaternion (x, y, z, w); the core uses (w, x, y, z) (
 A filtered sample whose orientation is being re-acquired after a dropout (``recovering``) carries
 ``RECOVERING_VARIANCE`` on the diagonal of ``orientation_covariance`` instead of the parameter
 ``orientation_variance`` (whose range stays below it): the standard field says "this orientation is
-uncertain", and :func:`is_recovering` is how every consumer reads it.
+uncertain", and :func:`is_recovering` is how every consumer reads it. A sample filtered without a
+magnetometer (6D: heading from the gyro only, not shared between sensors) carries
+``HEADING_UNKNOWN_VARIANCE`` as its yaw variance (``orientation_covariance[8]``, ROS's
+roll-pitch-yaw order), read by :func:`has_heading`.
 """
 
 from __future__ import annotations
@@ -44,6 +47,9 @@ Vector = tuple[float, float, float]
 RECOVERING_VARIANCE = math.radians(10.0) ** 2
 """rad², the orientation variance of a sample published while the attitude is re-acquired."""
 
+HEADING_UNKNOWN_VARIANCE = math.pi ** 2
+"""rad², the yaw variance of a sample filtered without a magnetometer (heading unknown)."""
+
 
 def quaternion(imu: Stamped) -> tuple[float, float, float, float]:
     """The orientation (w, x, y, z) of a decoded Imu (stored x, y, z, w on the wire)."""
@@ -73,6 +79,11 @@ def is_recovering(imu: Stamped) -> bool:
     return imu.values[ORIENTATION_COV][0] >= RECOVERING_VARIANCE
 
 
+def has_heading(imu: Stamped) -> bool:
+    """The filtered sample's heading came from a magnetometer (module docstring)."""
+    return imu.values[ORIENTATION_COV][8] < HEADING_UNKNOWN_VARIANCE
+
+
 def angular_speed(imu: Stamped) -> float:
     """|ω| (rad/s) of a decoded Imu."""
     return math.hypot(*imu.values[ANGULAR_VELOCITY])
@@ -81,11 +92,13 @@ def angular_speed(imu: Stamped) -> float:
 def orientation_payload(segment: str, sample: OrientationSample, raw: Stamped, variance: float) -> bytes:
     """Serialized ``<segment>/imu/data`` of one filtered sample, as the ``orientation_filter`` node
     publishes it: the sample's stamp, the sensor frame, q, the bias-corrected gyro, the raw
-    acceleration, a diagonal orientation covariance (``RECOVERING_VARIANCE`` while recovering) and
-    the raw covariances of the message that released the sample."""
+    acceleration, a diagonal orientation covariance (``RECOVERING_VARIANCE`` while recovering, yaw
+    ``HEADING_UNKNOWN_VARIANCE`` without a magnetometer) and the raw covariances of the message that
+    released the sample."""
     w, x, y, z = sample.q.tolist()
     v = RECOVERING_VARIANCE if sample.recovering else variance
-    values = (x, y, z, w, v, 0.0, 0.0, 0.0, v, 0.0, 0.0, 0.0, v, *sample.gyr.tolist(),
+    yaw = v if sample.heading else HEADING_UNKNOWN_VARIANCE
+    values = (x, y, z, w, v, 0.0, 0.0, 0.0, v, 0.0, 0.0, 0.0, yaw, *sample.gyr.tolist(),
               *raw.values[ANGULAR_VELOCITY_COV], *sample.acc.tolist(), *raw.values[LINEAR_ACCELERATION_COV])
     return pack_imu(sample.stamp_ns, sensor_frame(segment), values)
 

@@ -112,6 +112,24 @@ class CalibrationAttempt:
     applies_from_ns: int | None = None
 
 
+def _mark_heading_unknown(cal: SessionCalibration, six_d: list[str]) -> None:
+    """Issue 13: a sensor filtered without a magnetometer has a heading of its own, not shared with
+    the others; its calibration is only as good as that heading. Its entry says so and its quality
+    is halved (a choice, not from the thesis, made after the entry was accepted: the segment stays
+    usable, the number shows that it is weaker); the session message names the segments."""
+    for seg in six_d:
+        entry = cal.segments.get(seg)
+        if entry is not None:
+            entry.quality *= 0.5
+            entry.details["heading"] = "6D (no magnetometer)"
+            entry.message = "; ".join(m for m in (entry.message, HEADING_UNKNOWN) if m)
+    cal.message = f"{cal.message}; {', '.join(six_d)}: {HEADING_UNKNOWN}"
+
+
+HEADING_UNKNOWN = ("6D (no magnetometer): heading not shared with the other sensors, angles about the "
+                   "vertical and the calibration's heading are doubtful (use sensors with a magnetometer)")
+
+
 class CalibrationBuffer:
     """Rolling buffer of every segment's orientation samples and the "calibrate now / at T" logic.
 
@@ -138,10 +156,12 @@ class CalibrationBuffer:
         self.buffers: dict[str, deque[tuple[float, ...]]] = {s: deque() for s in self.segments}
         self._newest_ns: dict[str, int] = {}
         self._scheduled: list[tuple[int, str, dict[str, Any]]] = []
+        self.six_d: list[str] = []
 
     def add(self, segment: str, stamp_ns: int, acc: Sequence[float], gyr: Sequence[float],
-            q: Sequence[float]) -> None:
-        """One orientation sample of ``segment`` (acc m/s², gyro rad/s, q w,x,y,z)."""
+            q: Sequence[float], heading: bool = True) -> None:
+        """One orientation sample of ``segment`` (acc m/s², gyro rad/s, q w,x,y,z; ``heading``: False
+        when it was filtered without a magnetometer)."""
         buf = self.buffers[segment]
         t = stamp_ns / NS_PER_S
         if buf and t <= buf[-1][0]:
@@ -149,7 +169,7 @@ class CalibrationBuffer:
                 buf.clear()
             else:
                 return
-        buf.append((t, *acc, *gyr, *q))
+        buf.append((t, *acc, *gyr, *q, float(heading)))
         self._newest_ns[segment] = stamp_ns
         keep_from = t - self.buffer_s - self.margin_s
         while buf and buf[0][0] < keep_from:
@@ -167,8 +187,10 @@ class CalibrationBuffer:
 
     def series(self, segments: Sequence[str], until_ns: int | None = None
                ) -> tuple[dict[str, ImuSeries], dict[str, np.ndarray]]:
-        """Per segment with ≥ 2 samples in the window: (ImuSeries, (N, 4) orientations)."""
+        """Per segment with ≥ 2 samples in the window: (ImuSeries, (N, 4) orientations); the segments
+        with a sample filtered without magnetometer in the window go to :attr:`six_d`."""
         data, ori = {}, {}
+        self.six_d = []
         for seg in segments:
             buf = self.buffers[seg]
             if not buf:
@@ -180,6 +202,8 @@ class CalibrationBuffer:
             arr = np.array(rows, dtype=float)
             data[seg] = ImuSeries(seg, arr[:, 0], arr[:, 1:4], arr[:, 4:7])
             ori[seg] = arr[:, 7:11]
+            if not arr[:, 11].all():
+                self.six_d.append(seg)
         return data, ori
 
     def calibrate(self, protocol: str, standing_duration: float = 0.0, motion_duration: float = 0.0,
@@ -208,6 +232,8 @@ class CalibrationBuffer:
             return CalibrationAttempt(protocol, False, f"{exc}; previous calibration stays in force",
                                       until_ns=end_ns)
         cal = calibrate_session(data, standing, motion, protocol, orientations=ori)
+        if self.six_d:
+            _mark_heading_unknown(cal, self.six_d)
         return CalibrationAttempt(protocol, cal.success, cal.message, cal, end_ns,
                                   end_ns + self.apply_delay_ns)
 

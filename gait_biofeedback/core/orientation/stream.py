@@ -62,6 +62,7 @@ from gait_biofeedback.core.stamps import NS_PER_S, ns_to_seconds, seconds_to_ns
 
 _CHOICES = tuple(sorted(ALGORITHMS))
 _DROPPED = ("duplicates", "late", "bad_stamps")
+MISSING_WARN = 0.01  # share of samples missing (short holes in the stamps) that /diagnostics names
 
 
 @dataclass(frozen=True)
@@ -125,6 +126,7 @@ class OrientationSample:
     gyr: np.ndarray
     acc: np.ndarray
     recovering: bool = False  # in the window that re-acquired the attitude after a gap
+    heading: bool = True  # False: no magnetometer sample, the filter ran 6D (heading from the gyro only)
 
     @property
     def t(self) -> float:
@@ -159,7 +161,8 @@ class SegmentOrientationTracker:
         self.rate = RateCheck(rate_hz)
         self._rate_note: str | None = None
         self.counts = {"samples": 0, "published": 0, "nan_skipped": 0, "out_of_range": 0, "duplicates": 0,
-                       "late": 0, "bad_stamps": 0, "time_resets": 0, "gaps": 0, "mag_samples": 0}
+                       "late": 0, "bad_stamps": 0, "time_resets": 0, "gaps": 0, "missing": 0,
+                       "mag_samples": 0}
         self.startup_quiet: bool | None = None
         self.last_gap_s = 0.0
         self.notices = Notices()
@@ -248,6 +251,8 @@ class SegmentOrientationTracker:
             if dt > self.max_gap and self._startup is None and self._recover is None:
                 self.counts["gaps"] += 1
                 self.last_gap_s = dt
+            elif dt > 1.5 / self.rate_hz:
+                self.counts["missing"] += round(dt * self.rate_hz) - 1
                 self._say("warn", f"{dt:.2f} s without data: attitude re-acquired from the next "
                                   f"{self.recover_s:g} s (those samples are marked as recovering)")
                 self._recover = []
@@ -304,10 +309,10 @@ class SegmentOrientationTracker:
         q0 = attitude_after_gap([s[0] for s in samples], np.array([s[1] for s in samples]),
                                 np.array([s[2] for s in samples]), mag, bias, self._last_q)
         self.filter.reset(q0)
-        t0, g0, a0, _, stamp0 = samples[0]
+        t0, g0, a0, m0, stamp0 = samples[0]
         self.counts["published"] += 1
         self._last_q = q0
-        out = [OrientationSample(stamp0, q0, np.array(g0) - bias, np.array(a0), True)]
+        out = [OrientationSample(stamp0, q0, np.array(g0) - bias, np.array(a0), True, m0 is not None)]
         previous = t0
         for t, g, a, m, stamp_ns in samples[1:]:
             out.append(self._step(g, a, m, t - previous, stamp_ns, recovering=True))
@@ -320,7 +325,7 @@ class SegmentOrientationTracker:
         self._last_q = q
         bias = self.filter.gyro_bias()
         self.counts["published"] += 1
-        return OrientationSample(stamp_ns, q, np.array(g) - bias, np.array(a), recovering)
+        return OrientationSample(stamp_ns, q, np.array(g) - bias, np.array(a), recovering, m is not None)
 
     @property
     def recovering(self) -> bool:
@@ -346,6 +351,10 @@ class SegmentOrientationTracker:
             out.append("dropped " + ", ".join(dropped))
         if new["nan_skipped"]:
             out.append(f"{new['nan_skipped']} sample(s) with NaN skipped")
+        expected = new["missing"] + new["samples"]
+        if expected and new["missing"] > MISSING_WARN * expected:
+            out.append(f"losing samples: {100 * new['missing'] / expected:.1f} % missing from the stamps "
+                       "(the link, or a node falling behind)")
         if self.rate.mismatch:
             out.append(f"rate {self.rate.measured_hz:.1f} Hz measured, {self.rate.configured_hz:g} "
                        "configured: using the measured rate")
