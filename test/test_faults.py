@@ -201,3 +201,15 @@ def test_sensors_without_magnetometer_are_named_and_their_calibration_marked(tmp
     entries = attempt.calibration.segments
     assert all(e.details.get("heading") == "6D (no magnetometer)" for e in entries.values())
     assert all("6D (no magnetometer)" in e.message for e in entries.values())
+
+
+def test_short_holes_in_the_stamps_are_counted_as_missing_samples():
+    tracker = SegmentOrientationTracker("pelvis", startup_s=0.2)
+    _stream(tracker, np.arange(0.0, 1.0, 0.01))
+    before = dict(tracker.counts)
+    kept = [t for k, t in enumerate(np.arange(1.0, 2.0, 0.01)) if k % 10 != 5]  # one in ten lost
+    _stream(tracker, kept)
+    assert tracker.counts["missing"] - before["missing"] == 10
+    assert tracker.counts["gaps"] == 0
+    assert "losing samples: 10.0 % missing from the stamps (the link, or a node falling behind)" in (
+        tracker.conditions(before))

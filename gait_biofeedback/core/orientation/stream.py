@@ -251,11 +251,11 @@ class SegmentOrientationTracker:
             if dt > self.max_gap and self._startup is None and self._recover is None:
                 self.counts["gaps"] += 1
                 self.last_gap_s = dt
-            elif dt > 1.5 / self.rate_hz:
-                self.counts["missing"] += round(dt * self.rate_hz) - 1
                 self._say("warn", f"{dt:.2f} s without data: attitude re-acquired from the next "
                                   f"{self.recover_s:g} s (those samples are marked as recovering)")
                 self._recover = []
+            elif dt > 1.5 / self.rate_hz:
+                self.counts["missing"] += round(dt * self.rate_hz) - 1
         self._rate_note = self.rate.update(stamp_ns) or self._rate_note
         m = self._mag_for(t)
         if self._recover is not None:
