@@ -23,9 +23,12 @@ Each stage is set up from the same parameters dataclass its node declares
 
 A calibration takes effect at the sample stamp in its message header (``apply_delay`` after the
 window it was computed from), in the graph and here, so both paths switch at the same sample and give
-the same numbers (test/test_analyze.py). What only exists live is left out: ``/diagnostics`` and the
-wall-clock rules (a stream that stops, the joint-angle sync timeout, the activity monitor's periodic
-re-publication, here every ``publish_period`` s of recording time instead).
+the same numbers (test/test_analyze.py). ``/diagnostics`` carries the orientation streams' statuses
+(what the ``orientation_filter`` node says of each sensor: dropouts, glitches, dropped samples, rate,
+6D), every ``diagnostics_period`` s of recording time. What only exists live is left out: the other
+nodes' statuses and the wall-clock rules (a stream that stops, the joint-angle sync timeout, the
+activity monitor's periodic re-publication, here every ``publish_period`` s of recording time
+instead).
 
 The output bag carries the input's raw IMU and ``/ground_truth/...`` topics too, as a recording of
 the live graph does, so :mod:`gait_biofeedback.report.session` reads it unchanged.
@@ -62,7 +65,7 @@ from gait_biofeedback.io.bag import BagReader, BagRecoveryWarning, BagWriter
 from gait_biofeedback.io.bag_writer import check_output
 from gait_biofeedback.io.schemas import type_name_of
 from gait_biofeedback.parameters import stage_parameters
-from gait_biofeedback.wire import topics
+from gait_biofeedback.wire import diagnostics, topics
 from gait_biofeedback.wire.activity import activity_msg
 from gait_biofeedback.wire.calibration import calibration_msg, entries, rotations
 from gait_biofeedback.wire.cdr import Stamped, decode_imu, decode_mag, serialize
@@ -78,6 +81,7 @@ from gait_biofeedback.wire.imu import (
     raw_sample,
 )
 from gait_biofeedback.wire.joints import joint_state_msg, skeleton_msg
+from gait_biofeedback.wire.stamps import ns_to_stamp
 
 
 @dataclass
@@ -293,7 +297,22 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
     mag_of = {topic: seg for seg, topic in mag_topics.items()}
     copied: list[tuple[int, str, str, bytes]] = []
     truth = [t for t in reader.topics() if t.startswith(topics.TRUTH_PREFIX + "/")]
+    reported: dict[str, dict[str, int]] = {}
+    period_ns = round(o_params.diagnostics_period * NS_PER_S)
+    next_diagnostics = [start_ns + period_ns]
+
+    def report_status(log_ns: int) -> None:
+        statuses = []
+        for seg, tracker in trackers.items():
+            if seg in last_raw:
+                statuses.append(diagnostics.orientation_status(seg, tracker, reported.get(seg, {})))
+                reported[seg] = dict(tracker.counts)
+        emit(topics.DIAGNOSTICS.name, diagnostics.array(ns_to_stamp(log_ns), statuses), log_ns)
+        next_diagnostics[0] = log_ns + period_ns
+
     for topic, type_name, data, log_ns in reader.raw_messages([*segment_of, *mag_of, *truth]):
+        if log_ns >= next_diagnostics[0] and last_raw:
+            report_status(log_ns)
         if output is not None:
             copied.append((log_ns, topic, type_name, data))
         if topic in truth:
@@ -317,6 +336,8 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
         if seg in last_raw:
             orientations(seg, tracker.flush(), reader.end_time_ns)
     said()
+    if last_raw:
+        report_status(reader.end_time_ns)
     publish_joints(joints.flush(force=True), reader.end_time_ns)
     result.warnings[:0] = reader.warnings  # a damaged file, a chunk skipped: the time range lost
     for until_ns, protocol in buffer.scheduled:

@@ -78,7 +78,8 @@ def test_targets_file_converts_to_si_and_validates():
 
 
 def _hand_made_stride(evaluator: BiofeedbackEvaluator, side: str, knee_peak_deg: float, t0: float = 10.0,
-                      stride_time: float = 1.2, gap: tuple[float, float] | None = None) -> Stride:
+                      stride_time: float = 1.2, gap: tuple[float, float] | None = None,
+                      doubtful: tuple[float, float] | None = None) -> Stride:
     """Feed one stride: hip cos from 25° to -12°, knee 3° at IC with a swing bump, ankle 2°."""
     t = t0 + np.arange(0.0, stride_time + 0.1, 0.01)
     u = (t - t0) / stride_time
@@ -89,7 +90,9 @@ def _hand_made_stride(evaluator: BiofeedbackEvaluator, side: str, knee_peak_deg:
     for k in range(len(t)):
         if gap is not None and gap[0] <= t[k] < gap[1]:
             continue
-        evaluator.add_angles(side, s_to_ns(float(t[k])), float(hip[k]), float(knee[k]), float(ankle[k]))
+        marked = doubtful is not None and doubtful[0] <= t[k] < doubtful[1]
+        evaluator.add_angles(side, s_to_ns(float(t[k])), float(hip[k]), float(knee[k]), float(ankle[k]),
+                             doubtful=marked)
     return Stride(side, 7, s_to_ns(t0), s_to_ns(t0 + 0.6 * stride_time), s_to_ns(t0 + stride_time),
                   stance_fraction=0.6, cadence=2 / stride_time, step_time_symmetry=0.3)
 
@@ -132,6 +135,14 @@ def test_stride_with_a_gap_or_implausible_gives_only_temporal_or_no_cues():
     later = Stride("right", 8, 20_000_000_000, 20_700_000_000, 21_200_000_000, 0.6, 1.6, math.nan)
     assert not evaluator.covers(later)
     assert "step_time_symmetry" not in {c.quantity for c in evaluator.evaluate(later).cues}  # NaN: skipped
+
+
+def test_angles_marked_as_recovering_give_no_kinematic_cue():
+    evaluator = BiofeedbackEvaluator(load_targets(default_targets_path()))
+    stride = _hand_made_stride(evaluator, "left", knee_peak_deg=20.0, doubtful=(10.0, 10.6))
+    result = evaluator.evaluate(stride)
+    assert {c.quantity for c in result.cues} == {"stance_fraction", "cadence", "step_time_symmetry"}
+    assert not result.curves
 
 
 def test_select_audio_cue_follows_the_chosen_side_and_joint():

@@ -178,13 +178,11 @@ class BiofeedbackNode(GuardedNode):
         self._latest = (t, angles, recovering)
         row = [t] + [float(pos[i]) if i is not None else math.nan for i in self._index]
         self._samples.append(row)
-        if recovering:  # shown, marked; no stride is evaluated from them (the history has a gap)
-            self.counts["recovering_joint_states"] += 1
-            return
+        self.counts["recovering_joint_states"] += bool(recovering)
         for k, side in enumerate(SIDES):
             hip, knee, ankle = row[1 + 3 * k: 4 + 3 * k]
             if not (math.isnan(hip) or math.isnan(knee) or math.isnan(ankle)):
-                self.evaluator.add_angles(side, stamp_ns, hip, knee, ankle)
+                self.evaluator.add_angles(side, stamp_ns, hip, knee, ankle, doubtful=bool(recovering))
         if self._pending:
             self._process_pending()
 

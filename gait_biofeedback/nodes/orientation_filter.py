@@ -110,35 +110,24 @@ class OrientationFilterNode(GuardedNode):
 
     def _segment_status(self, segment: str, now: float) -> DiagnosticStatus:
         tracker = self.trackers[segment]
-        info = tracker.diagnostics()
-        info["wrong_frame_id"] = self.wrong_frame[segment]
-        conditions = tracker.conditions(self._reported.get(segment, {}))
-        self._reported[segment] = dict(tracker.counts)
+        extra = ["wrong frame_id on the raw stream"] if self.wrong_frame[segment] else []
+        values = {"wrong_frame_id": self.wrong_frame[segment]}
         lag = self._lag.pop(segment, None)
         if lag is not None:
-            info["lag_s"] = round(lag, 3)
+            values["lag_s"] = round(lag, 3)
             if lag > FALLING_BEHIND_S:
-                conditions.insert(0, f"falling behind: samples processed up to {lag:.2f} s after their "
-                                     "stamps")
+                extra.insert(0, f"falling behind: samples processed up to {lag:.2f} s after their stamps")
         last = self._last_arrival.get(segment)
-        level, message = DiagnosticStatus.OK, "tracking"
+        problem = None
         if last is None:
-            level, message = DiagnosticStatus.WARN, "no data yet: is the sensor on and publishing?"
+            problem = (diagnostics.WARN, "no data yet: is the sensor on and publishing?")
         elif now - last > self.stale_after:
-            level = DiagnosticStatus.ERROR
-            message = f"no data for {now - last:.1f} s: check the sensor, its battery and the link"
-        elif not info["initialized"]:
-            message = f"start-up: collecting {self.trackers[segment].startup_s:g} s of quiet standing"
-        elif info["mag_disturbed"] or self.wrong_frame[segment] or info["startup_quiet"] is False:
-            level = DiagnosticStatus.WARN
-            message = ("magnetic disturbance: heading from gyro only" if info["mag_disturbed"]
-                       else "wrong frame_id on the raw stream" if self.wrong_frame[segment]
-                       else "moved during start-up: gyro bias not removed")
-        if conditions and last is not None and now - last <= self.stale_after:
-            message = "; ".join(conditions if message == "tracking" else [message, *conditions])
-            level = max(level, DiagnosticStatus.WARN)
-        return diagnostics.status(f"orientation_filter: {segment}", level, message, sensor_frame(segment),
-                                  info)
+            problem = (diagnostics.ERROR, f"no data for {now - last:.1f} s: check the sensor, its battery "
+                                          "and the link")
+        status = diagnostics.orientation_status(segment, tracker, self._reported.get(segment, {}), problem,
+                                                extra, values)
+        self._reported[segment] = dict(tracker.counts)
+        return status
 
     def _publish_diagnostics(self) -> None:
         now = time.monotonic()

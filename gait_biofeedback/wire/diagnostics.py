@@ -2,8 +2,13 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+
+from gait_biofeedback.core.orientation.stream import SegmentOrientationTracker
+from gait_biofeedback.core.segments import sensor_frame
 
 OK, WARN, ERROR, STALE = (int.from_bytes(level, "little") for level in (
     DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR, DiagnosticStatus.STALE))
@@ -33,3 +38,25 @@ def array(stamp: Time, statuses) -> DiagnosticArray:
 def level_of(s: DiagnosticStatus) -> int:
     """A status' level as an int (rclpy gives it as bytes)."""
     return s.level[0] if isinstance(s.level, bytes) else int(s.level)
+
+
+def orientation_status(segment: str, tracker: SegmentOrientationTracker, before: dict[str, int],
+                       problem: tuple[int, str] | None = None, extra: Sequence[str] = (),
+                       values: dict | None = None) -> DiagnosticStatus:
+    """``orientation_filter: <segment>``, as the node and ``analyze`` publish it: ``problem`` (level,
+    text) when the stream itself is missing (no data, stale: only the node knows), else the filter's
+    state, with ``extra`` texts and the tracker's :meth:`~SegmentOrientationTracker.conditions`
+    since the counts ``before`` appended (WARN)."""
+    info = {**tracker.diagnostics(), **(values or {})}
+    if problem is not None:
+        level, message = problem
+    elif not info["initialized"]:
+        level, message = OK, f"start-up: collecting {tracker.startup_s:g} s of quiet standing"
+    else:
+        texts = [*extra, *tracker.conditions(before)]
+        if info["mag_disturbed"]:
+            texts.insert(0, "magnetic disturbance: heading from gyro only")
+        if info["startup_quiet"] is False:
+            texts.append("moved during start-up: gyro bias not removed")
+        level, message = (WARN, "; ".join(texts)) if texts else (OK, "tracking")
+    return status(f"orientation_filter: {segment}", level, message, sensor_frame(segment), info)

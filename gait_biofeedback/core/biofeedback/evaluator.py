@@ -344,9 +344,13 @@ class BiofeedbackEvaluator:
         self.history = {side: AngleHistory(int(history_s * rate_hz)) for side in SIDES}
         self.percent = normative_gait.percent_grid(2.0)
 
-    def add_angles(self, side: str, stamp_ns: int, hip: float, knee: float, ankle: float) -> None:
-        """One instant's sagittal angles (rad) of ``side``."""
-        self.history[side].add(stamp_ns / NS_PER_S, hip, knee, ankle)
+    def add_angles(self, side: str, stamp_ns: int, hip: float, knee: float, ankle: float,
+                   doubtful: bool = False) -> None:
+        """One instant's sagittal angles (rad) of ``side``. ``doubtful`` ones (computed while a sensor
+        recovered from a dropout) are left out of the history: a stride that needs them has a hole
+        longer than ``max_gap`` and gets no kinematic cue."""
+        if not doubtful:
+            self.history[side].add(stamp_ns / NS_PER_S, hip, knee, ankle)
 
     def covers(self, stride: Stride, slack: float = 0.02) -> bool:
         """True when the angle history of the stride's side reaches its closing IC."""

@@ -351,10 +351,12 @@ class SegmentOrientationTracker:
             out.append("dropped " + ", ".join(dropped))
         if new["nan_skipped"]:
             out.append(f"{new['nan_skipped']} sample(s) with NaN skipped")
-        expected = new["missing"] + new["samples"]
-        if expected and new["missing"] > MISSING_WARN * expected:
-            out.append(f"losing samples: {100 * new['missing'] / expected:.1f} % missing from the stamps "
-                       "(the link, or a node falling behind)")
+        # the holes a rejected or dropped sample leaves are named above, not counted again
+        lost = new["missing"] - sum(new[k] for k in ("nan_skipped", "out_of_range", "late", "bad_stamps"))
+        expected = new["samples"] + lost
+        if lost > MISSING_WARN * expected:
+            out.append(f"losing samples: {100 * lost / expected:.1f} % missing from the stamps (the link, "
+                       "or a node falling behind)")
         if self.rate.mismatch:
             out.append(f"rate {self.rate.measured_hz:.1f} Hz measured, {self.rate.configured_hz:g} "
                        "configured: using the measured rate")
