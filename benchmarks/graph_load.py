@@ -21,6 +21,7 @@ A last table times the per-message conversions (rclpy objects vs :mod:`gait_biof
 from __future__ import annotations
 
 import argparse
+import re
 import resource
 import tempfile
 import time
@@ -73,12 +74,29 @@ def run_rows(bag: Path, stages: list[list[str]], start: float, stop: float, spee
                                                   "biofeedback": {"port": 0}})
             cpu = cpu_seconds() - before
             counts = BagReader(out).message_counts()
+            said = overload_said(out)
         raw = sum(n for t, n in counts.items() if t.endswith("/imu/data_raw"))
         orientations = sum(n for t, n in counts.items() if t.endswith("/imu/data"))
         label = "+ " + stage[-1] if stage else "replayer + recorder"
         load = 100.0 * cpu / (seconds / speed)
         print(f"{label:36s}{load:15.0f}%{100.0 * raw / expected:9.1f}%"
-              f"{100.0 * orientations / expected if stage else float('nan'):8.1f}%", flush=True)
+              f"{100.0 * orientations / expected if stage else float('nan'):8.1f}%  {said}", flush=True)
+
+
+def overload_said(path: Path) -> str:
+    """What /diagnostics said of lost samples (orientation filter, recorder) or lag: the worst of each
+    (by its first number), or ''."""
+    worst: dict[str, tuple[float, str]] = {}
+    with BagReader(path) as reader:
+        for _, msg, _ in reader.messages(["/diagnostics"]):
+            for status in msg.status:
+                for part in status.message.split("; "):
+                    for key in ("losing samples", "of the raw samples", "falling behind"):
+                        number = re.search(r"\d+(\.\d+)?", part)
+                        value = float(number.group()) if number else 0.0
+                        if key in part and value > worst.get(key, (-1.0, ""))[0]:
+                            worst[key] = (value, f"{status.name.split(': ')[-1]}: {part}")
+    return "; ".join(text for _, text in worst.values())
 
 
 def sustained_rates(seconds: float, speed: float, rates: tuple[float, ...] = (100.0, 200.0, 400.0)) -> None:

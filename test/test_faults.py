@@ -28,6 +28,7 @@ from gait_biofeedback.batch import (
 )
 from gait_biofeedback.core.gait.cycles import GaitCycleTracker
 from gait_biofeedback.core.gait.events import GaitEvent
+from gait_biofeedback.core.rate import StampHoles
 from gait_biofeedback.wire.gait import stride_of
 from gait_biofeedback.wire.joints import recovering_of
 
@@ -213,3 +214,12 @@ def test_short_holes_in_the_stamps_are_counted_as_missing_samples():
     assert tracker.counts["gaps"] == 0
     assert "losing samples: 10.0 % missing from the stamps (the link, or a node falling behind)" in (
         tracker.conditions(before))
+
+
+def test_stamp_holes_count_missing_samples_after_learning_the_period():
+    holes = StampHoles(learn=5)
+    stamps = [k * 10_000_000 for k in range(6)] + [k * 10_000_000 for k in (8, 9, 9, 7, 12)]
+    for ns in stamps:
+        holes.update(ns)
+    assert holes.missing == 2 + 2  # 5→8 and 9→12; the repeated 9 and the late 7 are ignored
+    assert holes.samples == 9

@@ -129,3 +129,47 @@ def test_node_counts_bad_samples_and_reports_them(ros_context):
     values = {kv.key: kv.value for kv in status.values}
     assert values["nan_skipped"] == "1" and values["time_resets"] == "1"
     assert status.level == b"\x01" and "frame_id" in status.message
+
+
+def test_node_names_a_dropout_and_a_glitch_on_diagnostics(ros_context):
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.node import Node
+    from sensor_msgs.msg import Imu
+
+    from gait_biofeedback.nodes.common import make_executor, spin_until
+    from gait_biofeedback.nodes.orientation_filter import OrientationFilterNode
+    from gait_biofeedback.wire.stamps import s_to_stamp
+    from gait_biofeedback.wire.topics import SENSOR_QOS
+
+    node = OrientationFilterNode(ros_context, segments=["chest"], startup_s=0.2, diagnostics_period=0.1,
+                                 recover_s=0.3)
+    source = Node("source", context=ros_context)
+    pub = source.create_publisher(Imu, "chest/imu/data_raw", SENSOR_QOS)
+    said: list[str] = []
+    source.create_subscription(DiagnosticArray, "/diagnostics",
+                               lambda m: said.extend(s.message for s in m.status), 10)
+    executor = make_executor(ros_context)
+    executor.add_node(node)
+    executor.add_node(source)
+    try:
+        assert spin_until(executor, lambda: pub.get_subscription_count() > 0, timeout=5)
+        stamps = [k * 0.01 for k in range(100)] + [2.0 + k * 0.01 for k in range(100)]
+        for k, t in enumerate(stamps):
+            msg = Imu()
+            msg.header.stamp = s_to_stamp(100.0 + t)
+            msg.header.frame_id = "chest_imu"
+            msg.linear_acceleration.z = 1e6 if k == 150 else 9.81
+            pub.publish(msg)
+            executor.spin_once(timeout_sec=0.002)
+            if k == 99 or k == 160:
+                spin_until(executor, lambda: False, timeout=0.25)  # a report or two
+        spin_until(executor, lambda: any("out of range" in s for s in said), timeout=3)
+    finally:
+        node.destroy_node()
+        source.destroy_node()
+        executor.shutdown()
+    text = " | ".join(said)
+    assert "sensor dropout: 1.01 s without data (attitude re-acquired)" in text or (
+        "sensor dropout: re-acquiring the attitude" in text), text
+    assert "1 sample(s) out of range rejected (glitch)" in text, text
+    assert "6D (no magnetometer)" in text

@@ -56,3 +56,36 @@ class RateCheck:
         self.rate_hz = round(self.measured_hz, 3)
         return (f"samples arrive at {self.measured_hz:.1f} Hz, configured rate_hz is {self.configured_hz:g}: "
                 f"using {self.rate_hz:g} Hz (set rate_hz to the sensor's rate to silence this)")
+
+
+class StampHoles:
+    """Samples missing from a stream, counted from holes in its stamps (in order; a reordered or
+    repeated stamp is ignored): a hole of k sample periods is k - 1 missing samples. The period is
+    the shortest positive interval of the first ``learn`` intervals, so a hole early on cannot
+    inflate it."""
+
+    def __init__(self, learn: int = 20) -> None:
+        self.learn = int(learn)
+        self.samples = 0
+        self.missing = 0
+        self._intervals: list[int] = []
+        self._period: int | None = None
+        self._last: int | None = None
+
+    def update(self, stamp_ns: int) -> None:
+        """One sample's stamp."""
+        last = self._last
+        if last is not None and stamp_ns <= last:
+            return
+        self._last = stamp_ns
+        self.samples += 1
+        if last is None:
+            return
+        dt = stamp_ns - last
+        if self._period is None:
+            self._intervals.append(dt)
+            if len(self._intervals) >= self.learn:
+                self._period = min(self._intervals)
+            return
+        if dt > 1.5 * self._period:
+            self.missing += round(dt / self._period) - 1

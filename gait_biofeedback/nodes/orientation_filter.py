@@ -32,6 +32,9 @@ from gait_biofeedback.wire.imu import mag_sample, orientation_payload, raw_sampl
 FALLING_BEHIND_S = 0.5
 """A sample processed this long after its stamp (by the node's clock) means the node falls behind."""
 
+OTHER_CLOCK_S = 60.0
+"""Beyond this, the stamps are in another time base than the node's clock (not a backlog)."""
+
 FLUSH_AFTER = 0.25
 """Wall-clock seconds without a sample after which a stream's reorder window is flushed."""
 
@@ -115,7 +118,10 @@ class OrientationFilterNode(GuardedNode):
         lag = self._lag.pop(segment, None)
         if lag is not None:
             values["lag_s"] = round(lag, 3)
-            if lag > FALLING_BEHIND_S:
+            if lag > OTHER_CLOCK_S:
+                extra.insert(0, f"stamps {lag:.0f} s behind this node's clock: the sensor time is not mapped "
+                                "to ROS time (a replay needs use_sim_time)")
+            elif lag > FALLING_BEHIND_S:
                 extra.insert(0, f"falling behind: samples processed up to {lag:.2f} s after their stamps")
         last = self._last_arrival.get(segment)
         problem = None
