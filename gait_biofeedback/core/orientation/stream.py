@@ -258,18 +258,12 @@ class SegmentOrientationTracker:
                 self.counts["missing"] += round(dt * self.rate_hz) - 1
         self._rate_note = self.rate.update(stamp_ns) or self._rate_note
         m = self._mag_for(t)
-        if self._recover is not None:
-            self._recover.append((t, g, a, m, stamp_ns))
-            self._t_last = t
-            if t - self._recover[0][0] + 1.0 / self.rate_hz < self.recover_s:
-                return []
-            return self._finish_recovery()
-        if self._startup is not None:
-            self._startup.append((t, g, a, m, stamp_ns))
-            self._t_last = t
-            if t - self._startup[0][0] + 1.0 / self.rate_hz < self.startup_s:
-                return []
-            return self._finish_startup()
+        for held, duration, finish in ((self._recover, self.recover_s, self._finish_recovery),
+                                       (self._startup, self.startup_s, self._finish_startup)):
+            if held is not None:  # the re-acquisition or start-up window: held, then released together
+                held.append((t, g, a, m, stamp_ns))
+                self._t_last = t
+                return finish() if t - held[0][0] + 1.0 / self.rate_hz >= duration else []
         dt = t - self._t_last if self._t_last is not None else None
         self._t_last = t
         return [self._step(g, a, m, dt, stamp_ns)]
