@@ -51,6 +51,8 @@ FAULTS = {
 }
 FAULTS["all four"] = [f for faults in FAULTS.values() for f in faults]
 FAULTS["left shank off 6 s"] = [Dropout(60.0, 6.0, ("left_shank",))]
+FAULTS["hole 0.1 s, every sensor"] = [Dropout(60.0, 0.1)]
+FAULTS["hole 0.3 s, every sensor"] = [Dropout(60.0, 0.3)]
 CALIBRATE_AT = 36.0
 
 

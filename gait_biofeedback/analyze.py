@@ -105,6 +105,10 @@ class AnalysisResult:
     messages: list[tuple[str, Any, int]] = field(default_factory=list)
 
 
+SESSION_CONDITIONS = ("losing samples", "6D")
+"""Orientation conditions ``analyze`` also sums up in its warnings (the others are said as they happen)."""
+
+
 def parse_calibrate_at(text: str) -> tuple[float, str]:
     """``"T:protocol"`` (T in s into the recording; protocol default hip_flexion) → (T, protocol)."""
     time_text, _, protocol = text.partition(":")
@@ -340,6 +344,10 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
         report_status(reader.end_time_ns)
     publish_joints(joints.flush(force=True), reader.end_time_ns)
     result.warnings[:0] = reader.warnings  # a damaged file, a chunk skipped: the time range lost
+    for seg, tracker in trackers.items():  # what only /diagnostics said along the way, over the session
+        for text in tracker.conditions({}):
+            if text.startswith(SESSION_CONDITIONS):
+                result.warnings.append(f"{seg}: over the session: {text}")
     for until_ns, protocol in buffer.scheduled:
         at = (until_ns - start_ns) / NS_PER_S
         result.warnings.append(f"calibration ({protocol}) at {at:.2f} s never ran: "

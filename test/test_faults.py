@@ -28,7 +28,7 @@ from gait_biofeedback.batch import (
 )
 from gait_biofeedback.core.gait.cycles import GaitCycleTracker
 from gait_biofeedback.core.gait.events import GaitEvent
-from gait_biofeedback.core.rate import StampHoles
+from gait_biofeedback.core.rate import RateCheck, StampHoles
 from gait_biofeedback.wire.gait import stride_of
 from gait_biofeedback.wire.joints import recovering_of
 
@@ -112,7 +112,7 @@ def test_steps_survive_and_each_fault_is_named(runs):
     assert steps_clean >= 45 and abs(steps_faulty - steps_clean) <= 4
     said = " | ".join(faulty.warnings)
     assert "2.01 s without data: attitude re-acquired" in said
-    assert "right_foot: sample out of the sensor's range" in said
+    assert "right_foot: sample beyond the sensor's range" in said
     assert "left_thigh: dropped 1 sample(s) stamped 0.490 s behind" in said
     reorder = [w for w in faulty.warnings if "left_shank" in w and "without data" not in w]
     assert reorder == [] and "time went back" not in said, "a reorder is silent and resets nothing"
@@ -223,3 +223,37 @@ def test_stamp_holes_count_missing_samples_after_learning_the_period():
         holes.update(ns)
     assert holes.missing == 2 + 2  # 5→8 and 9→12; the repeated 9 and the late 7 are ignored
     assert holes.samples == 9
+
+
+def test_the_activity_stream_at_a_measured_rate_equals_the_configured_one():
+    from gait_biofeedback.core.activity.stream import ActivityParams, ActivityStream
+
+    chest = simulate(SCENARIOS["activity"](seed=5, rate_hz=50.0)).imu["chest"]
+
+    def states(rate_hz):
+        stream = ActivityStream(ActivityParams(rate_hz=rate_hz))
+        out = []
+        for t, acc in zip(chest.t.tolist(), chest.acc.tolist(), strict=True):
+            state, _ = stream.update(round(t * 1e9), tuple(acc))
+            if state is not None:
+                out.append((state.stamp_ns, state.posture, state.last_transition, state.step_count))
+        return out, stream
+
+    measured, stream = states(100.0)
+    configured, _ = states(50.0)
+    assert stream.rate_hz == 50.0 and len(measured) > 100
+    assert measured == configured
+    assert measured[-1][3] >= 20, "the walk's steps are counted"
+
+
+def test_the_rate_of_jittered_stamps_is_their_mean_and_a_hole_does_not_move_it():
+    rng = np.random.default_rng(0)
+    jittered = np.cumsum(0.005 + rng.uniform(-0.003, 0.003, 40))  # a 200 Hz logger's clock
+    check = RateCheck(100.0, intervals=39)
+    for t in jittered:
+        check.update(round(t * 1e9))
+    assert check.measured_hz == pytest.approx(39 / (jittered[-1] - jittered[0]), rel=1e-6)
+    holed = RateCheck(100.0, intervals=10)
+    for t in [k * 0.02 for k in range(6)] + [k * 0.02 for k in range(9, 15)]:
+        holed.update(round(t * 1e9))
+    assert holed.measured_hz == pytest.approx(50.0) and holed.rate_hz == 50.0

@@ -2,11 +2,12 @@
 
 Every rate-dependent constant of the core is stated in seconds and turned into samples with a rate;
 a sensor that runs at another rate than configured (a driver set to 50 Hz, a logger at 400 Hz)
-would silently scale every window. :class:`RateCheck` measures the rate as the median of the
-first ``intervals`` stamp intervals (a median: a gap or a duplicate does not move it) and decides
-once which rate a stage uses: the configured one if the measured one is within ``tolerance`` of
-it, else the measured one, with a message naming both. Later changes of rate are said, not acted on
-(a stage rebuilt mid-walk would lose its state).
+would silently scale every window. :class:`RateCheck` measures the rate from the first
+``intervals`` stamp intervals (their mean, leaving out holes of over 3 median intervals: neither a
+logger's jitter nor a gap moves it) and decides once which rate a stage uses: the
+configured one if the measured one is within ``tolerance`` of it, else the measured one, with a
+message naming both. Later changes of rate are not acted on (a stage rebuilt mid-walk would lose
+its state).
 """
 
 from __future__ import annotations
@@ -50,7 +51,10 @@ class RateCheck:
         """Decide now with the intervals seen so far (none: keep the configured rate); as :meth:`update`."""
         if self.measured_hz is not None or not self._dts:
             return None
-        self.measured_hz = 1.0 / median(self._dts)
+        typical = median(self._dts)
+        # the mean interval (a logger's jittered clock averages out), holes left out
+        kept = [dt for dt in self._dts if dt < 3.0 * typical]
+        self.measured_hz = len(kept) / sum(kept)
         if abs(self.measured_hz / self.configured_hz - 1.0) <= self.tolerance:
             return None
         self.rate_hz = round(self.measured_hz, 3)

@@ -10,6 +10,7 @@ parameters, activity transitions and steps.
 
 from __future__ import annotations
 
+import math
 from collections import defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -119,7 +120,9 @@ def _cycles(reader: BagReader, recorded: dict) -> dict[str, float]:
         "strides": len(rows), "plausible": len(good),
         "stride_time": float(np.median(good[:, 0])), "stance_percent": float(100 * np.median(good[:, 1])),
         "cadence_per_min": float(60 * np.median(good[:, 2])),
-        "double_support_percent": float(100 * np.nanmedian(good[:, 3])),
+        # one foot only (a single shoe sensor): no double support
+        "double_support_percent": (float(100 * np.nanmedian(good[:, 3])) if np.isfinite(good[:, 3]).any()
+                                   else math.nan),
     }
 
 
@@ -183,8 +186,10 @@ def format_report(report: SessionReport) -> list[str]:
     if c.get("plausible"):
         lines.append(f"strides: {c['plausible']} of {c['strides']} plausible; "
                      f"stride {c['stride_time']:.2f} s, cadence {c['cadence_per_min']:.0f} steps/min, "
-                     f"stance {c['stance_percent']:.0f} %, "
-                     f"double support {c['double_support_percent']:.0f} %")
+                     f"stance {c['stance_percent']:.0f} %, " + (
+                         f"double support {c['double_support_percent']:.0f} %"
+                         if math.isfinite(c["double_support_percent"])
+                         else "double support unknown (one foot)"))
     if report.transitions or report.steps:
         lines.append(f"activity: {len(report.transitions)} transitions, {report.steps} steps counted"
                      + (f" ({report.true_steps} true)" if report.true_steps else ""))

@@ -86,6 +86,7 @@ class ActivityStream:
         self.sequencer = StreamSequencer(window=p.reorder_window)
         self.rate = RateCheck(p.rate_hz)
         self._every = 1  # keep every this many samples (a sensor faster than MAX_RATE_HZ)
+        self._held: list[tuple[int, tuple]] = []  # the first samples, until the rate is known
         self._skip = 0
         self.counts = {"samples": 0, "nan_skipped": 0, "duplicates": 0, "late": 0, "bad_stamps": 0,
                        "restarts": 0}
@@ -179,9 +180,23 @@ class ActivityStream:
             if not restart_s:
                 self.monitor.keep_mounting(previous)
         self._last_ns = stamp_ns
-        rate_note = self.rate.update(stamp_ns)
-        if rate_note:
-            self._set_rate(rate_note)
+        if self.rate.measured_hz is None:  # the first samples wait until the rate is known
+            self._held.append((stamp_ns, acc))
+            rate_note = self.rate.update(stamp_ns)
+            if self.rate.measured_hz is None:
+                return out
+            if rate_note:
+                self._set_rate(rate_note)
+            held, self._held = self._held, []
+            for held_ns, held_acc in held:
+                out += self._feed(held_ns, held_acc)
+            return out
+        return out + self._feed(stamp_ns, acc)
+
+    def _feed(self, stamp_ns: int, acc: tuple) -> list[tuple[ActivityState, bool]]:
+        """One sample into the monitor (thinned above MAX_RATE_HZ)."""
+        segment = self.params.segment
+        out: list[tuple[ActivityState, bool]] = []
         if self._every > 1:
             self._skip = (self._skip + 1) % self._every
             if self._skip:
@@ -196,8 +211,8 @@ class ActivityStream:
         return out
 
     def _set_rate(self, note: str) -> None:
-        """The stream's rate is not the configured one: a new monitor designed for it (at the start of
-        the stream: nothing is lost but its first samples); above MAX_RATE_HZ every k-th sample."""
+        """The stream's rate is not the configured one: a new monitor designed for it (before any sample
+        reached the old one); above MAX_RATE_HZ every k-th sample."""
         measured = self.rate.rate_hz
         self._every = max(1, math.ceil(measured / MAX_RATE_HZ - 1e-9))
         self.rate_hz = measured / self._every
@@ -207,7 +222,7 @@ class ActivityStream:
             self.rate_hz, self._every = self.params.rate_hz, 1
             return
         thinned = f", every {self._every}th sample kept" if self._every > 1 else ""
-        self.notices.say("warn", f"{self.params.segment}: {note}{thinned}")
+        self.notices.say("warn", f"{self.params.segment} (activity monitor): {note}{thinned}")
         self.monitor = ActivityMonitor(self.rate_hz, **self.options)
 
     def _state(self, state: ActivityState) -> tuple[ActivityState, bool]:

@@ -188,7 +188,7 @@ class CalibrationBuffer:
     def series(self, segments: Sequence[str], until_ns: int | None = None
                ) -> tuple[dict[str, ImuSeries], dict[str, np.ndarray]]:
         """Per segment with ≥ 2 samples in the window: (ImuSeries, (N, 4) orientations); the segments
-        with a sample filtered without magnetometer in the window go to :attr:`six_d`."""
+        with most of the window filtered without magnetometer go to :attr:`six_d`."""
         data, ori = {}, {}
         self.six_d = []
         for seg in segments:
@@ -202,7 +202,7 @@ class CalibrationBuffer:
             arr = np.array(rows, dtype=float)
             data[seg] = ImuSeries(seg, arr[:, 0], arr[:, 1:4], arr[:, 4:7])
             ori[seg] = arr[:, 7:11]
-            if not arr[:, 11].all():
+            if arr[:, 11].mean() < 0.5:  # most of the window without magnetometer (not just the first 50 ms)
                 self.six_d.append(seg)
         return data, ori
 

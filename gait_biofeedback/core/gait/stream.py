@@ -183,7 +183,7 @@ class GaitEventStream:
         if rate_note:
             self.detectors[side].set_rate(self.rates[side].rate_hz)
             self.detectors[side].reset()
-            self.notices.say("warn", f"{side} foot: {rate_note}")
+            self.notices.say("warn", f"{side} foot (gait events): {rate_note}")
         for rotation in self._waiting[side].due(stamp_ns):
             self._apply(side, rotation)
         if not self.calibrated[side]:
