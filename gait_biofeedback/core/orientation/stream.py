@@ -362,7 +362,7 @@ class SegmentOrientationTracker:
         new = {k: v - before.get(k, 0) for k, v in self.counts.items()}
         out = []
         if self.recovering:
-            out.append(f"sensor dropout: re-acquiring the attitude ({self.recover_s:g} s; those samples are "
+            out.append(f"sensor dropout: re-acquiring the attitude ({self.recover_s:g} s, those samples are "
                        "marked, no feedback from them)")
         elif new["gaps"]:
             out.append(f"sensor dropout: {self.last_gap_s:.2f} s without data (attitude re-acquired)")
