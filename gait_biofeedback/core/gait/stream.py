@@ -13,13 +13,14 @@
   new calibration resets the foot's detector and strides.
 - Bad input: a non-finite or zero quaternion is skipped; a stamp going backwards or a gap
   > ``max_gap`` s resets that foot (detector and strides), counted and said (:attr:`notices`).
-- Rate: each foot's rate is measured from its first stamps (:class:`~gait_biofeedback.core.rate.RateCheck`);
-  more than 10 % off ``rate_hz``, the detector counts its windows at the measured rate, and says so.
+  A stream that stopped (the node's wall-clock check) is reported with :meth:`stream_stopped`.
+- Rate: each foot's rate is measured from its first stamps
+  (:class:`~gait_biofeedback.core.rate.RateCheck`); more than 10 % off ``rate_hz``, the detector
+  counts its windows at the measured rate, and says so.
 - Sensor dropouts (issue 13): an event detected on a sample whose orientation was being re-acquired
   after a dropout (``recovering``) carries the flag "sensor dropout: orientation recovering"; a
   stride that contains such a sample, or a stamp gap > ``dropout_gap`` s, is not plausible (flag
   "sensor dropout: ..."), so no cue is given from it.
-  A stream that stopped (the node's wall-clock check) is reported with :meth:`stream_stopped`.
 
 Samples are identified by their stamps (int ns); the stage's parameters are :class:`GaitEventsParams`.
 """
