@@ -223,6 +223,11 @@ def test_stamp_holes_count_missing_samples_after_learning_the_period():
         holes.update(ns)
     assert holes.missing == 2 + 2  # 5→8 and 9→12; the repeated 9 and the late 7 are ignored
     assert holes.samples == 9
+    jittered = StampHoles()
+    rng = np.random.default_rng(1)
+    for t in np.arange(0.0, 10.0, 0.01) + rng.uniform(-0.003, 0.003, 1000):
+        jittered.update(round(t * 1e9))
+    assert jittered.missing == 0, "a logger's ±30 % jitter is not a hole"
 
 
 def test_the_activity_stream_at_a_measured_rate_equals_the_configured_one():
@@ -257,3 +262,37 @@ def test_the_rate_of_jittered_stamps_is_their_mean_and_a_hole_does_not_move_it()
     for t in [k * 0.02 for k in range(6)] + [k * 0.02 for k in range(9, 15)]:
         holed.update(round(t * 1e9))
     assert holed.measured_hz == pytest.approx(50.0) and holed.rate_hz == 50.0
+
+
+def test_a_gap_inside_the_start_up_or_the_re_acquisition_window_starts_a_new_re_acquisition():
+    tracker = SegmentOrientationTracker("pelvis", startup_s=1.0)
+    out = _stream(tracker, np.arange(0.0, 0.5, 0.01))
+    out += _stream(tracker, np.arange(6.0, 7.0, 0.01))  # silent from 0.5 to 6 s, during start-up
+    assert tracker.counts["gaps"] == 1 and len(out) == 50 and not any(s.recovering for s in out)
+    out = _stream(tracker, np.arange(7.0, 12.0, 0.01))
+    assert all(s.recovering for s in out if s.t < 8.0) and not any(s.recovering for s in out if s.t > 8.0)
+    out = _stream(tracker, np.arange(20.0, 21.0, 0.01)) + _stream(tracker, np.arange(22.0, 26.0, 0.01))
+    assert tracker.counts["gaps"] == 3, "the second silence, inside the first re-acquisition, counts"
+    assert [s.recovering for s in out if 22.0 <= s.t < 24.0] == [True] * 200
+    assert not any(s.recovering for s in out if s.t > 24.005)  # the window: 2 s (± one sample)
+
+
+def test_a_glitched_stamp_at_the_very_start_is_dropped_not_a_restart():
+    from gait_biofeedback.core.sequencer import StreamSequencer
+
+    sequencer = StreamSequencer()
+    stamps = [k * 10_000_000 for k in range(20)]
+    stamps[2] = 5_000_000_000
+    released = [r for ns in stamps for r in sequencer.push(ns, None)] + sequencer.flush()
+    assert [r.stamp_ns for r in released] == [ns for ns in stamps if ns != 5_000_000_000]
+    assert sequencer.counts["bad_stamps"] == 1 and not any(r.restart_s for r in released)
+
+
+def test_a_reset_forgets_the_doubt_of_the_time_before():
+    from gait_biofeedback.core.gait.stream import GaitEventsParams, GaitEventStream
+
+    stream = GaitEventStream(GaitEventsParams(use_standing_reference=True))
+    stream.update("left", 20_000_000_000, (1.0, 0.0, 0.0, 0.0), recovering=True)
+    stream.update("left", 1_000_000_000, (1.0, 0.0, 0.0, 0.0))  # time went back: the foot is reset
+    assert stream.counts["left"]["resets"] == 1
+    assert stream._doubtful["left"] is None

@@ -62,11 +62,16 @@ class RateCheck:
                 f"using {self.rate_hz:g} Hz (set rate_hz to the sensor's rate to silence this)")
 
 
+HOLE = 1.75
+"""An interval longer than this many sample periods is a hole."""
+
+
 class StampHoles:
     """Samples missing from a stream, counted from holes in its stamps (in order; a reordered or
-    repeated stamp is ignored): a hole of k sample periods is k - 1 missing samples. The period is
-    the shortest positive interval of the first ``learn`` intervals, so a hole early on cannot
-    inflate it."""
+    repeated stamp is ignored): an interval over ``HOLE`` periods, k periods long, is k - 1 missing
+    samples. The period is the median of the first ``learn`` intervals (a hole early on does not
+    move it). A logger whose stamps jitter by more than 75 % of the period still counts phantom
+    holes; a swapped pair counts one (the recorder sees samples in arrival order)."""
 
     def __init__(self, learn: int = 20) -> None:
         self.learn = int(learn)
@@ -89,7 +94,7 @@ class StampHoles:
         if self._period is None:
             self._intervals.append(dt)
             if len(self._intervals) >= self.learn:
-                self._period = min(self._intervals)
+                self._period = median(self._intervals)
             return
-        if dt > 1.5 * self._period:
+        if dt > HOLE * self._period:
             self.missing += round(dt / self._period) - 1

@@ -30,6 +30,9 @@ from typing import Any
 
 from gait_biofeedback.core.stamps import NS_PER_S
 
+START_JUMP_S = 1.0
+"""The jump threshold while the stream's interval is not known yet (its first 4 intervals)."""
+
 
 @dataclass(frozen=True)
 class Released:
@@ -70,7 +73,7 @@ class StreamSequencer:
             self._newest_ns = stamp_ns
         if self._jumped:
             return self._after_jump(stamp_ns, payload)
-        if self._jump_ns is not None and abs(stamp_ns - self._newest_ns) > self._jump_ns:
+        if abs(stamp_ns - self._newest_ns) > self._jump_ns:
             self._jumped.append((stamp_ns, payload))
             return []
         return self._accept(stamp_ns, payload)
@@ -90,10 +93,11 @@ class StreamSequencer:
         return len(self._pending) + len(self._jumped)
 
     @property
-    def _jump_ns(self) -> int | None:
-        """The jump threshold; None until the stream's sample interval is known (4 intervals)."""
+    def _jump_ns(self) -> int:
+        """The jump threshold: ``max_jump`` s or 8 sample intervals once 4 intervals are known; before,
+        ``START_JUMP_S`` (a slow stream's first intervals are not jumps, a glitched stamp of seconds is)."""
         if len(self._intervals) < 4:
-            return None
+            return max(self._max_jump_ns, round(START_JUMP_S * NS_PER_S))
         return max(self._max_jump_ns, 8 * sorted(self._intervals)[len(self._intervals) // 2])
 
     def _accept(self, stamp_ns: int, payload: Any, gap_s: float = 0.0,
@@ -127,7 +131,7 @@ class StreamSequencer:
         return out
 
     def _after_jump(self, stamp_ns: int, payload: Any) -> list[Released]:
-        threshold = self._jump_ns or self._max_jump_ns
+        threshold = self._jump_ns
         first_ns, last_ns = self._jumped[0][0], self._jumped[-1][0]
         if abs(stamp_ns - self._newest_ns) <= threshold:  # the stream went on where it was
             dropped, self._jumped = len(self._jumped), []

@@ -43,11 +43,11 @@ from gait_biofeedback.wire.topics import RELIABLE_QOS, SENSOR_QOS
 ALWAYS_EXCLUDED = ("/parameter_events", "/rosout", "/clock")
 """Never recorded: ROS bookkeeping, and a replayer's clock (a recording's time is its log time)."""
 BATCH_WAIT = 0.01
+"""Seconds the writer thread waits, once it has emptied the queue, before it blocks on it again."""
 RAW_SUFFIX = "/imu/data_raw"
 _STAMP = struct.Struct("<iI")
 MISSING_WARN = 0.01
 """Share of a raw topic's samples missing from its stamps (per report) that /diagnostics names."""
-"""Seconds the writer thread waits, once it has emptied the queue, before it blocks on it again."""
 
 
 class Recorder(GuardedNode):

@@ -162,6 +162,7 @@ class GaitEventStream:
         self.detectors[side].reset()
         self.tracker.reset(side)
         self._last_ns[side] = None
+        self._doubtful[side] = None
         self.counts[side]["resets"] += 1
         self.notes[side] = f"state reset: {why}"
 

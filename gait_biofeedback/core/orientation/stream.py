@@ -21,8 +21,10 @@ Rules (issues 3 and 13):
   (:mod:`~gait_biofeedback.core.orientation.reacquire`), those samples marked ``recovering``.
   ``max_gap`` 0.15 s was chosen on the demo walk (seeds 1, 2): bridged
   holes up to 0.15 s stay within 3.4° of the clean run, a 0.2 s one reaches 8°, a 0.3 s one 28°;
-  re-acquired, the attitude is as close to the truth as the clean run's. A slow sensor's gaps are
-  at least 3 sample periods. The start-up gyro bias is kept (an online bias estimate starts over).
+  re-acquired after one gap, the attitude was as close to the truth as the clean run's. A gap
+  inside the start-up or re-acquisition window ends that window and starts a new re-acquisition.
+  A slow sensor's gaps are at least 3 sample periods. The start-up gyro bias is kept (an online
+  bias estimate starts over).
   :meth:`SegmentOrientationTracker.flush` releases what the window still holds at the end of a
   recording.
 - Rate: the rate measured from the stamps of the start-up window
@@ -71,6 +73,8 @@ _DROPPED = ("duplicates", "late", "bad_stamps")
 RANGE_MARGIN = 1.1
 """A sample is rejected beyond its range by this factor: a sensor that saturates (a heel strike on a
 ±16 g accelerometer reads up to 158 m/s² on gaitmap's example) is clipped, not glitching."""
+STARTUP_GAP_S = 1.0
+"""During start-up the rate is not known yet: a gap there is a silence of over this long."""
 MISSING_WARN = 0.01  # share of samples missing (short holes in the stamps) that /diagnostics names
 
 
@@ -258,9 +262,16 @@ class SegmentOrientationTracker:
                               "reset, start-up step repeated")
             self.filter.reset()
             self._restart()
+        released: list[OrientationSample] = []
         if self._t_last is not None:
             dt = t - self._t_last
-            if dt > max(self.max_gap, 3.0 / self.rate_hz) and self._startup is None and self._recover is None:
+            gap_s = max(self.max_gap, 3.0 / self.rate_hz, STARTUP_GAP_S if self._startup is not None else 0.0)
+            if dt > gap_s:
+                # a gap inside the start-up or re-acquisition window ends it with what it holds
+                if self._startup is not None:
+                    released = self._finish_startup()
+                elif self._recover is not None:
+                    released = self._finish_recovery()
                 self.counts["gaps"] += 1
                 self.last_gap_s = dt
                 self._say("warn", f"{dt:.2f} s without data: attitude re-acquired from the next "
@@ -278,10 +289,10 @@ class SegmentOrientationTracker:
             if held is not None:  # the re-acquisition or start-up window: held, then released together
                 held.append((t, g, a, m, stamp_ns))
                 self._t_last = t
-                return finish() if t - held[0][0] + 1.0 / self.rate_hz >= duration else []
+                return released + (finish() if t - held[0][0] + 1.0 / self.rate_hz >= duration else [])
         dt = t - self._t_last if self._t_last is not None else None
         self._t_last = t
-        return [self._step(g, a, m, dt, stamp_ns)]
+        return [*released, self._step(g, a, m, dt, stamp_ns)]
 
     def _bridge(self, missing: int, dt: float, g: tuple, a: tuple) -> None:
         """A hole of ``missing`` samples (at most ``max_gap``): the filter is stepped through the
