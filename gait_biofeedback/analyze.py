@@ -301,16 +301,12 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
     mag_of = {topic: seg for seg, topic in mag_topics.items()}
     copied: list[tuple[int, str, str, bytes]] = []
     truth = [t for t in reader.topics() if t.startswith(topics.TRUTH_PREFIX + "/")]
-    reported: dict[str, dict[str, int]] = {}
     period_ns = round(o_params.diagnostics_period * NS_PER_S)
     next_diagnostics = [start_ns + period_ns]
 
     def report_status(log_ns: int) -> None:
-        statuses = []
-        for seg, tracker in trackers.items():
-            if seg in last_raw:
-                statuses.append(diagnostics.orientation_status(seg, tracker, reported.get(seg, {})))
-                reported[seg] = dict(tracker.counts)
+        statuses = [diagnostics.orientation_status(seg, tracker) for seg, tracker in trackers.items()
+                    if seg in last_raw]
         emit(topics.DIAGNOSTICS.name, diagnostics.array(ns_to_stamp(log_ns), statuses), log_ns)
         next_diagnostics[0] = log_ns + period_ns
 

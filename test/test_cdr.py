@@ -129,3 +129,12 @@ def test_other_layouts_fall_back_to_rclpy() -> None:
 def test_pack_imu_checks_the_field_count() -> None:
     with pytest.raises(ValueError):
         cdr.pack_imu(0, "x", (0.0,) * 36)
+
+
+def test_header_stamp_is_read_without_decoding_the_message():
+    from gait_biofeedback.wire.cdr import IMU_DOUBLES, header_stamp_ns, pack_imu
+
+    data = pack_imu(1_234_567_890_123, "chest_imu", [0.0] * IMU_DOUBLES)
+    assert header_stamp_ns(data) == 1_234_567_890_123
+    assert header_stamp_ns(b"\x00\x00\x00\x00" + data[4:]) is None  # not little-endian CDR
+    assert header_stamp_ns(data[:10]) is None

@@ -62,6 +62,9 @@ class RateCheck:
                 f"using {self.rate_hz:g} Hz (set rate_hz to the sensor's rate to silence this)")
 
 
+MISSING_WARN = 0.01
+"""Share of a stream's samples missing from its stamps (per /diagnostics report) that is named."""
+
 HOLE = 1.75
 """An interval longer than this many sample periods is a hole."""
 

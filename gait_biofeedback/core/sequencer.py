@@ -30,6 +30,9 @@ from typing import Any
 
 from gait_biofeedback.core.stamps import NS_PER_S
 
+DROPPED = ("duplicates", "late", "bad_stamps")
+"""The counts of samples the sequencer drops."""
+
 START_JUMP_S = 1.0
 """The jump threshold while the stream's interval is not known yet (its first 4 intervals)."""
 
@@ -86,6 +89,19 @@ class StreamSequencer:
             self._released_ns = out[-1].stamp_ns
         self._pending.clear()
         return out
+
+    @property
+    def dropped(self) -> int:
+        """Samples dropped so far: duplicates, late ones, bad stamps."""
+        return sum(self.counts[key] for key in DROPPED)
+
+    def sync_drops(self, counts: dict[str, int]) -> int:
+        """Copy the drop counts into a stream's ``counts``; how many samples were dropped since the
+        last copy."""
+        before = sum(counts.get(key, 0) for key in DROPPED)
+        for key in DROPPED:
+            counts[key] = self.counts[key]
+        return self.dropped - before
 
     @property
     def holding(self) -> int:

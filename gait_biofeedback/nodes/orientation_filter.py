@@ -63,7 +63,6 @@ class OrientationFilterNode(GuardedNode):
             subscribe(self, topics.magnetometer(segment), lambda data, s=segment: self._on_mag(s, data),
                       raw=True)
         self._last_raw: dict[str, object] = {}
-        self._reported: dict[str, dict[str, int]] = {}  # counts at the last /diagnostics
         self._lag: dict[str, float] = {}  # largest (clock now - sample stamp) since the last /diagnostics
         self.create_timer(self.params.diagnostics_period, self._publish_diagnostics)
         self.create_timer(FLUSH_AFTER / 2, self._flush_silent)
@@ -130,10 +129,7 @@ class OrientationFilterNode(GuardedNode):
         elif now - last > self.stale_after:
             problem = (diagnostics.ERROR, f"no data for {now - last:.1f} s: check the sensor, its battery "
                                           "and the link")
-        status = diagnostics.orientation_status(segment, tracker, self._reported.get(segment, {}), problem,
-                                                extra, values)
-        self._reported[segment] = dict(tracker.counts)
-        return status
+        return diagnostics.orientation_status(segment, tracker, problem, extra, values)
 
     def _publish_diagnostics(self) -> None:
         now = time.monotonic()

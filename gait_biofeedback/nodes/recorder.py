@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import contextlib
 import queue
-import struct
 import threading
 import time
 from pathlib import Path
@@ -32,22 +31,19 @@ from rclpy.context import Context
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_srvs.srv import Trigger
 
-from gait_biofeedback.core.rate import StampHoles
+from gait_biofeedback.core.rate import MISSING_WARN, StampHoles
 from gait_biofeedback.io.bag import BagWriter, message_class
 from gait_biofeedback.io.params import RecorderParams
 from gait_biofeedback.nodes.common import GuardedNode
 from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
 from gait_biofeedback.wire import diagnostics, topics
+from gait_biofeedback.wire.cdr import header_stamp_ns
 from gait_biofeedback.wire.topics import RELIABLE_QOS, SENSOR_QOS
 
 ALWAYS_EXCLUDED = ("/parameter_events", "/rosout", "/clock")
 """Never recorded: ROS bookkeeping, and a replayer's clock (a recording's time is its log time)."""
 BATCH_WAIT = 0.01
 """Seconds the writer thread waits, once it has emptied the queue, before it blocks on it again."""
-RAW_SUFFIX = "/imu/data_raw"
-_STAMP = struct.Struct("<iI")
-MISSING_WARN = 0.01
-"""Share of a raw topic's samples missing from its stamps (per report) that /diagnostics names."""
 
 
 class Recorder(GuardedNode):
@@ -72,6 +68,7 @@ class Recorder(GuardedNode):
         self.output: Path | None = None
         self.sessions: list[Path] = []
         self.received = 0
+        self._raw_topics: set[str] = set()
         self._holes: dict[str, StampHoles] = {}  # raw IMU topic → samples missing from its stamps
         self._holes_reported: dict[str, tuple[int, int]] = {}
         self.dropped_while_stopped = 0
@@ -162,6 +159,8 @@ class Recorder(GuardedNode):
         qos = self._qos_for(topic)
         if qos.durability == DurabilityPolicy.TRANSIENT_LOCAL:
             self._latched_topics.add(topic)
+        if topics.segment_of(topic) is not None and topic.endswith("/data_raw"):
+            self._raw_topics.add(topic)  # its stamps are checked for holes
         self._recorded_topics[topic] = self.create_subscription(
             message_class(type_name), topic,
             lambda data, topic=topic, type_name=type_name: self._on_message(topic, type_name, data),
@@ -195,9 +194,10 @@ class Recorder(GuardedNode):
 
     def _on_message(self, topic: str, type_name: str, data: bytes) -> None:
         self.received += 1
-        if topic.endswith(RAW_SUFFIX) and len(data) >= 12:
-            sec, nanosec = _STAMP.unpack_from(data, 4)  # header.stamp right after the CDR encapsulation
-            self._holes.setdefault(topic, StampHoles()).update(sec * 1_000_000_000 + nanosec)
+        if topic in self._raw_topics:
+            stamp_ns = header_stamp_ns(data)
+            if stamp_ns is not None:
+                self._holes.setdefault(topic, StampHoles()).update(stamp_ns)
         if topic in self._latched_topics:
             self._latched[topic] = (type_name, data)
         if not self._recording:

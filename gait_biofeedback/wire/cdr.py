@@ -154,6 +154,15 @@ def _doubles(n_doubles: int) -> struct.Struct:
     return s
 
 
+def header_stamp_ns(data: bytes) -> int | None:
+    """``header.stamp`` (int ns) of a little-endian message that starts with a std_msgs/Header, None
+    for other bytes: read without decoding the rest."""
+    if len(data) < _HEADER or data[:4] != CDR_LE:
+        return None
+    sec, nanosec, _ = _HEAD.unpack_from(data, 4)
+    return sec * _NS + nanosec
+
+
 def unpack_stamped(data: bytes, n_doubles: int) -> Stamped | None:
     """Stamp, frame_id and doubles of little-endian XCDR1 bytes; None if ``data`` is not exactly that
     layout (then use rclpy)."""

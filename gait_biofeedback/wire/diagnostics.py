@@ -40,20 +40,21 @@ def level_of(s: DiagnosticStatus) -> int:
     return s.level[0] if isinstance(s.level, bytes) else int(s.level)
 
 
-def orientation_status(segment: str, tracker: SegmentOrientationTracker, before: dict[str, int],
+def orientation_status(segment: str, tracker: SegmentOrientationTracker,
                        problem: tuple[int, str] | None = None, extra: Sequence[str] = (),
                        values: dict | None = None) -> DiagnosticStatus:
     """``orientation_filter: <segment>``, as the node and ``analyze`` publish it: ``problem`` (level,
     text) when the stream itself is missing (no data, stale: only the node knows), else the filter's
-    state, with ``extra`` texts and the tracker's :meth:`~SegmentOrientationTracker.conditions`
-    since the counts ``before`` appended (WARN)."""
+    state, with ``extra`` texts and the tracker's :meth:`~SegmentOrientationTracker.report` (what
+    happened since its last status) appended (WARN)."""
+    conditions = tracker.report()
     info = {**tracker.diagnostics(), **(values or {})}
     if problem is not None:
         level, message = problem
     elif not info["initialized"]:
         level, message = OK, f"start-up: collecting {tracker.startup_s:g} s of quiet standing"
     else:
-        texts = [*extra, *tracker.conditions(before)]
+        texts = [*extra, *conditions]
         if info["mag_disturbed"]:
             texts.insert(0, "magnetic disturbance: heading from gyro only")
         if info["startup_quiet"] is False:

@@ -46,7 +46,6 @@ from gait_biofeedback.core.stamps import NS_PER_S
 
 UNITS = ("m/s2", "g")
 MIN_RATE_HZ, MAX_RATE_HZ = 20.0, 200.0  # the monitor's filters are designed for these rates
-_DROPPED = ("duplicates", "late", "bad_stamps")
 
 
 @dataclass(frozen=True)
@@ -149,10 +148,8 @@ class ActivityStream:
         return self._released(self.sequencer.push(stamp_ns, tuple(acc)))
 
     def _released(self, released: list) -> tuple[ActivityState | None, bool]:
-        dropped = sum(self.counts[k] for k in _DROPPED)
-        for key in _DROPPED:
-            self.counts[key] = self.sequencer.counts[key]
-        if sum(self.counts[k] for k in _DROPPED) > dropped and dropped < 3:
+        new = self.sequencer.sync_drops(self.counts)
+        if new and self.sequencer.dropped - new < 3:
             self.notices.say("warn", f"{self.params.segment}: dropped {self.sequencer.last_dropped}")
         latest, changed = None, False
         for r in released:

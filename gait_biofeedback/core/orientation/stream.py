@@ -63,19 +63,17 @@ from gait_biofeedback.core.orientation.filters import (
 from gait_biofeedback.core.orientation.filters.config import load_tuned
 from gait_biofeedback.core.orientation.reacquire import attitude_after_gap
 from gait_biofeedback.core.params import param, require
-from gait_biofeedback.core.rate import RateCheck
+from gait_biofeedback.core.rate import MISSING_WARN, RateCheck
 from gait_biofeedback.core.segments import SEGMENTS, ImuSeries
-from gait_biofeedback.core.sequencer import StreamSequencer
+from gait_biofeedback.core.sequencer import DROPPED, StreamSequencer
 from gait_biofeedback.core.stamps import NS_PER_S, ns_to_seconds, seconds_to_ns
 
 _CHOICES = tuple(sorted(ALGORITHMS))
-_DROPPED = ("duplicates", "late", "bad_stamps")
 RANGE_MARGIN = 1.1
 """A sample is rejected beyond its range by this factor: a sensor that saturates (a heel strike on a
 ±16 g accelerometer reads up to 158 m/s² on gaitmap's example) is clipped, not glitching."""
 STARTUP_GAP_S = 1.0
 """During start-up the rate is not known yet: a gap there is a silence of over this long."""
-MISSING_WARN = 0.01  # share of samples missing (short holes in the stamps) that /diagnostics names
 
 
 @dataclass(frozen=True)
@@ -178,6 +176,7 @@ class SegmentOrientationTracker:
                        "mag_samples": 0}
         self.startup_quiet: bool | None = None
         self.last_gap_s = 0.0
+        self._reported: dict[str, int] = {}  # the counts at the last report()
         self.notices = Notices()
         self._mag: deque[tuple[float, tuple[float, float, float]]] = deque(maxlen=64)
         self._restart()
@@ -224,34 +223,23 @@ class SegmentOrientationTracker:
                                   f"{self.gyr_range:.4g}, +{RANGE_MARGIN - 1:.0%}): rejected as a glitch; "
                                   "further ones are counted")
             return []
-        before = self.dropped
-        released = self.sequencer.push(stamp_ns, (g, a))
-        if self.dropped > before:
-            self._said_dropped()
+        return self._run(self.sequencer.push(stamp_ns, (g, a)))
+
+    def flush(self) -> list[OrientationSample]:
+        """The samples the reorder window still holds (at the end of a recording)."""
+        return self._run(self.sequencer.flush())
+
+    def _run(self, released: list) -> list[OrientationSample]:
+        """The sequencer's released samples through the filter; its drops counted and said."""
+        if self.sequencer.sync_drops(self.counts):
+            dropped = self.sequencer.dropped
+            if dropped <= 3 or dropped % 100 == 0:
+                more = "" if dropped < 3 else f" ({dropped} so far; counted on /diagnostics)"
+                self._say("warn", f"dropped {self.sequencer.last_dropped}{more}")
         out: list[OrientationSample] = []
         for r in released:
             out += self._process(r.stamp_ns, *r.payload, restart_s=r.restart_s)
         return out
-
-    def flush(self) -> list[OrientationSample]:
-        """The samples the reorder window still holds (at the end of a recording)."""
-        out: list[OrientationSample] = []
-        for r in self.sequencer.flush():
-            out += self._process(r.stamp_ns, *r.payload, restart_s=r.restart_s)
-        return out
-
-    @property
-    def dropped(self) -> int:
-        """Samples the sequencer dropped: duplicates, late ones, bad stamps (also in :attr:`counts`)."""
-        for key in _DROPPED:
-            self.counts[key] = self.sequencer.counts[key]
-        return sum(self.counts[key] for key in _DROPPED)
-
-    def _said_dropped(self) -> None:
-        dropped = self.dropped
-        if dropped <= 3 or dropped % 100 == 0:
-            more = "" if dropped < 3 else f" ({dropped} so far; counted on /diagnostics)"
-            self._say("warn", f"dropped {self.sequencer.last_dropped}{more}")
 
     def _process(self, stamp_ns: int, g: tuple, a: tuple, restart_s: float = 0.0) -> list[OrientationSample]:
         t = stamp_ns / NS_PER_S
@@ -381,7 +369,7 @@ class SegmentOrientationTracker:
             out.append("time went back: filter reset (recording replayed again, or driver restart)")
         if new["out_of_range"]:
             out.append(f"{new['out_of_range']} sample(s) out of range rejected (glitch)")
-        dropped = [f"{new[k]} {k.replace('_', ' ')}" for k in _DROPPED if new[k]]
+        dropped = [f"{new[k]} {k.replace('_', ' ')}" for k in DROPPED if new[k]]
         if dropped:
             out.append("dropped " + ", ".join(dropped))
         if new["nan_skipped"]:
@@ -398,6 +386,12 @@ class SegmentOrientationTracker:
         if self.startup_quiet is not None and not self.counts["mag_samples"]:
             out.append("6D (no magnetometer): heading from the gyro only, it drifts")
         return out
+
+    def report(self) -> list[str]:
+        """:meth:`conditions` since the last report (a /diagnostics status)."""
+        texts = self.conditions(self._reported)
+        self._reported = dict(self.counts)
+        return texts
 
     def diagnostics(self) -> dict[str, Any]:
         """Counters and filter state for /diagnostics."""
