@@ -71,7 +71,6 @@ from gait_biofeedback.wire.calibration import calibration_msg, entries, rotation
 from gait_biofeedback.wire.cdr import Stamped, decode_imu, decode_mag, serialize
 from gait_biofeedback.wire.gait import cycle_msg, event_msg, foot_frame
 from gait_biofeedback.wire.imu import (
-    angular_speed,
     has_heading,
     is_recovering,
     mag_sample,
@@ -276,8 +275,8 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
                         publish_calibration(calibration_msg(attempt.calibration, attempt.applies_from_ns),
                                             log_ns, attempt.calibration)
         if segment in STREAM_SEGMENTS:
-            publish_joints(joints.add(segment, imu.ns, quaternion(imu), angular_speed(imu),
-                                      recovering=is_recovering(imu)), log_ns)
+            _, acc, gyr, q = orientation_sample(imu)
+            publish_joints(joints.add(segment, imu.ns, q, gyr, acc, recovering=is_recovering(imu)), log_ns)
         side = segment.removesuffix("_foot")
         if segment == foot_frame(side) and side in gait.detectors:
             for event, cycle in gait.update(side, imu.ns, quaternion(imu), is_recovering(imu)):

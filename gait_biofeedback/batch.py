@@ -54,6 +54,12 @@ from gait_biofeedback.core.joints.angles import (
     joint_angles_from_segments,
     segment_orientations,
 )
+from gait_biofeedback.core.joints.relative_heading import (
+    RelativeHeadingEstimator,
+    estimate_joint_position,
+    estimate_relative_heading,
+    estimate_relative_orientation,
+)
 from gait_biofeedback.core.orientation.filters import ALGORITHMS, DEFAULT_ALGORITHM, estimate_orientation
 from gait_biofeedback.core.orientation.filters.config import TUNED_PATH, load_tuned
 from gait_biofeedback.core.orientation.stream import SegmentOrientationTracker, track_orientation
@@ -101,6 +107,7 @@ __all__ = [
     "JointAngleCalculator",
     "Phase",
     "Recording",
+    "RelativeHeadingEstimator",
     "Reorder",
     "SegmentCalibrationResult",
     "SegmentOrientationTracker",
@@ -120,7 +127,10 @@ __all__ = [
     "compute_joint_angles",
     "cycles_from_event_times",
     "detect_gait_events",
+    "estimate_joint_position",
     "estimate_orientation",
+    "estimate_relative_heading",
+    "estimate_relative_orientation",
     "events_from_signal",
     "find_standing_then_motion",
     "foot_calibration",

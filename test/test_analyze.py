@@ -206,7 +206,7 @@ def test_cli_analyze_with_a_calibration_file(tmp_path, capsys):
     from gait_biofeedback.core.calibration.stream import write_calibration_file
     from gait_biofeedback.sim.simulator import SCENARIOS
 
-    config = SCENARIOS["walk"](duration=6.0, seed=5)
+    config = SCENARIOS["walk"](duration=16.0, seed=5)  # the joints' heading needs 10 s of motion
     session = simulate(config)
     bag = write_simulated_bag(tmp_path / "walk", session)
     cal = SessionCalibration("walking", {s: SegmentCalibrationResult(s, r, True, 1.0, "x", 0.0)

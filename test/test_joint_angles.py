@@ -19,6 +19,7 @@ from gait_biofeedback.core.stamps import seconds_to_ns
 from gait_biofeedback.sim.simulator import SCENARIOS, simulate
 
 DEG = np.pi / 180.0
+G = (0.0, 0.0, 9.81)  # a still sensor's specific force
 RNG = np.random.default_rng(3)
 MOUNTS = {s: quat.canonical(quat.normalize(RNG.normal(size=4))) for s in
           ("pelvis", "left_thigh", "left_shank", "left_foot", "right_thigh", "right_shank", "right_foot")}
@@ -135,7 +136,7 @@ def test_stream_standing_offset_restarts_at_an_incomplete_instant():
     from 2 s after that instant); before, the raw 20° is published."""
     from gait_biofeedback.core.joints.stream import JointAnglesParams, JointAngleStream
 
-    stream = JointAngleStream(JointAnglesParams(offset_window_s=2.0))
+    stream = JointAngleStream(JointAnglesParams(offset_window_s=2.0, heading="filters"))
     stream.set_calibration(dict(MOUNTS))
     out = []
     for k in range(500):
@@ -143,7 +144,7 @@ def test_stream_standing_offset_restarts_at_an_incomplete_instant():
         for seg, q in pose.items():
             if k == 150 and seg == "pelvis":
                 continue
-            out += stream.add(seg, k * 10_000_000, q, gyro_norm=0.0)  # |ω| = 0: every segment still
+            out += stream.add(seg, k * 10_000_000, q, (0.0, 0.0, 0.0), G)  # |ω| = 0: every segment still
     out += stream.flush(force=True)
     assert stream.missing_counts["pelvis"] == 1
     knee = {round(a.ns / 1e7): a.angles["right_knee_flexion"] / DEG for a in out}
@@ -154,14 +155,14 @@ def test_stream_standing_offset_restarts_at_an_incomplete_instant():
 def test_stream_standing_offset_needs_every_segment_still():
     from gait_biofeedback.core.joints.stream import JointAnglesParams, JointAngleStream
 
-    stream = JointAngleStream(JointAnglesParams(offset_window_s=1.0, still_gyro=0.2))
+    stream = JointAngleStream(JointAnglesParams(offset_window_s=1.0, still_gyro=0.2, heading="filters"))
     stream.set_calibration(dict(MOUNTS))
     out = []
     for k in range(300):
         pose = _knee_pose(10.0 if k < 100 else 20.0)
         for seg, q in pose.items():  # the left shank turns at 0.3 rad/s for the first second
             moving = seg == "left_shank" and k < 100
-            out += stream.add(seg, k * 10_000_000, q, gyro_norm=0.3 if moving else 0.19)
+            out += stream.add(seg, k * 10_000_000, q, (0.3 if moving else 0.19, 0.0, 0.0), G)
     knee = {round(a.ns / 1e7): a.angles["right_knee_flexion"] / DEG for a in out}
     assert knee[199] == pytest.approx(20.0, abs=1e-9)  # collecting since k = 100
     assert knee[200] == pytest.approx(0.0, abs=1e-9) and knee[299] == pytest.approx(0.0, abs=1e-9)

@@ -34,7 +34,8 @@ def test_joint_angles_node(ros_context):
     truth = session.truth
     results = {s: SegmentCalibrationResult(s, truth.mounting[s], True, 1.0, "x", 0.0) for s in SEGMENTS}
     cal = SessionCalibration("walking", results, True, "")
-    node = JointAnglesNode(ros_context, remove_standing_offset=False, diagnostics_period=0.2, max_wait=0.05)
+    node = JointAnglesNode(ros_context, remove_standing_offset=False, diagnostics_period=0.2, max_wait=0.05,
+                           heading="filters")  # true orientations: one world already
     source = Node("source", context=ros_context)
     pubs = {s: source.create_publisher(Imu, f"{s}/imu/data", RELIABLE_QOS) for s in SEGMENTS}
     cal_pub = source.create_publisher(SegmentCalibrationArray, "calibration/sensor_to_segment", LATCHED_QOS)

@@ -46,9 +46,14 @@ Steps (per segment, independently):
    Without the reference, a segment falls back to its own rule (the mean-angle rule in hip flexion,
    skewness for a walking shank, knee shape impossible → mean angle for a walking thigh), noted in
    ``details["sign_rule"]``.
-4. Pelvis and chest (gait.md §1.7 option (a), project decision): vertical from standing; heading =
-   mean heading of the calibrated thighs' x axes during standing, in the common world frame, so it
-   needs the standing orientations (magnetometer-aided filter) of the trunk sensor and the thighs.
+4. Pelvis and chest (gait.md §1.7, issue 14): vertical from standing; heading from option (b), the
+   thighs' mean anatomical x during the motion seen in the pelvis sensor through each hip's kinematic
+   relative heading (:mod:`~gait_biofeedback.core.calibration.trunk`), the chest through the pelvis.
+   Only when that gives nothing (a still pelvis, as in hip flexion) and the sensors share a
+   magnetometer heading, option (a): the thighs' mean world heading in standing. Otherwise the trunk
+   segment alone is refused, with what to do.
+
+Each segment is accepted or refused on its own; the session succeeds when one segment is accepted.
 
 Quality: ``explained_variance`` of the first principal axis (λ1/(λ1+λ2), 0.5 = no preferred axis,
 1 = single-axis motion); trunk: ``thigh_heading_agreement`` (1 − |Δheading| / 90°).
@@ -392,9 +397,14 @@ def mean_orientation(q: np.ndarray) -> np.ndarray:
 
 def calibrate_trunk(segment: str, standing_acc: np.ndarray, standing_gyr: np.ndarray,
                     standing_orientation: np.ndarray | None,
-                    thighs: list[SegmentCalibrationResult]) -> SegmentCalibrationResult:
-    """Pelvis/chest (gait.md §1.7 option (a)): vertical from standing (Eq 14), heading = mean world
-    heading of the calibrated thighs' x axes during standing (needs a common world heading)."""
+                    thighs: list[SegmentCalibrationResult],
+                    forward: list[np.ndarray | None] | None = None,
+                    common_heading: bool = True) -> SegmentCalibrationResult:
+    """Pelvis/chest: vertical from standing (Eq 14); heading from ``forward`` (sensor-coordinate
+    directions from the joints' kinematic heading, :mod:`~gait_biofeedback.core.calibration.trunk`,
+    gait.md §1.7 option (b)) where they exist, else, only with a ``common_heading`` (every sensor
+    magnetometer-aided), the mean world heading of the calibrated thighs' x axes during standing
+    (option (a)). Quality: 1 − spread / 90° of the directions it averaged."""
     name = label(segment)
     standing_acc = np.asarray(standing_acc, dtype=float).reshape(-1, 3)
     motion, problem = standing_check(segment, standing_acc, np.asarray(standing_gyr, float).reshape(-1, 3))
@@ -402,35 +412,67 @@ def calibrate_trunk(segment: str, standing_acc: np.ndarray, standing_gyr: np.nda
                                       motion, problem or "")
     if problem:
         return result
-    usable = [t for t in thighs if t.valid and "standing_orientation" in t.details]
-    if standing_orientation is None or not usable:
-        result.message = (f"{name}: heading needs calibrated thighs and the orientations of a "
-                          "magnetometer-aided filter; calibrate the thighs first")
-        return result
-    headings = []
-    for t in usable:
-        x_sensor = quat.rotate(t.rotation, [1.0, 0.0, 0.0])
-        x_world = quat.rotate(np.asarray(t.details["standing_orientation"]), x_sensor)
-        headings.append(np.arctan2(x_world[1], x_world[0]))
-    mean_heading = float(np.arctan2(np.mean(np.sin(headings)), np.mean(np.cos(headings))))
-    spread = float(np.abs(np.angle(np.exp(1j * (headings[0] - headings[-1])))))
     y = vertical_calibration(standing_acc)[1]
-    x_target = quat.rotate_inverse(standing_orientation, [np.cos(mean_heading), np.sin(mean_heading), 0.0])
-    x = x_target - np.dot(x_target, y) * y
+    directions = [f - np.dot(f, y) * y for f in forward or [] if f is not None]
+    directions = [d / np.linalg.norm(d) for d in directions if np.linalg.norm(d) > 0.1]
+    source = "kinematic heading (joint accelerations)"
+    if not directions:
+        usable = [t for t in thighs if t.valid and "standing_orientation" in t.details]
+        if not common_heading or standing_orientation is None or not usable:
+            via = "the thighs" if segment == "pelvis" else "a calibrated pelvis"
+            result.message = (f"{name}: no heading: the motion gave none through {via} (a still pelvis, as "
+                              "in hip flexion, moves its joint centres too little"
+                              + (", and the sensors have no shared magnetometer heading" if not common_heading
+                                 else "") + "); calibrate with the walking protocol (8 straight steps)")
+            return result
+        source = "magnetometer heading of the thighs in standing"
+        for t in usable:
+            x_world = quat.rotate(np.asarray(t.details["standing_orientation"]),
+                                  quat.rotate(t.rotation, [1.0, 0.0, 0.0]))
+            x_sensor = quat.rotate_inverse(standing_orientation, x_world * [1.0, 1.0, 0.0])
+            x_sensor = x_sensor - np.dot(x_sensor, y) * y
+            if np.linalg.norm(x_sensor) < 0.3:
+                result.message = f"{name}: sensor orientation and accelerometer disagree on the vertical"
+                return result
+            directions.append(x_sensor / np.linalg.norm(x_sensor))
+    x = np.sum(directions, axis=0)
+    spread = float(np.arccos(np.clip(np.dot(directions[0], directions[-1]), -1.0, 1.0)))
     if np.linalg.norm(x) < 0.3:
-        result.message = f"{name}: sensor orientation and accelerometer disagree on the vertical"
+        result.message = f"{name}: the directions it would average point apart; repeat the calibration"
         return result
     x /= np.linalg.norm(x)
     result.rotation = quat.from_matrix(np.column_stack([x, y, np.cross(x, y)]))
     result.quality = max(0.0, 1.0 - spread / (np.pi / 2))
-    result.details = {"heading": mean_heading, "thigh_heading_spread": spread,
-                      "standing_orientation": [float(v) for v in standing_orientation]}
+    result.details = {"heading_source": source, "thigh_heading_spread": spread}
+    if standing_orientation is not None:
+        result.details["standing_orientation"] = [float(v) for v in standing_orientation]
     if spread > MAX_THIGH_HEADING_DISAGREEMENT:
-        result.message = (f"{name}: left and right thigh headings differ by {np.degrees(spread):.0f}°: "
-                          "check the thigh sensors and the magnetic environment, then repeat")
+        result.message = (f"{name}: the left and right thighs put its forward direction "
+                          f"{np.degrees(spread):.0f}° apart: check the thigh sensors, then repeat")
     else:
         result.valid = True
     return result
+
+
+def _trunk_forward(segment: str, data: dict[str, ImuSeries], orientations: dict[str, np.ndarray],
+                   results: dict[str, SegmentCalibrationResult], motion: tuple[float, float]
+                   ) -> list[np.ndarray | None]:
+    """Forward directions of a trunk sensor from the kinematic heading (module docstring step 4)."""
+    from gait_biofeedback.core.calibration.trunk import forward_in_proximal
+
+    if "pelvis" not in data or "pelvis" not in orientations:
+        return []
+    pelvis, q_pelvis = data["pelvis"], orientations["pelvis"]
+    if segment == "pelvis":
+        return [forward_in_proximal(pelvis, q_pelvis, data[t], orientations[t],
+                                    quat.rotate(results[t].rotation, [1.0, 0.0, 0.0]), motion)
+                for t in (f"{side}_thigh" for side in SIDES)
+                if t in results and results[t].valid and t in orientations]
+    if segment in orientations and results.get("pelvis") is not None and results["pelvis"].valid:
+        x_pelvis = quat.rotate(results["pelvis"].rotation, [1.0, 0.0, 0.0])
+        return [forward_in_proximal(pelvis, q_pelvis, data[segment], orientations[segment], x_pelvis, motion,
+                                    toward_distal=True)]
+    return []
 
 
 def _window(series_t: np.ndarray, window: tuple[float, float]) -> np.ndarray:
@@ -444,10 +486,13 @@ def calibrate_session(
     protocol: str,
     rate_hz: float | None = None,
     orientations: dict[str, np.ndarray] | None = None,
+    common_heading: bool = True,
 ) -> SessionCalibration:
     """Calibrate every segment of ``data`` (legs, then pelvis/chest) from the ``standing`` and
     ``motion`` time windows (s). ``orientations``: segment → (N, 4) sensor→world per sample of
-    ``data`` (needed for the trunk heading). ``success`` only if every segment is valid."""
+    ``data`` (needed for the trunk heading); ``common_heading``: they share a magnetometer heading.
+    Each segment is valid or refused on its own: ``success`` when at least one is valid (the others'
+    messages stay in ``message`` and in their entries)."""
     if protocol not in PROTOCOLS:
         raise ValueError(f"unknown protocol {protocol!r}; expected one of {PROTOCOLS}")
     orientations = orientations or {}
@@ -479,13 +524,20 @@ def calibrate_session(
             s = data[seg]
             st = _window(s.t, standing)
             q_stand = mean_orientation(orientations[seg][st]) if seg in orientations and st.any() else None
-            results[seg] = calibrate_trunk(seg, s.acc[st], s.gyr[st], q_stand, thighs)
+            results[seg] = calibrate_trunk(seg, s.acc[st], s.gyr[st], q_stand, thighs,
+                                           _trunk_forward(seg, data, orientations, results, motion),
+                                           common_heading)
     problems = [r.message for r in results.values() if not r.valid]
+    valid = [label(s) for s, r in results.items() if r.valid]
+    success = bool(valid)
     if not results:
         problems = ["no sensor data to calibrate"]
-    success = not problems
-    message = ("calibrated " + ", ".join(label(s) for s in results) if success
-               else "calibration refused, previous calibration stays in force: " + "; ".join(problems))
+    if not success:
+        message = "calibration refused, previous calibration stays in force: " + "; ".join(problems)
+    else:
+        message = "calibrated " + ", ".join(valid)
+        if problems:
+            message += "; NOT calibrated (their joints are not published): " + "; ".join(problems)
     return SessionCalibration(protocol, results, success, message, tuple(standing), tuple(motion))
 
 

@@ -112,24 +112,6 @@ class CalibrationAttempt:
     applies_from_ns: int | None = None
 
 
-def _mark_heading_unknown(cal: SessionCalibration, six_d: list[str]) -> None:
-    """Issue 13: a sensor filtered without a magnetometer has a heading of its own, not shared with
-    the others; its calibration is only as good as that heading. Its entry says so and its quality
-    is halved (a choice, not from the thesis, made after the entry was accepted: the segment stays
-    usable, the number shows that it is weaker); the session message names the segments."""
-    for seg in six_d:
-        entry = cal.segments.get(seg)
-        if entry is not None:
-            entry.quality *= 0.5
-            entry.details["heading"] = "6D (no magnetometer)"
-            entry.message = "; ".join(m for m in (entry.message, HEADING_UNKNOWN) if m)
-    cal.message = f"{cal.message}; {', '.join(six_d)}: {HEADING_UNKNOWN}"
-
-
-HEADING_UNKNOWN = ("6D (no magnetometer): heading not shared with the other sensors, angles about the "
-                   "vertical and the calibration's heading are doubtful (use sensors with a magnetometer)")
-
-
 class CalibrationBuffer:
     """Rolling buffer of every segment's orientation samples and the "calibrate now / at T" logic.
 
@@ -231,9 +213,8 @@ class CalibrationBuffer:
         except ValueError as exc:
             return CalibrationAttempt(protocol, False, f"{exc}; previous calibration stays in force",
                                       until_ns=end_ns)
-        cal = calibrate_session(data, standing, motion, protocol, orientations=ori)
-        if self.six_d:
-            _mark_heading_unknown(cal, self.six_d)
+        cal = calibrate_session(data, standing, motion, protocol, orientations=ori,
+                                common_heading=not self.six_d)
         return CalibrationAttempt(protocol, cal.success, cal.message, cal, end_ns,
                                   end_ns + self.apply_delay_ns)
 

@@ -1,6 +1,8 @@
 """The live joint-angle stream, shared by the ``joint_angles`` node and the offline analysis.
 
-Segment samples are synchronised by their exact stamps (int ns: the IMUs are sampled together), then
+Segment samples are synchronised by their exact stamps (int ns: the IMUs are sampled together), each
+joint's two sensors are put in one world heading by its
+:class:`~gait_biofeedback.core.joints.relative_heading.RelativeHeadingEstimator` (issue 14), then
 turned into clinical joint angles by :class:`~gait_biofeedback.core.joints.angles.JointAngleCalculator`
 (thesis Eq 17, ISB JCS of gait.md §1.8, standing offset of §1.9). The stage's parameters are
 :class:`JointAnglesParams`.
@@ -13,10 +15,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gait_biofeedback.core import quaternion as quat
 from gait_biofeedback.core.body import StickFigureDimensions
 from gait_biofeedback.core.in_force import InForceQueue
-from gait_biofeedback.core.joints.angles import JointAngleCalculator
+from gait_biofeedback.core.joints.angles import JOINTS, JointAngleCalculator, joint_angle_names, segment_pair
+from gait_biofeedback.core.joints.relative_heading import RelativeHeadingEstimator
 from gait_biofeedback.core.params import param
+from gait_biofeedback.core.segments import SIDES
+
+HEADING_SOURCES: tuple[str, ...] = ("kinematic", "filters")
 
 
 @dataclass(frozen=True)
@@ -35,7 +42,14 @@ class JointAnglesParams(StickFigureDimensions):
     skeleton_every: int = param(5, "publish the skeleton markers every this many samples (0 = never)",
                                 "samples", low=0, high=10000)
     diagnostics_period: float = param(1.0, "period of the /diagnostics status", "s", low=0.1, high=60.0)
-
+    heading: str = param("kinematic", "common heading of a joint's two sensors: 'kinematic' = from the "
+                         "joint's own accelerations (6D sensors or a disturbed magnetometer), 'filters' = "
+                         "trust the filters' shared magnetometer heading", choices=HEADING_SOURCES)
+    heading_time_constant: float = param(5.0, "averaging time of the kinematic heading (it follows the "
+                                         "filters' heading drift this fast)", "s", low=0.5, high=120.0)
+    heading_position_window: float = param(10.0, "motion collected before a joint's centre is estimated "
+                                           "(its angles are published once the heading is established)",
+                                           "s", low=2.0, high=120.0)
 
 
 STREAM_SEGMENTS: tuple[str, ...] = ("pelvis", "left_thigh", "left_shank", "left_foot", "right_thigh",
@@ -54,6 +68,8 @@ class SyncedAngles:
     sensor_quats: dict[str, np.ndarray]
     rotations: dict[str, np.ndarray]
     recovering: tuple[str, ...] = ()
+    no_heading: tuple[str, ...] = ()
+    """Joints (e.g. 'left_knee') left out because their kinematic heading is not established yet."""
 
 
 class JointAngleStream:
@@ -70,6 +86,12 @@ class JointAngleStream:
     ``offset_window_s`` s of still samples (every segment present with |ω| < ``still_gyro`` rad/s).
     A sample marked ``recovering`` (its orientation re-acquired after a dropout) names its segment in
     the instant's :attr:`SyncedAngles.recovering` and never counts as still.
+    Heading (``heading`` = 'kinematic'): every synchronised instant, calibrated or not, updates each
+    joint's heading estimator (recovering samples are left out); the sensor orientations are then turned
+    about the vertical down each leg's chain (pelvis, thigh, shank, foot) into the pelvis sensor's world
+    (:attr:`SyncedAngles.sensor_quats`), and a joint whose heading is not established is left out
+    (:attr:`SyncedAngles.no_heading`). Before a calibration, an instant waits for the segments seen in
+    the last second.
     """
 
     def __init__(self, params: JointAnglesParams | None = None,
@@ -83,7 +105,12 @@ class JointAngleStream:
         self.still_gyro = p.still_gyro
         self.calculator: JointAngleCalculator | None = None
         self._waiting: InForceQueue[JointAngleCalculator] = InForceQueue()
-        self.pending: dict[int, dict[str, tuple[np.ndarray, float, bool]]] = {}
+        self.pending: dict[int, dict[str, tuple[np.ndarray, tuple, tuple, bool]]] = {}
+        self._seen: dict[str, int] = {}
+        self.headings: dict[str, RelativeHeadingEstimator] = {
+            f"{side}_{joint}": RelativeHeadingEstimator(p.heading_time_constant,
+                                                        position_window_s=p.heading_position_window)
+            for side in SIDES for joint in JOINTS} if p.heading == "kinematic" else {}
         self.first_arrival: dict[int, float] = {}
         self.missing_counts: dict[str, int] = {s: 0 for s in self.segments}
         self.recovering_count = 0  # emitted instants with a recovering segment
@@ -110,16 +137,20 @@ class JointAngleStream:
         """A calibration is in force or waiting for its first stamp."""
         return self.calculator is not None or bool(self._waiting)
 
-    def _wanted(self) -> list[str]:
+    def _wanted(self, ns: int) -> list[str]:
         calculator = self.calculator or self._waiting.first()
-        return [] if calculator is None else [s for s in self.segments if s in calculator.rotations]
+        if calculator is None:
+            return [s for s, seen in self._seen.items() if ns - seen < 1_000_000_000]
+        return [s for s in self.segments if s in calculator.rotations]
 
-    def add(self, segment: str, ns: int, q: np.ndarray, gyro_norm: float,
+    def add(self, segment: str, ns: int, q: np.ndarray, gyr: tuple, acc: tuple,
             arrival: float | None = None, recovering: bool = False) -> list[SyncedAngles]:
-        """One sample (sensor→world q, |ω| rad/s) of ``segment`` at stamp ``ns``; the instants ready now."""
-        if not self.active or segment not in self.segments:
+        """One sample (sensor→world q, bias-corrected rate rad/s, specific force m/s²) of ``segment`` at
+        stamp ``ns``; the instants ready now."""
+        if segment not in self.segments or not (self.active or self.headings):
             return []
-        self.pending.setdefault(ns, {})[segment] = (np.asarray(q, dtype=float), float(gyro_norm),
+        self._seen[segment] = max(ns, self._seen.get(segment, ns))
+        self.pending.setdefault(ns, {})[segment] = (np.asarray(q, dtype=float), tuple(gyr), tuple(acc),
                                                     bool(recovering))
         self.first_arrival.setdefault(ns, arrival if arrival is not None else math.inf)
         return self.flush(arrival)
@@ -127,10 +158,10 @@ class JointAngleStream:
     def flush(self, now: float | None = None, force: bool = False) -> list[SyncedAngles]:
         """Emit the stamps that are complete, older than a complete one, waited ``max_wait`` s by
         ``now`` (same clock as the arrivals), or all of them with ``force`` (end of a recording)."""
-        if not self.active or not self.pending:
+        if not self.pending:
             return []
-        wanted = self._wanted()
         stamps = sorted(self.pending)
+        wanted = self._wanted(stamps[-1])
         complete = [ns for ns in stamps if all(s in self.pending[ns] for s in wanted)]
         newest_complete = complete[-1] if complete else None
         out = []
@@ -145,8 +176,28 @@ class JointAngleStream:
                 out.append(emitted)
         return out
 
-    def _emit(self, ns: int, samples: dict[str, tuple[np.ndarray, float, bool]],
+    def _chain(self, ns: int, samples: dict[str, tuple[np.ndarray, tuple, tuple, bool]]
+               ) -> tuple[dict[str, float], tuple[str, ...]]:
+        """(segment → heading turn δ (rad) into the pelvis sensor's world, joints without a heading)."""
+        turn: dict[str, float] = {"pelvis": 0.0}
+        missing = []
+        for side in SIDES:
+            for joint in JOINTS:
+                prox, dist = segment_pair(side, joint)
+                estimator = self.headings[f"{side}_{joint}"]
+                if prox in samples and dist in samples and not (samples[prox][3] or samples[dist][3]):
+                    (q1, g1, a1, _), (q2, g2, a2, _) = samples[prox], samples[dist]
+                    estimator.update(ns, tuple(q1), g1, a1, tuple(q2), g2, a2)
+                if estimator.established and prox in turn:
+                    turn[dist] = turn[prox] + estimator.delta
+                else:
+                    turn[dist] = 0.0  # its own world: the joints below it still work
+                    missing.append(f"{side}_{joint}")
+        return turn, tuple(missing)
+
+    def _emit(self, ns: int, samples: dict[str, tuple[np.ndarray, tuple, tuple, bool]],
               wanted: list[str]) -> SyncedAngles | None:
+        turn, no_heading = self._chain(ns, samples) if self.headings else ({}, ())
         for calculator in self._waiting.due(ns):
             self.calculator = calculator
         if self.calculator is None:
@@ -154,10 +205,18 @@ class JointAngleStream:
         for seg in wanted:
             if seg not in samples:
                 self.missing_counts[seg] += 1
-        quats = {s: q for s, (q, _, _) in samples.items()}
-        recovering = tuple(s for s, (_, _, r) in samples.items() if r)
+        quats = {s: q if not turn.get(s) else quat.multiply(quat.from_axis_angle(_UP, turn[s]), q)
+                 for s, (q, _, _, _) in samples.items()}
+        recovering = tuple(s for s, (_, _, _, r) in samples.items() if r)
         self.recovering_count += bool(recovering)
         still = (not recovering and len(samples) == len(wanted)
-                 and all(w < self.still_gyro for _, w, _ in samples.values()))
+                 and all(math.hypot(*g) < self.still_gyro for _, g, _, _ in samples.values()))
         angles = self.calculator.update(ns, quats, still=still)
-        return SyncedAngles(ns, angles, quats, self.calculator.rotations, recovering)
+        for joint in no_heading:
+            side, name = joint.split("_", 1)
+            for key in joint_angle_names(side, name):
+                angles.pop(key, None)
+        return SyncedAngles(ns, angles, quats, self.calculator.rotations, recovering, no_heading)
+
+
+_UP = np.array([0.0, 0.0, 1.0])

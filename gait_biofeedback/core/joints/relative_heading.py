@@ -1,0 +1,321 @@
+"""Relative heading of the two sensors of a joint, from the joint's own kinematics (issue 14).
+
+Joint angles need the proximal and distal orientations in one world frame, heading included
+(gait.md §1.6, §9 item 13). Indoors the magnetometer is disturbed and many sensor sets are 6D, so each
+sensor's filter has a heading of its own: the two world frames differ by a rotation ``δ`` about the
+vertical, which drifts slowly with the gyro biases (Laidig, Müller & Seel 2017 call it the heading
+offset and estimate it from the joint's constraint). Method (READING, chosen here; the thesis does not
+treat it):
+
+1. **Joint centre** (Seel, Schauer & Raisch 2012, joint position estimation): the joint centre is one
+   point of both segments, so the specific force there has one norm seen from either sensor,
+   ``‖a₁ + Γ₁ r₁‖ = ‖a₂ + Γ₂ r₂‖`` with ``Γ r = ω × (ω × r) + ω̇ × r`` (r: sensor → joint centre, in
+   sensor coordinates). :func:`estimate_joint_position` solves it by Gauss–Newton over a window of
+   motion, with a small ridge on ``r`` (for a hinge, whose centre is any point of its axis, it picks the
+   point nearest the sensors, as Seel et al. do). It holds for hinges, 2-DoF and ball joints alike, so
+   the knee, ankle, hip and the lumbar "joint" (pelvis–chest, approximately) all use it.
+2. **Heading** (the joint-centre acceleration constraint of Weygers & Kok 2020): that specific force is
+   one physical vector, so in the two world frames ``R(q₁)(a₁ + Γ₁r₁) = R_z(δ) R(q₂)(a₂ + Γ₂r₂)``.
+   Only its horizontal parts ``h₁, h₂`` (complex numbers x + iy) depend on ``δ``:
+   ``δ = arg Σ w·h₁·conj(h₂)``. READING: the sum is exponentially weighted (``time_constant``, 5 s: it
+   follows the filters' heading drift), each product weighs by its size (large, clear accelerations
+   count most), and a mean over ``highpass_s`` (0.5 s) is removed from each ``h`` first, because a
+   tilt error ε of a 6D filter leaks ``g·ε`` of gravity into it (0.3 m/s² for 2°, as large as slow joint
+   accelerations), slowly and in one direction.
+3. **Established** once the products summed since the start weigh ``min_information`` (m²/s⁴·s) and
+   agree (``|Σ|`` / ``Σ|·|`` ≥ ``min_coherence``). Before that the estimate is not used (live: that
+   joint's angles are not published; offline: :func:`estimate_relative_heading` holds the first
+   established value backwards). Without motion (quiet standing) the last value is kept.
+
+The magnetometer, when present, enters through the filters: 9D orientations start with ``δ ≈ 0`` and
+the joint constraint only corrects it (a magnet near one thigh turns that filter; the constraint turns
+it back). It is never required.
+
+Delay: none per sample (ω̇ is the central difference of the rates, so a sample enters the estimate
+when the next one arrives); the estimate lags a change of the
+offset by about ``time_constant``. The joint centre needs ``position_window_s`` s of motion first.
+Stamps are int ns.
+"""
+
+from __future__ import annotations
+
+import cmath
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from gait_biofeedback.core import quaternion as quat
+
+TIME_CONSTANT_S = 5.0
+HIGHPASS_S = 0.5
+POSITION_WINDOW_S = 10.0
+MIN_INFORMATION = 20.0  # (m/s²)² s: e.g. 10 s of 1.4 m/s² horizontal joint-centre accelerations
+MIN_COHERENCE = 0.3
+MOVING = 0.2  # rad/s: a sample counts as motion for the joint-centre window when either |ω| exceeds it
+MAX_JOINT_DISTANCE = 1.0  # m: a larger sensor-to-joint distance is not a joint centre
+MAX_RESIDUAL = 2.0  # m/s²: RMS of the norm mismatch above which the joint-centre fit is refused
+HUBER = 1.0  # m/s²: norm mismatches larger than this weigh as |e| (robust fit)
+LOWPASS_HZ = 5.0  # Hz: zero-phase low-pass of the joint-centre window (heel-strike impacts)
+
+
+def _gamma(gyr: np.ndarray, gyr_dot: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) Γ with ``Γ r = ω × (ω × r) + ω̇ × r``."""
+    def skew(v: np.ndarray) -> np.ndarray:
+        z = np.zeros(len(v))
+        return np.stack([np.stack([z, -v[:, 2], v[:, 1]], -1), np.stack([v[:, 2], z, -v[:, 0]], -1),
+                         np.stack([-v[:, 1], v[:, 0], z], -1)], 1)
+    w = skew(gyr)
+    return w @ w + skew(gyr_dot)
+
+
+def rate_derivative(gyr: np.ndarray, dt: float) -> np.ndarray:
+    """(N, 3) ω̇ as the central difference (one-sided at the ends), as the stream has it."""
+    return np.gradient(np.asarray(gyr, dtype=float), dt, axis=0)
+
+
+def estimate_joint_position(gyr1: np.ndarray, acc1: np.ndarray, gyr2: np.ndarray, acc2: np.ndarray,
+                            rate_hz: float, iterations: int = 30, ridge: float = 1e-3
+                            ) -> tuple[np.ndarray, np.ndarray, float]:
+    """(r₁, r₂, RMS residual m/s²): sensor → joint centre in each sensor's coordinates (m), by
+    Gauss–Newton on ``‖a₁ + Γ₁r₁‖ − ‖a₂ + Γ₂r₂‖`` (module docstring step 1, Seel et al. 2012).
+    ``ridge`` (dimensionless, relative to the mean squared Jacobian row) keeps a hinge's fit on the
+    point of its axis nearest the sensors."""
+    dt = 1.0 / rate_hz
+    gyr1, gyr2 = np.asarray(gyr1, float), np.asarray(gyr2, float)
+    if len(gyr1) < 20:
+        raise ValueError("joint centre: fewer than 20 samples of motion")
+    return _fit(gyr1, rate_derivative(gyr1, dt), np.asarray(acc1, float),
+                gyr2, rate_derivative(gyr2, dt), np.asarray(acc2, float), iterations, ridge)
+
+
+def _rotate(q: tuple[float, float, float, float], v: tuple[float, float, float]) -> tuple[float, float]:
+    """x, y of q ⊗ v ⊗ q* (the horizontal part of a sensor vector in the world)."""
+    w, x, y, z = q
+    vx, vy, vz = v
+    tx = 2.0 * (y * vz - z * vy)
+    ty = 2.0 * (z * vx - x * vz)
+    tz = 2.0 * (x * vy - y * vx)
+    return vx + w * tx + (y * tz - z * ty), vy + w * ty + (z * tx - x * tz)
+
+
+def _centre_force(gyr: tuple, gyr_dot: tuple, acc: tuple, r: np.ndarray) -> tuple[float, float, float]:
+    """a + ω × (ω × r) + ω̇ × r: the specific force at the joint centre, in sensor coordinates."""
+    wx, wy, wz = gyr
+    dx, dy, dz = gyr_dot
+    rx, ry, rz = r
+    cx, cy, cz = wy * rz - wz * ry, wz * rx - wx * rz, wx * ry - wy * rx  # ω × r
+    return (acc[0] + wy * cz - wz * cy + dy * rz - dz * ry,
+            acc[1] + wz * cx - wx * cz + dz * rx - dx * rz,
+            acc[2] + wx * cy - wy * cx + dx * ry - dy * rx)
+
+
+@dataclass(frozen=True)
+class HeadingEstimate:
+    """One sample's result: ``delta`` (rad, rotate the distal sensor's world frame by it about the
+    vertical to put it in the proximal's), ``established``, ``coherence`` (0..1) and a ``state`` word
+    for diagnostics ("collecting motion", "joint centre refused: …", "converging", "ok")."""
+
+    delta: float
+    established: bool
+    coherence: float
+    state: str
+
+
+class RelativeHeadingEstimator:
+    """Streaming heading offset of one joint's two sensors (module docstring). :meth:`update` takes one
+    synchronised sample of both (orientation w,x,y,z sensor→own world, bias-corrected rate rad/s, acc
+    m/s², stamp int ns)."""
+
+    def __init__(self, time_constant: float = TIME_CONSTANT_S, highpass_s: float = HIGHPASS_S,
+                 position_window_s: float = POSITION_WINDOW_S, min_information: float = MIN_INFORMATION,
+                 min_coherence: float = MIN_COHERENCE) -> None:
+        self.time_constant = float(time_constant)
+        self.highpass_s = float(highpass_s)
+        self.position_window_s = float(position_window_s)
+        self.min_information = float(min_information)
+        self.min_coherence = float(min_coherence)
+        self.r1: np.ndarray | None = None
+        self.r2: np.ndarray | None = None
+        self.residual = math.nan
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget everything but the joint centre (a sensor restarted: its heading is new)."""
+        self._prev: tuple = (None, None)
+        self._window: list[tuple] = []
+        self._window_s = 0.0
+        self._mean1 = self._mean2 = 0j
+        self._sum = 0j
+        self._magnitude = 0.0
+        self.information = 0.0
+        self.delta = 0.0
+        self.established = False
+        self.state = "collecting motion" if self.r1 is None else "converging"
+
+    def _coherence(self) -> float:
+        return abs(self._sum) / self._magnitude if self._magnitude > 0 else 0.0
+
+    def _estimate(self) -> HeadingEstimate:
+        return HeadingEstimate(self.delta, self.established, self._coherence(), self.state)
+
+    def update(self, ns: int, q1: tuple, gyr1: tuple, acc1: tuple, q2: tuple, gyr2: tuple,
+               acc2: tuple) -> HeadingEstimate:
+        """Add one sample; the estimate in force for it (which has used the samples before it: the
+        previous sample is added now, with ω̇ as the central difference around it)."""
+        sample = (ns, tuple(q1), tuple(gyr1), tuple(acc1), tuple(q2), tuple(gyr2), tuple(acc2))
+        before, middle = self._prev
+        if middle is not None and ns <= middle[0]:
+            return self._estimate()
+        self._prev = (middle, sample)
+        if before is None or ns - before[0] > 0.25e9:  # start or a gap: no derivative across it
+            return self._estimate()
+        dt = (ns - before[0]) * 1e-9
+        _, mq1, mg1, ma1, mq2, mg2, ma2 = middle
+        d1 = tuple((a - b) / dt for a, b in zip(gyr1, before[2], strict=True))
+        d2 = tuple((a - b) / dt for a, b in zip(gyr2, before[5], strict=True))
+        step = (middle[0] - before[0]) * 1e-9
+        row = (mq1, mg1, d1, ma1, mq2, mg2, d2, ma2, step)
+        if self.r1 is None:
+            self._window.append(row)
+            if max(math.hypot(*mg1), math.hypot(*mg2)) > MOVING:
+                self._window_s += step
+            if self._window_s >= self.position_window_s and len(self._window) >= 20:
+                self._fit_position()
+            return self._estimate()
+        self._add(*row)
+        return self._estimate()
+
+    def _fit_position(self) -> None:
+        rows = self._window
+        self._window, self._window_s = [], 0.0
+        g1, d1, a1, g2, d2, a2 = (_zero_phase_lowpass(np.array([r[k] for r in rows]), rows)
+                                  for k in (1, 2, 3, 5, 6, 7))
+        r1, r2, res = _fit(g1, d1, a1, g2, d2, a2)
+        if not (np.linalg.norm(r1) < MAX_JOINT_DISTANCE and np.linalg.norm(r2) < MAX_JOINT_DISTANCE
+                and res < MAX_RESIDUAL):
+            self.state = (f"joint centre refused ({np.linalg.norm(r1):.2f} m, {np.linalg.norm(r2):.2f} m "
+                          f"from the sensors, mismatch {res:.1f} m/s²): are both sensors on this joint's "
+                          "segments? collecting motion again")
+            return
+        self.r1, self.r2, self.residual = r1, r2, res
+        self.state = "converging"
+        for row in rows:  # the window's own samples inform the heading too
+            self._add(*row)
+
+    def _add(self, q1: tuple, gyr1: tuple, dot1: tuple, acc1: tuple, q2: tuple, gyr2: tuple, dot2: tuple,
+             acc2: tuple, dt: float) -> None:
+        c1 = _centre_force(gyr1, dot1, acc1, self.r1)
+        c2 = _centre_force(gyr2, dot2, acc2, self.r2)
+        h1 = complex(*_rotate(q1, c1))
+        h2 = complex(*_rotate(q2, c2))
+        b = min(1.0, dt / self.highpass_s)
+        self._mean1 += b * (h1 - self._mean1)
+        self._mean2 += b * (h2 - self._mean2)
+        mismatch = (math.hypot(*c1) - math.hypot(*c2)) / HUBER
+        p = (h1 - self._mean1) * (h2 - self._mean2).conjugate() / (1.0 + mismatch * mismatch)
+        a = min(1.0, dt / self.time_constant)
+        self._sum += a * (p - self._sum)
+        self._magnitude += a * (abs(p) - self._magnitude)
+        self.information += abs(p) * dt
+        if self._sum != 0:
+            self.delta = cmath.phase(self._sum)
+        if not self.established and self.information >= self.min_information \
+                and self._coherence() >= self.min_coherence:
+            self.established = True
+            self.state = "ok"
+
+
+def _zero_phase_lowpass(x: np.ndarray, rows: list[tuple]) -> np.ndarray:
+    """``x`` (N, 3) of the joint-centre window, low-passed at ``LOWPASS_HZ`` forwards and backwards."""
+    from scipy.signal import butter, filtfilt
+
+    rate = 1.0 / float(np.median([r[8] for r in rows]))
+    if len(x) < 15 or 0.45 * rate <= LOWPASS_HZ:
+        return x
+    b, a = butter(2, LOWPASS_HZ / (0.5 * rate))
+    return filtfilt(b, a, x, axis=0)
+
+
+def _fit(g1: np.ndarray, d1: np.ndarray, a1: np.ndarray, g2: np.ndarray, d2: np.ndarray, a2: np.ndarray,
+         iterations: int = 30, ridge: float = 1e-3) -> tuple[np.ndarray, np.ndarray, float]:
+    """Gauss–Newton of :func:`estimate_joint_position` on given rates ω, their derivatives ω̇ and accs."""
+    gam1, gam2 = _gamma(g1, d1), _gamma(g2, d2)
+    x = np.zeros(6)
+    e = np.zeros(len(a1))
+    for _ in range(iterations):
+        v1 = a1 + gam1 @ x[:3]
+        v2 = a2 + gam2 @ x[3:]
+        n1 = np.maximum(np.linalg.norm(v1, axis=1), 1e-9)
+        n2 = np.maximum(np.linalg.norm(v2, axis=1), 1e-9)
+        e = n1 - n2
+        w = np.minimum(1.0, HUBER / np.maximum(np.abs(e), 1e-12))  # Huber weights: impacts count less
+        jac = np.concatenate([np.einsum("ni,nij->nj", v1 / n1[:, None], gam1),
+                              -np.einsum("ni,nij->nj", v2 / n2[:, None], gam2)], axis=1)
+        lam = ridge * float(np.mean(w * np.sum(jac**2, axis=1))) * len(e)
+        step = np.linalg.solve(jac.T @ (w[:, None] * jac) + lam * np.eye(6), jac.T @ (w * e) + lam * x)
+        x = x - step
+        if np.linalg.norm(step) < 1e-6:
+            break
+    return x[:3], x[3:], float(np.sqrt(np.mean(e**2)))
+
+
+def heading_rotation(delta: np.ndarray | float) -> np.ndarray:
+    """(..., 4) rotation by ``delta`` rad about the world vertical."""
+    return quat.from_axis_angle([0.0, 0.0, 1.0], delta)
+
+
+def estimate_relative_heading(t_ns: np.ndarray, q1: np.ndarray, gyr1: np.ndarray, acc1: np.ndarray,
+                              q2: np.ndarray, gyr2: np.ndarray, acc2: np.ndarray,
+                              **options: float) -> tuple[np.ndarray, np.ndarray]:
+    """Batch form of :class:`RelativeHeadingEstimator` (same object, sample by sample): (δ (N,) rad,
+    established (N,) bool). Samples before the heading was established get its first established value
+    (offline only; live they are not used), or 0 when it never was."""
+    est = RelativeHeadingEstimator(**options)
+    n = len(t_ns)
+    delta = np.zeros(n)
+    ok = np.zeros(n, dtype=bool)
+    rows = zip(np.asarray(t_ns, dtype=np.int64).tolist(), np.asarray(q1, float).tolist(),
+               np.asarray(gyr1, float).tolist(), np.asarray(acc1, float).tolist(),
+               np.asarray(q2, float).tolist(), np.asarray(gyr2, float).tolist(),
+               np.asarray(acc2, float).tolist(), strict=True)
+    for i, row in enumerate(rows):
+        e = est.update(*row)
+        delta[i], ok[i] = e.delta, e.established
+    if ok.any():
+        first = int(np.argmax(ok))
+        delta[:first] = delta[first]
+    return delta, ok
+
+
+def estimate_relative_orientation(gyr1: np.ndarray, acc1: np.ndarray, gyr2: np.ndarray, acc2: np.ndarray,
+                                  rate_hz: float, dof: int = 3, mag1: np.ndarray | None = None,
+                                  mag2: np.ndarray | None = None, algorithm: str | None = None
+                                  ) -> np.ndarray:
+    """(N, 4) orientation of sensor 2 in sensor 1's frame (w, x, y, z): ``conj(q₁) ⊗ R_z(δ) ⊗ q₂`` with
+    q₁, q₂ from the project's filter (6D, or 9D when both magnetometers are given) and δ from the
+    joint's kinematics (module docstring). ``dof`` (1, 2 or 3) is checked but not needed: the
+    joint-centre constraint holds for all three (a hinge's centre is any point of its axis)."""
+    from gait_biofeedback.core.orientation.filters import estimate_orientation
+    from gait_biofeedback.core.orientation.filters.startup import quiet_samples
+
+    if dof not in (1, 2, 3):
+        raise ValueError(f"dof must be 1, 2 or 3, got {dof!r}")
+    if (mag1 is None) != (mag2 is None):
+        raise ValueError("give both magnetometers or neither")
+    arrays = [np.asarray(a, dtype=float) for a in (gyr1, acc1, gyr2, acc2)]
+    if any(a.ndim != 2 or a.shape != arrays[0].shape or a.shape[1] != 3 for a in arrays):
+        raise ValueError(f"gyr1, acc1, gyr2, acc2 must all be (N, 3), got {[a.shape for a in arrays]}")
+    gyr1, acc1, gyr2, acc2 = arrays
+    q1 = estimate_orientation(gyr1, acc1, mag1, rate_hz, algorithm, startup_s=5.0)
+    q2 = estimate_orientation(gyr2, acc2, mag2, rate_hz, algorithm, startup_s=5.0)
+    rates = []
+    for gyr, acc in ((gyr1, acc1), (gyr2, acc2)):
+        n = quiet_samples(gyr, acc, rate_hz, max_s=5.0)
+        rates.append(gyr - (gyr[:n].mean(axis=0) if n > 0 else 0.0))
+    t_ns = np.round(np.arange(len(gyr1)) * (1e9 / rate_hz)).astype(np.int64)
+    good = np.all(np.isfinite(q1), axis=1) & np.all(np.isfinite(q2), axis=1)
+    delta = np.zeros(len(gyr1))
+    delta[good], _ = estimate_relative_heading(t_ns[good], q1[good], rates[0][good], acc1[good], q2[good],
+                                               rates[1][good], acc2[good])
+    return quat.multiply(quat.conjugate(q1), quat.multiply(heading_rotation(delta), q2))

@@ -1,0 +1,90 @@
+"""Kinematic relative heading of a joint's two sensors (issue 14): the simulator's walk with one sensor's
+world turned by a known angle about the vertical, the batch entry point's refusals, and the real
+dfjimu_weygers recordings (optical truth; skipped without ../shared/data)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.io as sio
+from conftest import SHARED_DATA
+
+from gait_biofeedback.batch import (
+    SCENARIOS,
+    estimate_joint_position,
+    estimate_relative_heading,
+    estimate_relative_orientation,
+    simulate,
+)
+from gait_biofeedback.batch import quaternion as quat
+
+
+@pytest.fixture(scope="module")
+def walk():
+    return simulate(SCENARIOS["walk"](duration=20.0, seed=2, segments=("left_thigh", "left_shank")))
+
+
+def test_a_known_heading_offset_is_recovered_and_held_while_standing(walk):
+    """The shank's world is turned by 40° (what a 6D filter's own heading does); from its true
+    orientations and the noisy simulated IMU the knee's estimator finds that turn, after its 10 s
+    joint-centre window, and holds it through the final standing."""
+    thigh, shank = walk.imu["left_thigh"], walk.imu["left_shank"]
+    q1 = walk.truth.sensor_orientation["left_thigh"]
+    turn = np.radians(40.0)
+    q2 = quat.multiply(quat.from_axis_angle([0.0, 0.0, 1.0], -turn),
+                       walk.truth.sensor_orientation["left_shank"])
+    t_ns = np.round(thigh.t * 1e9).astype(np.int64)
+    delta, ok = estimate_relative_heading(t_ns, q1, thigh.gyr, thigh.acc, q2, shank.gyr, shank.acc)
+    assert not ok[: int(10.0 * thigh.rate_hz)].any(), "established before 10 s of motion"
+    assert ok[-1]
+    error = np.degrees(np.angle(np.exp(1j * (delta[ok] - turn))))
+    assert np.max(np.abs(error)) < 1.0, np.max(np.abs(error))  # measured 0.43°
+
+
+def test_the_joint_centre_of_the_simulated_knee_is_near_both_sensors(walk):
+    thigh, shank = walk.imu["left_thigh"], walk.imu["left_shank"]
+    moving = thigh.t > 5.0
+    r1, r2, residual = estimate_joint_position(thigh.gyr[moving], thigh.acc[moving], shank.gyr[moving],
+                                               shank.acc[moving], thigh.rate_hz)
+    assert 0.05 < np.linalg.norm(r1) < 0.5 and 0.05 < np.linalg.norm(r2) < 0.5
+    assert residual < 0.5
+
+
+@pytest.mark.parametrize(("kwargs", "match"), [
+    ({"dof": 4}, "dof must be 1, 2 or 3"),
+    ({"mag1": np.zeros((50, 3))}, "both magnetometers or neither"),
+])
+def test_estimate_relative_orientation_refuses_bad_requests(kwargs, match):
+    x = np.zeros((50, 3))
+    with pytest.raises(ValueError, match=match):
+        estimate_relative_orientation(x, x, x, x, 100.0, **kwargs)
+
+
+def test_estimate_relative_orientation_refuses_mismatched_arrays():
+    with pytest.raises(ValueError, match=r"must all be \(N, 3\)"):
+        estimate_relative_orientation(np.zeros((50, 3)), np.zeros((50, 3)), np.zeros((49, 3)),
+                                      np.zeros((50, 3)), 100.0)
+
+
+DFJIMU = SHARED_DATA / "dfjimu_weygers"
+
+
+@pytest.mark.skipif(not DFJIMU.exists(), reason=f"real recordings not found: {DFJIMU}")
+@pytest.mark.parametrize(("name", "measured"), [("data_1D_02", 1.17), ("data_3D_01", 2.99)])
+def test_dfjimu_relative_orientation_against_optical_truth(name, measured):
+    """6D filters, no magnetometer: RMSE of conj(q1)⊗q2 against the optical one (Weygers & Kok 2020
+    data), samples where the optical step disagrees with the gyro by > 5° (marker glitches) left out."""
+    d = sio.loadmat(DFJIMU / f"{name}.mat", struct_as_record=False, squeeze_me=True)["data"]
+    sd, ref, rate = np.asarray(d.sensorData, float), np.asarray(d.ref, float), float(d.rate)
+    q = estimate_relative_orientation(sd[:, 3:6], sd[:, 0:3], sd[:, 9:12], sd[:, 6:9], rate,
+                                      dof=int(name[5]))
+    o1, o2 = quat.normalize(ref[:, 0:4]), quat.normalize(ref[:, 4:8])
+    good = np.ones(len(q), dtype=bool)
+    for o, gyr in ((o1, sd[:, 3:6]), (o2, sd[:, 9:12])):
+        step = quat.angle_between(quat.multiply(quat.conjugate(o[:-1]), o[1:]),
+                                  quat.from_rotvec(gyr[:-1] / rate))
+        bad = np.degrees(step) > 5.0
+        good[:-1] &= ~bad
+        good[1:] &= ~bad
+    err = np.degrees(quat.angle_between(q[good], quat.multiply(quat.conjugate(o1), o2)[good]))
+    assert np.sqrt(np.mean(err**2)) < 2.0 * measured
