@@ -45,13 +45,10 @@ class Dropout:
         return self.at, self.at + self.duration
 
 
-@dataclass(frozen=True)
-class Reorder:
-    """``count`` consecutive samples of ``segment`` from ``at`` s arrive in reverse order."""
+class _AtOneInstant:
+    """A fault of one instant ``at`` s: its time span (start, end) is that instant."""
 
-    segment: str
     at: float
-    count: int = 2
 
     @property
     def span(self) -> tuple[float, float]:
@@ -59,7 +56,16 @@ class Reorder:
 
 
 @dataclass(frozen=True)
-class Spike:
+class Reorder(_AtOneInstant):
+    """``count`` consecutive samples of ``segment`` from ``at`` s arrive in reverse order."""
+
+    segment: str
+    at: float
+    count: int = 2
+
+
+@dataclass(frozen=True)
+class Spike(_AtOneInstant):
     """``samples`` consecutive samples of ``segment`` from ``at`` s read ``value`` m/s² on every
     accelerometer axis."""
 
@@ -68,22 +74,14 @@ class Spike:
     samples: int = 3
     value: float = 1e6
 
-    @property
-    def span(self) -> tuple[float, float]:
-        return self.at, self.at
-
 
 @dataclass(frozen=True)
-class StampJump:
+class StampJump(_AtOneInstant):
     """The first sample of ``segment`` from ``at`` s is stamped ``offset`` s off (arrival unchanged)."""
 
     segment: str
     at: float
     offset: float = -0.5
-
-    @property
-    def span(self) -> tuple[float, float]:
-        return self.at, self.at
 
 
 Fault = Dropout | Reorder | Spike | StampJump
