@@ -68,6 +68,7 @@ import numpy as np
 from scipy.signal import butter, filtfilt
 
 from gait_biofeedback.core import quaternion as quat
+from gait_biofeedback.core.calibration.trunk import forward_in_proximal
 from gait_biofeedback.core.segments import GRAVITY, SIDES, ImuSeries
 
 PROTOCOLS: tuple[str, ...] = ("hip_flexion", "walking")
@@ -458,8 +459,6 @@ def _trunk_forward(segment: str, data: dict[str, ImuSeries], orientations: dict[
                    results: dict[str, SegmentCalibrationResult], motion: tuple[float, float]
                    ) -> list[np.ndarray | None]:
     """Forward directions of a trunk sensor from the kinematic heading (module docstring step 4)."""
-    from gait_biofeedback.core.calibration.trunk import forward_in_proximal
-
     if "pelvis" not in data or "pelvis" not in orientations:
         return []
     pelvis, q_pelvis = data["pelvis"], orientations["pelvis"]

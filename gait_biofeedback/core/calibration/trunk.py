@@ -18,15 +18,14 @@ import numpy as np
 from gait_biofeedback.core import quaternion as quat
 from gait_biofeedback.core.joints.relative_heading import estimate_relative_heading, heading_rotation
 from gait_biofeedback.core.segments import ImuSeries
+from gait_biofeedback.core.stamps import seconds_to_ns
 
 MIN_ESTABLISHED_S = 2.0  # s of motion with an established heading needed for a direction
 
 
 def _common(a: ImuSeries, b: ImuSeries) -> tuple[np.ndarray, np.ndarray]:
     """Indices of the samples of ``a`` and ``b`` with the same stamp (the IMUs are sampled together)."""
-    na = np.round(a.t * 1e9).astype(np.int64)
-    nb = np.round(b.t * 1e9).astype(np.int64)
-    _, ia, ib = np.intersect1d(na, nb, return_indices=True)
+    _, ia, ib = np.intersect1d(seconds_to_ns(a.t), seconds_to_ns(b.t), return_indices=True)
     return ia, ib
 
 
@@ -47,7 +46,7 @@ def forward_in_proximal(proximal: ImuSeries, q_proximal: np.ndarray, distal: Imu
         return None
     t = proximal.t[ip]
     qp, qd = np.asarray(q_proximal)[ip], np.asarray(q_distal)[idist]
-    delta, ok = estimate_relative_heading(np.round(t * 1e9).astype(np.int64), qp, proximal.gyr[ip],
+    delta, ok = estimate_relative_heading(seconds_to_ns(t), qp, proximal.gyr[ip],
                                           proximal.acc[ip], qd, distal.gyr[idist], distal.acc[idist])
     use = ok & (t >= motion[0]) & (t <= motion[1])
     if use.sum() * float(np.median(np.diff(t))) < MIN_ESTABLISHED_S:

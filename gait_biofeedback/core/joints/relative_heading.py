@@ -46,6 +46,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gait_biofeedback.core import quaternion as quat
+from gait_biofeedback.core.stamps import seconds_to_ns
 
 TIME_CONSTANT_S = 5.0
 HIGHPASS_S = 0.5
@@ -313,7 +314,7 @@ def estimate_relative_orientation(gyr1: np.ndarray, acc1: np.ndarray, gyr2: np.n
     for gyr, acc in ((gyr1, acc1), (gyr2, acc2)):
         n = quiet_samples(gyr, acc, rate_hz, max_s=5.0)
         rates.append(gyr - (gyr[:n].mean(axis=0) if n > 0 else 0.0))
-    t_ns = np.round(np.arange(len(gyr1)) * (1e9 / rate_hz)).astype(np.int64)
+    t_ns = seconds_to_ns(np.arange(len(gyr1)) / rate_hz)
     good = np.all(np.isfinite(q1), axis=1) & np.all(np.isfinite(q2), axis=1)
     delta = np.zeros(len(gyr1))
     delta[good], _ = estimate_relative_heading(t_ns[good], q1[good], rates[0][good], acc1[good], q2[good],

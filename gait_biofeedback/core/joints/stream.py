@@ -19,7 +19,11 @@ from gait_biofeedback.core import quaternion as quat
 from gait_biofeedback.core.body import StickFigureDimensions
 from gait_biofeedback.core.in_force import InForceQueue
 from gait_biofeedback.core.joints.angles import JOINTS, JointAngleCalculator, joint_angle_names, segment_pair
-from gait_biofeedback.core.joints.relative_heading import RelativeHeadingEstimator
+from gait_biofeedback.core.joints.relative_heading import (
+    POSITION_WINDOW_S,
+    TIME_CONSTANT_S,
+    RelativeHeadingEstimator,
+)
 from gait_biofeedback.core.params import param
 from gait_biofeedback.core.segments import SIDES
 
@@ -45,11 +49,12 @@ class JointAnglesParams(StickFigureDimensions):
     heading: str = param("kinematic", "common heading of a joint's two sensors: 'kinematic' = from the "
                          "joint's own accelerations (6D sensors or a disturbed magnetometer), 'filters' = "
                          "trust the filters' shared magnetometer heading", choices=HEADING_SOURCES)
-    heading_time_constant: float = param(5.0, "averaging time of the kinematic heading (it follows the "
-                                         "filters' heading drift this fast)", "s", low=0.5, high=120.0)
-    heading_position_window: float = param(10.0, "motion collected before a joint's centre is estimated "
-                                           "(its angles are published once the heading is established)",
-                                           "s", low=2.0, high=120.0)
+    heading_time_constant: float = param(TIME_CONSTANT_S, "averaging time of the kinematic heading (it "
+                                         "follows the filters' heading drift this fast)", "s", low=0.5,
+                                         high=120.0)
+    heading_position_window: float = param(POSITION_WINDOW_S, "motion collected before a joint's centre is "
+                                           "estimated (its angles are published once the heading is "
+                                           "established)", "s", low=2.0, high=120.0)
 
 
 STREAM_SEGMENTS: tuple[str, ...] = ("pelvis", "left_thigh", "left_shank", "left_foot", "right_thigh",
