@@ -189,15 +189,17 @@ def _pelvis_vertical(acc: np.ndarray, beta: float) -> np.ndarray:
 def _per_stride(angle: np.ndarray, t: np.ndarray, ics: np.ndarray, lo: float, hi: float):
     """(max, min, value at IC) of ``angle`` per stride IC→next IC inside [lo, hi] s. The IC times are
     sample times: a stride starts at its IC sample (half a sample of slack, so that the float
-    rounding of equal times cannot move it to the next sample)."""
+    rounding of equal times cannot move it to the next sample). NaN samples (an angle not published)
+    are left out; a stride left with 10 samples or fewer is skipped."""
     rows = []
     half = 0.5 * float(np.median(np.diff(t)))
     for a, b in itertools.pairwise(ics):
         if a < lo or b > hi or not 0.7 < b - a < 1.6:
             continue
-        sel = (t >= a - half) & (t < b - half)
-        rows.append((angle[sel].max(), angle[sel].min(), angle[sel][0]))
-    return np.degrees(np.array(rows))
+        sel = (t >= a - half) & (t < b - half) & np.isfinite(angle)
+        if sel.sum() > 10:
+            rows.append((angle[sel].max(), angle[sel].min(), angle[sel][0]))
+    return np.degrees(np.array(rows)).reshape(-1, 3)
 
 
 def report_qmt() -> None:
@@ -270,17 +272,6 @@ def report_qmt() -> None:
               "gait max 30..35, min -15..-10)")
 
 
-def _per_stride_cli(angles: dict[str, np.ndarray], t_ns: np.ndarray, ics: np.ndarray, name: str):
-    """(max, min, value at IC) per stride IC→next IC (0.7–1.6 s) of a published angle (deg)."""
-    a, ok = np.degrees(angles[name]), np.isfinite(angles[name])
-    rows = []
-    for x, y in itertools.pairwise(ics):
-        sel = ok & (t_ns >= x) & (t_ns < y)
-        if 0.7e9 < y - x < 1.6e9 and sel.sum() > 10:
-            rows.append((a[sel].max(), a[sel].min(), float(np.interp(x, t_ns[ok], a[ok]))))
-    return np.array(rows).reshape(-1, 3)
-
-
 def report_qmt_cli(calibrate_at: str = "75:walking") -> None:
     """The qmt walk through the documented CLI path: ``import qmt_fullbody`` → ``analyze --calibrate-at``;
     the published /joint_states and /gait/events are read back from the output bag."""
@@ -319,7 +310,8 @@ def report_qmt_cli(calibrate_at: str = "75:walking") -> None:
     for name, col, what, goal in checks:
         vals = []
         for side_i, side in enumerate(("left", "right")):
-            strides = _per_stride_cli(angles, t_ns, np.array(ics[side_i]), f"{side}_{name}")
+            strides = _per_stride(angles[f"{side}_{name}"], t_ns * 1e-9, np.array(ics[side_i]) * 1e-9,
+                                  -np.inf, np.inf)
             vals.append(f"{np.mean(strides[:, col]):7.1f} ({len(strides)})" if len(strides) else "   none")
         print(f"    {name:19s} {what:11s} {goal:>8s}  {vals[0]:>12s} {vals[1]:>12s}")
     for side in ("left", "right"):
