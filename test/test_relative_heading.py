@@ -88,3 +88,25 @@ def test_dfjimu_relative_orientation_against_optical_truth(name, measured):
         good[1:] &= ~bad
     err = np.degrees(quat.angle_between(q[good], quat.multiply(quat.conjugate(o1), o2)[good]))
     assert np.sqrt(np.mean(err**2)) < 2.0 * measured
+
+
+def test_a_long_stillness_before_the_motion_neither_grows_the_window_nor_spoils_the_estimate(walk):
+    """65 s of standing (the walk's first sample repeated) before the walk: the joint-centre window
+    stays within 6 position windows (60 s at 100 Hz = 6000 samples), and the turn is still found."""
+    from gait_biofeedback.core.joints.relative_heading import RelativeHeadingEstimator
+
+    thigh, shank = walk.imu["left_thigh"], walk.imu["left_shank"]
+    turn = np.radians(40.0)
+    q1 = walk.truth.sensor_orientation["left_thigh"]
+    q2 = quat.multiply(quat.from_axis_angle([0.0, 0.0, 1.0], -turn),
+                       walk.truth.sensor_orientation["left_shank"])
+    est = RelativeHeadingEstimator()
+    still = 6500
+    for k in range(still):
+        est.update(k * 10_000_000, q1[0], thigh.gyr[0], thigh.acc[0], q2[0], shank.gyr[0], shank.acc[0])
+    assert len(est._window) <= 6001
+    for k in range(len(thigh.t)):
+        result = est.update((still + k) * 10_000_000, q1[k], thigh.gyr[k], thigh.acc[k], q2[k], shank.gyr[k],
+                            shank.acc[k])
+    assert result.established
+    assert abs(np.degrees(np.angle(np.exp(1j * (result.delta - turn))))) < 1.0

@@ -33,7 +33,9 @@ it back). It is never required.
 
 Delay: none per sample (ω̇ is the central difference of the rates, so a sample enters the estimate
 when the next one arrives); the estimate lags a change of the
-offset by about ``time_constant``. The joint centre needs ``position_window_s`` s of motion first.
+offset by about ``time_constant``. The joint centre needs ``position_window_s`` s of motion first,
+within at most ``MAX_WINDOW_SPAN`` times that span (older samples are dropped: memory stays bounded
+through a long stillness).
 Stamps are int ns.
 """
 
@@ -41,6 +43,7 @@ from __future__ import annotations
 
 import cmath
 import math
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -53,6 +56,7 @@ HIGHPASS_S = 0.5
 POSITION_WINDOW_S = 10.0
 MIN_INFORMATION = 20.0  # (m/s²)² s: e.g. 10 s of 1.4 m/s² horizontal joint-centre accelerations
 MIN_COHERENCE = 0.3
+MAX_WINDOW_SPAN = 6.0  # the joint-centre window keeps at most this many position windows of time (memory)
 MOVING = 0.2  # rad/s: a sample counts as motion for the joint-centre window when either |ω| exceeds it
 MAX_JOINT_DISTANCE = 1.0  # m: a larger sensor-to-joint distance is not a joint centre
 MAX_RESIDUAL = 2.0  # m/s²: RMS of the norm mismatch above which the joint-centre fit is refused
@@ -144,8 +148,9 @@ class RelativeHeadingEstimator:
     def reset(self) -> None:
         """Forget everything but the joint centre (a sensor restarted: its heading is new)."""
         self._prev: tuple = (None, None)
-        self._window: list[tuple] = []
-        self._window_s = 0.0
+        self._window: deque[tuple[tuple, float]] = deque()  # (row, its motion time s)
+        self._window_s = 0.0  # motion time in the window
+        self._span_s = 0.0  # all time in the window
         self._mean1 = self._mean2 = 0j
         self._sum = 0j
         self._magnitude = 0.0
@@ -178,9 +183,14 @@ class RelativeHeadingEstimator:
         step = (middle[0] - before[0]) * 1e-9
         row = (mq1, mg1, d1, ma1, mq2, mg2, d2, ma2, step)
         if self.r1 is None:
-            self._window.append(row)
-            if max(math.hypot(*mg1), math.hypot(*mg2)) > MOVING:
-                self._window_s += step
+            moving = step if max(math.hypot(*mg1), math.hypot(*mg2)) > MOVING else 0.0
+            self._window.append((row, moving))
+            self._window_s += moving
+            self._span_s += step
+            while self._span_s > MAX_WINDOW_SPAN * self.position_window_s:  # long stillness: forget its start
+                (old, old_moving) = self._window.popleft()
+                self._span_s -= old[8]
+                self._window_s -= old_moving
             if self._window_s >= self.position_window_s and len(self._window) >= 20:
                 self._fit_position()
             return self._estimate()
@@ -188,8 +198,8 @@ class RelativeHeadingEstimator:
         return self._estimate()
 
     def _fit_position(self) -> None:
-        rows = self._window
-        self._window, self._window_s = [], 0.0
+        rows = [row for row, _ in self._window]
+        self._window, self._window_s, self._span_s = deque(), 0.0, 0.0
         g1, d1, a1, g2, d2, a2 = (_zero_phase_lowpass(np.array([r[k] for r in rows]), rows)
                                   for k in (1, 2, 3, 5, 6, 7))
         r1, r2, res = _fit(g1, d1, a1, g2, d2, a2)
