@@ -110,3 +110,19 @@ def test_a_long_stillness_before_the_motion_neither_grows_the_window_nor_spoils_
                             shank.acc[k])
     assert result.established
     assert abs(np.degrees(np.angle(np.exp(1j * (result.delta - turn))))) < 1.0
+
+
+def test_a_nan_sample_is_skipped_not_spread(walk):
+    """One NaN gyro sample in the middle of the walk: no estimate after it becomes NaN, and the turn
+    is still found (it poisoned every later sample before)."""
+    thigh, shank = walk.imu["left_thigh"], walk.imu["left_shank"]
+    gyr = thigh.gyr.copy()
+    gyr[1200, 0] = np.nan
+    turn = np.radians(40.0)
+    q2 = quat.multiply(quat.from_axis_angle([0.0, 0.0, 1.0], -turn),
+                       walk.truth.sensor_orientation["left_shank"])
+    t_ns = np.round(thigh.t * 1e9).astype(np.int64)
+    delta, ok = estimate_relative_heading(t_ns, walk.truth.sensor_orientation["left_thigh"], gyr, thigh.acc,
+                                          q2, shank.gyr, shank.acc)
+    assert np.all(np.isfinite(delta)) and ok[-1]
+    assert abs(np.degrees(np.angle(np.exp(1j * (delta[-1] - turn))))) < 1.0

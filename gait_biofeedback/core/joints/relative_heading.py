@@ -168,7 +168,10 @@ class RelativeHeadingEstimator:
     def update(self, ns: int, q1: tuple, gyr1: tuple, acc1: tuple, q2: tuple, gyr2: tuple,
                acc2: tuple) -> HeadingEstimate:
         """Add one sample; the estimate in force for it (which has used the samples before it: the
-        previous sample is added now, with ω̇ as the central difference around it)."""
+        previous sample is added now, with ω̇ as the central difference around it). A sample with a
+        value that is not finite is skipped (one NaN would otherwise poison every later estimate)."""
+        if not math.isfinite(sum(q1) + sum(gyr1) + sum(acc1) + sum(q2) + sum(gyr2) + sum(acc2)):
+            return self._estimate()
         sample = (ns, tuple(q1), tuple(gyr1), tuple(acc1), tuple(q2), tuple(gyr2), tuple(acc2))
         before, middle = self._prev
         if middle is not None and ns <= middle[0]:
