@@ -166,3 +166,29 @@ def test_stream_standing_offset_needs_every_segment_still():
     knee = {round(a.ns / 1e7): a.angles["right_knee_flexion"] / DEG for a in out}
     assert knee[199] == pytest.approx(20.0, abs=1e-9)  # collecting since k = 100
     assert knee[200] == pytest.approx(0.0, abs=1e-9) and knee[299] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_angles_left_out_take_no_part_in_the_standing_offset_and_get_their_own_later():
+    """Standing at 10° knee flexion while the right knee is left out (its heading not established):
+    the left knee's offset is the 10°, the right knee gets none (an offset from before its heading was
+    known would be wrong). When it appears it reads its raw 10° until 1 s more of standing gives it
+    its own offset; the left knee's offset is kept."""
+    from gait_biofeedback.core.joints.angles import JointAngleCalculator, joint_angle_names
+
+    calculator = JointAngleCalculator(dict(MOUNTS))
+    calculator.collect_offset(1.0)
+    pose = _knee_pose(10.0)
+    right_knee = joint_angle_names("right", "knee")
+    for k in range(150):
+        out = calculator.update(k * 10_000_000, pose, leave_out=right_knee)
+        assert not set(right_knee) & set(out)
+    assert not calculator.offset_pending and "right_knee_flexion" not in calculator.offset
+    first = calculator.update(150 * 10_000_000, pose)
+    assert first["left_knee_flexion"] == pytest.approx(0.0, abs=1e-9)
+    assert first["right_knee_flexion"] / DEG == pytest.approx(10.0, abs=1e-9)
+    assert calculator.offset_pending
+    for k in range(151, 252):
+        out = calculator.update(k * 10_000_000, pose)
+    assert not calculator.offset_pending
+    assert out["right_knee_flexion"] == pytest.approx(0.0, abs=1e-9)
+    assert out["left_knee_flexion"] == pytest.approx(0.0, abs=1e-9)

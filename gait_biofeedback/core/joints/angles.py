@@ -20,6 +20,7 @@ mirrored because its z axis points laterally-right = medially. Gimbal lock at |b
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from typing import Any
 
 import numpy as np
@@ -194,12 +195,15 @@ class JointAngleCalculator:
     Standing offset: :meth:`collect_offset` starts a collection of ``duration_s`` of still samples
     (``update(..., still=False)`` restarts it); when a sample stamped at or past ``first + duration_s``
     arrives, the mean of the collected angles becomes the offset (that sample and later ones are
-    corrected; earlier ones were published uncorrected).
+    corrected; earlier ones were published uncorrected). An angle that first appears after that (its
+    joint was left out until its heading was known) starts a new collection of the same length; it
+    adds the offsets of the angles that had none and keeps the others.
     """
 
     def __init__(self, calibration: Any) -> None:
         self.rotations = _rotations_of(calibration)
         self.offset: dict[str, float] = {}
+        self._duration: float | None = None  # of the collection asked for; None = no offset removal
         self._collect_s: float | None = None
         self._first: float | None = None
         self._sums: dict[str, float] = {}
@@ -207,7 +211,7 @@ class JointAngleCalculator:
 
     def collect_offset(self, duration_s: float) -> None:
         """Start (or restart) the standing-offset collection."""
-        self._collect_s = float(duration_s)
+        self._duration = self._collect_s = float(duration_s)
         self._first, self._sums, self._counts = None, {}, {}
 
     @property
@@ -219,15 +223,21 @@ class JointAngleCalculator:
         return {k: float(v) for k, v in compute_joint_angles(segment_quats, self.rotations).items()}
 
     def update(self, stamp_ns: int, segment_quats: dict[str, np.ndarray],
-               still: bool = True) -> dict[str, float]:
-        """Angles (rad) of the joints whose segments are present and calibrated, offset removed."""
+               still: bool = True, leave_out: Iterable[str] = ()) -> dict[str, float]:
+        """Angles (rad) of the joints whose segments are present and calibrated, offset removed.
+        ``leave_out``: angle names neither returned nor collected into the standing offset (a joint
+        whose segments are not yet in one world heading: an offset from them would be wrong later)."""
         stamp = stamp_ns * 1e-9
-        angles = self.raw(segment_quats)
+        skip = set(leave_out)
+        angles = {k: v for k, v in self.raw(segment_quats).items() if k not in skip}
+        if self._collect_s is None and self._duration is not None and not angles.keys() <= self.offset.keys():
+            self._collect_s = self._duration
+            self._first, self._sums, self._counts = None, {}, {}
         if self._collect_s is not None:
             if not still:
                 self._first, self._sums, self._counts = None, {}, {}
             elif self._first is not None and stamp >= self._first + self._collect_s - 1e-9:
-                self.offset = {k: self._sums[k] / self._counts[k] for k in self._sums}
+                self.offset = {**{k: self._sums[k] / self._counts[k] for k in self._sums}, **self.offset}
                 self._collect_s = None
             else:
                 self._first = stamp if self._first is None else self._first

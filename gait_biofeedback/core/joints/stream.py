@@ -95,8 +95,9 @@ class JointAngleStream:
     joint's heading estimator (recovering samples are left out); the sensor orientations are then turned
     about the vertical down each leg's chain (pelvis, thigh, shank, foot) into the pelvis sensor's world
     (:attr:`SyncedAngles.sensor_quats`), and a joint whose heading is not established is left out
-    (:attr:`SyncedAngles.no_heading`). Before a calibration, an instant waits for the segments seen in
-    the last second.
+    (:attr:`SyncedAngles.no_heading`), from the standing offset too: a joint established only after
+    the offset was taken has none. Before a calibration, an instant waits for the segments seen in the
+    last second.
     """
 
     def __init__(self, params: JointAnglesParams | None = None,
@@ -216,11 +217,8 @@ class JointAngleStream:
         self.recovering_count += bool(recovering)
         still = (not recovering and len(samples) == len(wanted)
                  and all(math.hypot(*g) < self.still_gyro for _, g, _, _ in samples.values()))
-        angles = self.calculator.update(ns, quats, still=still)
-        for joint in no_heading:
-            side, name = joint.split("_", 1)
-            for key in joint_angle_names(side, name):
-                angles.pop(key, None)
+        leave_out = [key for joint in no_heading for key in joint_angle_names(*joint.split("_", 1))]
+        angles = self.calculator.update(ns, quats, still=still, leave_out=leave_out)
         return SyncedAngles(ns, angles, quats, self.calculator.rotations, recovering, no_heading)
 
 
