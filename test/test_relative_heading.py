@@ -126,3 +126,24 @@ def test_a_nan_sample_is_skipped_not_spread(walk):
                                           q2, shank.gyr, shank.acc)
     assert np.all(np.isfinite(delta)) and ok[-1]
     assert abs(np.degrees(np.angle(np.exp(1j * (delta[-1] - turn))))) < 1.0
+
+
+def test_time_going_back_restarts_the_estimate(walk):
+    """The walk replayed a second time with the same stamps (the filters restart, their headings are
+    new): the estimate starts over (not established at once) and finds the second turn, 40° → −30°;
+    before, every sample of the replay was ignored as late and the old turn stayed."""
+    from gait_biofeedback.core.joints.relative_heading import RelativeHeadingEstimator
+
+    thigh, shank = walk.imu["left_thigh"], walk.imu["left_shank"]
+    q1 = walk.truth.sensor_orientation["left_thigh"]
+    t_ns = np.round(thigh.t * 1e9).astype(np.int64)
+    est = RelativeHeadingEstimator()
+    for turn_deg in (40.0, -30.0):
+        turn = np.radians(turn_deg)
+        q2 = quat.multiply(quat.from_axis_angle([0.0, 0.0, 1.0], -turn),
+                           walk.truth.sensor_orientation["left_shank"])
+        results = [est.update(int(t_ns[k]), q1[k], thigh.gyr[k], thigh.acc[k], q2[k], shank.gyr[k],
+                              shank.acc[k]) for k in range(len(t_ns))]
+        assert results[-1].established
+        assert abs(np.degrees(np.angle(np.exp(1j * (results[-1].delta - turn))))) < 1.0, turn_deg
+    assert not results[5].established, "the replay starts over"

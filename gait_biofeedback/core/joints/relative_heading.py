@@ -56,6 +56,7 @@ HIGHPASS_S = 0.5
 POSITION_WINDOW_S = 10.0
 MIN_INFORMATION = 20.0  # (m/s²)² s: e.g. 10 s of 1.4 m/s² horizontal joint-centre accelerations
 MIN_COHERENCE = 0.3
+JUMP_BACK_NS = 1_000_000_000  # a stamp this much older than the last one restarts the estimate
 MAX_WINDOW_SPAN = 6.0  # the joint-centre window keeps at most this many position windows of time (memory)
 MOVING = 0.2  # rad/s: a sample counts as motion for the joint-centre window when either |ω| exceeds it
 MAX_JOINT_DISTANCE = 1.0  # m: a larger sensor-to-joint distance is not a joint centre
@@ -146,7 +147,8 @@ class RelativeHeadingEstimator:
         self.reset()
 
     def reset(self) -> None:
-        """Forget everything but the joint centre (a sensor restarted: its heading is new)."""
+        """Forget everything but the joint centre (time went back: the filters restarted, their headings
+        are new)."""
         self._prev: tuple = (None, None)
         self._window: deque[tuple[tuple, float]] = deque()  # (row, its motion time s)
         self._window_s = 0.0  # motion time in the window
@@ -173,9 +175,11 @@ class RelativeHeadingEstimator:
         if not math.isfinite(sum(q1) + sum(gyr1) + sum(acc1) + sum(q2) + sum(gyr2) + sum(acc2)):
             return self._estimate()
         sample = (ns, tuple(q1), tuple(gyr1), tuple(acc1), tuple(q2), tuple(gyr2), tuple(acc2))
+        if self._prev[1] is not None and ns <= self._prev[1][0]:
+            if ns > self._prev[1][0] - JUMP_BACK_NS:
+                return self._estimate()  # a repeated or late sample
+            self.reset()  # time went back (replayed, restarted): the filters' headings are new
         before, middle = self._prev
-        if middle is not None and ns <= middle[0]:
-            return self._estimate()
         self._prev = (middle, sample)
         if before is None or ns - before[0] > 0.25e9:  # start or a gap: no derivative across it
             return self._estimate()
@@ -203,7 +207,8 @@ class RelativeHeadingEstimator:
     def _fit_position(self) -> None:
         rows = [row for row, _ in self._window]
         self._window, self._window_s, self._span_s = deque(), 0.0, 0.0
-        g1, d1, a1, g2, d2, a2 = (_zero_phase_lowpass(np.array([r[k] for r in rows]), rows)
+        rate_hz = 1.0 / float(np.median([r[8] for r in rows]))
+        g1, d1, a1, g2, d2, a2 = (_zero_phase_lowpass(np.array([r[k] for r in rows]), rate_hz)
                                   for k in (1, 2, 3, 5, 6, 7))
         r1, r2, res = _fit(g1, d1, a1, g2, d2, a2)
         if not (np.linalg.norm(r1) < MAX_JOINT_DISTANCE and np.linalg.norm(r2) < MAX_JOINT_DISTANCE
@@ -240,14 +245,13 @@ class RelativeHeadingEstimator:
             self.state = "ok"
 
 
-def _zero_phase_lowpass(x: np.ndarray, rows: list[tuple]) -> np.ndarray:
+def _zero_phase_lowpass(x: np.ndarray, rate_hz: float) -> np.ndarray:
     """``x`` (N, 3) of the joint-centre window, low-passed at ``LOWPASS_HZ`` forwards and backwards."""
     from scipy.signal import butter, filtfilt
 
-    rate = 1.0 / float(np.median([r[8] for r in rows]))
-    if len(x) < 15 or 0.45 * rate <= LOWPASS_HZ:
+    if len(x) < 15 or 0.45 * rate_hz <= LOWPASS_HZ:
         return x
-    b, a = butter(2, LOWPASS_HZ / (0.5 * rate))
+    b, a = butter(2, LOWPASS_HZ / (0.5 * rate_hz))
     return filtfilt(b, a, x, axis=0)
 
 
