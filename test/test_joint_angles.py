@@ -192,3 +192,13 @@ def test_angles_left_out_take_no_part_in_the_standing_offset_and_get_their_own_l
     assert not calculator.offset_pending
     assert out["right_knee_flexion"] == pytest.approx(0.0, abs=1e-9)
     assert out["left_knee_flexion"] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_the_streams_vertical_turn_is_the_quaternion_product():
+    from gait_biofeedback.core.joints.stream import _turned
+
+    np.testing.assert_allclose(_turned(np.array([1.0, 0.0, 0.0, 0.0]), np.pi / 2),
+                               [np.cos(np.pi / 4), 0.0, 0.0, np.sin(np.pi / 4)], atol=1e-15)
+    for q in MOUNTS.values():
+        turned = quat.multiply(quat.from_axis_angle([0.0, 0.0, 1.0], 2.5), q)
+        np.testing.assert_allclose(_turned(q, 2.5), turned, atol=1e-12)

@@ -15,7 +15,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gait_biofeedback.core import quaternion as quat
 from gait_biofeedback.core.body import StickFigureDimensions
 from gait_biofeedback.core.in_force import InForceQueue
 from gait_biofeedback.core.joints.angles import JOINTS, JointAngleCalculator, joint_angle_names, segment_pair
@@ -211,8 +210,7 @@ class JointAngleStream:
         for seg in wanted:
             if seg not in samples:
                 self.missing_counts[seg] += 1
-        quats = {s: q if not turn.get(s) else quat.multiply(quat.from_axis_angle(_UP, turn[s]), q)
-                 for s, (q, _, _, _) in samples.items()}
+        quats = {s: _turned(q, turn[s]) if turn.get(s) else q for s, (q, _, _, _) in samples.items()}
         recovering = tuple(s for s, (_, _, _, r) in samples.items() if r)
         self.recovering_count += bool(recovering)
         still = (not recovering and len(samples) == len(wanted)
@@ -222,4 +220,9 @@ class JointAngleStream:
         return SyncedAngles(ns, angles, quats, self.calculator.rotations, recovering, no_heading)
 
 
-_UP = np.array([0.0, 0.0, 1.0])
+def _turned(q: np.ndarray, angle: float) -> np.ndarray:
+    """``R_z(angle) ⊗ q``: q (w, x, y, z) turned by ``angle`` rad about the world vertical (scalar
+    arithmetic: it runs for every segment of every instant)."""
+    c, s = math.cos(0.5 * angle), math.sin(0.5 * angle)
+    w, x, y, z = q
+    return np.array([c * w - s * z, c * x - s * y, c * y + s * x, c * z + s * w])
