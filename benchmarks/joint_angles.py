@@ -10,15 +10,14 @@
    (6D, no magnetometer) vs optical truth, RMSE per recording. No magnetometer: each filter's world
    heading is aligned once to the optical one over the first second; the drift after it is counted.
 3. qmt_fullbody (qmt examples, MIT): the full chain on a real 100 s walk. The vendor quaternions are
-   checked and NOT used (their gravity disagrees with the accelerometers by 68–108° in standing and
-   the anatomical x headings of one leg's segments differ by up to 150°); orientations come from the
-   project's 6D filter (no magnetometer in the file) and the sensors' world headings are aligned at the
-   standing right before the walk (``align_headings``). Calibration: quiet standing at the start
-   (0–5 s; the still period 13–39 s is sitting: thighs 83° off) + the walk (55–100 s, PC8; the leg
-   movements at 5–12 s and 39–50 s are not walking). Pelvis: vertical calibration only (no common
-   heading → its anatomical x in the sensor is unknown); the hip angles' sensitivity to that unknown is
-   printed. Per stride (left/right IC from ``detect_gait_events``): knee flexion swing peak and at IC,
-   hip and ankle ranges, left/right symmetry.
+   checked and NOT used (their gravity disagrees with the accelerometers by 68–108° in standing).
+   ``report_qmt``: batch steps with the headings aligned at a standing (the former figures);
+   ``report_qmt_cli``: the documented CLI path, ``import qmt_fullbody`` → ``analyze --calibrate-at
+   75:walking`` and ``--calibrate-at auto``, per-stride plausibility of the published angles.
+4. ``report_flips``: 50 random mountings x both protocols, 6D and 9D filter orientations, protocol
+   ``auto`` and the wrong one: flips, refusals, worst calibration errors.
+5. ``report_magnet``: the ``magnet_near_thigh`` scenario through ``analyze --calibrate-at auto``,
+   knee flexion RMSE with the kinematic heading, the filters' heading and without magnetometer.
 
 Run: ``.venv/bin/python benchmarks/joint_angles.py [--seeds 5]``.
 """
@@ -36,6 +35,7 @@ import scipy.io as sio
 from gait_biofeedback.batch import (
     DEFAULT_ALGORITHM,
     JOINT_NAMES,
+    SCENARIOS,
     ImuSeries,
     Phase,
     SimulationConfig,
@@ -322,16 +322,113 @@ def report_qmt_cli(calibrate_at: str = "75:walking") -> None:
               "(goal 95 %)")
 
 
+def _filtered(session) -> tuple[dict, dict]:
+    """The session's series with the filters' orientations (``track_orientation``, the node's path)."""
+    data, ori = {}, {}
+    for seg, series in session.imu.items():
+        t, q, g = track_orientation(series)
+        data[seg], ori[seg] = ImuSeries(seg, t, series.acc[: len(t)], g), q
+    return data, ori
+
+
+def report_flips(seeds: int = 50) -> None:
+    """Random mountings x both protocols, 6D and 9D filter orientations, ``auto`` protocol and the wrong
+    one: flips (a segment > 90° off), refusals, the wrong protocol accepted."""
+    print(f"\n[simulator] calibration never flips: {seeds} random mountings x both protocols (seeds 100-"
+          f"{99 + seeds}), filter orientations; 'auto' = the protocol the movement shows")
+    print("    data         filters  protocol found  flips  refused segments       wrong protocol refused  "
+          "worst error (deg): thigh shank foot pelvis chest")
+    for scenario, done in (("calibration_hip_flexion", "hip_flexion"), ("calibration_walking", "walking")):
+        wrong = "walking" if done == "hip_flexion" else "hip_flexion"
+        for mag in (True, False):
+            found = flips = refused_wrong = 0
+            refused: dict[str, int] = {}
+            worst: dict[str, float] = {}
+            for seed in range(100, 100 + seeds):
+                session = simulate(SCENARIOS[scenario](seed=seed, with_magnetometer=mag))
+                data, ori = _filtered(session)
+                standing, motion = find_standing_then_motion(data)
+                cal = calibrate_session(data, standing, motion, "auto", orientations=ori, common_heading=mag)
+                found += cal.protocol == done and cal.looks_like == done
+                for seg, res in cal.segments.items():
+                    part = seg.split("_")[-1]
+                    if not res.valid:
+                        refused[part] = refused.get(part, 0) + 1
+                        continue
+                    err = float(np.degrees(helical_angle(res.rotation, session.truth.mounting[seg])))
+                    worst[part] = max(worst.get(part, 0.0), err)
+                    flips += err > 90.0
+                other = calibrate_session(data, standing, motion, wrong, orientations=ori, common_heading=mag)
+                refused_wrong += not other.success and other.looks_like == done
+            text = ", ".join(f"{k} {v}" for k, v in refused.items()) or "none"
+            parts = ("thigh", "shank", "foot", "pelvis", "chest")
+            errors = " ".join(f"{worst.get(p, float('nan')):5.1f}" for p in parts)
+            print(f"    {done:12s} {'9D' if mag else '6D':7s}  {found:3d}/{seeds}          {flips:3d}    "
+                  f"{text:22s} {refused_wrong:3d}/{seeds}                  {errors}")
+    print("    (6D hip flexion: the trunk is refused by design, a still pelvis shows no heading; the message "
+          "says to calibrate with the walking protocol)")
+
+
+def report_magnet(seeds: tuple[int, ...] = (4, 5, 6)) -> None:
+    """The magnet_near_thigh scenario through analyze (--calibrate-at auto): knee flexion RMSE."""
+    import tempfile
+
+    from gait_biofeedback.batch import analyze_recording, write_simulated_bag
+
+    print("\n[simulator] magnet near the left thigh (scenario magnet_near_thigh, +30 µT at 30-50 s), "
+          "analyze --calibrate-at auto, knee flexion RMSE over the 40 s walk (deg), mean over seeds "
+          f"{list(seeds)}, left / right. Goal <= 2")
+    for mag, heading in ((True, "kinematic"), (True, "filters"), (False, "kinematic")):
+        rmse = []
+        for seed in seeds:
+            session = simulate(SCENARIOS["magnet_near_thigh"](seed=seed, with_magnetometer=mag))
+            with tempfile.TemporaryDirectory() as tmp:
+                bag = write_simulated_bag(Path(tmp) / "bag", session)
+                result = analyze_recording(bag, None, calibrate_at=[(None, "auto")],
+                                           params={"joint_angles": {"heading": heading}})
+            rmse.append(_knee_rmse(session, result, 20.0, 60.0))
+        left, right = np.nanmean(rmse, axis=0)
+        label = f"{'9D' if mag else '6D (--no-mag)'}, heading: {heading}"
+        print(f"    {label:32s} {left:5.2f} / {right:5.2f}")
+
+
+def _knee_rmse(session, result, t0: float, t1: float) -> list[float]:
+    names = ("left_knee_flexion", "right_knee_flexion")
+    rows: dict[str, list] = {n: [] for n in names}
+    rate = session.config.rate_hz
+    for topic, msg, _ in result.messages:
+        if topic != "/joint_states":
+            continue
+        k = round((msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9) * rate)
+        if t0 <= k / rate <= t1:
+            for name, value in zip(msg.name, msg.position, strict=True):
+                if name in rows:
+                    rows[name].append((k, value))
+    out = []
+    for name in names:
+        if not rows[name]:
+            out.append(float("nan"))
+            continue
+        k, v = np.array(rows[name]).T
+        truth = session.truth.joint_angles[name][k.astype(int)]
+        out.append(float(np.degrees(np.sqrt(np.mean((v - truth) ** 2)))))
+    return out
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=5)
+    parser.add_argument("--flip-seeds", type=int, default=50, help="random mountings per protocol")
     parser.add_argument("--algorithm", default=None, help="orientation filter (default: the project's)")
     args = parser.parse_args()
     start = time.perf_counter()
     report_simulator(args.seeds, args.algorithm)
     report_weygers()
     report_qmt()
-    report_qmt_cli()
+    report_qmt_cli("75:walking")
+    report_qmt_cli("auto")
+    report_flips(args.flip_seeds)
+    report_magnet()
     print(f"\nrun time {time.perf_counter() - start:.0f} s")
 
 

@@ -48,7 +48,8 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import Imu
 
 from gait_biofeedback.core.activity.stream import ActivityParams, ActivityStream
-from gait_biofeedback.core.calibration.sensor_to_segment import PROTOCOLS, SessionCalibration
+from gait_biofeedback.core.calibration.protocol import WORDS, find_calibration
+from gait_biofeedback.core.calibration.sensor_to_segment import AUTO, REQUESTS, SessionCalibration
 from gait_biofeedback.core.calibration.stream import (
     CALIBRATION_FILE,
     CalibrationAttempt,
@@ -63,6 +64,7 @@ from gait_biofeedback.core.orientation.stream import OrientationParams, SegmentO
 from gait_biofeedback.core.stamps import NS_PER_S, s_to_ns
 from gait_biofeedback.io.bag import BagReader, BagRecoveryWarning, BagWriter
 from gait_biofeedback.io.bag_writer import check_output
+from gait_biofeedback.io.imu_bag import read_imu_bag
 from gait_biofeedback.io.schemas import type_name_of
 from gait_biofeedback.parameters import stage_parameters
 from gait_biofeedback.wire import diagnostics, topics
@@ -93,7 +95,8 @@ class AnalysisResult:
     ``calibrations``: every calibration request's outcome, in order; ``calibration_file``: the
     calibration in force at the end, saved as ``<output>/calibration.yaml`` (None: none in force or
     nothing written); ``warnings``: what the stages said (time going back, gaps, requests that never
-    ran, chunks of the recording that could not be read)."""
+    ran, chunks of the recording that could not be read); ``notes``: what ``auto`` calibration
+    instants found."""
 
     output: Path | None
     start_ns: int = 0
@@ -102,24 +105,63 @@ class AnalysisResult:
     calibrations: list[CalibrationAttempt] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     messages: list[tuple[str, Any, int]] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
 
 
+AUTO_MARGIN_S = 0.5  # an auto calibration instant: this long after the motion it found (or the end)
 SESSION_CONDITIONS = ("losing samples", "6D")
 """Orientation conditions ``analyze`` also sums up in its warnings (the others are said as they happen)."""
 
 
-def parse_calibrate_at(text: str) -> tuple[float, str]:
-    """``"T:protocol"`` (T in s into the recording; protocol default hip_flexion) → (T, protocol)."""
+def parse_calibrate_at(text: str) -> tuple[float | None, str]:
+    """``"T:protocol"`` → (T, protocol): T in s into the recording or ``auto`` (None: found by
+    :func:`resolve_calibrate_at`); protocol ``hip_flexion``, ``walking`` or ``auto`` (the one the
+    movement shows); ``"auto"`` alone = ``"auto:auto"``; a time alone keeps the former default,
+    hip_flexion."""
     time_text, _, protocol = text.partition(":")
-    protocol = protocol or "hip_flexion"
-    try:
-        t = float(time_text)
-    except ValueError:
-        raise ValueError(f"--calibrate-at {text!r}: expected SECONDS:PROTOCOL, e.g. 36:hip_flexion") from None
-    if protocol not in PROTOCOLS or not math.isfinite(t) or t < 0:
-        raise ValueError(f"--calibrate-at {text!r}: time must be >= 0 s and the protocol one of "
-                         f"{list(PROTOCOLS)}")
+    protocol = protocol or (AUTO if time_text == AUTO else "hip_flexion")
+    example = "expected SECONDS:PROTOCOL, e.g. 36:hip_flexion, 75:walking, 75:auto or auto"
+    if time_text == AUTO:
+        t = None
+    else:
+        try:
+            t = float(time_text)
+        except ValueError:
+            raise ValueError(f"--calibrate-at {text!r}: {example}") from None
+        if not math.isfinite(t) or t < 0:
+            raise ValueError(f"--calibrate-at {text!r}: the time must be >= 0 s ({example})")
+    if protocol not in REQUESTS:
+        raise ValueError(f"--calibrate-at {text!r}: the protocol must be one of {list(REQUESTS)}")
     return t, protocol
+
+
+def resolve_calibrate_at(bag: str | Path, requests: Sequence[tuple[float | None, str]]
+                         ) -> tuple[list[tuple[float, str]], list[str]]:
+    """(requests with every ``auto`` time found, what was found in words). An ``auto`` time is the
+    end (+ 0.5 s) of the first calibration in the recording's raw IMU data
+    (:func:`~gait_biofeedback.core.calibration.protocol.find_calibration`: a quiet standing, then
+    movement that looks like a protocol); with protocol ``auto`` the protocol it looks like. ValueError
+    (saying what was looked for) when there is none."""
+    if all(t is not None for t, _ in requests):
+        return [(float(t), p) for t, p in requests], []
+    data = read_imu_bag(bag)
+    with BagReader(bag) as reader:
+        start_s = reader.start_time_ns / NS_PER_S
+    standing, motion, check = find_calibration(data)
+    (s0, s1), (m0, m1) = ((a - start_s, b - start_s) for a, b in (standing, motion))
+    at = min(m1 + AUTO_MARGIN_S, max(d.t[-1] for d in data.values() if len(d)) - start_s)
+    resolved, notes = [], []
+    for t, protocol in requests:
+        if t is None:
+            seen = check.looks_like or AUTO
+            chosen = seen if protocol == AUTO else protocol
+            notes.append(f"--calibrate-at auto: quiet standing {s0:.2f}-{s1:.2f} s, then "
+                         f"{WORDS.get(seen, seen)} {m0:.2f}-{m1:.2f} s ({check.evidence()}): "
+                         f"calibrating at {at:.2f}:{chosen}")
+            resolved.append((at, chosen))
+        else:
+            resolved.append((float(t), protocol))
+    return resolved, notes
 
 
 class _ActivityRun:
@@ -160,7 +202,7 @@ def _raw_topics(reader: BagReader, bag: str | Path) -> tuple[dict[str, str], dic
 def analyze_recording(
     bag: str | Path,
     output: str | Path | None = None,
-    calibrate_at: Sequence[tuple[float, str]] | None = None,
+    calibrate_at: Sequence[tuple[float | None, str]] | None = None,
     calibration_file: str | Path | None = None,
     params: dict[str, dict] | None = None,
     overwrite: bool = False,
@@ -168,7 +210,8 @@ def analyze_recording(
     """Run the graph's core objects over the raw IMU topics of ``bag`` (see module docstring).
 
     ``calibrate_at``: ``[(seconds into the recording, protocol)]``, the instants a clinician pressed
-    Calibrate (each calibrates on the window ending there); ``calibration_file``: a ``calibration.yaml``
+    Calibrate (each calibrates on the window ending there; None = found, and protocol ``auto`` = the
+    one the movement shows: :func:`resolve_calibrate_at`); ``calibration_file``: a ``calibration.yaml``
     in force from the start; ``params``: node name → parameters, as
     :func:`~gait_biofeedback.parameters.load_params_file` gives them (orientation_filter,
     calibration, joint_angles, gait_events, activity_monitor are used; the others are checked and
@@ -180,11 +223,16 @@ def analyze_recording(
     stages = {node: stage_parameters(node, values) for node, values in (params or {}).items()}
     if output is not None:
         check_output(output, overwrite)  # before the analysis, not after it
+    for _t, protocol in calibrate_at or []:
+        if protocol not in REQUESTS:
+            raise ValueError(f"unknown calibration protocol {protocol!r}; use one of {list(REQUESTS)}")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", BagRecoveryWarning)  # they go into result.warnings
+        requests, notes = resolve_calibrate_at(bag, list(calibrate_at or []))
         with BagReader(bag) as reader:
-            return _analyze(reader, bag, output, list(calibrate_at or []), calibration_file, stages,
-                            overwrite)
+            result = _analyze(reader, bag, output, requests, calibration_file, stages, overwrite)
+    result.notes = notes
+    return result
 
 
 def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
@@ -192,9 +240,6 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
              stages: dict[str, Any], overwrite: bool) -> AnalysisResult:
     raw_topics, mag_topics = _raw_topics(reader, bag)
     result = AnalysisResult(Path(output) if output is not None else None)
-    for _t, protocol in calibrate_at:
-        if protocol not in PROTOCOLS:
-            raise ValueError(f"unknown calibration protocol {protocol!r}; use one of {list(PROTOCOLS)}")
     calibration = None
     c_params: CalibrationParams = stages.get("calibration") or CalibrationParams()
     calibration_file = calibration_file or c_params.calibration_file or None

@@ -116,12 +116,17 @@ def _print_calibrations(attempts: list, start_ns: int) -> None:
 
 
 def _calibration_options(args: argparse.Namespace, params: dict[str, dict]) -> list[tuple[float, str]]:
-    """--calibrate-at requests; --calibration goes into the calibration stage's parameters."""
-    from gait_biofeedback.analyze import parse_calibrate_at
+    """--calibrate-at requests (``auto`` instants found in the bag, and said); --calibration goes into
+    the calibration stage's parameters."""
+    from gait_biofeedback.analyze import parse_calibrate_at, resolve_calibrate_at
 
     if args.calibration is not None:
         params.setdefault("calibration", {})["calibration_file"] = args.calibration
-    return [parse_calibrate_at(text) for text in args.calibrate_at or []]
+    asked = [parse_calibrate_at(text) for text in args.calibrate_at or []]
+    requests, notes = resolve_calibrate_at(args.bag, asked)
+    for note in notes:
+        print(note)
+    return requests
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
@@ -239,8 +244,10 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 def _calibration_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--calibrate-at", action="append", metavar="T:PROTOCOL",
-                   help="press Calibrate T seconds into the recording with PROTOCOL (hip_flexion or "
-                   "walking), e.g. 36:hip_flexion = 1 s after the demo's hip moves; repeat to recalibrate")
+                   help="press Calibrate T seconds into the recording with PROTOCOL (hip_flexion, walking "
+                   "or auto = the one the movement shows), e.g. 36:hip_flexion = 1 s after the demo's hip "
+                   "moves; 'auto' finds the first calibration (quiet standing, then a protocol) and prints "
+                   "the windows it used; repeat to recalibrate")
     p.add_argument("--calibration", metavar="FILE",
                    help="calibration.yaml (as the calibration node saves it) in force from the start")
 

@@ -51,3 +51,19 @@ def synthetic_imu(segments: list[str], duration: float = 2.0, rate_hz: float = 1
                      rng.normal(0, 2e-5, (n, 3)) if with_mag else None)
         for s in segments
     }
+
+
+@pytest.fixture(scope="session")
+def hip_flexion():
+    """The simulated hip-flexion calibration trial the calibration tests share (seed 5)."""
+    from gait_biofeedback.sim.simulator import SCENARIOS, simulate
+
+    return simulate(SCENARIOS["calibration_hip_flexion"](seed=5))
+
+
+@pytest.fixture(scope="session")
+def walking():
+    """The simulated walking (PC8) calibration trial the calibration tests share (seed 6)."""
+    from gait_biofeedback.sim.simulator import SCENARIOS, simulate
+
+    return simulate(SCENARIOS["calibration_walking"](seed=6))

@@ -224,31 +224,38 @@ def test_cli_analyze_with_a_calibration_file(tmp_path, capsys):
 def test_replay_and_analyze_take_the_same_calibration_options(session_bag, tmp_path, capsys):
     """`replay --calibrate-at` and `analyze --calibrate-at` calibrate on the same samples, print the
     windows they used and save calibration.yaml with their outputs; a recording without truth gets
-    no "error to true mounting" line; the saved file is accepted by --calibration."""
+    no "error to true mounting" line; the saved file is accepted by --calibration. Both take ``auto``:
+    the first calibration found in the recording, with the protocol it shows."""
+    import re
+
     from gait_biofeedback.cli import main
     from gait_biofeedback.core.calibration.stream import read_calibration_file
     from gait_biofeedback.io.bag import write_imu_bag
 
     _, session = session_bag
     sensors_only = write_imu_bag(tmp_path / "sensors", session.imu)  # a real recording has no truth
-    request = ["--calibrate-at", f"{CALIBRATE_AT:g}:hip_flexion", "--params", str(SESSION_PARAMS)]
+    request = ["--calibrate-at", "auto", "--params", str(SESSION_PARAMS)]
     assert main(["analyze", str(sensors_only), "-o", str(tmp_path / "offline"), *request]) == 0
     out = capsys.readouterr().out
-    assert "calibrate (hip_flexion, data up to 36.00 s): calibrated" in out
-    # the standing found before the hip moves (phases: stand 0-5 s, hip flexion 5-35 s, starting
-    # slowly: the first 0.4 s are still quiet enough)
-    windows = next(line for line in out.splitlines() if "quiet standing" in line)
-    standing, motion = windows.split(", motion ")
-    s0, s1 = (float(x) for x in standing.split()[-2].split("-"))
-    m0, m1 = (float(x) for x in motion.split()[0].split("-"))
-    assert 0.0 <= s0 < s1 <= 5.5 and s1 == m0 and m1 == 36.0
+    # phases: stand 0-5 s, hip flexion 5-35 s (starting slowly: the first 0.4 s are still quiet
+    # enough), stand 35-40 s: the motion found ends where the standing after it starts
+    number = r"([\d.]+)"
+    found = re.search(rf"--calibrate-at auto: quiet standing {number}-{number} s, then hip flexion {number}-"
+                      rf"{number} s \(both legs moving 0 % .*\): calibrating at {number}:hip_flexion", out)
+    assert found, out
+    s0, s1, m0, m1, at = (float(x) for x in found.groups())
+    assert 0.0 <= s0 < s1 <= 5.5 and s1 == m0 and 34.0 < m1 < 36.0
+    assert at == pytest.approx(m1 + 0.5, abs=0.01)
+    assert f"calibrate (hip_flexion, data up to {at:.2f} s): calibrated" in out
+    windows = next(line for line in out.splitlines() if line.startswith("  quiet standing"))
+    assert windows == f"  quiet standing {s0:.2f}-{s1:.2f} s, motion {m0:.2f}-{at:.2f} s into the recording"
     assert "calibration: left_thigh ok" in out and "true" not in out and "truth" not in out
     offline, _ = read_calibration_file(tmp_path / "offline" / "calibration.yaml", SEGMENTS)
 
     assert main(["replay", str(sensors_only), "--record", str(tmp_path / "live"), "--speed", "4",
                  "--stop", "37", "--nodes", "orientation_filter,calibration", *request]) == 0
     out = capsys.readouterr().out
-    assert "calibrate (hip_flexion, data up to 36.00 s): calibrated" in out and "quiet standing" in out
+    assert f"calibrate (hip_flexion, data up to {at:.2f} s): calibrated" in out and "quiet standing" in out
     assert f"calibration saved as {tmp_path / 'live' / 'calibration.yaml'}" in out
     live, _ = read_calibration_file(tmp_path / "live" / "calibration.yaml", SEGMENTS)
     for segment in SEGMENTS:

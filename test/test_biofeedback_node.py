@@ -189,7 +189,7 @@ def test_node_cues_frames_and_commands(ros_context, session):
         assert calls == ["walking"]
         cal = replies("calibrate")
         assert any(m["success"] and m["message"] == "stub: calibrated with walking" for m in cal)
-        refusal = "calibrate: protocol='jumping' refused; expected one of ['hip_flexion', 'walking']"
+        refusal = "calibrate: protocol='jumping' refused; expected one of ['auto', 'hip_flexion', 'walking']"
         assert any(not m["success"] and m["message"] == refusal for m in cal)
         rec = replies("record_start")[0]
         assert not rec["success"] and "not available" in rec["message"]

@@ -183,7 +183,15 @@ def test_dashboard_in_headless_chromium(ros_context, walk_session, tmp_path):
         # the clinician calibrates (walking protocol: quiet standing, then >= 8 straight steps, i.e. at
         # least 4 swings per leg: the walk starts at 5 s, the 4th swing of each leg is done by ~12 s)
         browser.wait_for(lambda s: (s.get("lastAngleStamp") or 0.0) > 14.0, timeout=20)
-        browser.evaluate("document.getElementById('protocol').value = 'walking';"
+        # first with the wrong protocol: refused, and the page proposes the one the movement shows
+        browser.evaluate("document.getElementById('protocol').value = 'hip_flexion';"
+                         "document.getElementById('calibrate').click(); true")
+        state = browser.wait_for(lambda s: s.get("lastCalibration") is not None, timeout=15)
+        refused = state["lastCalibration"]
+        assert not refused["success"] and refused["looksLike"] == "walking", refused
+        assert "looks like walking" in refused["message"] and "not hip flexion" in refused["message"]
+        assert browser.evaluate("document.getElementById('protocol').value") == "walking"
+        browser.evaluate("window.dashboardState.lastCalibration = null;"
                          "document.getElementById('calibrate').click(); true")
         state = browser.wait_for(lambda s: s.get("lastCalibration") is not None, timeout=15)
         result = state["lastCalibration"]

@@ -24,7 +24,7 @@ const state = {
   connected: false, hello: false, framesReceived: 0, framesRendered: 0, fps: 0,
   figureUpdates: 0, figureMotion: 0, curvePoints: 0, strideCurves: 0, samplesReceived: 0,
   events: 0, cuesReceived: 0, lastCalibration: null, lastReply: null, audio: null, muted: false,
-  readOnly: true, calibrationInForce: null,
+  readOnly: true, calibrationInForce: null, proposedProtocol: null,
   lastAngleStamp: null, lastFrameWall: null, feedback: { side: "both", joint: "all" },
 };
 window.dashboardState = state;
@@ -167,8 +167,10 @@ function showReply(m) {
     el.textContent = "Calibration: " + (m.pending ? m.message : text);
     el.className = m.pending ? "pending" : (m.success ? "ok" : "fail");
     if (!m.pending) {
-      state.lastCalibration = { success: m.success, message: m.message, segments: m.segments || [] };
+      state.lastCalibration = { success: m.success, message: m.message, segments: m.segments || [],
+                                looksLike: m.looks_like || "" };
       document.getElementById("calibrate").disabled = false;
+      proposeProtocol(m);
     }
   } else {
     document.getElementById("reply-message").textContent = m.action + ": " + text;
@@ -176,6 +178,19 @@ function showReply(m) {
     if (m.action === "record_stop" && m.success) document.getElementById("record-start").classList.remove("active");
     if (m.action === "feedback" && m.feedback) state.feedback = m.feedback;
   }
+}
+
+// After a refusal, propose the protocol the movement looked like: select it and say so (never calibrate
+// with it unasked: the clinician presses Calibrate again).
+function proposeProtocol(m) {
+  const select = document.getElementById("protocol");
+  const seen = m.looks_like || "";
+  if (m.success || !seen || select.value === seen) return;
+  select.value = seen;
+  state.proposedProtocol = seen;
+  const el = document.getElementById("calibration-message");
+  el.textContent += " — the movement looks like " + seen.replace("_", " ") +
+    ": protocol set to it, press Calibrate to use it.";
 }
 
 // ---------------------------------------------------------------------------------------------- controls

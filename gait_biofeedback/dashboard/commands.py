@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from gait_biofeedback.core.biofeedback.evaluator import FEEDBACK_JOINTS, FEEDBACK_SIDES
-from gait_biofeedback.core.calibration.sensor_to_segment import PROTOCOLS
+from gait_biofeedback.core.calibration.sensor_to_segment import REQUESTS
 
 
 class CommandError(ValueError):
@@ -50,7 +50,7 @@ class Field:
 
 
 COMMANDS: dict[str, dict[str, Field]] = {
-    "calibrate": {"protocol": Field("str", PROTOCOLS),
+    "calibrate": {"protocol": Field("str", REQUESTS),
                   "standing_duration": Field("number", low=0.0, high=60.0),
                   "motion_duration": Field("number", low=0.0, high=600.0)},
     "record_start": {},

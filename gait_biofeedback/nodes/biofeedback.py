@@ -16,7 +16,8 @@ Dashboard (``serve_dashboard``): :class:`~gait_biofeedback.dashboard.server.Dash
 ``/``, websocket at ``/ws``, frames at ``frame_rate`` Hz built from the latest state. ROS callbacks only
 replace references and append to bounded deques; the server thread only reads/drains them. Page → node
 messages (queued, handled by a ROS timer, services called with ``call_async``, never blocking):
-``{"action": "calibrate", "protocol": "hip_flexion"|"walking"}`` → ``calibration/calibrate``;
+``{"action": "calibrate", "protocol": "auto"|"hip_flexion"|"walking"}`` (default auto: the one the movement
+shows) → ``calibration/calibrate`` (the reply adds ``looks_like``, which the page proposes after a refusal);
 ``{"action": "record_start"}`` / ``"record_stop"`` → ``recorder/start`` / ``recorder/stop``;
 ``{"action": "feedback", "side": "left"|"right"|"both", "joint": "hip"|"knee"|"ankle"|"timing"|"all"}``;
 ``{"action": "mute", "muted": bool}``. Replies: ``{"type": "reply", "action", "success", "message"}``.
@@ -52,7 +53,7 @@ from gait_biofeedback.core.biofeedback.evaluator import (
     sagittal_stick_figure,
     select_audio_cue,
 )
-from gait_biofeedback.core.calibration.sensor_to_segment import PROTOCOLS
+from gait_biofeedback.core.calibration.sensor_to_segment import AUTO, REQUESTS
 from gait_biofeedback.core.segments import SIDES
 from gait_biofeedback.core.stamps import NS_PER_S
 from gait_biofeedback.dashboard.commands import CommandError, parse_command
@@ -297,7 +298,7 @@ class BiofeedbackNode(GuardedNode):
             self._reply(str(command.get("action", "?"))[:40], False, str(exc))
             return
         if action == "calibrate":
-            protocol = fields.get("protocol", "hip_flexion")
+            protocol = fields.get("protocol", AUTO)
             if not self._calibrate.service_is_ready():
                 self._reply(action, False,
                             "calibration service not available: is the calibration node running?")
@@ -338,6 +339,7 @@ class BiofeedbackNode(GuardedNode):
         if action == "calibrate":
             extra["segments"] = [{"segment": s.segment, "valid": bool(s.valid), "quality": float(s.quality),
                                   "message": s.message} for s in response.segments]
+            extra["looks_like"] = response.looks_like
         self._reply(action, bool(response.success), response.message, **extra)
 
     # -- server thread: hello and frames (read/drain only) -------------------------------------------
@@ -348,7 +350,7 @@ class BiofeedbackNode(GuardedNode):
         self._sent_diag_version = -1
         self._sent_activity_version = -1
         return {"type": "hello", "targets": self.targets_json, "feedback": dict(self.feedback),
-                "muted": self.muted, "protocols": list(PROTOCOLS), "audio": dict(self._audio),
+                "muted": self.muted, "protocols": list(REQUESTS), "audio": dict(self._audio),
                 "strides": list(self._recent_strides), "calibration": self._calibration, "time": time.time()}
 
     def build_frame(self) -> dict[str, Any] | None:

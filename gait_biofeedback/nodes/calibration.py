@@ -139,7 +139,8 @@ class CalibrationNode(GuardedNode):
     def calibrate(self, protocol: str, standing_duration: float = 0.0, motion_duration: float = 0.0,
                   segments: list[str] | None = None) -> tuple[bool, str, SessionCalibration | None]:
         """Run the calibration on the buffer now (the service body, callable in-process); the result
-        is in force from ``apply_delay`` s after the newest sample used."""
+        is in force from ``apply_delay`` s after the newest sample used. The protocol the movement
+        looked like is in :attr:`last_attempt`."""
         attempt = self.core.calibrate(protocol, standing_duration, motion_duration, segments)
         self._accept(attempt)
         return attempt.success, attempt.message, attempt.calibration
@@ -157,6 +158,7 @@ class CalibrationNode(GuardedNode):
         success, message, cal = self.calibrate(request.protocol, request.standing_duration,
                                                request.motion_duration, list(request.segments))
         response.success, response.message = success, message
+        response.looks_like = (self.last_attempt.looks_like or "") if self.last_attempt is not None else ""
         if cal is not None:
             response.segments = segment_messages(cal)
         if success:

@@ -754,6 +754,15 @@ def stairs(**kw) -> SimulationConfig:
                  Phase("stairs_down", 8.0), Phase("walk", 4.0), Phase("stand", 3.0)], **kw)
 
 
+def magnet_near_thigh(**kw) -> SimulationConfig:
+    """Standing, a 10 s walk (walking calibration), standing 5 s, a 40 s walk during whose middle 20 s
+    (30-50 s) a magnet near the left thigh adds 30 µT horizontally to the field that sensor alone sees
+    (its 9D heading turns by about 50°), standing 3 s."""
+    kw = {"mag_disturbances": [(30.0, 50.0, "left_thigh", (30e-6, 0.0, 0.0))], **kw}
+    return _cfg([Phase("stand", 5.0), Phase("walk", 10.0), Phase("stand", 5.0), Phase("walk", 40.0),
+                 Phase("stand", 3.0)], **kw)
+
+
 SCENARIOS: dict[str, Callable[..., SimulationConfig]] = {
     "demo": demo,
     "walk": walk,
@@ -762,4 +771,5 @@ SCENARIOS: dict[str, Callable[..., SimulationConfig]] = {
     "activity": activity,
     "slow_gait": slow_gait,
     "stairs": stairs,
+    "magnet_near_thigh": magnet_near_thigh,
 }

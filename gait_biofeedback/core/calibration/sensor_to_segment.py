@@ -22,9 +22,11 @@ Steps (per segment, independently):
    positive about +z on both legs. Each rule is a physical property of the movement that holds for any
    walker (simulated and real), evaluated on the low-passed rate ``ω·z``:
 
-   * hip flexion protocol, thigh: hip flexion exceeds extension, so the thigh's sagittal angle relative
-     to standing (``∫ ω·z dt``, gyro minus its standing mean) has a positive mean; shank and foot swing
-     with the thigh, so their ``ω·z`` correlates positively with the thigh's (simulated: +1.0);
+   * hip flexion protocol, thigh: hip flexion exceeds extension, so the thigh's inclination relative
+     to standing has a positive mean, read from the accelerometer (:func:`inclination_sign`; the
+     integrated ``∫ ω·z dt`` of before drifted with the filter's bias estimate and put 5 of 50 random
+     mountings 180° off); shank and foot swing with the thigh, so their ``ω·z`` correlates positively
+     with the thigh's (simulated: +1.0);
    * walking protocol, shank: it rotates forward slowly over the planted foot in stance and fast in
      swing, so its largest rate peak is the forward swing (positive skewness of ``ω·z``; simulated
      +1.6, qmt ±0.8);
@@ -34,7 +36,7 @@ Steps (per segment, independently):
      (``p99 + p1 > 0``); with the wrong thigh sign the curve is the sum of the two segment angles,
      nearly symmetric (simulated +20° vs 0°, qmt +19° vs −3°). The former rule (mean of ``∫ ω·z``
      over the walk) drifts on a long real walk (qmt right thigh: +21° mean from drift alone, the wrong
-     sign on both thighs); it stays the fallback without a shank;
+     sign on both thighs); without a shank the thigh falls back to its mean inclination;
    * walking protocol, foot (:func:`foot_pitch_sign`, no reference needed, also used by the batch
      gait-event calibration): the foot's toes-down minimum at push-off (≈ −37°) is deeper than its
      toes-up maximum at initial contact (≈ +12°) [T §6.4.2], so the sign whose detrended pitch has the
@@ -43,17 +45,21 @@ Steps (per segment, independently):
      put every gait event ~300 ms off. ``details["reference_agreement"]`` records whether the foot's
      rate correlates positively with the shank's (qmt +0.95, simulated +0.92).
 
-   Without the reference, a segment falls back to its own rule (the mean-angle rule in hip flexion,
-   skewness for a walking shank, knee shape impossible → mean angle for a walking thigh), noted in
-   ``details["sign_rule"]``.
-4. Pelvis and chest (gait.md §1.7, issue 14): vertical from standing; heading from option (b), the
+   Without the reference, a segment falls back to its own rule (mean inclination in hip flexion and
+   for a walking thigh, the integrated mean angle when no accelerometer is given, skewness for a
+   walking shank), noted in ``details["sign_rule"]``.
+4. Pelvis and chest (gait.md §1.7, issue 14): vertical from standing; in walking, x along the sensor's
+   own anteroposterior acceleration axis (:func:`~gait_biofeedback.core.calibration.trunk.walking_axis`),
+   its sign from what follows; heading from option (b), the
    thighs' mean anatomical x during the motion seen in the pelvis sensor through each hip's kinematic
    relative heading (:mod:`~gait_biofeedback.core.calibration.trunk`), the chest through the pelvis.
    Only when that gives nothing (a still pelvis, as in hip flexion) and the sensors share a
    magnetometer heading, option (a): the thighs' mean world heading in standing. Otherwise the trunk
    segment alone is refused, with what to do.
 
-Each segment is accepted or refused on its own; the session succeeds when one segment is accepted.
+Before any of it, the motion is checked against the protocol (:mod:`~.protocol`: the other
+protocol's sign rules would put segments 180° off, and a sitting "standing" wrong verticals). Then each
+segment is accepted or refused on its own; the session succeeds when one segment is accepted.
 
 Quality: ``explained_variance`` of the first principal axis (λ1/(λ1+λ2), 0.5 = no preferred axis,
 1 = single-axis motion); trunk: ``thigh_heading_agreement`` (1 − |Δheading| / 90°).
@@ -68,10 +74,13 @@ import numpy as np
 from scipy.signal import butter, filtfilt
 
 from gait_biofeedback.core import quaternion as quat
-from gait_biofeedback.core.calibration.trunk import forward_in_proximal
+from gait_biofeedback.core.calibration.protocol import MAX_UPRIGHT_TILT, WORDS, check_protocol, upright_tilt
+from gait_biofeedback.core.calibration.trunk import forward_in_proximal, walking_axis
 from gait_biofeedback.core.segments import GRAVITY, SIDES, ImuSeries
 
 PROTOCOLS: tuple[str, ...] = ("hip_flexion", "walking")
+AUTO = "auto"  # a request's protocol: the one the movement shows (:mod:`.protocol`)
+REQUESTS: tuple[str, ...] = (AUTO, *PROTOCOLS)
 LEG_PARTS: tuple[str, ...] = ("thigh", "shank", "foot")
 TRUNK_SEGMENTS: tuple[str, ...] = ("pelvis", "chest")
 # Minimum sagittal cycles per leg segment: thesis §3.6 (≥ 10 hip FE) and §3.3 PC8 (8 steps = 4 per leg).
@@ -81,6 +90,7 @@ MIN_EXPLAINED_VARIANCE = 0.6
 MAX_STANDING_GYRO_RMS = 0.08  # rad/s (4.6 °/s): more is not quiet standing
 MAX_STANDING_ACC_RMS = 0.5  # m/s²
 MAX_THIGH_HEADING_DISAGREEMENT = np.radians(30.0)
+MAX_AXIS_DISAGREEMENT = np.radians(45.0)  # trunk walking axis vs the nearest joint direction
 CYCLE_THRESHOLD = 0.35  # rad/s, hysteresis of the cycle counter (20 °/s)
 MOTION_LOWPASS_HZ = 6.0  # READING: low-pass of the motion gyro before PCA and the sign rules
 DETREND_WINDOW_S = 2.0  # moving-mean window removed from integrated angles (about one stride)
@@ -132,6 +142,7 @@ class SessionCalibration:
     message: str
     standing: tuple[float, float] | None = None
     motion: tuple[float, float] | None = None
+    looks_like: str | None = None  # the protocol the movement showed (None: it could not tell)
 
     def rotations(self) -> dict[str, np.ndarray]:
         """Segment → r of the valid segments."""
@@ -141,6 +152,7 @@ class SessionCalibration:
         return {"protocol": self.protocol, "success": self.success, "message": self.message,
                 "standing": None if self.standing is None else [float(v) for v in self.standing],
                 "motion": None if self.motion is None else [float(v) for v in self.motion],
+                "looks_like": self.looks_like,
                 "segments": {s: r.to_dict() for s, r in self.segments.items()}}
 
     @classmethod
@@ -150,6 +162,7 @@ class SessionCalibration:
         return cls(protocol=d["protocol"], success=bool(d["success"]), message=str(d.get("message", "")),
                    standing=None if d.get("standing") is None else tuple(d["standing"]),
                    motion=None if d.get("motion") is None else tuple(d["motion"]),
+                   looks_like=d.get("looks_like") if d.get("looks_like") in PROTOCOLS else None,
                    segments={s: SegmentCalibrationResult.from_dict(r) for s, r in d["segments"].items()})
 
 
@@ -281,11 +294,27 @@ def knee_shape_sign(thigh_rate: np.ndarray, shank_rate: np.ndarray, rate_hz: flo
     return (1.0 if score[0] >= score[1] else -1.0), float(abs(score[0] - score[1]))
 
 
-def _own_sign(segment: str, rate: np.ndarray, protocol: str, rate_hz: float) -> tuple[float, str]:
+def inclination_sign(axis: np.ndarray, up: np.ndarray, motion_acc: np.ndarray) -> tuple[float, float]:
+    """(+1 if ``axis`` points right, mean forward inclination rad) of a thigh from its accelerometer:
+    a rotation θ about the right-pointing axis z turns the sensor's up vector by −θ about z, so
+    ``(up × â)·z = −sin θ``; averaged over the motion (linear accelerations average out), flexion
+    exceeding extension makes it negative about the right-pointing axis. No integration, so no drift
+    (the integrated angle put 5 of 50 simulated left thighs 180° off in hip flexion: the filters' bias
+    estimate moves during the motion, and 30 s of it outweighs a mean flexion of +5°)."""
+    acc = np.asarray(motion_acc, dtype=float)
+    unit = acc / np.maximum(np.linalg.norm(acc, axis=1, keepdims=True), 1e-9)
+    forward = -float(np.mean(np.cross(up, unit) @ axis))
+    return (1.0 if forward >= 0 else -1.0), float(np.arcsin(min(1.0, abs(forward))))
+
+
+def _own_sign(segment: str, rate: np.ndarray, protocol: str, rate_hz: float,
+              inclination: tuple[float, float] | None = None) -> tuple[float, str]:
     """(+1 if the segment's own rule says the axis points right, rule name) (module docstring step 3)."""
     if protocol == "walking" and segment.endswith("foot"):
         sign, asym = foot_pitch_sign(rate, rate_hz)
         return sign, f"foot pitch shape (push-off deeper by {np.degrees(asym):.0f} deg)"
+    if (protocol == "hip_flexion" or segment.endswith("thigh")) and inclination is not None:
+        return inclination[0], f"mean inclination ({np.degrees(inclination[1]):.1f} deg forward)"
     if protocol == "hip_flexion" or segment.endswith("thigh"):
         angle = np.cumsum(rate) / rate_hz
         return (1.0 if np.mean(angle) >= 0 else -1.0), "mean sagittal angle"
@@ -302,8 +331,13 @@ def calibrate_segment(
     protocol: str,
     standing_orientation: np.ndarray | None = None,
     reference_rate: np.ndarray | None = None,
+    motion_acc: np.ndarray | None = None,
 ) -> SegmentCalibrationResult:
     """Calibrate one leg segment (thigh, shank, foot) with thesis Eq 14–16 (see module docstring).
+
+    ``motion_acc``: the accelerometer at the motion samples; with it, the own rule of a thigh (hip
+    flexion, or walking without its shank) is :func:`inclination_sign`, without it the integrated
+    mean sagittal angle (which drifts).
 
     ``reference_rate``: the sagittal angular rate (about its right-pointing axis, standing bias removed,
     low-passed with :func:`lowpass_motion`) of the same leg's reference segment at the motion samples:
@@ -349,7 +383,9 @@ def calibrate_segment(
     elif usable_ref:
         sign, rule = (1.0 if corr >= 0 else -1.0), f"correlation with reference ({corr:+.2f})"
     else:
-        sign, rule = _own_sign(segment, rate, protocol, rate_hz)
+        acc_ok = motion_acc is not None and len(motion_acc) == len(rate)
+        sign, rule = _own_sign(segment, rate, protocol, rate_hz,
+                               inclination_sign(axis, y, motion_acc) if acc_ok else None)
     z = sign * axis
     x = np.cross(y, z)
     rotation = quat.from_matrix(np.column_stack([x, y, z]))
@@ -399,13 +435,24 @@ def mean_orientation(q: np.ndarray) -> np.ndarray:
 def calibrate_trunk(segment: str, standing_acc: np.ndarray, standing_gyr: np.ndarray,
                     standing_orientation: np.ndarray | None,
                     thighs: list[SegmentCalibrationResult],
-                    forward: list[np.ndarray | None] | None = None,
-                    common_heading: bool = True) -> SegmentCalibrationResult:
+                    forward: list[np.ndarray] | None = None,
+                    common_heading: bool = True, why_no_forward: list[str] | None = None,
+                    walking: tuple[ImuSeries, np.ndarray, tuple[float, float]] | None = None
+                    ) -> SegmentCalibrationResult:
     """Pelvis/chest: vertical from standing (Eq 14); heading from ``forward`` (sensor-coordinate
     directions from the joints' kinematic heading, :mod:`~gait_biofeedback.core.calibration.trunk`,
     gait.md §1.7 option (b)) where they exist, else, only with a ``common_heading`` (every sensor
     magnetometer-aided), the mean world heading of the calibrated thighs' x axes during standing
-    (option (a)). Quality: 1 − spread / 90° of the directions it averaged."""
+    (option (a)); ``why_no_forward``: why the joints gave none (for the refusal).
+
+    ``walking`` (the segment's series, orientations and the motion window): when the motion is rhythmic
+    walking, x is the sensor's own anteroposterior acceleration axis
+    (:func:`~gait_biofeedback.core.calibration.trunk.walking_axis`) and the directions above only give
+    its sign; it is refused when none of them lies within ``MAX_AXIS_DISAGREEMENT`` of it. (On the qmt
+    walk the two hips' kinematic headings put the pelvis forward 69° apart, while the acceleration axis
+    lies 13° from one of them; simulated: axis 1.6° from the truth, thigh directions 6–9°, the
+    thighs' functional flexion axes.) Quality: 1 − angle / 90° between x and the directions' mean
+    (without ``walking``: between the directions averaged)."""
     name = label(segment)
     standing_acc = np.asarray(standing_acc, dtype=float).reshape(-1, 3)
     motion, problem = standing_check(segment, standing_acc, np.asarray(standing_gyr, float).reshape(-1, 3))
@@ -414,17 +461,18 @@ def calibrate_trunk(segment: str, standing_acc: np.ndarray, standing_gyr: np.nda
     if problem:
         return result
     y = vertical_calibration(standing_acc)[1]
-    directions = [f - np.dot(f, y) * y for f in forward or [] if f is not None]
+    directions = [f - np.dot(f, y) * y for f in forward or []]
     directions = [d / np.linalg.norm(d) for d in directions if np.linalg.norm(d) > 0.1]
     source = "kinematic heading (joint accelerations)"
     if not directions:
         usable = [t for t in thighs if t.valid and "standing_orientation" in t.details]
         if not common_heading or standing_orientation is None or not usable:
             via = "the thighs" if segment == "pelvis" else "a calibrated pelvis"
-            result.message = (f"{name}: no heading: the motion gave none through {via} (a still pelvis, as "
-                              "in hip flexion, moves its joint centres too little"
+            why = "; ".join(why_no_forward or [])
+            result.message = (f"{name}: no heading from {via}" + (f" ({why})" if why else "")
+                              + ": a still pelvis, as in hip flexion, does not show it"
                               + (", and the sensors have no shared magnetometer heading" if not common_heading
-                                 else "") + "); calibrate with the walking protocol (8 straight steps)")
+                                 else "") + "; calibrate with the walking protocol (8 straight steps)")
             return result
         source = "magnetometer heading of the thighs in standing"
         for t in usable:
@@ -437,41 +485,63 @@ def calibrate_trunk(segment: str, standing_acc: np.ndarray, standing_gyr: np.nda
                 return result
             directions.append(x_sensor / np.linalg.norm(x_sensor))
     x = np.sum(directions, axis=0)
-    spread = float(np.arccos(np.clip(np.dot(directions[0], directions[-1]), -1.0, 1.0)))
     if np.linalg.norm(x) < 0.3:
         result.message = f"{name}: the directions it would average point apart; repeat the calibration"
         return result
     x /= np.linalg.norm(x)
+    spread = float(np.arccos(np.clip(np.dot(directions[0], directions[-1]), -1.0, 1.0)))
+    axis, clarity, step_hz = walking_axis(*walking, y) if walking is not None else (None, 0.0, 0.0)
+    details: dict[str, Any] = {"heading_source": source, "thigh_heading_spread": spread}
+    if axis is not None:
+        axis = axis - np.dot(axis, y) * y
+        axis = (1.0 if np.dot(axis, x) >= 0 else -1.0) * axis / np.linalg.norm(axis)
+        nearest = float(np.arccos(np.clip(max(np.dot(d, axis) for d in directions), -1.0, 1.0)))
+        details.update(heading_source=f"walking acceleration axis (step {step_hz:.2f} Hz, clarity "
+                       f"{clarity:.1f}), its sign from the {source}", axis_to_nearest_direction=nearest)
+        spread = float(np.arccos(np.clip(np.dot(axis, x), -1.0, 1.0)))
+        x = axis
+        if nearest > MAX_AXIS_DISAGREEMENT:
+            problem = (f"{name}: its walking direction and the {source} disagree by "
+                       f"{np.degrees(nearest):.0f}°: check the thigh sensors, then repeat")
+    elif spread > MAX_THIGH_HEADING_DISAGREEMENT:
+        problem = (f"{name}: the left and right thighs put its forward direction "
+                   f"{np.degrees(spread):.0f}° apart: check the thigh sensors, then repeat")
     result.rotation = quat.from_matrix(np.column_stack([x, y, np.cross(x, y)]))
     result.quality = max(0.0, 1.0 - spread / (np.pi / 2))
-    result.details = {"heading_source": source, "thigh_heading_spread": spread}
+    result.details = details
     if standing_orientation is not None:
         result.details["standing_orientation"] = [float(v) for v in standing_orientation]
-    if spread > MAX_THIGH_HEADING_DISAGREEMENT:
-        result.message = (f"{name}: the left and right thighs put its forward direction "
-                          f"{np.degrees(spread):.0f}° apart: check the thigh sensors, then repeat")
-    else:
-        result.valid = True
+    result.message = problem or ""
+    result.valid = problem is None
     return result
 
 
 def _trunk_forward(segment: str, data: dict[str, ImuSeries], orientations: dict[str, np.ndarray],
                    results: dict[str, SegmentCalibrationResult], motion: tuple[float, float]
-                   ) -> list[np.ndarray | None]:
-    """Forward directions of a trunk sensor from the kinematic heading (module docstring step 4)."""
+                   ) -> tuple[list[np.ndarray], list[str]]:
+    """(forward directions of a trunk sensor from the kinematic heading, why the others gave none)
+    (module docstring step 4)."""
     if "pelvis" not in data or "pelvis" not in orientations:
-        return []
+        return [], ["no pelvis orientation"]
     pelvis, q_pelvis = data["pelvis"], orientations["pelvis"]
+    found = []
     if segment == "pelvis":
-        return [forward_in_proximal(pelvis, q_pelvis, data[t], orientations[t],
-                                    quat.rotate(results[t].rotation, [1.0, 0.0, 0.0]), motion)
-                for t in (f"{side}_thigh" for side in SIDES)
-                if t in results and results[t].valid and t in orientations]
-    if segment in orientations and results.get("pelvis") is not None and results["pelvis"].valid:
+        for t in (f"{side}_thigh" for side in SIDES):
+            if t in results and results[t].valid and t in orientations:
+                x_thigh = quat.rotate(results[t].rotation, [1.0, 0.0, 0.0])
+                direction, how = forward_in_proximal(pelvis, q_pelvis, data[t], orientations[t], x_thigh,
+                                                     motion)
+                found.append((direction, f"{label(t)}: {how}"))
+        if not found:
+            return [], ["no calibrated thigh"]
+    elif segment in orientations and results.get("pelvis") is not None and results["pelvis"].valid:
         x_pelvis = quat.rotate(results["pelvis"].rotation, [1.0, 0.0, 0.0])
-        return [forward_in_proximal(pelvis, q_pelvis, data[segment], orientations[segment], x_pelvis, motion,
-                                    toward_distal=True)]
-    return []
+        direction, how = forward_in_proximal(pelvis, q_pelvis, data[segment], orientations[segment], x_pelvis,
+                                             motion, toward_distal=True)
+        found.append((direction, f"pelvis: {how}"))
+    else:
+        return [], ["no calibrated pelvis"]
+    return [d for d, _ in found if d is not None], [how for d, how in found if d is None]
 
 
 def _window(series_t: np.ndarray, window: tuple[float, float]) -> np.ndarray:
@@ -490,10 +560,32 @@ def calibrate_session(
     """Calibrate every segment of ``data`` (legs, then pelvis/chest) from the ``standing`` and
     ``motion`` time windows (s). ``orientations``: segment → (N, 4) sensor→world per sample of
     ``data`` (needed for the trunk heading); ``common_heading``: they share a magnetometer heading.
-    Each segment is valid or refused on its own: ``success`` when at least one is valid (the others'
-    messages stay in ``message`` and in their entries)."""
-    if protocol not in PROTOCOLS:
-        raise ValueError(f"unknown protocol {protocol!r}; expected one of {PROTOCOLS}")
+
+    First the motion is checked against ``protocol``
+    (:func:`~gait_biofeedback.core.calibration.protocol.check_protocol`): when it looks like the other
+    protocol, nothing is calibrated and the message names the protocol it looks like (the other
+    protocol's sign rules would put segments 180° off); ``protocol="auto"`` takes the one it looks
+    like and refuses when it cannot tell; when it cannot tell, a named protocol is used and the message
+    says it was not confirmed. Then each segment is valid or refused on its own (also when its standing
+    attitude is far from its attitude during the motion, :func:`~.protocol.upright_tilt`: not a
+    standing): ``success`` when at least one is valid (the others' messages stay in ``message`` and in
+    their entries)."""
+    if protocol not in REQUESTS:
+        raise ValueError(f"unknown protocol {protocol!r}; expected one of {REQUESTS}")
+    check = check_protocol(data, motion)
+    seen = check.looks_like
+    if (protocol == AUTO and seen is None) or (seen is not None and protocol not in (AUTO, seen)):
+        if seen is None:
+            why = (f"the movement does not show which protocol was done ({check.evidence()}): choose "
+                   "hip flexion or walking and repeat the protocol")
+        else:
+            why = (f"the movement looks like {WORDS[seen]} ({check.evidence()}), not {WORDS[protocol]}: "
+                   f"calibrate with the {WORDS[seen]} protocol")
+        return SessionCalibration(protocol if protocol != AUTO else (seen or PROTOCOLS[0]), {}, False,
+                                  f"calibration refused, previous calibration stays in force: {why}",
+                                  tuple(standing), tuple(motion), seen)
+    unconfirmed = seen is None
+    protocol = seen if protocol == AUTO else protocol
     orientations = orientations or {}
     results: dict[str, SegmentCalibrationResult] = {}
     ref_part = "thigh" if protocol == "hip_flexion" else "shank"
@@ -511,7 +603,7 @@ def calibrate_session(
                 rate_ref = np.interp(s.t[mo], *ref_rate)
             q_stand = mean_orientation(orientations[seg][st]) if seg in orientations and st.any() else None
             res = calibrate_segment(seg, s.acc[st], s.gyr[st], s.gyr[mo], rate_hz or s.rate_hz, protocol,
-                                    q_stand, rate_ref)
+                                    q_stand, rate_ref, s.acc[mo])
             results[seg] = res
             if seg == ref and res.valid:
                 z = quat.rotate(res.rotation, [0.0, 0.0, 1.0])
@@ -523,9 +615,17 @@ def calibrate_session(
             s = data[seg]
             st = _window(s.t, standing)
             q_stand = mean_orientation(orientations[seg][st]) if seg in orientations and st.any() else None
-            results[seg] = calibrate_trunk(seg, s.acc[st], s.gyr[st], q_stand, thighs,
-                                           _trunk_forward(seg, data, orientations, results, motion),
-                                           common_heading)
+            forward, why_not = _trunk_forward(seg, data, orientations, results, motion)
+            walking = (s, orientations[seg], motion) if seg in orientations else None
+            results[seg] = calibrate_trunk(seg, s.acc[st], s.gyr[st], q_stand, thighs, forward,
+                                           common_heading, why_not, walking)
+    for seg, tilt in upright_tilt(data, standing, motion).items():
+        if seg in results and results[seg].valid and tilt > MAX_UPRIGHT_TILT:
+            results[seg].valid = False
+            degrees = np.degrees(tilt)
+            results[seg].message = (f"{label(seg)}: not upright in the quiet standing ({degrees:.0f}° "
+                                    "from its attitude during the movement: sitting?); stand still 5 s and "
+                                    "repeat")
     problems = [r.message for r in results.values() if not r.valid]
     valid = [label(s) for s, r in results.items() if r.valid]
     success = bool(valid)
@@ -537,7 +637,10 @@ def calibrate_session(
         message = "calibrated " + ", ".join(valid)
         if problems:
             message += "; NOT calibrated (their joints are not published): " + "; ".join(problems)
-    return SessionCalibration(protocol, results, success, message, tuple(standing), tuple(motion))
+    if unconfirmed:
+        message += (f" (the movement did not confirm the {WORDS[protocol]} protocol: {check.evidence()}; "
+                    "check that it was done as instructed)")
+    return SessionCalibration(protocol, results, success, message, tuple(standing), tuple(motion), seen)
 
 
 def helical_angle(r_estimate: np.ndarray, r_reference: np.ndarray) -> np.ndarray:

@@ -21,7 +21,7 @@ import numpy as np
 import yaml
 
 from gait_biofeedback.core.calibration.sensor_to_segment import (
-    PROTOCOLS,
+    REQUESTS,
     SessionCalibration,
     calibrate_session,
 )
@@ -102,7 +102,9 @@ class CalibrationAttempt:
     """What one calibration request gave: ``success``, a ``message`` a clinician can act on, the
     result (None when refused before the core ran), the stamp ``until_ns`` of the newest sample used
     (None when no data was looked at), and ``applies_from_ns``: the sample stamp from which the new
-    calibration is in force (``until + apply_delay``), so every consumer switches at the same sample."""
+    calibration is in force (``until + apply_delay``), so every consumer switches at the same sample;
+    ``looks_like``: the protocol the movement showed (None: not looked at, or it could not tell), which
+    the dashboard proposes after a refusal."""
 
     protocol: str
     success: bool
@@ -110,6 +112,7 @@ class CalibrationAttempt:
     calibration: SessionCalibration | None = None
     until_ns: int | None = None
     applies_from_ns: int | None = None
+    looks_like: str | None = None
 
 
 class CalibrationBuffer:
@@ -190,11 +193,12 @@ class CalibrationBuffer:
 
     def calibrate(self, protocol: str, standing_duration: float = 0.0, motion_duration: float = 0.0,
                   segments: Sequence[str] | None = None, until_ns: int | None = None) -> CalibrationAttempt:
-        """Run ``protocol`` on the window ending at ``until_ns`` (see class docstring); refusals carry a
-        message saying what to do, and that the previous calibration stays in force."""
-        if protocol not in PROTOCOLS:
+        """Run ``protocol`` (or ``"auto"``: the one the movement shows) on the window ending at
+        ``until_ns`` (see class docstring); refusals carry a message saying what to do, and that the
+        previous calibration stays in force."""
+        if protocol not in REQUESTS:
             return CalibrationAttempt(protocol, False, f"unknown protocol {protocol!r}: use one of "
-                                      f"{list(PROTOCOLS)}")
+                                      f"{list(REQUESTS)}")
         wanted = list(segments) if segments else self.segments
         bad = [s for s in wanted if s not in self.segments]
         if bad:
@@ -215,8 +219,8 @@ class CalibrationBuffer:
                                       until_ns=end_ns)
         cal = calibrate_session(data, standing, motion, protocol, orientations=ori,
                                 common_heading=not self.six_d)
-        return CalibrationAttempt(protocol, cal.success, cal.message, cal, end_ns,
-                                  end_ns + self.apply_delay_ns)
+        return CalibrationAttempt(cal.protocol, cal.success, cal.message, cal, end_ns,
+                                  end_ns + self.apply_delay_ns, cal.looks_like)
 
     def schedule(self, until_ns: int, protocol: str, **options: Any) -> None:
         """Calibrate with ``protocol`` on the window ending at stamp ``until_ns`` once the data gets

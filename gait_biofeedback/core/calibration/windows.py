@@ -21,7 +21,8 @@ ACC_STILL = 0.3  # m/s², moving std of |a|
 STILL_WINDOW = 0.5  # s
 
 
-def _moving(x: np.ndarray, n: int) -> np.ndarray:
+def moving_mean(x: np.ndarray, n: int) -> np.ndarray:
+    """Centred n-sample moving mean of (N,) ``x``, the ends padded with the edge values."""
     kernel = np.ones(n) / n
     pad = np.pad(x, (n // 2, n - 1 - n // 2), mode="edge")
     return np.convolve(pad, kernel, mode="valid")
@@ -31,14 +32,32 @@ def still_mask(series: ImuSeries, gyro_threshold: float = GYRO_STILL,
                acc_threshold: float = ACC_STILL) -> np.ndarray:
     """(N,) bool: the sensor is still around each sample (module docstring)."""
     n = max(3, round(STILL_WINDOW * series.rate_hz))
-    gyro = _moving(np.linalg.norm(series.gyr, axis=1), n)
+    gyro = moving_mean(np.linalg.norm(series.gyr, axis=1), n)
     a = np.linalg.norm(series.acc, axis=1)
-    acc_std = np.sqrt(np.maximum(_moving(a**2, n) - _moving(a, n) ** 2, 0.0))
+    acc_std = np.sqrt(np.maximum(moving_mean(a**2, n) - moving_mean(a, n) ** 2, 0.0))
     return (gyro < gyro_threshold) & (acc_std < acc_threshold)
 
 
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    """[start, stop) index pairs of the True runs."""
+def common_still(data: dict[str, ImuSeries]) -> tuple[np.ndarray, np.ndarray, ImuSeries]:
+    """(t, still, the longest series): the longest series' times and whether every segment is still
+    there (:func:`still_mask`). ValueError when there is no data, or too little."""
+    if not data:
+        raise ValueError("no sensor data received: are the sensors on and the orientation filter running?")
+    ref = max(data.values(), key=len)
+    t = ref.t
+    if len(t) < 2:
+        raise ValueError("not enough sensor data yet: stand still 5 s, do the movements, then calibrate")
+    still = np.ones(len(t), dtype=bool)
+    for series in data.values():
+        if len(series) < 2:
+            continue
+        s = still_mask(series).astype(float)
+        still &= np.interp(t, series.t, s, left=0.0, right=0.0) > 0.5
+    return t, still, ref
+
+
+def runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """[start, stop) index pairs of the True runs of ``mask``."""
     edges = np.diff(np.concatenate([[0], mask.astype(int), [0]]))
     return list(zip(np.flatnonzero(edges == 1).tolist(), np.flatnonzero(edges == -1).tolist(), strict=True))
 
@@ -54,25 +73,14 @@ def find_standing_then_motion(
     Raises ValueError with a message a clinician can act on when the recording has no such pattern.
     ``motion_duration`` > 0: at least that many seconds must follow the standing.
     """
-    if not data:
-        raise ValueError("no sensor data received: are the sensors on and the orientation filter running?")
-    ref = max(data.values(), key=len)
-    t = ref.t
-    if len(t) < 2:
-        raise ValueError("not enough sensor data yet: stand still 5 s, do the movements, then calibrate")
-    still = np.ones(len(t), dtype=bool)
-    for series in data.values():
-        if len(series) < 2:
-            continue
-        s = still_mask(series).astype(float)
-        still &= np.interp(t, series.t, s, left=0.0, right=0.0) > 0.5
+    t, still, ref = common_still(data)
     need_motion = max(min_motion, motion_duration)
-    runs = [(a, b) for a, b in _runs(still) if t[b - 1] - t[a] >= standing_duration - 1e-9]
-    if not runs:
+    long_enough = [(a, b) for a, b in runs(still) if t[b - 1] - t[a] >= standing_duration - 1e-9]
+    if not long_enough:
         raise ValueError(f"no quiet standing of {standing_duration:g} s found in the last "
                          f"{t[-1] - t[0]:.0f} s: "
                          "ask the subject to stand still, then repeat the movements and calibrate")
-    moving_after = [(a, b) for a, b in runs if np.sum(~still[b:]) / ref.rate_hz >= min_motion]
+    moving_after = [(a, b) for a, b in long_enough if np.sum(~still[b:]) / ref.rate_hz >= min_motion]
     if not moving_after:
         raise ValueError("no movement after the quiet standing: do the calibration movements "
                          "(hip flexion/extension or straight walking) before pressing Calibrate")

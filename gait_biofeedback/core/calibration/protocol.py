@@ -1,0 +1,197 @@
+"""Which calibration protocol a recorded motion looks like: hip flexion or walking (issue 14).
+
+A calibration computed with the wrong protocol's sign rules is 180° off and looks fine, so the motion
+is checked against the protocol before any segment is calibrated. READING (the thesis describes the
+protocols, gait.md §1.3, not how to tell them apart): hip flexion is done one leg at a time, standing on
+the other, with the trunk still; walking moves both legs at once, bounces the trunk at each step and
+plants each foot still in every stance. Three observations, each from the sensors that are present,
+each on the *active* part of the motion window (where some sensor's 1 s mean angular rate exceeds
+``ACTIVE_RATE``, so the standing after the motion does not dilute them):
+
+* ``both_legs``: the share of the active time in which both legs are active (a leg is active where the
+  1 s mean of its sensors' largest angular rate exceeds ``ACTIVE_RATE``): walking ≥ 0.6, hip flexion
+  ≤ 0.3;
+* ``trunk_bounce``: median over the active time of the 1 s standard deviation of the pelvis (else chest)
+  accelerometer norm (m/s²): walking ≥ 0.6, hip flexion ≤ 0.3;
+* ``foot_stances``: per foot, the still runs (angular rate below ``STILL_RATE`` for 0.15–2.5 s) with
+  motion on both sides; the fewest over the feet: walking ≥ 3, hip flexion ≤ 1 (a foot swinging at the
+  hip passes through zero rate only for an instant at each turn). A foot is still below
+  ``STILL_FRACTION`` of its own 95th-percentile rate (at least ``STILL_RATE``): real sensors' noise and
+  bias keep a planted foot above a fixed 0.3 rad/s (with it, 13 of 52 ipol_gait walks showed ≤ 1
+  stance; with the fraction, none). Few stances vote for hip flexion only when the feet are slow
+  (95th percentile ≤ ``MAX_HIP_FLEXION_FOOT_RATE``): running (pyshoe_vicon) has stances too short to
+  count and fast feet.
+
+Each observation votes when it is clearly on one side; the motion looks like a protocol when at least
+one votes for it and none against. Between the bands, or with votes both ways, it looks like neither
+(``None``): the requested protocol is then used and the message says it was not confirmed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from gait_biofeedback.core.calibration.windows import common_still, moving_mean, runs
+from gait_biofeedback.core.segments import SIDES, ImuSeries
+
+ACTIVE_RATE = 0.5  # rad/s, 1 s mean angular rate of an active sensor
+STILL_RATE = 0.3  # rad/s, a planted foot
+STILL_FRACTION = 0.15  # of the foot's 95th percentile rate: still (real sensors' noise and bias)
+STANCE_S = (0.15, 2.5)  # s, how long a foot's still run between two motions lasts in walking
+MAX_UPRIGHT_TILT = np.radians(35.0)  # a segment's mean attitude in the motion vs its standing
+MAX_HIP_FLEXION_FOOT_RATE = 4.5  # rad/s, 95th percentile: a foot swung at the hip is slower
+BANDS = {  # observation: (at most this: hip flexion, at least this: walking)
+    "both_legs": (0.3, 0.6),
+    "trunk_bounce": (0.3, 0.6),
+    "foot_stances": (1, 3),
+}
+WORDS = {"hip_flexion": "hip flexion", "walking": "walking"}
+
+
+@dataclass(frozen=True)
+class ProtocolCheck:
+    """``looks_like``: "hip_flexion", "walking" or None (cannot tell); ``observations``: name → value;
+    ``votes``: name → the protocol it voted for."""
+
+    looks_like: str | None
+    observations: dict[str, float] = field(default_factory=dict)
+    votes: dict[str, str] = field(default_factory=dict)
+
+    def evidence(self) -> str:
+        """The observations in words, e.g. 'both legs moving 92 % of the time, trunk bounce 1.4 m/s²'."""
+        parts = []
+        for name, value in self.observations.items():
+            if name == "both_legs":
+                parts.append(f"both legs moving {100 * value:.0f} % of the time")
+            elif name == "trunk_bounce":
+                parts.append(f"trunk bounce {value:.2f} m/s²")
+            else:
+                parts.append(f"{value:.0f} foot stances")
+        return ", ".join(parts) if parts else "no leg, trunk or foot sensor"
+
+
+def _one_second_mean(series: ImuSeries, values: np.ndarray) -> np.ndarray:
+    return moving_mean(values, max(3, round(series.rate_hz)))
+
+
+def _resample(series: ImuSeries, values: np.ndarray, t: np.ndarray) -> np.ndarray:
+    return np.interp(t, series.t, values, left=0.0, right=0.0)
+
+
+def _still_runs_between_motion(rate: np.ndarray, rate_hz: float) -> int:
+    still = rate < max(STILL_RATE, STILL_FRACTION * float(np.percentile(rate, 95)))
+    edges = np.diff(np.concatenate([[0], still.astype(int), [0]]))
+    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    lo, hi = STANCE_S[0] * rate_hz, STANCE_S[1] * rate_hz
+    return int(sum(1 for a, b in zip(starts, stops, strict=True)
+                   if a > 0 and b < len(rate) and lo <= b - a <= hi))
+
+
+def check_protocol(data: dict[str, ImuSeries], motion: tuple[float, float]) -> ProtocolCheck:
+    """What the motion in the window ``motion`` (s) of ``data`` looks like (module docstring). The
+    gyro's mean over the whole window is not removed (a bias of a few °/s is far below the bands)."""
+    window = {s: d for s, d in data.items() if len(d) > 1}
+    cut = {}
+    for seg, d in window.items():
+        sel = (d.t >= motion[0]) & (d.t <= motion[1])
+        if sel.sum() >= 3:
+            cut[seg] = ImuSeries(seg, d.t[sel], d.acc[sel], d.gyr[sel])
+    if not cut:
+        return ProtocolCheck(None)
+    ref = max(cut.values(), key=len)
+    t = ref.t
+    rates = {seg: _resample(d, _one_second_mean(d, np.linalg.norm(d.gyr, axis=1)), t)
+             for seg, d in cut.items()}
+    active = np.max(np.vstack(list(rates.values())), axis=0) > ACTIVE_RATE
+    observations: dict[str, float] = {}
+    if active.sum() < 3:
+        return ProtocolCheck(None, observations)
+    legs = {side: [rates[s] for s in cut if s.startswith(side)] for side in SIDES}
+    if all(legs.values()):
+        leg_active = {side: np.max(np.vstack(r), axis=0) > ACTIVE_RATE for side, r in legs.items()}
+        either = leg_active["left"] | leg_active["right"]
+        if either.any():
+            observations["both_legs"] = float(np.mean((leg_active["left"] & leg_active["right"])[either]))
+    trunk = next((cut[s] for s in ("pelvis", "chest") if s in cut), None)
+    if trunk is not None:
+        norm = np.linalg.norm(trunk.acc, axis=1)
+        n = max(3, round(trunk.rate_hz))
+        std = np.sqrt(np.maximum(moving_mean(norm**2, n) - moving_mean(norm, n) ** 2, 0.0))
+        observations["trunk_bounce"] = float(np.median(_resample(trunk, std, t)[active]))
+    feet = [cut[f"{side}_foot"] for side in SIDES if f"{side}_foot" in cut]
+    fastest_foot = 0.0
+    if feet:
+        rates = [moving_mean(np.linalg.norm(f.gyr, axis=1), max(1, round(0.05 * f.rate_hz))) for f in feet]
+        observations["foot_stances"] = float(min(_still_runs_between_motion(r, f.rate_hz)
+                                                 for r, f in zip(rates, feet, strict=True)))
+        fastest_foot = max(float(np.percentile(r, 95)) for r in rates)
+    votes = {}
+    for name, value in observations.items():
+        low, high = BANDS[name]
+        if value <= low and not (name == "foot_stances" and fastest_foot > MAX_HIP_FLEXION_FOOT_RATE):
+            votes[name] = "hip_flexion"
+        elif value >= high:
+            votes[name] = "walking"
+    said = set(votes.values())
+    return ProtocolCheck(said.pop() if len(said) == 1 else None, observations, votes)
+
+
+def upright_tilt(data: dict[str, ImuSeries], standing: tuple[float, float], motion: tuple[float, float]
+                 ) -> dict[str, float]:
+    """Segment → angle (rad) between its mean accelerometer direction in ``standing`` and over the
+    ``motion``. Walking and hip flexion swing the segments about their standing attitude (qmt walk:
+    ≤ 12°; simulated: ≤ 9°), so a large angle means the "standing" was not upright (sitting: the
+    thighs 80° off), and the verticals taken from it would be wrong."""
+    out = {}
+    for seg, d in data.items():
+        st = (d.t >= standing[0]) & (d.t <= standing[1])
+        mo = (d.t >= motion[0]) & (d.t <= motion[1])
+        if st.sum() < 3 or mo.sum() < 3:
+            continue
+        a, b = d.acc[st].mean(axis=0), d.acc[mo].mean(axis=0)
+        cos = float(a @ b / max(np.linalg.norm(a) * np.linalg.norm(b), 1e-12))
+        out[seg] = float(np.arccos(np.clip(cos, -1.0, 1.0)))
+    return out
+
+
+def find_calibration(data: dict[str, ImuSeries], standing_duration: float = 3.0, min_motion: float = 4.0,
+                     max_motion: float = 60.0, end_still: float = 3.0, max_walk: float = 20.0
+                     ) -> tuple[tuple[float, float], tuple[float, float], ProtocolCheck]:
+    """(standing, motion, what the motion looks like) of the first calibration in a whole recording
+    (``analyze --calibrate-at auto``): a quiet standing of ``standing_duration`` s (the last seconds of
+    a still run that long), then at least ``min_motion`` s of movement up to the next still run of
+    ``end_still`` s (at most ``max_motion`` s), that :func:`check_protocol` recognises and during which
+    every segment stays within ``MAX_UPRIGHT_TILT`` of its standing attitude (:func:`upright_tilt`:
+    sitting is not standing). A walk is cut to its first ``max_walk`` s (ample for the protocol's 8
+    steps, and the calibration is then in force for the rest of it). ValueError saying what was looked
+    for when nothing qualifies."""
+    t, still, ref = common_still(data)
+    rate = ref.rate_hz
+    still_runs = runs(still)
+    tried = []
+    for a, b in still_runs:
+        if t[b - 1] - t[a] < standing_duration - 1e-9 or b >= len(t):
+            continue
+        start = float(t[b - 1])
+        later = [c for c, e in still_runs if c >= b and (e - c) / rate >= end_still]
+        end = min(float(t[later[0]]) if later else float(t[-1]), start + max_motion)
+        if end - start < min_motion:
+            continue
+        standing, motion = (start - standing_duration, start), (start, end)
+        check = check_protocol(data, motion)
+        tilt = upright_tilt(data, standing, motion)
+        worst = max(tilt, key=tilt.get) if tilt else None
+        if check.looks_like is not None and (worst is None or tilt[worst] <= MAX_UPRIGHT_TILT):
+            if check.looks_like == "walking" and end - start > max_walk:
+                motion = (start, start + max_walk)
+                check = check_protocol(data, motion)
+            return standing, motion, check
+        tried.append(f"{start - t[0]:.0f} s: " + (f"{worst.replace('_', ' ')} {np.degrees(tilt[worst]):.0f}° "
+                                                  "from its standing attitude (not standing?)"
+                                                  if check.looks_like is not None else check.evidence()))
+    raise ValueError("no calibration found (quiet standing of "
+                     f"{standing_duration:g} s, then hip flexion or walking for {min_motion:g} s or more)"
+                     + (": " + "; ".join(tried) if tried else "")
+                     + "; give the instant with --calibrate-at SECONDS:PROTOCOL")
