@@ -229,15 +229,62 @@ def analyze_recording(
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", BagRecoveryWarning)  # they go into result.warnings
         requests, notes = resolve_calibrate_at(bag, list(calibrate_at or []))
+        is_auto = [asked is None for asked, _ in calibrate_at or []]
+        auto = [r for r, a in zip(requests, is_auto, strict=True) if a]
+        found = _calibrate_ahead(bag, auto[0], stages) if auto else None
         with BagReader(bag) as reader:
-            result = _analyze(reader, bag, output, requests, calibration_file, stages, overwrite)
+            pressed = [r for r, a in zip(requests, is_auto, strict=True) if not a]
+            result = _analyze(reader, bag, output, pressed, calibration_file, stages, overwrite, found)
+    if found is not None and found.success:
+        notes.append("--calibrate-at auto: that calibration is in force from the start of the recording "
+                     "(offline, as a calibration file would be; replay presses Calibrate at that instant)")
     result.notes = notes
     return result
 
 
+def _calibrate_ahead(bag: str | Path, request: tuple[float, str], stages: dict[str, Any]
+                     ) -> CalibrationAttempt:
+    """The calibration the live graph computes when Calibrate is pressed at ``request`` (s into the
+    recording, protocol): the orientation trackers and the calibration buffer with the stages'
+    parameters, fed the recording in log order as :func:`_analyze` feeds them, up to that instant."""
+    o_params: OrientationParams = stages.get("orientation_filter") or OrientationParams()
+    buffer = CalibrationBuffer(stages.get("calibration") or CalibrationParams())
+    with BagReader(bag) as reader:
+        raw_topics, mag_topics = _raw_topics(reader, bag)
+        trackers = {seg: o_params.tracker(seg) for seg in o_params.segments if seg in raw_topics}
+        until_ns = reader.start_time_ns + round(request[0] * NS_PER_S)
+        buffer.schedule(until_ns, request[1])
+        segment_of = {topic: seg for seg, topic in raw_topics.items()}
+        mag_of = {topic: seg for seg, topic in mag_topics.items()}
+
+        def feed(seg: str, samples: list, raw: Stamped) -> list[CalibrationAttempt]:
+            for sample in samples:
+                filtered = decode_imu(orientation_payload(seg, sample, raw, o_params.orientation_variance))
+                if seg in buffer.buffers:
+                    buffer.add(seg, *orientation_sample(filtered), heading=has_heading(filtered))
+            return buffer.run_due()
+
+        last_raw: dict[str, Stamped] = {}
+        for topic, _, data, _ in reader.raw_messages([*segment_of, *mag_of]):
+            seg = mag_of.get(topic) or segment_of[topic]
+            if seg not in trackers:
+                continue
+            if topic in mag_of:
+                trackers[seg].add_mag(*mag_sample(decode_mag(data)))
+                continue
+            last_raw[seg] = decode_imu(data)
+            if done := feed(seg, trackers[seg].update(*raw_sample(last_raw[seg])), last_raw[seg]):
+                return done[0]
+        for seg, raw in last_raw.items():
+            if done := feed(seg, trackers[seg].flush(), raw):
+                return done[0]
+    return CalibrationAttempt(request[1], False, "no sensor data up to the calibration instant")
+
+
 def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
              calibrate_at: list[tuple[float, str]], calibration_file: str | Path | None,
-             stages: dict[str, Any], overwrite: bool) -> AnalysisResult:
+             stages: dict[str, Any], overwrite: bool, ahead: CalibrationAttempt | None = None
+             ) -> AnalysisResult:
     raw_topics, mag_topics = _raw_topics(reader, bag)
     result = AnalysisResult(Path(output) if output is not None else None)
     calibration = None
@@ -332,6 +379,12 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
     if calibration is not None:
         source = f"from {Path(calibration_file).absolute()} (saved {saved_at or 'at an unknown time'})"
         publish_calibration(calibration_msg(calibration, 0, source), start_ns, calibration)
+    if ahead is not None:
+        result.calibrations.append(ahead)
+        if ahead.success and ahead.calibration is not None:
+            until = (ahead.until_ns or start_ns) - start_ns
+            source = f"found by --calibrate-at auto on the data up to {until / NS_PER_S:.1f} s"
+            publish_calibration(calibration_msg(ahead.calibration, 0, source), start_ns, ahead.calibration)
 
     last_raw: dict[str, Any] = {}
 

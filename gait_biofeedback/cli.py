@@ -115,26 +115,25 @@ def _print_calibrations(attempts: list, start_ns: int) -> None:
             print(f"  quiet standing {s0:.2f}-{s1:.2f} s, motion {m0:.2f}-{m1:.2f} s into the recording")
 
 
-def _calibration_options(args: argparse.Namespace, params: dict[str, dict]) -> list[tuple[float, str]]:
-    """--calibrate-at requests (``auto`` instants found in the bag, and said); --calibration goes into
-    the calibration stage's parameters."""
-    from gait_biofeedback.analyze import parse_calibrate_at, resolve_calibrate_at
+def _calibration_options(args: argparse.Namespace, params: dict[str, dict]) -> list[tuple[float | None, str]]:
+    """--calibrate-at requests (an ``auto`` time is None); --calibration goes into the calibration
+    stage's parameters."""
+    from gait_biofeedback.analyze import parse_calibrate_at
 
     if args.calibration is not None:
         params.setdefault("calibration", {})["calibration_file"] = args.calibration
-    asked = [parse_calibrate_at(text) for text in args.calibrate_at or []]
-    requests, notes = resolve_calibrate_at(args.bag, asked)
-    for note in notes:
-        print(note)
-    return requests
+    return [parse_calibrate_at(text) for text in args.calibrate_at or []]
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
+    from gait_biofeedback.analyze import resolve_calibrate_at
     from gait_biofeedback.graph import replay_through_graph
     from gait_biofeedback.io.bag import BagReader
 
     params = _session_parameters(args.params)
-    requests = _calibration_options(args, params)
+    requests, notes = resolve_calibrate_at(args.bag, _calibration_options(args, params))
+    for note in notes:
+        print(note)
     with BagReader(args.bag) as reader:
         total = reader.message_count
     with _progress(total, "replay") as bar:
@@ -164,6 +163,8 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     requests = _calibration_options(args, params)
     result = analyze_recording(args.bag, args.output, calibrate_at=requests, params=params,
                                overwrite=args.overwrite)
+    for note in result.notes:
+        print(note)
     _print_calibrations(result.calibrations, result.start_ns)
     if not requests and args.calibration is None:
         print("no calibration given (--calibrate-at or --calibration): orientations and activity only")

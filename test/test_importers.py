@@ -291,3 +291,24 @@ def test_auto_kind_reads_each_real_file() -> None:
     assert detect_kind(broad) == "broad"
     assert detect_kind(gaitmap) == "gaitmap"
     assert import_recording("auto", broad, segment="chest").segments == ["chest"]
+
+
+def test_ipol_gait_trial_on_the_packet_counter_time_base():
+    from conftest import shared_data
+
+    from gait_biofeedback.io.importers import detect_kind, import_recording
+
+    path = shared_data("ipol_gait", "8-6.json")
+    assert detect_kind(path) == "ipol_gait" and detect_kind(path.with_name("8-6_lf.txt.gz")) == "ipol_gait"
+    rec = import_recording("auto", path)
+    assert set(rec.imu) == {"left_foot", "right_foot", "pelvis"}
+    foot = rec.imu["left_foot"]
+    # 3362 rows, packet counter 0 ... 3902: 541 samples lost; times from the counter, not the row
+    assert len(foot) == 3362 and foot.t[-1] == pytest.approx(39.02) and foot.mag is None
+    assert any("left_foot: 541 samples lost by the radio (13.9 %" in w for w in rec.warnings)
+    assert rec.reference["trial"] == pytest.approx((5.15, 25.15))
+    # the reference's stride time matches the signal's on this time base (row numbers: 16 % short)
+    ic = rec.reference["events"]["left"]["ic"]
+    assert 1.0 < np.median(np.diff(ic[:8])) < 1.25
+    with pytest.raises(ValueError, match="not an IPOL gait trial file"):
+        import_recording("ipol_gait", path.with_name("notes.txt"))

@@ -23,13 +23,14 @@ import difflib
 import math
 import re
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from gait_biofeedback.core.segments import GRAVITY, SEGMENTS, STANDARD_GRAVITY, ImuSeries
+from gait_biofeedback.io.ipol import TRIAL_NAME, import_ipol_gait
+from gait_biofeedback.io.recording import Recording
 
 DEG_TO_RAD = math.pi / 180.0
 MICROTESLA_TO_TESLA = 1e-6
@@ -59,27 +60,6 @@ UNIT_FACTORS: dict[str, dict[str, float]] = {
 DEFAULT_UNITS: dict[str, str] = {"acc": "m/s2", "gyr": "rad/s", "mag": "T", "time": "s"}
 DEFAULT_TIME_COLUMNS: tuple[str, ...] = ("time", "t")
 _VECTOR_QUANTITIES: tuple[str, ...] = ("acc", "gyr", "mag")
-
-
-@dataclass
-class Recording:
-    """One imported recording.
-
-    ``imu``: segment name -> samples in SI units. ``source``: what was read (importer kind and path).
-    ``reference``: optional ground truth or vendor output, importer-specific (documented per importer),
-    e.g. ``events``, ``opt_quat``, ``movement``, ``vendor_quat``. ``warnings``: things a user should know
-    about the data (NaN samples kept, suspicious magnitudes), one sentence each.
-    """
-
-    imu: dict[str, ImuSeries]
-    source: str
-    reference: dict[str, Any] = field(default_factory=dict)
-    warnings: list[str] = field(default_factory=list)
-
-    @property
-    def segments(self) -> list[str]:
-        """Names of the segments with IMU data, in import order."""
-        return list(self.imu)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -604,6 +584,7 @@ IMPORTERS: dict[str, Callable[..., Recording]] = {
     "qmt_fullbody": import_qmt_fullbody,
     "gaitmap": import_gaitmap,
     "broad": import_broad,
+    "ipol_gait": import_ipol_gait,
     "csv": import_generic_csv,
 }
 
@@ -614,13 +595,16 @@ def detect_kind(path: str | Path, **options: Any) -> str:
     """Importer kind from the file name (and, for an unknown .mat name, the variables it holds).
 
     ``full_body*.mat`` -> ``qmt_fullbody``; ``NN_*.mat`` or a .mat with ``imu_gyr``/``opt_quat`` ->
-    ``broad``; ``imu_sample*.csv`` or a ``gaitmap_example`` folder -> ``gaitmap``; any other ``.csv`` ->
+    ``broad``; ``imu_sample*.csv`` or a ``gaitmap_example`` folder -> ``gaitmap``; ``S-T.json`` or
+    ``S-T_lf.txt.gz`` -> ``ipol_gait``; any other ``.csv`` ->
     ``csv`` when a ``mapping`` option is given. Raises ValueError otherwise.
     """
     path = Path(path)
     name = path.name.lower()
     if path.is_dir() and (path / "imu_sample.csv").is_file():
         return "gaitmap"
+    if TRIAL_NAME.match(path.name):
+        return "ipol_gait"
     if name.endswith(".mat"):
         if name.startswith("full_body"):
             return "qmt_fullbody"
@@ -642,7 +626,8 @@ def detect_kind(path: str | Path, **options: Any) -> str:
         raise ValueError(f"cannot tell the kind of {path}: a generic CSV needs a column mapping; call "
                          "import_recording('csv', path, mapping={segment: {'acc': [...], 'gyr': [...]}})")
     raise ValueError(f"cannot tell the kind of {path} from its name; pass kind= one of {list(IMPORTERS)} "
-                     "(known names: full_body*.mat, NN_*.mat (BROAD), imu_sample*.csv (gaitmap))")
+                     "(known names: full_body*.mat, NN_*.mat (BROAD), imu_sample*.csv (gaitmap), "
+                     "S-T.json (ipol_gait))")
 
 
 def import_recording(kind: str, path: str | Path, **options: Any) -> Recording:

@@ -15,35 +15,73 @@ import numpy as np
 from gait_biofeedback.core import quaternion as quat
 
 MIN_STANDING_S = 0.2
+STILL_GYRO_STD = 0.05  # rad/s: spread of the gyro over 0.25 s below this is a still foot
+STILL_ACC_STD = 0.2  # m/s²: spread of ‖a‖ over 0.25 s below this is a still foot
+STILL_WINDOW_S = 0.25
+ONSET_S = 0.1  # s before the first moving sample left out of the standing (the movement's onset)
 
 
-def leading_standing(gyr: np.ndarray, acc: np.ndarray, rate_hz: float, max_s: float = 5.0,
-                     gyr_tol: float = 0.05, acc_tol: float = 0.5) -> int:
-    """Number of leading quiet samples: ‖ω‖ < ``gyr_tol`` rad/s and ‖a‖ within ``acc_tol`` m/s² of the
-    median norm of the first 0.1 s (not of a window that may already hold walking)."""
+def _moving(x: np.ndarray, n: int) -> np.ndarray:
+    """Centred n-sample moving mean of (N, ...) ``x``, the ends padded with the edge values."""
+    pad = [(n // 2, n - 1 - n // 2)] + [(0, 0)] * (x.ndim - 1)
+    c = np.cumsum(np.pad(x, pad, mode="edge"), axis=0)
+    c = np.concatenate([np.zeros((1, *x.shape[1:])), c])
+    return (c[n:] - c[:-n]) / n
+
+
+def standing_run(gyr: np.ndarray, acc: np.ndarray, rate_hz: float, max_s: float = 5.0) -> tuple[int, int]:
+    """[start, stop) sample indices of the longest quiet run within the first ``max_s`` s.
+
+    READING (issue 15: a per-sample ``‖ω‖ < 0.05 rad/s`` from the first sample ended real sensors'
+    standing after 0–0.16 s: their noise and a bias of a few °/s exceed it, and a foot may settle in
+    the first second): a sample is quiet when, over the ``STILL_WINDOW_S`` around it, the gyro's spread
+    (the norm of its per-axis standard deviations, so any constant bias passes) is below
+    ``STILL_GYRO_STD`` and the spread of ``‖a‖`` below ``STILL_ACC_STD``; the run stops ``ONSET_S``
+    before its first moving sample (the movement's onset is not standing)."""
+    gyr, acc = np.asarray(gyr, dtype=float), np.asarray(acc, dtype=float)
     n = min(len(gyr), round(max_s * rate_hz))
-    g = np.linalg.norm(gyr[:n], axis=1)
-    a = np.linalg.norm(acc[:n], axis=1)
-    reference = np.nanmedian(a[: max(1, round(0.1 * rate_hz))])
-    moving = ~(g < gyr_tol) | ~(np.abs(a - reference) < acc_tol)
-    return int(np.argmax(moving)) if moving.any() else n
+    if n == 0:
+        return 0, 0
+    w = max(2, round(STILL_WINDOW_S * rate_hz))
+    g, a = gyr[:n], np.linalg.norm(acc[:n], axis=1)
+    gyr_spread = np.sqrt(np.maximum(_moving(g**2, w) - _moving(g, w) ** 2, 0.0).sum(axis=1))
+    acc_spread = np.sqrt(np.maximum(_moving(a**2, w) - _moving(a, w) ** 2, 0.0))
+    quiet = (gyr_spread < STILL_GYRO_STD) & (acc_spread < STILL_ACC_STD)
+    edges = np.diff(np.concatenate([[0], quiet.astype(int), [0]]))
+    runs = list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True))
+    if not runs:
+        return 0, 0
+    start, stop = max(runs, key=lambda r: r[1] - r[0])
+    if stop < len(gyr):
+        stop = max(start, stop - round(ONSET_S * rate_hz))
+    return int(start), int(stop)
+
+
+def leading_standing(gyr: np.ndarray, acc: np.ndarray, rate_hz: float, max_s: float = 5.0) -> int:
+    """Number of quiet samples at the start (:func:`standing_run`, when its run starts within the first
+    ``STILL_WINDOW_S``; else 0)."""
+    start, stop = standing_run(gyr, acc, rate_hz, max_s)
+    return stop if start <= round(STILL_WINDOW_S * rate_hz) else 0
 
 
 def foot_calibration(gyr: np.ndarray, acc: np.ndarray, rate_hz: float, segment: str = "left_foot",
                      standing_s: float = 5.0) -> np.ndarray:
     """Rotation r (segment → sensor, ``q_segment = q_sensor ⊗ r``) of a foot IMU from a recording that
-    starts with quiet standing (at most ``standing_s`` s used) followed by walking. Raises ValueError
+    starts with quiet standing (the longest quiet run in the first ``standing_s`` s,
+    :func:`standing_run`) followed by walking. Raises ValueError
     with the calibration's message when it cannot be computed."""
     from gait_biofeedback.core.calibration.sensor_to_segment import calibrate_segment
 
     gyr = np.asarray(gyr, dtype=float)
     acc = np.asarray(acc, dtype=float)
-    n = leading_standing(gyr, acc, rate_hz, max_s=standing_s)
-    if n < MIN_STANDING_S * rate_hz:
-        raise ValueError(f"foot calibration needs ≥ {MIN_STANDING_S:g} s of quiet standing at the start; "
-                         f"found {n / rate_hz:.2f} s: start the recording with the patient standing still")
-    walking = gyr[n:][np.all(np.isfinite(gyr[n:]), axis=1)]
-    result = calibrate_segment(segment, acc[:n], gyr[:n], walking, rate_hz, "walking")
+    start, stop = standing_run(gyr, acc, rate_hz, max_s=standing_s)
+    if stop - start < MIN_STANDING_S * rate_hz:
+        found = (stop - start) / rate_hz
+        raise ValueError(f"foot calibration needs ≥ {MIN_STANDING_S:g} s of quiet standing in the first "
+                         f"{standing_s:g} s; found {found:.2f} s: start the recording with the patient "
+                         "standing still")
+    walking = gyr[stop:][np.all(np.isfinite(gyr[stop:]), axis=1)]
+    result = calibrate_segment(segment, acc[start:stop], gyr[start:stop], walking, rate_hz, "walking")
     if not result.valid:
         raise ValueError(f"foot calibration failed: {result.message}")
     return quat.normalize(result.rotation)

@@ -195,7 +195,9 @@ class CalibrationBuffer:
                   segments: Sequence[str] | None = None, until_ns: int | None = None) -> CalibrationAttempt:
         """Run ``protocol`` (or ``"auto"``: the one the movement shows) on the window ending at
         ``until_ns`` (see class docstring); refusals carry a message saying what to do, and that the
-        previous calibration stays in force."""
+        previous calibration stays in force. Without ``segments`` named, the segments that sent data
+        are calibrated and the silent ones named (a feet-only sensor set calibrates its feet); named
+        ``segments`` must all have data."""
         if protocol not in REQUESTS:
             return CalibrationAttempt(protocol, False, f"unknown protocol {protocol!r}: use one of "
                                       f"{list(REQUESTS)}")
@@ -206,7 +208,7 @@ class CalibrationBuffer:
                                       f"({self.segments})")
         data, ori = self.series(wanted, until_ns)
         silent = [s for s in wanted if s not in data]
-        if silent:
+        if silent and (segments or not data):  # named segments must all have data; else any one suffices
             text = (f"no data from {', '.join(silent)}: check these sensors and the orientation filter; "
                     "previous calibration stays in force")
             return CalibrationAttempt(protocol, False, text)
@@ -219,7 +221,8 @@ class CalibrationBuffer:
                                       until_ns=end_ns)
         cal = calibrate_session(data, standing, motion, protocol, orientations=ori,
                                 common_heading=not self.six_d)
-        return CalibrationAttempt(cal.protocol, cal.success, cal.message, cal, end_ns,
+        message = cal.message + (f"; no data from {', '.join(silent)} (not calibrated)" if silent else "")
+        return CalibrationAttempt(cal.protocol, cal.success, message, cal, end_ns,
                                   end_ns + self.apply_delay_ns, cal.looks_like)
 
     def schedule(self, until_ns: int, protocol: str, **options: Any) -> None:

@@ -17,9 +17,12 @@ METHODS = ("nazarahari", "angular_velocity")
 
 
 def detect_gait_events(gyr: np.ndarray, acc: np.ndarray, rate_hz: float, mag: np.ndarray | None = None,
-                       method: str = "nazarahari", **options: Any) -> dict[str, list[float]]:
+                       method: str = "nazarahari", t: np.ndarray | None = None,
+                       **options: Any) -> dict[str, list[float]]:
     """Events of one foot's raw IMU recording (quiet standing first, then walking) → ``{"ic": [s],
-    "tc": [s]}``, event (extremum) times with sample 0 at 0 s.
+    "tc": [s]}``, event (extremum) times with sample 0 at 0 s, or on the time base ``t`` (s, one per
+    sample, increasing) when given: a recording with lost samples keeps its holes (the orientation
+    tracker bridges the short ones as the live node does) instead of being read as evenly sampled.
 
     Both methods calibrate the foot on the leading standing and the walking after it
     (:func:`~gait_biofeedback.core.calibration.foot.foot_calibration`). ``method="nazarahari"``
@@ -37,8 +40,15 @@ def detect_gait_events(gyr: np.ndarray, acc: np.ndarray, rate_hz: float, mag: np
     acc = np.asarray(acc, dtype=float)
     r = foot_calibration(gyr, acc, rate_hz)
     if method == "angular_velocity":
-        return angular_velocity_events(gyr, rate_hz, r, **options)
-    t = ns_to_seconds(sample_stamps(len(gyr), rate_hz))
+        events = angular_velocity_events(gyr, rate_hz, r, **options)
+        if t is None:
+            return events
+        at = np.asarray(t, dtype=float)
+        index = np.arange(len(at)) / rate_hz  # the comparator's event times are sample numbers / rate
+        return {kind: np.interp(times, index, at).tolist() for kind, times in events.items()}
+    t = ns_to_seconds(sample_stamps(len(gyr), rate_hz)) if t is None else np.asarray(t, dtype=float)
+    if len(t) != len(gyr) or np.any(np.diff(t) <= 0):
+        raise ValueError("t must give one increasing time per sample")
     t_q, q, _ = track_orientation(ImuSeries("foot", t, acc, gyr, mag), rate_hz=rate_hz)
     out: dict[str, list[float]] = {INITIAL_CONTACT: [], TERMINAL_CONTACT: []}
     detector = GaitEventDetector(rate_hz=rate_hz, mounting=r, **options)

@@ -25,6 +25,12 @@ READINGs / choices (documented and tested):
 - Event time: the extremum sample ``k-1`` (the message stamp); it is emitted when sample k arrives, so
   the detection latency is one sample period (thesis Table 15 compares the detection sample k; the
   benchmark reports both).
+- EXT (issue 15): a heel strike whose toe-off was not detected still counts. In Algorithm 1 an IC needs
+  a TC since the last IC, so a toe-off shallower than the −0.2 threshold (the first step from standing:
+  −0.04…−0.29 on ipol_gait, while its heel strike reaches +0.23…+0.63) lost that step's IC too. While
+  waiting for a TC, a local maximum (same trend rule) above ``IC_WITHOUT_TC`` more than
+  ``IC_WITHOUT_TC_AFTER_S`` after the last IC is an IC with the flag :data:`MISSED_TC_FLAG`; the
+  stride it closes has no TC and is not plausible (no cue from it), the next stride is unaffected.
 
 Samples and events are identified by their stamps (int ns, ``docs/conventions.md``); Algorithm 1 itself
 counts samples and never looks at time.
@@ -48,6 +54,9 @@ THRESHOLD = -0.2  # -sin(beta) threshold, thesis §6.2.2 (≈ 11.5° toes-down)
 REFRACTORY_S = 0.150  # per event type, thesis §6.2.2 / Algorithm 1 ("> 15" samples at 100 Hz)
 EXTREMUM_WINDOW_S = 0.150  # 15 previous samples at 100 Hz, thesis §6.2.2
 TREND_FRACTION = 0.8  # ≥ 80 % monotone differences, thesis §6.2.2
+IC_WITHOUT_TC = 0.15  # -sin(beta), 8.6° toes up: a heel strike that counts without a toe-off before it (EXT)
+IC_WITHOUT_TC_AFTER_S = 0.5  # s since the last IC, for such a heel strike
+MISSED_TC_FLAG = "no toe-off detected before this heel strike"
 
 
 @dataclass(frozen=True)
@@ -127,6 +136,7 @@ class GaitEventDetector:
         self.window = samples_for(window_s, rate_hz)
         self.refractory = samples_for(refractory_s, rate_hz)
         self.min_trend = math.ceil(trend_fraction * self.window - 1e-9)
+        self._ic_alone = samples_for(IC_WITHOUT_TC_AFTER_S, rate_hz)
 
     def set_mounting(self, mounting: np.ndarray | None) -> None:
         """Use a new calibration rotation r (segment → sensor)."""
@@ -168,6 +178,10 @@ class GaitEventDetector:
                 self._k_tc = k
                 self.waiting_for_ic = True
                 return self._event(TERMINAL_CONTACT, stamp_ns, prev)
+            if (k - self._k_ic > self._ic_alone and s > IC_WITHOUT_TC and prev > s
+                    and self._is_maximum()):
+                self._k_ic = k
+                return self._event(INITIAL_CONTACT, stamp_ns, prev, MISSED_TC_FLAG)
         elif k - self._k_ic > self.refractory and s > self.threshold and prev > s and self._is_maximum():
             self._k_ic = k
             self.waiting_for_ic = False
@@ -200,9 +214,9 @@ class GaitEventDetector:
                 trend += 1
         return trend >= self.min_trend
 
-    def _event(self, kind: str, detected_ns: int, value: float) -> GaitEvent:
+    def _event(self, kind: str, detected_ns: int, value: float, flag: str = "") -> GaitEvent:
         self.counts[kind] += 1
-        return GaitEvent(self.side, kind, self._stamps[0], detected_ns, value, self.counts[kind])
+        return GaitEvent(self.side, kind, self._stamps[0], detected_ns, value, self.counts[kind], flag)
 
 
 def events_from_signal(signal: np.ndarray, rate_hz: float, **options: Any) -> dict[str, np.ndarray]:
