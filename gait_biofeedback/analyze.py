@@ -144,6 +144,8 @@ def resolve_calibrate_at(bag: str | Path, requests: Sequence[tuple[float | None,
     (saying what was looked for) when there is none."""
     if all(t is not None for t, _ in requests):
         return [(float(t), p) for t, p in requests], []
+    if sum(t is None for t, _ in requests) > 1:
+        raise ValueError("--calibrate-at auto finds one calibration: give it once")
     data = read_imu_bag(bag)
     with BagReader(bag) as reader:
         start_s = reader.start_time_ns / NS_PER_S

@@ -155,3 +155,18 @@ def test_qmt_real_calibration_is_found_after_the_sitting():
     assert check.looks_like == "walking"
     assert standing == pytest.approx((45.39, 48.39), abs=0.02)
     assert motion[1] - motion[0] == pytest.approx(20.0)
+
+
+def test_calibrate_at_auto_is_parsed_and_given_once():
+    from gait_biofeedback.analyze import parse_calibrate_at, resolve_calibrate_at
+
+    assert parse_calibrate_at("auto") == (None, "auto")
+    assert parse_calibrate_at("auto:walking") == (None, "walking")
+    assert parse_calibrate_at("75:auto") == (75.0, "auto")
+    assert parse_calibrate_at("36") == (36.0, "hip_flexion")
+    for bad in ("x", "auto:jumping", "-3:walking", "nan:auto"):
+        with pytest.raises(ValueError, match="--calibrate-at"):
+            parse_calibrate_at(bad)
+    assert resolve_calibrate_at("no/such/bag", [(36.0, "walking")]) == ([(36.0, "walking")], [])
+    with pytest.raises(ValueError, match="give it once"):
+        resolve_calibrate_at("no/such/bag", [(None, "auto"), (None, "walking")])
