@@ -224,7 +224,7 @@ def test_cli_analyze_with_a_calibration_file(tmp_path, capsys):
 def test_replay_and_analyze_take_the_same_calibration_options(session_bag, tmp_path, capsys):
     """`replay --calibrate-at` and `analyze --calibrate-at` calibrate on the same samples, print the
     windows they used and save calibration.yaml with their outputs; a recording without truth gets
-    no "error to true mounting" line; the saved file is accepted by --calibration. Both take ``auto``:
+    no "error to true mounting" line; the saved files read back. Both take ``auto``:
     the first calibration found in the recording, with the protocol it shows."""
     import re
 
@@ -264,7 +264,5 @@ def test_replay_and_analyze_take_the_same_calibration_options(session_bag, tmp_p
     for segment in SEGMENTS:
         np.testing.assert_allclose(live.segments[segment].rotation, offline.segments[segment].rotation,
                                    rtol=0, atol=1e-3)
-
-    assert main(["analyze", str(sensors_only), "-o", str(tmp_path / "again"), "--calibration",
-                 str(tmp_path / "live" / "calibration.yaml"), "--params", str(SESSION_PARAMS)]) == 0
-    assert "/joint_states" in capsys.readouterr().out
+    # (that the saved file is read back and put in force by `analyze --calibration`:
+    # test_cli_analyze_with_a_calibration_file; the file's checks: read_calibration_file above)
