@@ -4,9 +4,6 @@ of a whole recording is found, and random mountings through the 6D filters never
 
 from __future__ import annotations
 
-import gzip
-import json
-
 import numpy as np
 import pytest
 from conftest import shared_data
@@ -121,26 +118,15 @@ def test_random_mountings_through_the_6d_filters_never_flip(scenario, protocol):
             assert error < limits[seg.split("_")[-1]], f"seed {seed} {seg}: {error:.2f} deg"
 
 
-def _ipol_trial(base: str) -> tuple[dict[str, ImuSeries], tuple[float, float]]:
-    data = {}
-    for suffix, seg in (("lf", "left_foot"), ("rf", "right_foot"), ("lb", "pelvis")):
-        with gzip.open(f"{base}_{suffix}.txt.gz", "rt") as f:
-            f.readline()
-            f.readline()
-            rows = np.loadtxt(f)
-        data[seg] = ImuSeries(seg, np.arange(len(rows)) / 100.0, rows[:, 1:4], rows[:, 4:7])
-    with open(f"{base}.json") as f:
-        bounds = json.load(f)["TrialBoundaries"]
-    return data, (bounds[0] / 100.0, bounds[1] / 100.0)
-
-
 def test_other_labs_walks_look_like_walking():
     # ipol_gait (Xsens MTw feet + lower back): the first trial of each development subject. Measured
     # on all 52 development trials: 52 walking (a fixed 0.3 rad/s stillness gave 13 undecided)
+    from gait_biofeedback.io.importers import import_recording
+
     folder = shared_data("ipol_gait")
     for subject in range(1, 10):
-        data, trial = _ipol_trial(str(folder / f"{subject}-1"))
-        check = check_protocol(data, trial)
+        rec = import_recording("ipol_gait", folder / f"{subject}-1.json")
+        check = check_protocol(rec.imu, rec.reference["trial"])
         assert check.looks_like == "walking", f"subject {subject}: {check.evidence()}"
         assert check.observations["foot_stances"] >= 3
 

@@ -6,11 +6,11 @@ One trial is ``<subject>-<trial>.json`` (metadata, reference steps) with ``<subj
 then one row per sample (acc m/s², gyr rad/s). The magnetometer is in the vendor's normalised units,
 not tesla, so it is not imported (the recording is 6D). The lower back becomes ``pelvis``.
 
-The wireless sensors lose packets (up to 14 % of a trial, holes of up to 0.1 s): the sample times come
-from the packet counter (unwrapped), not from the row number; the reference events are on that time
-base (with row numbers as time, one trial's strides came out 16 % short of the reference's). The
-holes stay holes (the graph bridges short ones, ``max_gap``); the import says how many samples are
-missing.
+The wireless sensors lose packets (up to 18 % of a trial in the development subjects, holes of up to
+0.1 s): the sample times come from the packet counter (unwrapped), not from the row number; the
+reference events are on that time base (with row numbers as time, one trial's strides came out 16 %
+short of the reference's). The holes stay holes (the graph bridges short ones, ``max_gap``); the import
+says how many samples are missing.
 """
 
 from __future__ import annotations

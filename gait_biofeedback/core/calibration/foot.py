@@ -13,20 +13,13 @@ from __future__ import annotations
 import numpy as np
 
 from gait_biofeedback.core import quaternion as quat
+from gait_biofeedback.core.calibration.windows import moving_std, runs
 
 MIN_STANDING_S = 0.2
 STILL_GYRO_STD = 0.05  # rad/s: spread of the gyro over 0.25 s below this is a still foot
 STILL_ACC_STD = 0.2  # m/s²: spread of ‖a‖ over 0.25 s below this is a still foot
 STILL_WINDOW_S = 0.25
 ONSET_S = 0.1  # s before the first moving sample left out of the standing (the movement's onset)
-
-
-def _moving(x: np.ndarray, n: int) -> np.ndarray:
-    """Centred n-sample moving mean of (N, ...) ``x``, the ends padded with the edge values."""
-    pad = [(n // 2, n - 1 - n // 2)] + [(0, 0)] * (x.ndim - 1)
-    c = np.cumsum(np.pad(x, pad, mode="edge"), axis=0)
-    c = np.concatenate([np.zeros((1, *x.shape[1:])), c])
-    return (c[n:] - c[:-n]) / n
 
 
 def standing_run(gyr: np.ndarray, acc: np.ndarray, rate_hz: float, max_s: float = 5.0) -> tuple[int, int]:
@@ -44,24 +37,15 @@ def standing_run(gyr: np.ndarray, acc: np.ndarray, rate_hz: float, max_s: float 
         return 0, 0
     w = max(2, round(STILL_WINDOW_S * rate_hz))
     g, a = gyr[:n], np.linalg.norm(acc[:n], axis=1)
-    gyr_spread = np.sqrt(np.maximum(_moving(g**2, w) - _moving(g, w) ** 2, 0.0).sum(axis=1))
-    acc_spread = np.sqrt(np.maximum(_moving(a**2, w) - _moving(a, w) ** 2, 0.0))
-    quiet = (gyr_spread < STILL_GYRO_STD) & (acc_spread < STILL_ACC_STD)
-    edges = np.diff(np.concatenate([[0], quiet.astype(int), [0]]))
-    runs = list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True))
-    if not runs:
+    gyr_spread = np.linalg.norm(moving_std(g, w), axis=1)
+    quiet = (gyr_spread < STILL_GYRO_STD) & (moving_std(a, w) < STILL_ACC_STD)
+    quiet_runs = runs(quiet)
+    if not quiet_runs:
         return 0, 0
-    start, stop = max(runs, key=lambda r: r[1] - r[0])
+    start, stop = max(quiet_runs, key=lambda r: r[1] - r[0])
     if stop < len(gyr):
         stop = max(start, stop - round(ONSET_S * rate_hz))
     return int(start), int(stop)
-
-
-def leading_standing(gyr: np.ndarray, acc: np.ndarray, rate_hz: float, max_s: float = 5.0) -> int:
-    """Number of quiet samples at the start (:func:`standing_run`, when its run starts within the first
-    ``STILL_WINDOW_S``; else 0)."""
-    start, stop = standing_run(gyr, acc, rate_hz, max_s)
-    return stop if start <= round(STILL_WINDOW_S * rate_hz) else 0
 
 
 def foot_calibration(gyr: np.ndarray, acc: np.ndarray, rate_hz: float, segment: str = "left_foot",

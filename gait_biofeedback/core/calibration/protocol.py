@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from gait_biofeedback.core.calibration.windows import common_still, moving_mean, runs
+from gait_biofeedback.core.calibration.windows import common_still, moving_mean, moving_std, runs
 from gait_biofeedback.core.segments import SIDES, ImuSeries
 
 ACTIVE_RATE = 0.5  # rad/s, 1 s mean angular rate of an active sensor
@@ -82,19 +82,15 @@ def _resample(series: ImuSeries, values: np.ndarray, t: np.ndarray) -> np.ndarra
 
 def _still_runs_between_motion(rate: np.ndarray, rate_hz: float) -> int:
     still = rate < max(STILL_RATE, STILL_FRACTION * float(np.percentile(rate, 95)))
-    edges = np.diff(np.concatenate([[0], still.astype(int), [0]]))
-    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
     lo, hi = STANCE_S[0] * rate_hz, STANCE_S[1] * rate_hz
-    return int(sum(1 for a, b in zip(starts, stops, strict=True)
-                   if a > 0 and b < len(rate) and lo <= b - a <= hi))
+    return sum(1 for a, b in runs(still) if a > 0 and b < len(rate) and lo <= b - a <= hi)
 
 
 def check_protocol(data: dict[str, ImuSeries], motion: tuple[float, float]) -> ProtocolCheck:
     """What the motion in the window ``motion`` (s) of ``data`` looks like (module docstring). The
     gyro's mean over the whole window is not removed (a bias of a few °/s is far below the bands)."""
-    window = {s: d for s, d in data.items() if len(d) > 1}
     cut = {}
-    for seg, d in window.items():
+    for seg, d in data.items():
         sel = (d.t >= motion[0]) & (d.t <= motion[1])
         if sel.sum() >= 3:
             cut[seg] = ImuSeries(seg, d.t[sel], d.acc[sel], d.gyr[sel])
@@ -116,17 +112,16 @@ def check_protocol(data: dict[str, ImuSeries], motion: tuple[float, float]) -> P
             observations["both_legs"] = float(np.mean((leg_active["left"] & leg_active["right"])[either]))
     trunk = next((cut[s] for s in ("pelvis", "chest") if s in cut), None)
     if trunk is not None:
-        norm = np.linalg.norm(trunk.acc, axis=1)
-        n = max(3, round(trunk.rate_hz))
-        std = np.sqrt(np.maximum(moving_mean(norm**2, n) - moving_mean(norm, n) ** 2, 0.0))
+        std = moving_std(np.linalg.norm(trunk.acc, axis=1), max(3, round(trunk.rate_hz)))
         observations["trunk_bounce"] = float(np.median(_resample(trunk, std, t)[active]))
     feet = [cut[f"{side}_foot"] for side in SIDES if f"{side}_foot" in cut]
     fastest_foot = 0.0
     if feet:
-        rates = [moving_mean(np.linalg.norm(f.gyr, axis=1), max(1, round(0.05 * f.rate_hz))) for f in feet]
+        foot_rates = [moving_mean(np.linalg.norm(f.gyr, axis=1), max(1, round(0.05 * f.rate_hz)))
+                      for f in feet]
         observations["foot_stances"] = float(min(_still_runs_between_motion(r, f.rate_hz)
-                                                 for r, f in zip(rates, feet, strict=True)))
-        fastest_foot = max(float(np.percentile(r, 95)) for r in rates)
+                                                 for r, f in zip(foot_rates, feet, strict=True)))
+        fastest_foot = max(float(np.percentile(r, 95)) for r in foot_rates)
     votes = {}
     for name, value in observations.items():
         low, high = BANDS[name]

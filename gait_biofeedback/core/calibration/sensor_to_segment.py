@@ -588,6 +588,7 @@ def calibrate_session(
     protocol = seen if protocol == AUTO else protocol
     orientations = orientations or {}
     results: dict[str, SegmentCalibrationResult] = {}
+    tilts = upright_tilt(data, standing, motion)
     ref_part = "thigh" if protocol == "hip_flexion" else "shank"
     for side in SIDES:
         ref = f"{side}_{ref_part}"
@@ -604,7 +605,7 @@ def calibrate_session(
             q_stand = mean_orientation(orientations[seg][st]) if seg in orientations and st.any() else None
             res = calibrate_segment(seg, s.acc[st], s.gyr[st], s.gyr[mo], rate_hz or s.rate_hz, protocol,
                                     q_stand, rate_ref, s.acc[mo])
-            results[seg] = res
+            results[seg] = _refuse_if_not_upright(res, tilts)
             if seg == ref and res.valid:
                 z = quat.rotate(res.rotation, [0.0, 0.0, 1.0])
                 ref_motion = lowpass_motion(s.gyr[mo] - s.gyr[st].mean(axis=0), rate_hz or s.rate_hz)
@@ -616,16 +617,11 @@ def calibrate_session(
             st = _window(s.t, standing)
             q_stand = mean_orientation(orientations[seg][st]) if seg in orientations and st.any() else None
             forward, why_not = _trunk_forward(seg, data, orientations, results, motion)
-            walking = (s, orientations[seg], motion) if seg in orientations else None
-            results[seg] = calibrate_trunk(seg, s.acc[st], s.gyr[st], q_stand, thighs, forward,
-                                           common_heading, why_not, walking)
-    for seg, tilt in upright_tilt(data, standing, motion).items():
-        if seg in results and results[seg].valid and tilt > MAX_UPRIGHT_TILT:
-            results[seg].valid = False
-            degrees = np.degrees(tilt)
-            results[seg].message = (f"{label(seg)}: not upright in the quiet standing ({degrees:.0f}° "
-                                    "from its attitude during the movement: sitting?); stand still 5 s and "
-                                    "repeat")
+            walks = protocol == "walking" and seg in orientations
+            walking = (s, orientations[seg], motion) if walks else None
+            results[seg] = _refuse_if_not_upright(
+                calibrate_trunk(seg, s.acc[st], s.gyr[st], q_stand, thighs, forward, common_heading, why_not,
+                                walking), tilts)
     problems = [r.message for r in results.values() if not r.valid]
     valid = [label(s) for s, r in results.items() if r.valid]
     success = bool(valid)
@@ -641,6 +637,19 @@ def calibrate_session(
         message += (f" (the movement did not confirm the {WORDS[protocol]} protocol: {check.evidence()}; "
                     "check that it was done as instructed)")
     return SessionCalibration(protocol, results, success, message, tuple(standing), tuple(motion), seen)
+
+
+def _refuse_if_not_upright(result: SegmentCalibrationResult, tilts: dict[str, float]
+                           ) -> SegmentCalibrationResult:
+    """``result`` refused when its segment's standing attitude is more than ``MAX_UPRIGHT_TILT`` from
+    its attitude during the motion (:func:`~.protocol.upright_tilt`), before another segment uses it."""
+    tilt = tilts.get(result.segment, 0.0)
+    if result.valid and tilt > MAX_UPRIGHT_TILT:
+        result.valid = False
+        result.message = (f"{label(result.segment)}: not upright in the quiet standing "
+                          f"({np.degrees(tilt):.0f}° from its attitude during the movement: sitting?); "
+                          "stand still 5 s and repeat")
+    return result
 
 
 def helical_angle(r_estimate: np.ndarray, r_reference: np.ndarray) -> np.ndarray:

@@ -22,10 +22,19 @@ STILL_WINDOW = 0.5  # s
 
 
 def moving_mean(x: np.ndarray, n: int) -> np.ndarray:
-    """Centred n-sample moving mean of (N,) ``x``, the ends padded with the edge values."""
+    """Centred n-sample moving mean of (N,) or (N, k) ``x`` along its first axis, the ends padded with
+    the edge values."""
+    x = np.asarray(x, dtype=float)
+    if x.ndim > 1:
+        return np.column_stack([moving_mean(column, n) for column in x.T])
     kernel = np.ones(n) / n
     pad = np.pad(x, (n // 2, n - 1 - n // 2), mode="edge")
     return np.convolve(pad, kernel, mode="valid")
+
+
+def moving_std(x: np.ndarray, n: int) -> np.ndarray:
+    """Centred n-sample moving standard deviation of (N,) or (N, k) ``x`` (as :func:`moving_mean`)."""
+    return np.sqrt(np.maximum(moving_mean(np.square(x), n) - moving_mean(x, n) ** 2, 0.0))
 
 
 def still_mask(series: ImuSeries, gyro_threshold: float = GYRO_STILL,
@@ -33,8 +42,7 @@ def still_mask(series: ImuSeries, gyro_threshold: float = GYRO_STILL,
     """(N,) bool: the sensor is still around each sample (module docstring)."""
     n = max(3, round(STILL_WINDOW * series.rate_hz))
     gyro = moving_mean(np.linalg.norm(series.gyr, axis=1), n)
-    a = np.linalg.norm(series.acc, axis=1)
-    acc_std = np.sqrt(np.maximum(moving_mean(a**2, n) - moving_mean(a, n) ** 2, 0.0))
+    acc_std = moving_std(np.linalg.norm(series.acc, axis=1), n)
     return (gyro < gyro_threshold) & (acc_std < acc_threshold)
 
 

@@ -215,11 +215,8 @@ class RelativeHeadingEstimator:
         g1, d1, a1, g2, d2, a2 = (_zero_phase_lowpass(np.array([r[k] for r in rows]), rate_hz)
                                   for k in (1, 2, 3, 5, 6, 7))
         r1, r2, res = _fit(g1, d1, a1, g2, d2, a2)
-        if not (np.linalg.norm(r1) < MAX_JOINT_DISTANCE and np.linalg.norm(r2) < MAX_JOINT_DISTANCE
-                and res < MAX_RESIDUAL):
-            self.state = (f"joint centre refused ({np.linalg.norm(r1):.2f} m, {np.linalg.norm(r2):.2f} m "
-                          f"from the sensors, mismatch {res:.1f} m/s²): are both sensors on this joint's "
-                          "segments? collecting motion again")
+        if (refused := _joint_centre_refused(r1, r2, res)) is not None:
+            self.state = f"{refused}: are both sensors on this joint's segments? collecting motion again"
             return
         self.r1, self.r2, self.residual = r1, r2, res
         self.state = "converging"
@@ -247,6 +244,14 @@ class RelativeHeadingEstimator:
                 and self._coherence() >= self.min_coherence:
             self.established = True
             self.state = "ok"
+
+
+def _joint_centre_refused(r1: np.ndarray, r2: np.ndarray, residual: float) -> str | None:
+    """Why a joint-centre fit is not one (too far from a sensor, or the norms do not match), or None."""
+    d1, d2 = float(np.linalg.norm(r1)), float(np.linalg.norm(r2))
+    if d1 < MAX_JOINT_DISTANCE and d2 < MAX_JOINT_DISTANCE and residual < MAX_RESIDUAL:
+        return None
+    return f"joint centre refused ({d1:.2f} m, {d2:.2f} m from the sensors, mismatch {residual:.1f} m/s²)"
 
 
 def _zero_phase_lowpass(x: np.ndarray, rate_hz: float, cutoff_hz: float = LOWPASS_HZ) -> np.ndarray:
@@ -324,11 +329,8 @@ def window_relative_heading(q1: np.ndarray, gyr1: np.ndarray, acc1: np.ndarray, 
     dt = 1.0 / rate_hz
     d1, d2 = rate_derivative(g1, dt), rate_derivative(g2, dt)
     r1, r2, residual = _fit(*(_zero_phase_lowpass(v, rate_hz) for v in (g1, d1, a1, g2, d2, a2)))
-    if not (np.linalg.norm(r1) < MAX_JOINT_DISTANCE and np.linalg.norm(r2) < MAX_JOINT_DISTANCE
-            and residual < MAX_RESIDUAL):
-        return WindowHeading(np.zeros(len(g1)), 0.0, 0.0, r1, r2, residual,
-                             f"joint centre refused ({np.linalg.norm(r1):.2f} m, {np.linalg.norm(r2):.2f} m "
-                             f"from the sensors, mismatch {residual:.1f} m/s²)")
+    if (refused := _joint_centre_refused(r1, r2, residual)) is not None:
+        return WindowHeading(np.zeros(len(g1)), 0.0, 0.0, r1, r2, residual, refused)
     c1 = a1 + _gamma(g1, d1) @ r1
     c2 = a2 + _gamma(g2, d2) @ r2
     w1 = _zero_phase_lowpass(quat.rotate(q1, c1), rate_hz, WINDOW_LOWPASS_HZ)
