@@ -193,9 +193,11 @@ def test_step_count_of_synthetic_walk(rate: float, step_s: float) -> None:
 @pytest.mark.parametrize(("lean_deg", "counted"), [(0.0, True), (20.0, True), (40.0, False)])
 def test_steps_need_an_upright_trunk(lean_deg: float, counted: bool) -> None:
     # the same 20 chest bounces with the trunk upright, leaning 20° (θ 18–22° with the sway) or leaning
-    # 40° (θ 38–42°, beyond the 30° upright limit [T §7.2.6]): only the upright ones are steps
+    # 40° (θ 38–42°, beyond the 30° upright limit [T §7.2.6]): only the upright ones are steps. The
+    # thesis's rule presumes a known upright: the first 2 s here (the automatic reference would take
+    # the 40° walk as upright, see test_walking_replaces_a_quiet_reference_far_from_it)
     tpl = Template(RATE).hold(4.0, 0.0).hold(2.0, lean_deg).walk(20).hold(3.0)
-    out = _run(tpl)
+    out = _run(tpl, reference="start")
     theta = np.degrees(out["trunk_inclination"][700:1700])
     assert np.all(np.abs(theta - lean_deg) < 2.6)
     if counted:
@@ -204,6 +206,37 @@ def test_steps_need_an_upright_trunk(lean_deg: float, counted: bool) -> None:
     else:
         assert out["steps"] == [] and set(out["locomotion"]) == {"none"}
     assert out["transitions"] == [] and set(out["posture"]) == {"standing"}
+
+
+@pytest.mark.parametrize(("seated_deg", "replaced"), [(10.0, False), (40.0, True)])
+def test_walking_replaces_a_quiet_reference_far_from_it(seated_deg: float, replaced: bool) -> None:
+    # the recording starts seated (the first quiet period, taken as "up"), then the wearer walks off:
+    # 10 steps of walking upright check that reference; 40° off (> 15°) it is replaced, 10° off kept
+    tpl = Template(RATE).hold(8.0, seated_deg).hold(1.0, 0.0).walk(30).hold(6.0, 0.0)
+    monitor = ActivityMonitor(RATE)
+    states = [monitor.update(ns, a) for ns, a in zip(sample_stamps(len(tpl.lean), RATE).tolist(),
+                                                      tpl.acc().tolist(), strict=True)]
+    states = [s for s in states if s is not None] + monitor.flush()
+    sources = [source for _, source, _ in monitor.reference_log]
+    assert sources == (["quiet", "walking"] if replaced else ["quiet", "walking confirms quiet"])
+    assert monitor.reference_log[1][2] == pytest.approx(math.radians(seated_deg), abs=math.radians(1.5))
+    assert monitor.reference_log[0][0] == pytest.approx(2.0, abs=0.05)  # 2 s of quiet, from the start
+    theta_end = math.degrees(states[-1].trunk_inclination)
+    assert theta_end == pytest.approx(0.0 if replaced else seated_deg, abs=1.0)
+    assert abs(len(monitor.steps) - 30) <= 1  # the bout's first 10 steps, found by the finder, count
+    assert states[0].calibrated is False and states[-1].calibrated
+
+
+def test_handling_at_the_start_is_not_taken_as_upright() -> None:
+    # the sensor is turned and shaken for 6 s before it is worn: the first quiet 2 s come after that
+    tpl = Template(RATE)
+    for _ in range(5):
+        tpl.hold(0.5, 130.0).walk(1, step_s=0.3, amplitude=6.0).hold(0.4, 60.0)
+    tpl.hold(10.0, 0.0).transition("stand_to_sit", 2.4, 8.0, -0.45, 45.0).hold(10.0)
+    out = _run(tpl)
+    start = round(tpl.t * RATE) - 600
+    assert np.degrees(out["trunk_inclination"][start:]) == pytest.approx(8.0, abs=1.5)
+    assert [k for _, k in out["transitions"]] == ["stand_to_sit"]
 
 
 def test_no_transition_while_walking() -> None:
@@ -431,19 +464,22 @@ def test_stream_takes_the_forward_axis_from_its_stamp() -> None:
     stream = ActivityStream(ActivityParams(rate_hz=rate))
     with pytest.raises(ValueError, match="non-zero 3-vector"):
         stream.set_forward_axis([0.0, 0.0, 0.0])
-    states, t0 = [], float(chest.t[0])
+    states, t0, said = [], float(chest.t[0]), []
     in_force = t0 + 13.0  # in the middle of the flight up (9–17 s)
     stamps = seconds_to_ns(chest.t).tolist()
     for k, (stamp_ns, acc) in enumerate(zip(stamps, chest.acc.tolist(), strict=True)):
         if k == 1:
             stream.set_forward_axis(forward, from_ns=s_to_ns(in_force))  # arrives early: waits for its stamp
         state, _ = stream.update(stamp_ns, acc)
-        assert stream.notices.pop() == []
+        said += [n.text for n in stream.notices.pop()]
         in_force_now = stream.options["forward_axis"] == pytest.approx(list(forward))
         processed = stamps[k - 3] if k >= 3 else 0  # the 30 ms reorder window holds 3 samples
         assert in_force_now == (processed >= s_to_ns(in_force))
         if state is not None:
             states.append(state)
+    # the simulated wearer stands still for the first 2 s: that is the upright reference; nothing else
+    # is said
+    assert said == [f"chest: trunk upright reference at {t0 + 2.0:.1f} s from the first quiet period"]
     labels = np.array([s.locomotion for s in states])
     t_state = np.array([s.t for s in states])
     climbing = session.truth.locomotion[: len(labels)] == "upstairs"
@@ -473,3 +509,37 @@ def test_stairs_threshold_adapts_to_the_wearers_own_sway() -> None:
     assert np.mean(out["locomotion"][early] == "upstairs") > 0.9
     assert np.mean(out["locomotion"][settled] == "level") > 0.9
     assert np.mean(out["locomotion"][climbing] == "upstairs") > 0.9
+
+
+def _pelvis_sequence() -> Template:
+    """A waist sensor: the pelvis tilts back ~25° when seated (hapt_waist: seated θ median 21°)."""
+    tpl = Template(RATE).hold(4.0, 0.0)
+    tpl.transition("stand_to_sit", 2.4, 25.0, -0.45, 35.0).hold(10.0)
+    tpl.transition("sit_to_stand", 2.0, 2.0, 0.45, 35.0).hold(8.0)
+    tpl.transition("stand_to_lie", 3.0, 88.0, -0.6, 60.0).hold(10.0)
+    tpl.transition("lie_to_stand", 3.0, 2.0, 0.6, 60.0).hold(8.0)
+    return tpl
+
+
+def test_pelvis_posture_follows_its_tilt_and_names_six_transitions() -> None:
+    tpl = _pelvis_sequence()
+    out = _run(tpl, placement="pelvis")
+    assert [k for _, k in out["transitions"]] == [k for _, k in tpl.events]
+    for (t, _), (t_true, _) in zip(out["transitions"], tpl.events, strict=True):
+        assert abs(t - t_true) < 1.0  # measured ≤ 0.5 s: the θ crossing, less the GA delay
+    seated = slice(round(tpl.events[0][0] * RATE) + 300, round(tpl.events[1][0] * RATE) - 200)
+    assert set(out["posture"][seated]) == {"sitting"}
+
+
+def test_chest_lying_down_from_standing_is_stand_to_lie() -> None:
+    tpl = Template(RATE).hold(4.0, 0.0).transition("stand_to_lie", 3.0, 90.0, -0.6, 60.0).hold(10.0)
+    out = _run(tpl)
+    assert [k for _, k in out["transitions"]] == ["stand_to_lie"]
+    assert abs(out["transitions"][0][0] - tpl.events[0][0]) < 1.0
+
+
+def test_placement_and_reference_are_checked() -> None:
+    with pytest.raises(ValueError, match="placement"):
+        ActivityMonitor(RATE, placement="wrist")
+    with pytest.raises(ValueError, match="reference"):
+        ActivityMonitor(RATE, reference="first")

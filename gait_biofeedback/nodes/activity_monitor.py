@@ -7,8 +7,8 @@ whenever posture, locomotion or the last transition change, and every ``publish_
 describes the sample ``delay`` s before the newest one
 (:data:`gait_biofeedback.core.activity.monitor.DELAY_S`): the monitor needs that look-ahead to
 confirm steps and transitions. Bad input: NaN samples and repeated stamps are skipped and counted;
-a stamp going backwards or a gap > ``max_gap`` s restarts the monitor (its upright reference is
-taken again from the next ``reference_s`` s).
+a stamp going backwards or a gap > ``max_gap`` s restarts the monitor (after a jump back its upright
+reference is found again, see :mod:`gait_biofeedback.core.activity.reference`; after a gap it is kept).
 
 Parameters: :class:`~gait_biofeedback.core.activity.stream.ActivityParams` (``forward_axis`` only decides
 upstairs vs downstairs, and a wrong one swaps them).

@@ -15,7 +15,9 @@ TRANSITION_CODES = {None: ActivityState.TRANSITION_NONE,
                     "sit_to_stand": ActivityState.TRANSITION_SIT_TO_STAND,
                     "stand_to_sit": ActivityState.TRANSITION_STAND_TO_SIT,
                     "sit_to_lie": ActivityState.TRANSITION_SIT_TO_LIE,
-                    "lie_to_sit": ActivityState.TRANSITION_LIE_TO_SIT}
+                    "lie_to_sit": ActivityState.TRANSITION_LIE_TO_SIT,
+                    "stand_to_lie": ActivityState.TRANSITION_STAND_TO_LIE,
+                    "lie_to_stand": ActivityState.TRANSITION_LIE_TO_STAND}
 POSTURE_NAMES = {ActivityState.POSTURE_UNKNOWN: "unknown"} | {c: name for name, c in POSTURE_CODES.items()}
 LOCOMOTION_NAMES = {code: name for name, code in LOCOMOTION_CODES.items()}
 TRANSITION_NAMES = {code: name for name, code in TRANSITION_CODES.items()}

@@ -1,6 +1,6 @@
-"""Chest activity monitor: posture, transitions, walking modality and steps (thesis ch. 7).
+"""Trunk activity monitor: posture, transitions, walking modality and steps (thesis ch. 7).
 
-Spec: gait.md §3 (thesis §7.2.3–7.2.6, Fig 27). One chest accelerometer only.
+Spec: gait.md §3 (thesis §7.2.3–7.2.6, Fig 27). One trunk accelerometer only (chest or pelvis).
 
 Pipeline per sample (``ActivityMonitor.update``), all on Python floats:
   raw acc → ×scale, rotate into the body frame (x forward, y up, z right) → GA = 0.25 Hz elliptic
@@ -20,8 +20,14 @@ at confirmation.
 Units: m/s² are assumed (``units="g"`` accepted). The input is rescaled so that the static norm of
 the reference period is 1 g (gait.md §3.7 "g: the sensor's static norm"); a norm far from 1 g in
 the declared unit raises ``UnitMismatchWarning``. Mounting: the mean acceleration of an upright
-standing reference period defines "up" (Eq 14); without one, the first ``reference_s`` seconds are
-used (during them the monitor outputs its initial posture and no locomotion).
+standing reference period defines "up" (Eq 14); without one it is found in the stream
+(``reference="auto"``: the first quiet period, checked by the first walking bout, see
+:mod:`~gait_biofeedback.core.activity.reference`) or the first ``reference_s`` seconds are used
+(``reference="start"``, the thesis); until then the monitor outputs its initial posture, no
+locomotion and ``calibrated=False``.
+
+Placement: ``chest`` (the thesis) or ``pelvis`` (lower back, waist), where posture is a level on θ
+(the pelvis tilts back when seated) instead of the chest's excursion detector; see PELVIS_*.
 
 Posture consistency (our additions to §7.2.5, thresholds chosen on UCI dev subjects 1–7 only):
 a sit→stand needs the posture sitting, a stand→sit standing; stand→sit and an immediate sit→stand
@@ -45,6 +51,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gait_biofeedback.core.activity.reference import REREFERENCE_RAD, UprightFinder, angle_between
 from gait_biofeedback.core.activity.signal import (
     STANDARD_GRAVITY,
     Biquad,
@@ -55,6 +62,14 @@ from gait_biofeedback.core.activity.signal import (
     mounting_from_reference,
     scale_to_si,
     step_lowpass_ba,
+)
+from gait_biofeedback.core.activity.steps import (
+    MAX_STEP_S,
+    MIN_STEP_S,
+    STEP_LOWPASS_HZ,
+    STEP_PEAK_RELEASE,
+    STEP_PEAK_THRESHOLD,
+    SvmPeaks,
 )
 from gait_biofeedback.core.activity.transition import SitStandWindow, analyse_sit_stand
 from gait_biofeedback.core.stamps import NS_PER_S, s_to_ns, sample_stamps
@@ -72,7 +87,9 @@ __all__ = [
 
 POSTURES = ("standing", "sitting", "lying")
 LOCOMOTIONS = ("none", "level", "upstairs", "downstairs")
-TRANSITIONS = ("sit_to_stand", "stand_to_sit", "sit_to_lie", "lie_to_sit")
+REFERENCES = ("auto", "start")  # upright reference found in the stream (reference.py), or the first seconds
+TRANSITIONS = ("sit_to_stand", "stand_to_sit", "sit_to_lie", "lie_to_sit", "stand_to_lie", "lie_to_stand")
+PLACEMENTS = ("chest", "pelvis")  # chest / sternum (the thesis), or pelvis / lower back / waist
 
 DELAY_S = 3.0  # label delay: ≥ 3 steps at the slowest step duration (2 × 1.3 s) + peak latency
 # --- given by the thesis --------------------------------------------------------------------------
@@ -89,11 +106,6 @@ MAX_EXCURSION_S = 10.0  # longer "transitions" are not analysed (buffer is 14 s)
 MAX_SIT_STAND_S = 5.0  # [t1, t2] longer than this is not a StSi/SiSt (healthy 1.5–3.5 s; slow ≤ ~5 s);
 # chosen on UCI: longer windows gave |ΔY| of 0.7–1.4 m from integration drift while standing
 MAX_HEIGHT_FRACTION = 2.0  # |ΔY| > 2 thigh lengths is integration drift, not a transition (choice)
-STEP_LOWPASS_HZ = 3.0  # step SVM from raw |a| (READING gait.md §6 item 26), cadence < 180/min kept
-STEP_PEAK_THRESHOLD = 1.0  # m/s² (≈ 0.1 g): "low" SVM peak threshold; slow walking peaks ≈ 2 m/s²
-STEP_PEAK_RELEASE = 0.0  # m/s²: an SVM peak ends when the signal falls back below 0
-MIN_STEP_S = 0.25  # successive peaks closer than this are one step (≤ 240 steps/min)
-MAX_STEP_S = 1.3  # "pre-defined step duration": slow (stroke) gait has steps ≤ ~1.2 s
 UPRIGHT_WALKING_RAD = math.radians(30.0)  # "small threshold" rejecting peaks of a non-upright trunk
 STATIC_WINDOW_S = 1.0  # lying confirmation: one static second ...
 STATIC_STD = 0.5  # ... with std(|a|) < 0.5 m/s² (≈ 0.05 g) ...
@@ -137,6 +149,15 @@ SIT_WALK_MIN_STEPS = 8  # a walking bout overrides sitting/lying to standing onl
 SIT_LEAN_RAD = math.radians(25.0)  # trunk lean held ≥ 25° (and < 70°) without walking ...
 SIT_LEAN_HOLD_S = 30.0  # ... for 30 s ⇒ sitting (standing is upright). Dev: flags 0 % of standing
 # samples and 0–89 % of sitting ones (20° or 10 s flagged up to 35 % of one subject's standing)
+# --- the pelvis placement, chosen on hapt_waist users 16-30 (benchmarks/activity.py) ------------------
+# A waist or lower-back sensor tilts with the pelvis: seated θ held 7-56° (median 21°), standing 0-3°
+# (after the standing reference), while the chest's stand/sit excursion and ΔY are too small to see
+# (0/61 sit-stand transitions found). Posture is therefore a level with hysteresis on θ.
+PELVIS_SIT_RAD = math.radians(12.0)  # θ held above this ⇒ sitting (dev: 11-14° alike, 10° flickers)
+PELVIS_STAND_RAD = math.radians(8.0)  # θ held below this (or walking) ⇒ standing
+PELVIS_HOLD_S = 2.0  # the new level must hold this long (1 s: 1.7× the false transitions) ...
+PELVIS_STEADY_RAD = math.radians(2.0)  # ... and θ must be steady (range over the last 1 s) when confirmed
+MERGE_S = 5.0  # stand→sit then sit→lie (lie→sit then sit→stand) within 5 s is one stand→lie (lie→stand)
 LEAN_RECOVERY = 4.0  # leaky hold: a second upright takes back 4 s (≥ 80 % of the time leaning)
 
 
@@ -159,7 +180,7 @@ class ActivityState:
     step_count: int  # steps with a time ≤ t since start
     last_transition: str | None  # sit_to_stand | stand_to_sit | sit_to_lie | lie_to_sit
     last_transition_ns: int | None  # estimated instant of last_transition (a stamp, rounded to 1 ns)
-    calibrated: bool  # False during the first reference_s seconds without a given reference
+    calibrated: bool  # False until the upright reference is known (reference.py, or the first reference_s s)
 
     @property
     def t(self) -> float:
@@ -201,15 +222,21 @@ class ActivityMonitor:
         units: str = "m/s2",
         reference_acc: np.ndarray | None = None,
         reference_s: float = 2.0,
+        reference: str = "auto",
         align: bool = True,
         forward_axis: np.ndarray | None = None,
         thigh_length_m: float = DEFAULT_THIGH_LENGTH_M,
         initial_posture: str = "standing",
+        placement: str = "chest",
     ) -> None:
+        if placement not in PLACEMENTS:
+            raise ValueError(f"placement must be one of {PLACEMENTS}, got {placement!r}")
         if not 20.0 <= rate_hz <= 200.0:
             raise ValueError(f"rate_hz must be in [20, 200], got {rate_hz}")
         if initial_posture not in POSTURES:
             raise ValueError(f"initial_posture must be one of {POSTURES}")
+        if reference not in REFERENCES:
+            raise ValueError(f"reference must be one of {REFERENCES}, got {reference!r}")
         self.rate_hz = float(rate_hz)
         self.units = units
         self.align = align
@@ -218,6 +245,8 @@ class ActivityMonitor:
         self.max_height_change = MAX_HEIGHT_FRACTION * thigh_length_m
         self.strong_height_change = STRONG_THIGH_FRACTION * thigh_length_m
         self.posture = initial_posture
+        self.placement = placement
+        self._level: tuple[str, float] | None = None  # pelvis: (posture θ points to, since when)
         self._n_reference = max(1, round(reference_s * rate_hz))
         self._ref_sum = [0.0, 0.0, 0.0]
         self._ref_count = 0
@@ -232,7 +261,7 @@ class ActivityMonitor:
         self._step_delay = group_delay_s(step_b, step_a, 1.8, rate_hz)
         self._history = _Ring(int(HISTORY_S * rate_hz))
         self._delay_n = round(DELAY_S * rate_hz)
-        self._pending: deque[list] = deque()  # [t, posture, walking, theta, stamp_ns]
+        self._pending: deque[list] = deque()  # [t, posture, walking, theta, stamp_ns, calibrated]
         self._stairs_n = round(STAIRS_WINDOW_S * rate_hz)
         self._stairs_ring: deque[tuple[float, float, float]] = deque()
         self._stairs_sum = [0.0, 0.0, 0.0, 0.0]  # Σ(gv−g), Σ(gv−g)², Σ lean along body x, along z
@@ -256,6 +285,12 @@ class ActivityMonitor:
         self._lean_hold = 0.0  # s of trunk lean accumulated (leaky) without walking
         self._lean_t = -math.inf
         self._prime = reference_acc is not None  # GA starts from the first sample, not the reference
+        auto = reference == "auto" and reference_acc is None
+        self._finder = UprightFinder(rate_hz, reference_s) if auto else None
+        # (stamp s, source, rad from the reference it replaced or nan) of each reference taken
+        self.reference_log: list[tuple[float, str, float]] = []
+        if reference_acc is not None:
+            self.reference_log.append((0.0, "given", math.nan))
         self.steps: list[float] = []
         self._emitted_steps = 0
         self._emitted_transitions = 0
@@ -275,10 +310,7 @@ class ActivityMonitor:
         self._above_lying_since = math.inf
         self._sitting_up_t: float | None = None  # downward 70° crossing awaiting the hysteresis
         # steps / walking
-        self._in_peak = False
-        self._peak_value = 0.0
-        self._peak_t = 0.0
-        self._peak_theta = 0.0
+        self._peaks = SvmPeaks(STEP_PEAK_THRESHOLD, STEP_PEAK_RELEASE)
         self._last_peak_t = -math.inf
         self._run: list[float] = []
         self.walking = False
@@ -344,6 +376,10 @@ class ActivityMonitor:
         if previous._rot is None:
             return
         self._rot = list(previous._rot)
+        finder = previous._finder
+        if finder is not None:
+            finder = UprightFinder(self.rate_hz, finder.quiet_s, want_quiet=False)
+        self._finder = finder
         self.forward_axis = previous.forward_axis
         self._forward_cos_sin = previous._forward_cos_sin
         self._prime = True
@@ -366,6 +402,11 @@ class ActivityMonitor:
         t = stamp_ns / NS_PER_S
         ax, ay, az = float(acc[0]), float(acc[1]), float(acc[2])
         rot = self._rot
+        if self._finder is not None and self._find_reference(t, ax, ay, az):
+            rot = self._rot
+        if rot is None and self._finder is not None:
+            self._pending.append([t, self.posture, False, self._theta_prev, stamp_ns, False])
+            return self._emit()
         if rot is None:
             self._ref_sum[0] += ax
             self._ref_sum[1] += ay
@@ -375,8 +416,9 @@ class ActivityMonitor:
                 self._calibrate(np.array(self._ref_sum) / self._ref_count)
                 self._flat_t = self._ext_t = t
                 self._valley = (self._theta_prev, t)
+                self.reference_log.append((t, "start", math.nan))
             theta = self._theta_prev
-            self._pending.append([t, self.posture, False, theta, stamp_ns])
+            self._pending.append([t, self.posture, False, theta, stamp_ns, self._rot is not None])
             return self._emit()
         f = rot[0] * ax + rot[1] * ay + rot[2] * az
         v = rot[3] * ax + rot[4] * ay + rot[5] * az
@@ -398,12 +440,15 @@ class ActivityMonitor:
             self._handled_until = t + HANDLING_SETTLE_S
         if t < self._handled_until:
             self._hold_during_handling(t, theta)
-            self._pending.append([t, self.posture, False, theta, stamp_ns])
+            self._pending.append([t, self.posture, False, theta, stamp_ns, self._rot is not None])
             return self._emit()
         self._update_steps(t, svm, theta)
         self._update_lying(t, theta)
-        self._update_excursion(t, theta)
-        self._update_lean(t, theta)
+        if self.placement == "pelvis":
+            self._update_pelvis_level(t, theta)
+        else:
+            self._update_excursion(t, theta)
+            self._update_lean(t, theta)
         if self._pending_sit_stand is not None and t > self._pending_sit_stand[1]:
             self._pending_sit_stand = None  # no walking followed: the weak sit→stand is dropped
         if t > self._stand_deadline:
@@ -411,8 +456,58 @@ class ActivityMonitor:
             if self.posture == "standing" and not self.walking:
                 self.posture = "sitting"  # stood up but never walked: taken as still seated
         self._theta_prev = theta
-        self._pending.append([t, self.posture, self.walking, theta, stamp_ns])
+        self._pending.append([t, self.posture, self.walking, theta, stamp_ns, True])
         return self._emit()
+
+    def _find_reference(self, t: float, ax: float, ay: float, az: float) -> bool:
+        """Feed the :class:`UprightFinder`; True when the mounting changed at this sample.
+
+        The first quiet period (or walking bout, if that comes first) calibrates; a walking bout then
+        checks a quiet reference and replaces it beyond ``REREFERENCE_RAD``, after which the finder
+        stops. A replacement restarts the detectors as after sensor handling (the θ they tracked was
+        measured from the wrong "up") and takes the bout's steps as a walk in progress.
+        """
+        finder = self._finder
+        found = finder.update(t, ax, ay, az)
+        if found is None:
+            return False
+        if found == "quiet" and self._rot is None:
+            self._calibrate(finder.quiet)
+            self._prime = True
+            self.reference_log.append((t, "quiet", math.nan))
+            return True
+        if found != "walking":
+            return False
+        self._finder = None
+        if self._rot is None:
+            self._calibrate(finder.walking)
+            self._prime = True
+            self.reference_log.append((t, "walking", math.nan))
+            self._adopt_walk(finder.walk_steps)
+            return True
+        old = np.array(self._rot).reshape(3, 3)
+        angle = angle_between(np.linalg.solve(old, np.array([0.0, 1.0, 0.0])), finder.walking)
+        if angle <= REREFERENCE_RAD:
+            self.reference_log.append((t, "walking confirms quiet", angle))
+            return False
+        self._calibrate(finder.walking)
+        self._prime = True
+        rows = self._history.data
+        rows[:, 1:] = rows[:, 1:] @ (np.array(self._rot).reshape(3, 3) @ np.linalg.inv(old)).T
+        self.reference_log.append((t, "walking", angle))
+        self._hold_during_handling(t, 0.0)
+        self._adopt_walk(finder.walk_steps)
+        return True
+
+    def _adopt_walk(self, steps: list[float]) -> None:
+        """The finder's walking bout becomes the monitor's walk in progress (steps counted)."""
+        self._run = list(steps)
+        self._last_peak_t = steps[-1]
+        if not self.walking:
+            self.walking = True
+            self.steps.extend(s for s in steps if not self.steps or s > self.steps[-1])
+            self._stand_deadline = math.inf
+            self._relabel(steps[0] - 0.5 * MIN_STEP_S, walking=True)
 
     def _hold_during_handling(self, t: float, theta: float) -> None:
         """The sensor is being put on or adjusted: keep the last posture, detect nothing.
@@ -428,7 +523,7 @@ class ActivityMonitor:
         if self.walking:
             self._end_walking()
         self._run = []
-        self._in_peak = False
+        self._peaks.reset()
         self._candidate = None
         self._excursions.clear()
         self._pending_sit_stand = None
@@ -455,7 +550,7 @@ class ActivityMonitor:
         return self._make_state(self._pending.popleft())
 
     def _make_state(self, rec: list) -> ActivityState:
-        t, posture, walking, theta, stamp_ns = rec
+        t, posture, walking, theta, stamp_ns, calibrated = rec
         while self._emitted_steps < len(self.steps) and self.steps[self._emitted_steps] <= t:
             self._emitted_steps += 1
         while (
@@ -473,7 +568,7 @@ class ActivityMonitor:
             step_count=self._emitted_steps,
             last_transition=last[1] if last else None,
             last_transition_ns=s_to_ns(last[0]) if last else None,
-            calibrated=self.calibrated,
+            calibrated=calibrated,
         )
 
     def _modality(self, t: float) -> str:
@@ -561,8 +656,21 @@ class ActivityMonitor:
 
     # ---------------------------------------------------------------- detectors
     def _add_transition(self, t: float, kind: str, posture: str, *, walked: bool = False) -> None:
-        """Record an event; a sit→stand not yet followed by walking must see walking within 60 s."""
-        self.transitions.append((t, kind))
+        """Record an event; a sit→stand not yet followed by walking must see walking within 60 s.
+
+        Stand→sit then sit→lie within MERGE_S is one stand→lie at the first instant, lie→sit then
+        sit→stand one lie→stand (HAPT's six transitions; the thesis names four). The first event may
+        have been published already: the merged one replaces it, with its stamp.
+        """
+        merged = {("stand_to_sit", "sit_to_lie"): "stand_to_lie",
+                  ("lie_to_sit", "sit_to_stand"): "lie_to_stand"}
+        last = self.transitions[-1] if self.transitions else None
+        if last is not None and t - last[0] <= MERGE_S and (last[1], kind) in merged:
+            self.transitions[-1] = (last[0], merged[(last[1], kind)])
+            if self._last_emitted_transition == last:
+                self._last_emitted_transition = self.transitions[-1]
+        else:
+            self.transitions.append((t, kind))
         self.posture = posture
         self._relabel(t, posture=posture)
         unconfirmed = kind == "sit_to_stand" and not walked
@@ -590,7 +698,8 @@ class ActivityMonitor:
         elif not lying_now and self._lying_crossing_t is not None:
             self._lying_crossing_t = None  # never static while above 70°: unknown movement
         if self._lying_crossing_t is not None and self._static_lying_t >= self._lying_crossing_t:
-            self._add_transition(self._lying_crossing_t - self._ga_delay, "sit_to_lie", "lying")
+            kind = "stand_to_lie" if self.posture == "standing" else "sit_to_lie"
+            self._add_transition(self._lying_crossing_t - self._ga_delay, kind, "lying")
             self._lying_crossing_t = None
         if self.posture != "lying" or lying_now:
             self._sitting_up_t = None
@@ -708,6 +817,41 @@ class ActivityMonitor:
             return "not sitting"
         return "sit_to_stand" if strong else "sit_to_stand?"
 
+    def _update_pelvis_level(self, t: float, theta: float) -> None:
+        """Pelvis placement: sitting while θ is held above PELVIS_SIT_RAD, standing below
+        PELVIS_STAND_RAD or while walking (our rule, see the constants; the thesis's §7.2.5 detector
+        is for the chest). The event's instant is where θ crossed, less the GA filter's delay."""
+        if self.posture == "lying":
+            self._level = None
+            return
+        if self.walking or theta < PELVIS_STAND_RAD:
+            target = "standing"
+        elif theta > PELVIS_SIT_RAD:
+            target = "sitting"
+        else:
+            target = self._level[0] if self._level else self.posture
+        if target == self.posture:
+            self._level = None
+            return
+        if self._level is None or self._level[0] != target:
+            self._level = (target, t)
+            return
+        if not self.walking and (t - self._level[1] < PELVIS_HOLD_S or not self._theta_steady(t)):
+            return
+        instant = self._level[1] - self._ga_delay
+        self._level = None
+        kind = "sit_to_stand" if target == "standing" else "stand_to_sit"
+        self._add_transition(instant, kind, target, walked=self.walking)
+
+    def _theta_steady(self, t: float) -> bool:
+        """θ's range over the last second of the delay line is below PELVIS_STEADY_RAD."""
+        low, high = math.inf, -math.inf
+        for rec in reversed(self._pending):
+            if rec[0] < t - 1.0:
+                break
+            low, high = min(low, rec[3]), max(high, rec[3])
+        return high - low < PELVIS_STEADY_RAD
+
     def _update_lean(self, t: float, theta: float) -> None:
         """A trunk lean held in [25°, 70°) for 30 s without walking ⇒ sitting (no event).
 
@@ -739,20 +883,13 @@ class ActivityMonitor:
         """SVM peaks → steps and walking bouts [T §7.2.6, Table 16(b) "low threshold + rejection"]."""
         if self.walking and t - self._last_peak_t > MAX_STEP_S:
             self._end_walking()
-        if not self._in_peak:
-            if svm > STEP_PEAK_THRESHOLD:
-                self._in_peak = True
-                self._peak_value, self._peak_t, self._peak_theta = svm, t, theta
+        peak = self._peaks.update(t, svm, theta)
+        if peak is None:
             return
-        if svm > self._peak_value:
-            self._peak_value, self._peak_t, self._peak_theta = svm, t, theta
-        if svm >= STEP_PEAK_RELEASE:
-            return
-        self._in_peak = False
-        t_peak = self._peak_t - self._step_delay
+        t_peak = peak[0] - self._step_delay
         if t_peak - self._last_peak_t < MIN_STEP_S:
             return
-        if self._peak_theta > UPRIGHT_WALKING_RAD:
+        if peak[1] > UPRIGHT_WALKING_RAD:
             self._run = []
             self._last_peak_t = t_peak
             return
@@ -785,31 +922,38 @@ def classify_activity(
     rate_hz: float,
     *,
     units: str = "m/s2",
-    reference: slice | tuple[int, int] | None = None,
+    reference: slice | tuple[int, int] | str = "auto",
     align: bool = True,
     forward_axis: np.ndarray | None = None,
     thigh_length_m: float = DEFAULT_THIGH_LENGTH_M,
     initial_posture: str = "standing",
+    placement: str = "chest",
 ) -> dict:
     """Batch entry point: the streaming monitor run over ``acc`` (N×3), labels per sample.
 
-    ``reference``: sample range of an upright standing period (re-orients any mounting); ``None``
-    uses the first 2 s. Returns ``{"posture": (N,) str, "locomotion": (N,) str,
-    "transitions": [(t, kind)], "steps": [t], "trunk_inclination": (N,) rad}``, t from 0 at sample 0.
+    ``reference``: sample range of an upright standing period (re-orients any mounting), or
+    ``"auto"`` (found in the stream, see :mod:`~gait_biofeedback.core.activity.reference`), or
+    ``"start"`` (the first 2 s, as the thesis). Returns ``{"posture": (N,) str, "locomotion": (N,) str,
+    "transitions": [(t, kind)], "steps": [t], "trunk_inclination": (N,) rad,
+    "reference": [(t, source, rad from the one replaced)]}``, t from 0 at sample 0.
     """
     acc = np.asarray(acc, dtype=float)
-    reference_acc = None
-    if reference is not None:
+    reference_acc, mode = None, "auto"
+    if isinstance(reference, str):
+        mode = reference
+    else:
         sl = reference if isinstance(reference, slice) else slice(*reference)
         reference_acc = acc[sl].mean(axis=0)
     monitor = ActivityMonitor(
         rate_hz,
         units=units,
         reference_acc=reference_acc,
+        reference=mode,
         align=align,
         forward_axis=forward_axis,
         thigh_length_m=thigh_length_m,
         initial_posture=initial_posture,
+        placement=placement,
     )
     states: list[ActivityState] = []
     update = monitor.update
@@ -824,4 +968,5 @@ def classify_activity(
         "transitions": list(monitor.transitions),
         "steps": list(monitor.steps),
         "trunk_inclination": np.array([s.trunk_inclination for s in states]),
+        "reference": list(monitor.reference_log),
     }

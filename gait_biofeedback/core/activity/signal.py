@@ -60,7 +60,7 @@ def gravity_lowpass_ba(rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def step_lowpass_ba(rate_hz: float, cutoff_hz: float) -> tuple[np.ndarray, np.ndarray]:
-    """2nd-order Butterworth low-pass for the step SVM (choice: see ``activity.STEP_LOWPASS_HZ``)."""
+    """2nd-order Butterworth low-pass for the step SVM (choice: see ``steps.STEP_LOWPASS_HZ``)."""
     b, a = signal.butter(2, min(cutoff_hz, 0.45 * rate_hz), fs=rate_hz)
     return b, a
 

@@ -4,16 +4,16 @@ Shared by the ``activity_monitor`` node and the offline ``analyze`` path, so bot
 states. NaN/inf samples are skipped and counted. Samples pass a
 :class:`~gait_biofeedback.core.sequencer.StreamSequencer` (``reorder_window`` s of re-sequencing;
 duplicates, late samples and single bad stamps dropped and counted); a confirmed jump back or a gap
-longer than ``max_gap`` s restarts the monitor (its upright reference is taken again from the next
-``reference_s`` s after a restart, kept after a gap), keeping the step count, the posture and the
-wearer's history, so a dropout does not set the count back to 0 (issue 13). A state is "changed"
-when posture, locomotion or the last transition differ from the last changed one. A trunk forward
-axis (from the chest's sensor-to-segment calibration) is handed to the monitor at the first sample
-at or after its "in force" stamp, or at once if that has passed, as the calibration is for the other
-consumers (the monitor applies it to the states it emits from then on, see
-``ActivityMonitor.set_forward_axis``). A restart keeps the forward axis and the wearer's
-walking-sway history. The last ``reorder_window`` s of a stream stay held: the monitor labels a
-sample 3 s after it anyway. Warnings go to :attr:`ActivityStream.notices`.
+longer than ``max_gap`` s restarts the monitor (its upright reference is found again after a jump
+back, kept after a gap; each reference taken is said in the notices), keeping the step count, the
+posture and the wearer's history, so a dropout does not set the count back to 0 (issue 13). A state
+is "changed" when posture, locomotion or the last transition differ from the last changed one. A
+trunk forward axis (from the chest's sensor-to-segment calibration) is handed to the monitor at the
+first sample at or after its "in force" stamp, or at once if that has passed, as the calibration is
+for the other consumers (the monitor applies it to the states it emits from then on, see
+``ActivityMonitor.set_forward_axis``). A restart keeps the forward axis and the wearer's walking-
+sway history. The last ``reorder_window`` s of a stream stay held: the monitor labels a sample 3 s
+after it anyway. Warnings go to :attr:`ActivityStream.notices`.
 
 Samples are identified by their stamps (int ns); the stage's parameters are :class:`ActivityParams`.
 """
@@ -29,7 +29,9 @@ import numpy as np
 
 from gait_biofeedback.core import quaternion as quat
 from gait_biofeedback.core.activity.monitor import (
+    PLACEMENTS,
     POSTURES,
+    REFERENCES,
     ActivityMonitor,
     ActivityState,
     check_forward_axis,
@@ -57,8 +59,15 @@ class ActivityParams:
                            "rate measured from the stamps is used when it differs by over 10 %)", "Hz",
                            low=20.0, high=200.0)
     units: str = param("m/s2", "unit of the accelerometer readings", choices=UNITS)
-    reference_s: float = param(2.0, "upright standing at the start taken as the trunk's reference", "s",
-                               low=0.1, high=60.0)
+    placement: str = param("chest", "where the monitored sensor sits on the trunk (chest: thesis ch. 7; "
+                           "pelvis: also lower back or waist, posture from the pelvis tilt)",
+                           choices=PLACEMENTS)
+    reference: str = param("auto", "how the trunk's upright is found: auto = the first quiet period, "
+                           "checked and if need be replaced by the first walking bout; start = the first "
+                           "reference_s s",
+                           choices=REFERENCES)
+    reference_s: float = param(2.0, "length of the quiet (auto) or initial (start) period taken as upright",
+                               "s", low=0.1, high=60.0)
     thigh_length: float = same_as(BodyDimensions, "thigh_length")
     initial_posture: str = param("standing", "posture until a transition says otherwise", choices=POSTURES)
     forward_axis: tuple[float, ...] = param(
@@ -79,8 +88,10 @@ class ActivityStream:
         self.params = p
         self.rate_hz = p.rate_hz
         self.max_gap = p.max_gap
-        self.options = {"units": p.units, "reference_s": p.reference_s, "thigh_length_m": p.thigh_length,
-                        "initial_posture": p.initial_posture, "forward_axis": list(p.forward_axis)}
+        self.options = {"units": p.units, "reference_s": p.reference_s, "reference": p.reference,
+                        "thigh_length_m": p.thigh_length, "initial_posture": p.initial_posture,
+                        "forward_axis": list(p.forward_axis), "placement": p.placement}
+        self._references_said = 0
         self.monitor = ActivityMonitor(self.rate_hz, **self.options)
         self.sequencer = StreamSequencer(window=p.reorder_window)
         self.rate = RateCheck(p.rate_hz)
@@ -173,6 +184,7 @@ class ActivityStream:
             self._steps_before += previous._emitted_steps
             options = {**self.options, "initial_posture": previous.posture}
             self.monitor = ActivityMonitor(self.rate_hz, **options)
+            self._references_said = 0
             self.monitor.keep_wearer_history(previous)
             if not restart_s:
                 self.monitor.keep_mounting(previous)
@@ -203,9 +215,23 @@ class ActivityStream:
             if problem:
                 self.notices.say("warn", f"{segment}: {problem}")
         state = self.monitor.update(stamp_ns, acc)
+        if len(self.monitor.reference_log) > self._references_said:
+            self._say_reference()
         if state is not None:
             out.append(self._state(state))
         return out
+
+    def _say_reference(self) -> None:
+        """A notice for each upright reference the monitor took (see core.activity.reference)."""
+        segment = self.params.segment
+        for t, source, angle in self.monitor.reference_log[self._references_said:]:
+            off = f", {math.degrees(angle):.0f}° from the quiet one" if math.isfinite(angle) else ""
+            text = {"quiet": "the first quiet period", "walking": f"a walking bout{off}",
+                    "start": "the first seconds", "given": "the given reference",
+                    "walking confirms quiet": f"a walking bout confirms it{off}"}.get(source, source)
+            level = "warn" if source == "walking" and math.isfinite(angle) else "info"
+            self.notices.say(level, f"{segment}: trunk upright reference at {t:.1f} s from {text}")
+        self._references_said = len(self.monitor.reference_log)
 
     def _set_rate(self, note: str) -> None:
         """The stream's rate is not the configured one: a new monitor designed for it (before any sample
@@ -221,6 +247,7 @@ class ActivityStream:
         thinned = f", every {self._every}th sample kept" if self._every > 1 else ""
         self.notices.say("warn", f"{self.params.segment} (activity monitor): {note}{thinned}")
         self.monitor = ActivityMonitor(self.rate_hz, **self.options)
+        self._references_said = 0
 
     def _state(self, state: ActivityState) -> tuple[ActivityState, bool]:
         """A state of the current monitor, counted on from the monitors a restart replaced."""
