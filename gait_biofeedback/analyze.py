@@ -175,6 +175,7 @@ class _ActivityRun:
         self.period_ns = s_to_ns(params.publish_period)
         self.stream = ActivityStream(params)
         self._next_periodic: int | None = None
+        self._newest_ns = 0
 
     def update(self, raw: Stamped) -> list[Any]:
         stamp_ns, _, acc = raw_sample(raw)
@@ -184,10 +185,17 @@ class _ActivityRun:
         elif stamp_ns >= self._next_periodic and self.stream.latest is not None:
             self._next_periodic = stamp_ns + self.period_ns
             out.append(activity_msg(self.stream.latest, stamp_ns, self.segment))
+        self._newest_ns = stamp_ns
         state, changed = self.stream.update(stamp_ns, acc)
         if changed:
             out.append(activity_msg(state, stamp_ns, self.segment))
         return out
+
+    def update_thigh(self, segment: str, raw: Stamped) -> list[Any]:
+        """A thigh sample (``ActivityParams.thighs``): the trunk states it released."""
+        stamp_ns, _, acc = raw_sample(raw)
+        state, changed = self.stream.update_thigh(segment, stamp_ns, acc)
+        return [activity_msg(state, self._newest_ns, self.segment)] if changed else []
 
 
 def _raw_topics(reader: BagReader, bag: str | Path) -> tuple[dict[str, str], dict[str, str]]:
@@ -425,6 +433,9 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
         raw = decode_imu(data)
         if activity is not None and seg == activity.segment:
             for state in activity.update(raw):
+                emit(topics.ACTIVITY.absolute(), state, log_ns)
+        elif activity is not None and seg in activity.stream.thighs.segments:
+            for state in activity.update_thigh(seg, raw):
                 emit(topics.ACTIVITY.absolute(), state, log_ns)
         tracker = trackers.get(seg)
         if tracker is not None:

@@ -213,9 +213,17 @@ def replay_through_graph(
         if not spin_until(graph.executor, done, timeout=timeout) and not STOP.is_set():
             raise TimeoutError(f"replay of {bag} did not finish within {timeout} s")
         interrupted = STOP.is_set()
-        # let the last messages travel through the graph
-        settle = time.monotonic() + 0.5
-        spin_until(graph.executor, lambda: time.monotonic() > settle)
+        # let the last messages travel through the graph; a calibration request waits until its
+        # data has come through the filters (they lag behind a fast replay), at most SETTLE_MAX_S
+        settle, limit = time.monotonic() + 0.5, time.monotonic() + SETTLE_MAX_S
+        calibrating = graph.nodes.get("calibration")
+
+        def settled() -> bool:
+            now = time.monotonic()
+            waiting = calibrating is not None and calibrating.core.scheduled
+            return now > limit or (now > settle and not waiting)
+
+        spin_until(graph.executor, settled)
         recorder = graph.recorder
     recorded = recorder.written if recorder is not None else 0
     calibration = graph.nodes.get("calibration")
@@ -224,6 +232,9 @@ def replay_through_graph(
                         recorder.write_error if recorder is not None else None, interrupted,
                         list(getattr(calibration, "attempts", [])), start_ns,
                         getattr(calibration, "saved_file", None))
+
+
+SETTLE_MAX_S = 10.0
 
 
 def _calibration_request(stamp_ns: int, protocol: str) -> Callable[[dict[str, Node]], None]:

@@ -543,3 +543,58 @@ def test_placement_and_reference_are_checked() -> None:
         ActivityMonitor(RATE, placement="wrist")
     with pytest.raises(ValueError, match="reference"):
         ActivityMonitor(RATE, reference="first")
+
+
+def _thigh_acc(inclination_deg: np.ndarray, seed: int = 1) -> np.ndarray:
+    """A thigh accelerometer (sensor x along the thigh, pointing up when standing) flexed by the given
+    angle in the sagittal plane, still apart from noise."""
+    phi = np.radians(inclination_deg)
+    acc = G * np.column_stack([np.cos(phi), np.sin(phi), np.zeros_like(phi)])
+    return acc + 0.05 * np.random.default_rng(seed).standard_normal(acc.shape)
+
+
+def _seated_thighs(n: int) -> tuple[np.ndarray, float, float]:
+    """0° for 5 s, up to 85° over 1.5 s (seated), back to 0° at 22 s over 1.5 s: inclination per sample
+    and the instants the thighs cross 50° (sitting) and 30° (standing)."""
+    t = np.arange(n) / RATE
+    ramp = np.clip((t - 5.0) / 1.5, 0.0, 1.0) - np.clip((t - 22.0) / 1.5, 0.0, 1.0)
+    return 85.0 * ramp, 5.0 + 1.5 * 50.0 / 85.0, 22.0 + 1.5 * (1.0 - 30.0 / 85.0)
+
+
+def test_thighs_tell_sitting_from_an_upright_trunk() -> None:
+    # the qmt case: the chest stays upright while seated; the thighs' inclination decides
+    tpl = Template(RATE).hold(32.0, 0.0)
+    inclination, t_sit, t_stand = _seated_thighs(len(tpl.lean))
+    thighs = {"left_thigh": _thigh_acc(inclination), "right_thigh": _thigh_acc(inclination, seed=2)}
+    out = classify_activity(tpl.acc(), RATE, thighs=thighs)
+    assert [k for _, k in out["transitions"]] == ["stand_to_sit", "sit_to_stand"]
+    # the instant is the crossing less the GA filter's delay (0.27 s): within 0.5 s of the crossing
+    assert out["transitions"][0][0] == pytest.approx(t_sit, abs=0.5)
+    assert out["transitions"][1][0] == pytest.approx(t_stand, abs=0.5)
+    assert set(out["posture"][round(8 * RATE):round(21 * RATE)]) == {"sitting"}
+    assert _run(tpl)["transitions"] == []  # the trunk alone sees nothing
+
+
+def test_stream_with_thighs_equals_batch_and_a_silent_thigh_is_not_waited_for() -> None:
+    from gait_biofeedback.core.activity.stream import ActivityParams, ActivityStream
+
+    tpl = Template(RATE).hold(32.0, 0.0)
+    inclination, _, _ = _seated_thighs(len(tpl.lean))
+    thighs = {"left_thigh": _thigh_acc(inclination), "right_thigh": _thigh_acc(inclination, seed=2)}
+    acc = tpl.acc()
+    batch = classify_activity(acc, RATE, thighs=thighs)
+    stream = ActivityStream(ActivityParams(rate_hz=RATE, reorder_window=0.0))
+    stamps = sample_stamps(len(acc), RATE).tolist()
+    for k, stamp_ns in enumerate(stamps):  # the right thigh's sample arrives after the chest's: it waits
+        stream.update_thigh("left_thigh", stamp_ns, thighs["left_thigh"][k].tolist())
+        stream.update(stamp_ns, acc[k].tolist())
+        stream.update_thigh("right_thigh", stamp_ns, thighs["right_thigh"][k].tolist())
+    assert [k for _, k in stream.monitor.transitions] == ["stand_to_sit", "sit_to_stand"]
+    for (t_s, _), (t_b, _) in zip(stream.monitor.transitions, batch["transitions"], strict=True):
+        assert t_s == pytest.approx(t_b, abs=1e-9)
+    # both thighs fall silent: the chest's samples are released 0.2 s late, then at once; states go on
+    newest = stream.latest.stamp_ns
+    for k in range(1, 501):
+        stream.update(stamps[-1] + k * 10_000_000, acc[-1].tolist())
+    assert stream.latest.stamp_ns == stamps[-1] + 500 * 10_000_000 - round(DELAY_S * 1e9)
+    assert stream.latest.stamp_ns > newest

@@ -1,6 +1,7 @@
 """Node ``activity_monitor``: chest accelerometer → posture, transitions, walking modality, steps.
 
-Subscribes ``chest/imu/data_raw`` (sensor_msgs/Imu; only the accelerometer is used, thesis ch. 7) and
+Subscribes ``chest/imu/data_raw`` (sensor_msgs/Imu; only the accelerometer is used, thesis ch. 7), the
+thighs' ``imu/data_raw`` (``thighs``: their inclination tells sitting from standing while they send) and
 ``calibration/sensor_to_segment`` (latched; the chest's rotation gives the trunk's forward axis, in
 force from the message's stamp), publishes ``activity/state`` (gait_biofeedback_msgs/ActivityState)
 whenever posture, locomotion or the last transition change, and every ``publish_period`` s. The state
@@ -15,6 +16,8 @@ upstairs vs downstairs, and a wrong one swaps them).
 """
 
 from __future__ import annotations
+
+from functools import partial
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from rclpy.context import Context
@@ -46,13 +49,15 @@ class ActivityMonitorNode(GuardedNode):
         self.published = 0
         self._pub = publisher(self, topics.ACTIVITY)
         subscribe(self, topics.raw_imu(self.segment), self._on_imu, raw=True)
+        for thigh in self.stream.thighs.segments:
+            subscribe(self, topics.raw_imu(thigh), partial(self._on_thigh, thigh), raw=True)
         subscribe(self, topics.CALIBRATION, self._on_calibration)
         self.create_timer(self.params.publish_period, self._periodic)
 
     @property
     def counts(self) -> dict[str, int]:
         """Input counters of the stream plus states published."""
-        return {**self.stream.counts, "published": self.published}
+        return {**self.stream.counts, **self.stream.thighs.counts, "published": self.published}
 
     def _on_calibration(self, msg: SegmentCalibrationArray) -> None:
         self.stream.apply_calibration(*entries(msg))
@@ -63,6 +68,12 @@ class ActivityMonitorNode(GuardedNode):
         state, changed = self.stream.update(stamp_ns, acc)
         log_notices(self.get_logger(), self.stream.notices.pop())
         self._newest_ns = stamp_ns
+        if changed:
+            self._publish(state)
+
+    def _on_thigh(self, segment: str, data: bytes) -> None:
+        stamp_ns, _, acc = raw_sample(decode_imu(data))
+        state, changed = self.stream.update_thigh(segment, stamp_ns, acc)
         if changed:
             self._publish(state)
 

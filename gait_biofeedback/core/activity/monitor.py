@@ -47,6 +47,7 @@ from __future__ import annotations
 import bisect
 import math
 from collections import deque
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -71,6 +72,7 @@ from gait_biofeedback.core.activity.steps import (
     STEP_PEAK_THRESHOLD,
     SvmPeaks,
 )
+from gait_biofeedback.core.activity.thigh import THIGH_HOLD_S, THIGH_SIT_RAD, THIGH_STAND_RAD, ThighInputs
 from gait_biofeedback.core.activity.transition import SitStandWindow, analyse_sit_stand
 from gait_biofeedback.core.stamps import NS_PER_S, s_to_ns, sample_stamps
 
@@ -246,7 +248,12 @@ class ActivityMonitor:
         self.strong_height_change = STRONG_THIGH_FRACTION * thigh_length_m
         self.posture = initial_posture
         self.placement = placement
-        self._level: tuple[str, float] | None = None  # pelvis: (posture θ points to, since when)
+        self._level: tuple[str, float] | None = None  # pelvis/thighs: (posture the level points to, since)
+        # the thighs' mean inclination (rad) at the next sample, set by the caller before each update
+        # (ActivityStream, from ThighTilt); None: no thigh data, the trunk decides sitting vs standing
+        self.thigh_inclination: float | None = None
+        self._level_value = math.nan  # the level's value at the previous sample ...
+        self._middle_t = -math.inf  # ... and when it last crossed the middle of the two levels
         self._n_reference = max(1, round(reference_s * rate_hz))
         self._ref_sum = [0.0, 0.0, 0.0]
         self._ref_count = 0
@@ -444,8 +451,11 @@ class ActivityMonitor:
             return self._emit()
         self._update_steps(t, svm, theta)
         self._update_lying(t, theta)
-        if self.placement == "pelvis":
-            self._update_pelvis_level(t, theta)
+        thigh = self.thigh_inclination
+        if thigh is not None:
+            self._update_level(t, thigh, THIGH_SIT_RAD, THIGH_STAND_RAD, THIGH_HOLD_S, steady=False)
+        elif self.placement == "pelvis":
+            self._update_level(t, theta, PELVIS_SIT_RAD, PELVIS_STAND_RAD, PELVIS_HOLD_S, steady=True)
         else:
             self._update_excursion(t, theta)
             self._update_lean(t, theta)
@@ -817,16 +827,24 @@ class ActivityMonitor:
             return "not sitting"
         return "sit_to_stand" if strong else "sit_to_stand?"
 
-    def _update_pelvis_level(self, t: float, theta: float) -> None:
-        """Pelvis placement: sitting while θ is held above PELVIS_SIT_RAD, standing below
-        PELVIS_STAND_RAD or while walking (our rule, see the constants; the thesis's §7.2.5 detector
-        is for the chest). The event's instant is where θ crossed, less the GA filter's delay."""
+    def _update_level(self, t: float, value: float, sit: float, stand: float, hold: float, *,
+                      steady: bool) -> None:
+        """Sitting while ``value`` is held above ``sit`` for ``hold`` s, standing below ``stand`` or
+        while walking: the pelvis placement (value = θ, see PELVIS_*; the thesis's §7.2.5 detector is
+        for the chest) and the thighs (value = their mean inclination, see ``thigh.py``). Our rule.
+        ``steady``: θ must also be steady when the level is confirmed. The event's instant is where
+        the value last crossed the middle of the two levels (a symmetric movement's middle), less the
+        GA filter's delay."""
+        middle = 0.5 * (sit + stand)
+        previous, self._level_value = self._level_value, value
+        if (previous - middle) * (value - middle) <= 0.0 and previous != value:
+            self._middle_t = t
         if self.posture == "lying":
             self._level = None
             return
-        if self.walking or theta < PELVIS_STAND_RAD:
+        if self.walking or value < stand:
             target = "standing"
-        elif theta > PELVIS_SIT_RAD:
+        elif value > sit:
             target = "sitting"
         else:
             target = self._level[0] if self._level else self.posture
@@ -836,12 +854,12 @@ class ActivityMonitor:
         if self._level is None or self._level[0] != target:
             self._level = (target, t)
             return
-        if not self.walking and (t - self._level[1] < PELVIS_HOLD_S or not self._theta_steady(t)):
+        if not self.walking and (t - self._level[1] < hold or (steady and not self._theta_steady(t))):
             return
-        instant = self._level[1] - self._ga_delay
+        instant = min(self._middle_t, self._level[1]) - self._ga_delay
         self._level = None
         kind = "sit_to_stand" if target == "standing" else "stand_to_sit"
-        self._add_transition(instant, kind, target, walked=self.walking)
+        self._add_transition(instant, kind, target, walked=True)  # the level is the evidence: no deadline
 
     def _theta_steady(self, t: float) -> bool:
         """θ's range over the last second of the delay line is below PELVIS_STEADY_RAD."""
@@ -923,11 +941,13 @@ def classify_activity(
     *,
     units: str = "m/s2",
     reference: slice | tuple[int, int] | str = "auto",
+    reference_s: float = 2.0,
     align: bool = True,
     forward_axis: np.ndarray | None = None,
     thigh_length_m: float = DEFAULT_THIGH_LENGTH_M,
     initial_posture: str = "standing",
     placement: str = "chest",
+    thighs: Mapping[str, np.ndarray] | None = None,
 ) -> dict:
     """Batch entry point: the streaming monitor run over ``acc`` (N×3), labels per sample.
 
@@ -935,7 +955,9 @@ def classify_activity(
     ``"auto"`` (found in the stream, see :mod:`~gait_biofeedback.core.activity.reference`), or
     ``"start"`` (the first 2 s, as the thesis). Returns ``{"posture": (N,) str, "locomotion": (N,) str,
     "transitions": [(t, kind)], "steps": [t], "trunk_inclination": (N,) rad,
-    "reference": [(t, source, rad from the one replaced)]}``, t from 0 at sample 0.
+    "reference": [(t, source, rad from the one replaced)]}``, t from 0 at sample 0. ``thighs``: thigh
+    accelerometers (N×3 each, the same samples' times) that tell sitting from standing, as
+    ``ActivityStream`` does with the ``thighs`` it hears.
     """
     acc = np.asarray(acc, dtype=float)
     reference_acc, mode = None, "auto"
@@ -949,6 +971,7 @@ def classify_activity(
         units=units,
         reference_acc=reference_acc,
         reference=mode,
+        reference_s=reference_s,
         align=align,
         forward_axis=forward_axis,
         thigh_length_m=thigh_length_m,
@@ -957,7 +980,14 @@ def classify_activity(
     )
     states: list[ActivityState] = []
     update = monitor.update
-    for stamp_ns, sample in zip(sample_stamps(len(acc), rate_hz).tolist(), acc.tolist(), strict=True):
+    thigh_rows = {seg: np.asarray(a, dtype=float).tolist() for seg, a in (thighs or {}).items()}
+    inputs = ThighInputs(list(thigh_rows), rate_hz, reference_s)
+    for k, (stamp_ns, sample) in enumerate(zip(sample_stamps(len(acc), rate_hz).tolist(), acc.tolist(),
+                                               strict=True)):
+        if thigh_rows:
+            for seg, rows in thigh_rows.items():
+                inputs.add(seg, stamp_ns, rows[k])
+            monitor.thigh_inclination = inputs.inclination_at(stamp_ns, stamp_ns)
         state = update(stamp_ns, sample)
         if state is not None:
             states.append(state)

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections import deque
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -36,6 +37,7 @@ from gait_biofeedback.core.activity.monitor import (
     ActivityState,
     check_forward_axis,
 )
+from gait_biofeedback.core.activity.thigh import ThighInputs
 from gait_biofeedback.core.body import BodyDimensions
 from gait_biofeedback.core.calibration.sensor_to_segment import SegmentEntry
 from gait_biofeedback.core.in_force import InForceQueue
@@ -68,6 +70,9 @@ class ActivityParams:
                            choices=REFERENCES)
     reference_s: float = param(2.0, "length of the quiet (auto) or initial (start) period taken as upright",
                                "s", low=0.1, high=60.0)
+    thighs: tuple[str, ...] = param(("left_thigh", "right_thigh"), "segments whose raw accelerometers tell "
+                                    "sitting from standing while they send (their inclination; empty: the "
+                                    "trunk alone)", choices=SEGMENTS)
     thigh_length: float = same_as(BodyDimensions, "thigh_length")
     initial_posture: str = param("standing", "posture until a transition says otherwise", choices=POSTURES)
     forward_axis: tuple[float, ...] = param(
@@ -106,6 +111,8 @@ class ActivityStream:
         self._last_ns: int | None = None
         self._key: tuple | None = None
         self._waiting_forward: InForceQueue[list[float]] = InForceQueue()
+        self.thighs = ThighInputs([seg for seg in p.thighs if seg != p.segment], p.rate_hz, p.reference_s)
+        self._waiting: deque[tuple[int, tuple]] = deque()  # trunk samples waiting for the thighs
 
     def set_forward_axis(self, forward_axis: Sequence[float], from_ns: int = 0) -> None:
         """Trunk forward in sensor axes, in force from stamp ``from_ns`` (see module docstring).
@@ -158,15 +165,25 @@ class ActivityStream:
             return None, False
         return self._released(self.sequencer.push(stamp_ns, tuple(acc)))
 
+    def update_thigh(self, segment: str, stamp_ns: int, acc: Sequence[float]) -> tuple[ActivityState | None,
+                                                                                        bool]:
+        """One sample of a thigh in ``thighs`` → the trunk states it released (as :meth:`update`)."""
+        self.thighs.add(segment, stamp_ns, acc)
+        return self._collect(self._release())
+
+    @staticmethod
+    def _collect(states: list[tuple[ActivityState, bool]]) -> tuple[ActivityState | None, bool]:
+        latest, changed = None, False
+        for state, change in states:
+            latest, changed = state, changed or change
+        return latest, changed
+
     def _released(self, released: list) -> tuple[ActivityState | None, bool]:
         new = self.sequencer.sync_drops(self.counts)
         if new and self.sequencer.dropped - new < 3:
             self.notices.say("warn", f"{self.params.segment}: dropped {self.sequencer.last_dropped}")
-        latest, changed = None, False
-        for r in released:
-            for state, change in self._sample(r.stamp_ns, r.payload, r.restart_s):
-                latest, changed = state, changed or change
-        return latest, changed
+        return self._collect([out for r in released
+                              for out in self._sample(r.stamp_ns, r.payload, r.restart_s)])
 
     def _sample(self, stamp_ns: int, acc: tuple, restart_s: float) -> list[tuple[ActivityState, bool]]:
         segment = self.params.segment
@@ -180,7 +197,8 @@ class ActivityStream:
             self.notices.say("warn", f"{segment}: {cause}: activity monitor restarted (steps, posture and "
                                      f"history kept; {kept})")
             previous = self.monitor
-            out = [self._state(st) for st in previous.flush()]  # its last DELAY_S s, steps included
+            out = self._release(force=True)
+            out += [self._state(st) for st in previous.flush()]  # its last DELAY_S s, steps included
             self._steps_before += previous._emitted_steps
             options = {**self.options, "initial_posture": previous.posture}
             self.monitor = ActivityMonitor(self.rate_hz, **options)
@@ -203,22 +221,31 @@ class ActivityStream:
         return out + self._feed(stamp_ns, acc)
 
     def _feed(self, stamp_ns: int, acc: tuple) -> list[tuple[ActivityState, bool]]:
-        """One sample into the monitor (thinned above MAX_RATE_HZ)."""
-        segment = self.params.segment
-        out: list[tuple[ActivityState, bool]] = []
+        """One sample towards the monitor (thinned above MAX_RATE_HZ), through the thighs' wait."""
         if self._every > 1:
             self._skip = (self._skip + 1) % self._every
             if self._skip:
-                return out
-        for forward in self._waiting_forward.due(stamp_ns):
-            problem = self._apply_forward(forward)
-            if problem:
-                self.notices.say("warn", f"{segment}: {problem}")
-        state = self.monitor.update(stamp_ns, acc)
-        if len(self.monitor.reference_log) > self._references_said:
-            self._say_reference()
-        if state is not None:
-            out.append(self._state(state))
+                return []
+        self._waiting.append((stamp_ns, acc))
+        return self._release()
+
+    def _release(self, *, force: bool = False) -> list[tuple[ActivityState, bool]]:
+        """The waiting trunk samples the thighs are ready for (all if ``force``) into the monitor."""
+        segment = self.params.segment
+        out: list[tuple[ActivityState, bool]] = []
+        newest = self._last_ns or 0
+        while self._waiting and (force or self.thighs.ready(self._waiting[0][0], newest)):
+            stamp_ns, acc = self._waiting.popleft()
+            for forward in self._waiting_forward.due(stamp_ns):
+                problem = self._apply_forward(forward)
+                if problem:
+                    self.notices.say("warn", f"{segment}: {problem}")
+            self.monitor.thigh_inclination = self.thighs.inclination_at(stamp_ns, newest)
+            state = self.monitor.update(stamp_ns, acc)
+            if len(self.monitor.reference_log) > self._references_said:
+                self._say_reference()
+            if state is not None:
+                out.append(self._state(state))
         return out
 
     def _say_reference(self) -> None:
@@ -248,6 +275,7 @@ class ActivityStream:
         self.notices.say("warn", f"{self.params.segment} (activity monitor): {note}{thinned}")
         self.monitor = ActivityMonitor(self.rate_hz, **self.options)
         self._references_said = 0
+        self.thighs.rate_hz = self.rate_hz  # thigh streams not yet heard from get filters for this rate
 
     def _state(self, state: ActivityState) -> tuple[ActivityState, bool]:
         """A state of the current monitor, counted on from the monitors a restart replaced."""
