@@ -252,15 +252,16 @@ def test_replay_and_analyze_take_the_same_calibration_options(session_bag, tmp_p
     assert "calibration: left_thigh ok" in out and "true" not in out and "truth" not in out
     offline, _ = read_calibration_file(tmp_path / "offline" / "calibration.yaml", SEGMENTS)
 
-    assert main(["replay", str(sensors_only), "--record", str(tmp_path / "live"), "--speed", "4",
+    assert main(["replay", str(sensors_only), "--record", str(tmp_path / "live"), "--speed", "2",
                  "--stop", "37", "--nodes", "orientation_filter,calibration", *request]) == 0
     out = capsys.readouterr().out
     assert f"calibrate (hip_flexion, data up to {at:.2f} s): calibrated" in out and "quiet standing" in out
     assert f"calibration saved as {tmp_path / 'live' / 'calibration.yaml'}" in out
     live, _ = read_calibration_file(tmp_path / "live" / "calibration.yaml", SEGMENTS)
-    # the same samples give the same rotations (usually to 1e-12); a replay at 4x on a loaded machine
-    # can lose a best-effort raw sample, which moved a component by up to 1.4e-4 (0.02°) in 2 of ~10
-    # runs. Sample-exact equality at 2x is test_analyze_gives_the_numbers_of_the_live_graph's
+    # the same samples give the same rotations (usually to 1e-12); a replay that loses a best-effort raw
+    # sample moves a component by up to 1e-3: at 4x this machine's filters lost samples (1.06e-3 seen
+    # on 2026-12-02), at 2x they keep up. Sample-exact equality is
+    # test_analyze_gives_the_numbers_of_the_live_graph's
     for segment in SEGMENTS:
         np.testing.assert_allclose(live.segments[segment].rotation, offline.segments[segment].rotation,
                                    rtol=0, atol=1e-3)
