@@ -13,6 +13,7 @@ from gait_biofeedback.core.gait.comparator import angular_velocity_events
 from gait_biofeedback.core.gait.cycles import GaitCycleTracker
 from gait_biofeedback.core.gait.detect import detect_gait_events
 from gait_biofeedback.core.gait.events import (
+    LATE_TC_FLAG,
     GaitEvent,
     GaitEventDetector,
     events_from_signal,
@@ -61,29 +62,40 @@ def test_threshold_blocks_shallow_minimum():
     assert all(len(v) == 0 for v in events_from_signal(shallow, 100.0).values())
 
 
-def test_a_clear_heel_strike_counts_without_its_toe_off():
-    # EXT (events.py): the first step from standing pushes off shallowly (here -0.15, above the -0.2
-    # threshold: no TC) but strikes clearly (+0.3): the IC is detected, flagged, and the next step is
-    # the thesis' again
+@pytest.mark.parametrize(("depth", "expected"), [
+    (-0.15, [("tc", 49, LATE_TC_FLAG), ("ic", 69, "")]),
+    (-0.02, [("ic", 69, "no toe-off detected before this heel strike")])])
+def test_a_clear_heel_strike_counts_without_its_toe_off(depth: float, expected: list):
+    # EXT (events.py): the first step from standing pushes off shallowly (above the -0.2 threshold: no
+    # TC by Algorithm 1) but strikes clearly (+0.3): the IC is detected; the toe-off is looked for at
+    # it, found when deeper than -0.03 (emitted first, flagged, with its own stamp), else the IC is
+    # flagged; the next step is the thesis' again
     s = np.zeros(260)
-    s[30:50] = -0.15 * np.arange(1, 21) / 20  # shallow toe-off, minimum at k=49
-    s[50:70] = -0.15 + 0.45 * np.arange(1, 21) / 20  # heel strike, maximum +0.3 at k=69
+    s[30:50] = depth * np.arange(1, 21) / 20  # shallow toe-off, minimum at k=49
+    s[50:70] = depth + (0.3 - depth) * np.arange(1, 21) / 20  # heel strike, maximum +0.3 at k=69
     s[70:90] = 0.3 - 0.3 * np.arange(1, 21) / 20
     s[130:220] = _hand_made()[30:120]  # a normal step: TC at k=149, IC at k=169
     detector = GaitEventDetector(rate_hz=100.0)
     events = [e for k, sk in enumerate(s.tolist()) if (e := detector.update_signal(k * 10_000_000, sk))]
     assert [(e.kind, round(e.stamp_ns / 1e7), e.flag) for e in events] == [
-        ("ic", 69, "no toe-off detected before this heel strike"), ("tc", 149, ""), ("ic", 169, "")]
+        *expected, ("tc", 149, ""), ("ic", 169, "")]
+    # the heel strike is detected when its maximum is confirmed (k=70), the late toe-off with it
+    assert round(events[0].detected_ns / 1e7) == 70
+    assert events_from_signal(s, 100.0)["tc"].tolist() == [e[1] for e in expected if e[0] == "tc"] + [149]
 
 
-@pytest.mark.parametrize(("reversals", "expected"), [(3, [49]), (4, [])])
-def test_80_percent_trend_rule(reversals: int, expected: list[int]):
+@pytest.mark.parametrize(("reversals", "flag"), [(3, ""), (4, LATE_TC_FLAG)])
+def test_80_percent_trend_rule(reversals: int, flag: str):
     s = _hand_made()
-    # one-sample upward reversals inside the 15 differences before the minimum (k=49): 12 of 15 must fall
+    # one-sample upward reversals inside the 15 differences before the minimum (k=49): 12 of 15 must fall;
+    # with 4 Algorithm 1 finds no TC there, and the EXT finds it late, at the heel strike
     for j in range(reversals):
         k = 36 + 3 * j
         s[k] = s[k - 1] + 0.005
-    assert events_from_signal(s, 100.0)["tc"].tolist() == expected
+    detector = GaitEventDetector(rate_hz=100.0)
+    events = [e for k, sk in enumerate(s.tolist()) if (e := detector.update_signal(k * 10_000_000, sk))]
+    toe_offs = [(round(e.stamp_ns / 1e7), e.flag) for e in events if e.kind == "tc"]
+    assert toe_offs[0] == (49, flag)
 
 
 @pytest.mark.parametrize(("reversals", "expected"), [(3, [69]), (4, [])])
