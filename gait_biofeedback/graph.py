@@ -221,7 +221,7 @@ def replay_through_graph(
         def settled() -> bool:
             now = time.monotonic()
             waiting = calibrating is not None and calibrating.core.scheduled
-            return now > limit or (now > settle and not waiting)
+            return now > limit or (now > settle and (not waiting or STOP.is_set()))
 
         spin_until(graph.executor, settled)
         recorder = graph.recorder

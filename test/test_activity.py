@@ -598,3 +598,14 @@ def test_stream_with_thighs_equals_batch_and_a_silent_thigh_is_not_waited_for() 
         stream.update(stamps[-1] + k * 10_000_000, acc[-1].tolist())
     assert stream.latest.stamp_ns == stamps[-1] + 500 * 10_000_000 - round(DELAY_S * 1e9)
     assert stream.latest.stamp_ns > newest
+
+
+def test_pelvis_level_already_seated_at_the_start_is_timed_where_it_was_left() -> None:
+    # given a standing reference (here the last second), a recording that starts seated: the level
+    # disagrees with the initial posture from the first sample; the event gets the first sample's time
+    # less the GA delay (not -inf, which crashed the state's stamp)
+    tpl = Template(RATE, lean_deg=25.0).hold(8.0).hold(1.0, 0.0)
+    out = classify_activity(tpl.acc(), RATE, placement="pelvis", reference=(800, 900))
+    assert [k for _, k in out["transitions"]][:1] == ["stand_to_sit"]
+    assert -0.5 < out["transitions"][0][0] < 0.0
+    assert set(out["posture"][100:700]) == {"sitting"}

@@ -180,7 +180,7 @@ class ActivityState:
     locomotion: str  # none | level | upstairs | downstairs
     trunk_inclination: float  # rad, θ of Eq 54 (causal GA; READING: GA_v/|GA|, see update)
     step_count: int  # steps with a time ≤ t since start
-    last_transition: str | None  # sit_to_stand | stand_to_sit | sit_to_lie | lie_to_sit
+    last_transition: str | None  # one of TRANSITIONS
     last_transition_ns: int | None  # estimated instant of last_transition (a stamp, rounded to 1 ns)
     calibrated: bool  # False until the upright reference is known (reference.py, or the first reference_s s)
 
@@ -252,6 +252,7 @@ class ActivityMonitor:
         # the thighs' mean inclination (rad) at the next sample, set by the caller before each update
         # (ActivityStream, from ThighTilt); None: no thigh data, the trunk decides sitting vs standing
         self.thigh_inclination: float | None = None
+        self._level_source = ""  # "thigh" or "pelvis": what the level state below follows
         self._level_value = math.nan  # the level's value at the previous sample ...
         self._middle_t = -math.inf  # ... and when it last crossed the middle of the two levels
         self._n_reference = max(1, round(reference_s * rate_hz))
@@ -453,9 +454,9 @@ class ActivityMonitor:
         self._update_lying(t, theta)
         thigh = self.thigh_inclination
         if thigh is not None:
-            self._update_level(t, thigh, THIGH_SIT_RAD, THIGH_STAND_RAD, THIGH_HOLD_S, steady=False)
+            self._update_level(t, "thigh", thigh, THIGH_SIT_RAD, THIGH_STAND_RAD, THIGH_HOLD_S)
         elif self.placement == "pelvis":
-            self._update_level(t, theta, PELVIS_SIT_RAD, PELVIS_STAND_RAD, PELVIS_HOLD_S, steady=True)
+            self._update_level(t, "pelvis", theta, PELVIS_SIT_RAD, PELVIS_STAND_RAD, PELVIS_HOLD_S)
         else:
             self._update_excursion(t, theta)
             self._update_lean(t, theta)
@@ -541,6 +542,7 @@ class ActivityMonitor:
         self._lean_hold = 0.0
         self._overridden_onset = math.nan
         self._reset_excursion(t, theta)
+        self._reset_level(t, self._level_source)
         # on resume, a θ beyond 70° is a fresh crossing into lying (or out of it)
         self._theta_prev = LYING_THRESHOLD_RAD + 0.01 if self.posture == "lying" else 0.0
 
@@ -827,14 +829,17 @@ class ActivityMonitor:
             return "not sitting"
         return "sit_to_stand" if strong else "sit_to_stand?"
 
-    def _update_level(self, t: float, value: float, sit: float, stand: float, hold: float, *,
-                      steady: bool) -> None:
+    def _update_level(self, t: float, source: str, value: float, sit: float, stand: float, hold: float
+                      ) -> None:
         """Sitting while ``value`` is held above ``sit`` for ``hold`` s, standing below ``stand`` or
         while walking: the pelvis placement (value = θ, see PELVIS_*; the thesis's §7.2.5 detector is
         for the chest) and the thighs (value = their mean inclination, see ``thigh.py``). Our rule.
-        ``steady``: θ must also be steady when the level is confirmed. The event's instant is where
-        the value last crossed the middle of the two levels (a symmetric movement's middle), less the
-        GA filter's delay."""
+        For the pelvis θ must also be steady when the level is confirmed. The event's instant is where
+        the value last crossed the middle of the two levels (a symmetric movement's middle) within the
+        hold before the level was left, else where it was left; less the GA filter's delay. A change
+        of source (the thighs start or stop sending) starts the level state again."""
+        if source != self._level_source:
+            self._reset_level(t, source)
         middle = 0.5 * (sit + stand)
         previous, self._level_value = self._level_value, value
         if (previous - middle) * (value - middle) <= 0.0 and previous != value:
@@ -854,12 +859,20 @@ class ActivityMonitor:
         if self._level is None or self._level[0] != target:
             self._level = (target, t)
             return
-        if not self.walking and (t - self._level[1] < hold or (steady and not self._theta_steady(t))):
+        steady = source != "pelvis" or self._theta_steady(t)
+        if not self.walking and (t - self._level[1] < hold or not steady):
             return
-        instant = min(self._middle_t, self._level[1]) - self._ga_delay
+        since = self._level[1]
+        instant = (self._middle_t if since - hold <= self._middle_t <= since else since) - self._ga_delay
         self._level = None
         kind = "sit_to_stand" if target == "standing" else "stand_to_sit"
         self._add_transition(instant, kind, target, walked=True)  # the level is the evidence: no deadline
+
+    def _reset_level(self, t: float, source: str) -> None:
+        self._level_source = source
+        self._level = None
+        self._level_value = math.nan
+        self._middle_t = t
 
     def _theta_steady(self, t: float) -> bool:
         """θ's range over the last second of the delay line is below PELVIS_STEADY_RAD."""

@@ -54,7 +54,7 @@ def angle_between(a: np.ndarray, b: np.ndarray) -> float:
 
 
 class UprightFinder:
-    """``update(t, acc) -> "quiet" | "walking" | None``: the kind of reference found at this sample.
+    """``update(t, ax, ay, az) -> "quiet" | "walking" | None``: the reference found at this sample.
 
     After "quiet", :attr:`quiet` holds its mean acceleration (sensor axes, input units); after
     "walking", :attr:`walking` holds the bout's mean and :attr:`walk_steps` its step times (s,
@@ -82,16 +82,19 @@ class UprightFinder:
 
     def update(self, t: float, ax: float, ay: float, az: float) -> str | None:
         norm = math.sqrt(ax * ax + ay * ay + az * az)
+        if norm == 0.0:
+            return None  # a driver's all-zero start-up sample: no direction, no magnitude
         if math.isnan(self._g):
             self._g = norm
             self._svm.reset_steady(0.0)
         self._g += self._alpha * (norm - self._g)
+        walking = self._walk(t, ax, ay, az, norm)
         if self.want_quiet and self._is_quiet(ax, ay, az):
             s = self._sums
             self.quiet = np.array(s[:3]) / len(self._window)
             self.want_quiet = False
             return "quiet"
-        return self._walk(t, ax, ay, az, norm)
+        return walking
 
     def _is_quiet(self, ax: float, ay: float, az: float) -> bool:
         window, s = self._window, self._sums

@@ -198,6 +198,8 @@ class ActivityStream:
                                      f"history kept; {kept})")
             previous = self.monitor
             out = self._release(force=True)
+            if restart_s:
+                self.thighs.clear()
             out += [self._state(st) for st in previous.flush()]  # its last DELAY_S s, steps included
             self._steps_before += previous._emitted_steps
             options = {**self.options, "initial_posture": previous.posture}

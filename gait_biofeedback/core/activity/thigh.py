@@ -42,7 +42,7 @@ class ThighTilt:
         """The thigh's upright in sensor axes (unit vector), once found."""
         return self._up
 
-    def update(self, t: float, acc) -> float | None:
+    def update(self, t: float, acc: Sequence[float]) -> float | None:
         ax, ay, az = float(acc[0]), float(acc[1]), float(acc[2])
         if not self._started:
             for biquad, value in zip(self._gravity, (ax, ay, az), strict=True):
@@ -87,19 +87,27 @@ class ThighInputs:
         self.quiet_s = quiet_s
         self._tilts: dict[str, ThighTilt] = {}
         self._history: dict[str, deque[tuple[int, float | None]]] = {seg: deque() for seg in segments}
-        self.counts = {"thigh_samples": 0, "thigh_skipped": 0}
+        self.counts = {"thigh_samples": 0, "thigh_skipped": 0, "thigh_restarts": 0}
 
     @property
     def segments(self) -> tuple[str, ...]:
         return tuple(self._history)
 
+    def clear(self) -> None:
+        """Forget the samples heard (the trunk's time went back); the thighs' uprights are kept."""
+        for history in self._history.values():
+            history.clear()
+
     def add(self, segment: str, stamp_ns: int, acc: Sequence[float]) -> None:
         """One thigh sample; NaN samples and stamps not after the last are skipped and counted."""
         history = self._history[segment]
         self.counts["thigh_samples"] += 1
-        if not all(math.isfinite(v) for v in acc) or (history and stamp_ns <= history[-1][0]):
+        if not all(math.isfinite(v) for v in acc) or (history and stamp_ns == history[-1][0]):
             self.counts["thigh_skipped"] += 1
             return
+        if history and stamp_ns < history[-1][0]:
+            history.clear()  # time went back (a loop, a restart): the history starts again
+            self.counts["thigh_restarts"] += 1
         tilt = self._tilts.get(segment)
         if tilt is None:
             tilt = self._tilts[segment] = ThighTilt(self.rate_hz, self.quiet_s)

@@ -135,6 +135,7 @@ class GaitEventDetector:
         self.set_rate(rate_hz)
         self.set_mounting(mounting)
         self.counts = {INITIAL_CONTACT: 0, TERMINAL_CONTACT: 0}
+        self._queued: GaitEvent | None = None  # a heel strike that follows its late toe-off
         self.reset()
 
     def set_rate(self, rate_hz: float) -> None:
@@ -160,7 +161,7 @@ class GaitEventDetector:
         self.waiting_for_ic = False  # Algorithm 1 "flag"
         lookback = samples_for(LATE_TC_LOOKBACK_S, self.rate_hz)
         self._recent: deque[tuple[int, int, float]] = deque(maxlen=lookback)  # (k, stamp, s)
-        self._queued: GaitEvent | None = None  # a heel strike that follows its late toe-off
+        # (a queued heel strike is kept: its toe-off has been emitted, the next update returns it)
 
     def signal(self, foot_quat: Any) -> float:
         """``-sin(beta)`` of one sensor orientation (w, x, y, z) with the current calibration."""
@@ -205,7 +206,8 @@ class GaitEventDetector:
                 self._k_ic = k
                 if late is None:
                     return self._event(INITIAL_CONTACT, stamp_ns, prev, MISSED_TC_FLAG)
-                self._k_tc, tc_ns, value = late
+                k_tc, tc_ns, value = late
+                self._k_tc = k_tc + 1  # as Algorithm 1 counts a TC: at its confirming sample
                 toe_off = self._event(TERMINAL_CONTACT, stamp_ns, value, LATE_TC_FLAG, stamp_ns=tc_ns)
                 self._queued = self._event(INITIAL_CONTACT, stamp_ns, prev)
                 return toe_off
@@ -214,6 +216,11 @@ class GaitEventDetector:
             self.waiting_for_ic = False
             return self._event(INITIAL_CONTACT, stamp_ns, prev)
         return None
+
+    def flush(self) -> GaitEvent | None:
+        """The heel strike still queued behind its late toe-off (call at the end of the data)."""
+        queued, self._queued = self._queued, None
+        return queued
 
     def _late_toe_off(self, k: int) -> tuple[int, int, float] | None:
         """(k, stamp, s) of the deepest sample between the last IC's refractory and the refractory
@@ -270,4 +277,6 @@ def events_from_signal(signal: np.ndarray, rate_hz: float, **options: Any) -> di
         event = detector.update_signal(stamp_ns, sk)
         if event is not None:
             out[event.kind].append(index_of[event.stamp_ns])
+    if (event := detector.flush()) is not None:
+        out[event.kind].append(index_of[event.stamp_ns])
     return {kind: np.array(v, dtype=int) for kind, v in out.items()}
