@@ -12,10 +12,10 @@ for two things, sample by sample, with no orientation yet:
 - a **walking bout**: ``WALK_REFERENCE_STEPS`` successive peaks of the acceleration magnitude (the
   monitor's step detector, which needs no orientation), step intervals within the monitor's step
   duration, regular (interval CV < 25 %) and of steady direction. People walk upright, so the
-  bout's mean acceleration is "up" (the mean over walking
-  bouts of the issue). It checks the quiet reference: within ``REREFERENCE_RAD`` (15°) the quiet
-  one is kept (a still period is the more precise of the two, walking adds its own forward lean:
-  2-9° on ``hapt_waist``), beyond it the walking one replaces it.
+  bout's mean acceleration is "up" (the issue's "mean acceleration over walking bouts"). It checks
+  the quiet reference: within ``REREFERENCE_RAD`` (15°) the quiet one is kept (a still period is
+  the more precise of the two, walking adds its own forward lean: 2-9° on ``hapt_waist``), beyond
+  it the walking one replaces it.
 
 A given ``reference_acc`` (the session calibration's standing, or a labelled period) skips all this.
 Units do not matter here: the magnitude is compared with its own running mean.
