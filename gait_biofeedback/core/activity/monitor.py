@@ -52,7 +52,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gait_biofeedback.core.activity.reference import REREFERENCE_RAD, UprightFinder, angle_between
+from gait_biofeedback.core.activity.reference import UprightFinder
 from gait_biofeedback.core.activity.signal import (
     STANDARD_GRAVITY,
     Biquad,
@@ -386,7 +386,7 @@ class ActivityMonitor:
         self._rot = list(previous._rot)
         finder = previous._finder
         if finder is not None:
-            finder = UprightFinder(self.rate_hz, finder.quiet_s, want_quiet=False)
+            finder = UprightFinder(self.rate_hz, finder.quiet_s, reference=finder.reference)
         self._finder = finder
         self.forward_axis = previous.forward_axis
         self._forward_cos_sin = previous._forward_cos_sin
@@ -482,31 +482,21 @@ class ActivityMonitor:
         found = finder.update(t, ax, ay, az)
         if found is None:
             return False
-        if found == "quiet" and self._rot is None:
-            self._calibrate(finder.quiet)
-            self._prime = True
-            self.reference_log.append((t, "quiet", math.nan))
-            return True
-        if found != "walking":
+        if finder.done:
+            self._finder = None
+        if found == "confirmed":
+            self.reference_log.append((t, "walking confirms quiet", finder.angle))
             return False
-        self._finder = None
-        if self._rot is None:
-            self._calibrate(finder.walking)
-            self._prime = True
-            self.reference_log.append((t, "walking", math.nan))
-            self._adopt_walk(finder.walk_steps)
-            return True
-        old = np.array(self._rot).reshape(3, 3)
-        angle = angle_between(np.linalg.solve(old, np.array([0.0, 1.0, 0.0])), finder.walking)
-        if angle <= REREFERENCE_RAD:
-            self.reference_log.append((t, "walking confirms quiet", angle))
-            return False
-        self._calibrate(finder.walking)
+        old = None if self._rot is None else np.array(self._rot).reshape(3, 3)
+        self._calibrate(finder.reference)
         self._prime = True
-        rows = self._history.data
-        rows[:, 1:] = rows[:, 1:] @ (np.array(self._rot).reshape(3, 3) @ np.linalg.inv(old)).T
-        self.reference_log.append((t, "walking", angle))
-        self._hold_during_handling(t, 0.0)
+        self.reference_log.append((t, found, finder.angle))
+        if found == "quiet":
+            return True
+        if old is not None:
+            rows = self._history.data
+            rows[:, 1:] = rows[:, 1:] @ (np.array(self._rot).reshape(3, 3) @ np.linalg.inv(old)).T
+            self._hold_during_handling(t, 0.0)
         self._adopt_walk(finder.walk_steps)
         return True
 

@@ -54,22 +54,25 @@ def angle_between(a: np.ndarray, b: np.ndarray) -> float:
 
 
 class UprightFinder:
-    """``update(t, ax, ay, az) -> "quiet" | "walking" | None``: the reference found at this sample.
+    """``update(t, ax, ay, az) -> "quiet" | "walking" | "confirmed" | None``: what this sample decided.
 
-    After "quiet", :attr:`quiet` holds its mean acceleration (sensor axes, input units); after
-    "walking", :attr:`walking` holds the bout's mean and :attr:`walk_steps` its step times (s,
-    corrected by the step filter's group delay, as the monitor's steps). Set ``want_quiet=False``
-    to look only for walking (the quiet reference is already known).
+    "quiet": the first quiet period is the reference; "walking": a walking bout is (the first
+    reference, or it replaced the quiet one beyond ``REREFERENCE_RAD``); "confirmed": a walking bout
+    kept the quiet one. :attr:`reference` is the current "up" (mean acceleration, sensor axes, input
+    units), :attr:`angle` the angle (rad) between the walking bout and the reference it checked (nan
+    if there was none), :attr:`walk_steps` the bout's step times (s, corrected by the step filter's
+    group delay, as the monitor's steps). After a walking bout the finder is :attr:`done`. A
+    ``reference`` given is taken as a quiet one already found (a monitor restarted after a gap).
     """
 
-    def __init__(self, rate_hz: float, quiet_s: float, *, want_quiet: bool = True) -> None:
+    def __init__(self, rate_hz: float, quiet_s: float, *, reference: np.ndarray | None = None) -> None:
         self.quiet_s = quiet_s
         self._n_quiet = max(2, round(quiet_s * rate_hz))
         self._window: deque[tuple[float, float, float]] = deque()
         self._sums = [0.0] * 6  # Σx, Σy, Σz, Σx², Σy², Σz²
-        self.want_quiet = want_quiet
-        self.quiet: np.ndarray | None = None
-        self.walking: np.ndarray | None = None
+        self.reference = reference
+        self.angle = math.nan
+        self.done = False
         self.walk_steps: list[float] = []
         b, a = step_lowpass_ba(rate_hz, STEP_LOWPASS_HZ)
         self._svm = Biquad(b, a)
@@ -82,19 +85,25 @@ class UprightFinder:
 
     def update(self, t: float, ax: float, ay: float, az: float) -> str | None:
         norm = math.sqrt(ax * ax + ay * ay + az * az)
-        if norm == 0.0:
+        if norm == 0.0 or self.done:
             return None  # a driver's all-zero start-up sample: no direction, no magnitude
         if math.isnan(self._g):
             self._g = norm
             self._svm.reset_steady(0.0)
         self._g += self._alpha * (norm - self._g)
         walking = self._walk(t, ax, ay, az, norm)
-        if self.want_quiet and self._is_quiet(ax, ay, az):
-            s = self._sums
-            self.quiet = np.array(s[:3]) / len(self._window)
-            self.want_quiet = False
+        if self.reference is None and self._is_quiet(ax, ay, az):
+            self.reference = np.array(self._sums[:3]) / len(self._window)
             return "quiet"
-        return walking
+        if walking is None:
+            return None
+        self.done = True
+        if self.reference is not None:
+            self.angle = angle_between(self.reference, walking)
+            if self.angle <= REREFERENCE_RAD:
+                return "confirmed"
+        self.reference = walking
+        return "walking"
 
     def _is_quiet(self, ax: float, ay: float, az: float) -> bool:
         window, s = self._window, self._sums
@@ -113,7 +122,8 @@ class UprightFinder:
         limit = (QUIET_RELATIVE_STD**2) * sum(m * m for m in mean)
         return all(s[k + 3] / n - mean[k] ** 2 < limit for k in range(3))
 
-    def _walk(self, t: float, ax: float, ay: float, az: float, norm: float) -> str | None:
+    def _walk(self, t: float, ax: float, ay: float, az: float, norm: float) -> np.ndarray | None:
+        """The mean acceleration of a walking bout that has just reached WALK_REFERENCE_STEPS."""
         svm = self._svm.step(STANDARD_GRAVITY * (norm / self._g - 1.0))
         run, rs = self._run, self._run_sum
         if run:
@@ -144,6 +154,5 @@ class UprightFinder:
             return None
         if float(np.std(intervals)) > WALK_INTERVAL_CV * float(np.mean(intervals)):
             return None
-        self.walking = mean
         self.walk_steps = steps
-        return "walking"
+        return mean

@@ -18,7 +18,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from gait_biofeedback.core.activity.reference import REREFERENCE_RAD, UprightFinder
+from gait_biofeedback.core.activity.reference import UprightFinder
 from gait_biofeedback.core.activity.signal import Biquad, clip_acos, gravity_lowpass_ba
 from gait_biofeedback.core.stamps import NS_PER_S
 
@@ -31,7 +31,7 @@ class ThighTilt:
     """``update(t, acc) -> inclination (rad) | None``: None until the thigh's upright is known."""
 
     def __init__(self, rate_hz: float, quiet_s: float) -> None:
-        self._finder: UprightFinder | None = UprightFinder(rate_hz, quiet_s)
+        self._finder = UprightFinder(rate_hz, quiet_s)
         b, a = gravity_lowpass_ba(rate_hz)
         self._gravity = [Biquad(b, a) for _ in range(3)]
         self._up: np.ndarray | None = None
@@ -50,15 +50,8 @@ class ThighTilt:
             self._started = True
         gx, gy, gz = (f.step(v) for f, v in zip(self._gravity, (ax, ay, az), strict=True))
         finder = self._finder
-        if finder is not None:
-            found = finder.update(t, ax, ay, az)
-            if found == "quiet" and self._up is None:
-                self._up = finder.quiet / np.linalg.norm(finder.quiet)
-            elif found == "walking":
-                self._finder = None
-                walking = finder.walking / np.linalg.norm(finder.walking)
-                if self._up is None or clip_acos(float(self._up @ walking)) > REREFERENCE_RAD:
-                    self._up = walking
+        if finder.update(t, ax, ay, az) in ("quiet", "walking"):
+            self._up = finder.reference / np.linalg.norm(finder.reference)
         up = self._up
         if up is None:
             return None
