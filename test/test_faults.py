@@ -173,7 +173,9 @@ def test_a_stride_containing_a_doubtful_sample_is_implausible_and_says_why():
 
 
 def _events_and_steps(tmp_path, rate_hz):
-    session = simulate(SCENARIOS["walk"](20.0, seed=2, rate_hz=rate_hz))
+    config = SCENARIOS["walk"](20.0, seed=2, rate_hz=rate_hz)
+    config.segments = ("left_foot", "right_foot", "chest")  # what events and steps are made from
+    session = simulate(config)
     bag = write_simulated_bag(tmp_path / f"bag_{rate_hz:g}", session)
     result = analyze_recording(bag, tmp_path / f"out_{rate_hz:g}", calibrate_at=[(12.0, "walking")])
     events = [(m.side, m.type, _ns(m.header.stamp)) for m in _read(result.output, "/gait/events")]
