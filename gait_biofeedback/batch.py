@@ -64,6 +64,12 @@ from gait_biofeedback.core.orientation.filters import ALGORITHMS, DEFAULT_ALGORI
 from gait_biofeedback.core.orientation.filters.config import TUNED_PATH, load_tuned
 from gait_biofeedback.core.orientation.stream import SegmentOrientationTracker, track_orientation
 from gait_biofeedback.core.segments import SEGMENTS, SIDES, ImuSeries
+from gait_biofeedback.core.spatial.stream import (
+    FootTrajectoryParams,
+    FootTrajectoryStream,
+    estimate_foot_trajectory,
+)
+from gait_biofeedback.core.spatial.strides import SpatialStride
 from gait_biofeedback.core.stamps import ns_to_seconds, seconds_to_ns
 from gait_biofeedback.io.bag import BagReader, BagWriter, read_imu_bag, write_imu_bag
 from gait_biofeedback.io.importers import (
@@ -99,6 +105,8 @@ __all__ = [
     "BodyDimensions",
     "Dropout",
     "EventScore",
+    "FootTrajectoryParams",
+    "FootTrajectoryStream",
     "GaitCycle",
     "GaitCycleTracker",
     "GaitEvent",
@@ -115,6 +123,7 @@ __all__ = [
     "SessionReport",
     "SimulatedSession",
     "SimulationConfig",
+    "SpatialStride",
     "Spike",
     "StampJump",
     "UnitMismatchWarning",
@@ -127,6 +136,7 @@ __all__ = [
     "compute_joint_angles",
     "cycles_from_event_times",
     "detect_gait_events",
+    "estimate_foot_trajectory",
     "estimate_joint_position",
     "estimate_orientation",
     "estimate_relative_heading",

@@ -1,0 +1,321 @@
+"""One foot's trajectory and spatial strides, live (:class:`FootTrajectoryStream`) and offline
+(:func:`estimate_foot_trajectory`): zero-velocity detection (Suh Eq 4), the error-state Kalman filter
+(Suh §3), and a smoother (Suh §4 or RTS).
+
+Live, per stride: the filter runs ``h`` samples (50 ms) behind the sensor, the look-ahead of the
+zero-velocity detector. A stride closes once the next stance has lasted ``close_after`` s. Its window,
+from the first stance's start to that sample, is then smoothed by RTS (:func:`.smoother.rts_smooth`)
+and its parameters computed (:mod:`.strides`). The latency is ``h`` + ``close_after`` after foot
+flat: 0.15 s by default.
+
+Start: the filter starts at the first stance. Its vertical is the mean acceleration of that stance's
+first ``bias_rest`` s, or of the whole stance when it is shorter. When the stance lasts that long, the
+mean gyro over it is the gyro bias prior (Suh §4.4: "b_g,init from the sensor at rest"). Samples before
+the first stance have no position (NaN offline).
+
+Bad input: a non-finite sample is skipped and counted; a stamp going back, or a gap over ``max_gap``
+s, restarts the foot at its next stance (counted in :attr:`counts`, said in :attr:`notices`). A swing
+longer than ``max_swing`` s (no stance seen: running, a sensor off the foot, a shuffle) gives a stride
+with NaN values and a flag, never a number integrated over seconds.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from gait_biofeedback.core.notices import Notices
+from gait_biofeedback.core.params import param, require
+from gait_biofeedback.core.spatial.kalman import FootKalman, KalmanNoise
+from gait_biofeedback.core.spatial.smoother import apply, rts_smooth, suh_smooth
+from gait_biofeedback.core.spatial.strides import SpatialStride, stride_parameters
+from gait_biofeedback.core.spatial.zero_velocity import (
+    DETECTORS,
+    SHOE_ACC,
+    SHOE_GYRO,
+    ZeroVelocityDetector,
+    intervals,
+)
+from gait_biofeedback.core.stamps import NS_PER_S
+
+SMOOTHERS = ("suh", "rts", "none")
+
+
+@dataclass(frozen=True)
+class FootTrajectoryParams:
+    """Parameters of the foot-trajectory stage (Suh 2014 Table 1 where it gives them)."""
+
+    detector: str = param("suh", "zero-velocity detector: suh (Suh Eq 4) or shoe (Skog 2010)",
+                          choices=DETECTORS)
+    gyro_limit: float = param(0.4, "suh: largest gyro norm in the window (Suh B_g: 0.2)", "rad/s",
+                              low=0.01, high=5.0)
+    jerk_limit: float = param(150.0, "suh: largest change of acceleration per second (Suh B_a: 0.4 m/s² per "
+                              "10 ms = 40 m/s³)", "m/s^3", low=1.0, high=1000.0)
+    window: float = param(0.05, "zero velocity: centred window (Suh: 10 samples at 100 Hz = 0.1 s); half "
+                          "of it is the look-ahead", "s", low=0.01, high=0.5)
+    shoe_acc: float = param(SHOE_ACC, "shoe: scale of |a - g| in the statistic", "m/s^2", low=0.01, high=20.0)
+    shoe_gyro: float = param(SHOE_GYRO, "shoe: scale of |ω| in the statistic", "rad/s", low=0.01, high=10.0)
+    flat_floor: bool = param(True, "every stance at height 0 (Suh Eq 14): level ground only, turn off on "
+                             "stairs and ramps")
+    gyro_noise: float = param(1e-3, "gyro white-noise density R_g (Suh Table 1)", "rad^2/s",
+                              low=1e-9, high=1.0)
+    acc_noise: float = param(1e-2, "accelerometer white-noise density R_a (Suh Table 1)", "m^2/s^3",
+                             low=1e-9, high=10.0)
+    bias_rest: float = param(1.0, "a first stance at least this long gives the gyro bias prior", "s",
+                             low=0.1, high=120.0)
+    close_after: float = param(0.1, "a stride closes once the next stance has lasted this long", "s",
+                               low=0.02, high=1.0)
+    min_swing: float = param(0.2, "zero velocity resumed sooner than this is the same stance (a stance "
+                             "that flickers is not two strides)", "s", low=0.0, high=1.0)
+    max_swing: float = param(2.5, "a longer time without stance gives no spatial values", "s",
+                             low=0.5, high=10.0)
+    max_gap: float = param(0.2, "a longer stamp gap restarts the foot at its next stance", "s",
+                           low=0.01, high=10.0)
+    toe_lever_arm: tuple[float, ...] = param((), "toe position in the sensor frame, for the toe clearance "
+                                             "(empty: unknown)", "m")
+    smoother: str = param("suh", "offline smoother over the whole recording (live strides use rts)",
+                          choices=SMOOTHERS)
+
+    def __post_init__(self) -> None:
+        require(len(self.toe_lever_arm) in (0, 3), "toe_lever_arm: 3 numbers (x, y, z in m) or empty")
+
+    @property
+    def noise(self) -> KalmanNoise:
+        return KalmanNoise(gyro=self.gyro_noise, acc=self.acc_noise)
+
+
+class FootTrajectoryStream:
+    """One foot. ``update(stamp_ns, gyr, acc)`` returns the strides that closed (0 or 1)."""
+
+    def __init__(self, rate_hz: float, params: FootTrajectoryParams | None = None,
+                 keep_all: bool = False) -> None:
+        self.rate_hz = float(rate_hz)
+        self.params = params or FootTrajectoryParams()
+        self.keep_all = keep_all
+        self.counts = {"samples": 0, "skipped": 0, "restarts": 0, "strides": 0}
+        self.notices = Notices()
+        self.index: list[int] = []  # input sample number of each filter step (keep_all)
+        self.kept: list = []  # every filter step (keep_all)
+        self._restart()
+
+    def _restart(self) -> None:
+        p = self.params
+        self._zv = ZeroVelocityDetector(self.rate_hz, p.gyro_limit, p.jerk_limit, p.window, p.detector,
+                                        p.shoe_acc, p.shoe_gyro)
+        self._pending: list[tuple[int, int, np.ndarray, np.ndarray]] = []  # waiting for their decision
+        self._rest: list[tuple[int, int, np.ndarray, np.ndarray]] = []  # the first stance, before start
+        self._kf: FootKalman | None = None
+        self._steps: list = []
+        self._stamps: list[int] = []
+        self._numbers: list[int] = []
+        self._in_stance = False
+        self._stance_start = 0  # position in the window
+        self._previous: tuple[int, int] | None = None  # last completed stance, positions in the window
+        self._ended: int | None = None  # last zero-velocity sample of a stance that may resume
+        self._closed = False
+        self._last_ns: int | None = None
+
+    def update(self, stamp_ns: int, gyr: np.ndarray, acc: np.ndarray) -> list[SpatialStride]:
+        number = self.counts["samples"]
+        self.counts["samples"] += 1
+        gyr, acc = np.asarray(gyr, float), np.asarray(acc, float)
+        if not (np.all(np.isfinite(gyr)) and np.all(np.isfinite(acc))):
+            self.counts["skipped"] += 1
+            return []
+        if self._last_ns is not None and not 0 < stamp_ns - self._last_ns <= self.params.max_gap * NS_PER_S:
+            gap = (stamp_ns - self._last_ns) / NS_PER_S
+            self.counts["restarts"] += 1
+            why = "went back" if gap <= 0 else f"gap {gap:.2f} s"
+            self.notices.say("warn", f"foot trajectory restarted at its next stance: stamp {why}")
+            self._restart()
+        self._last_ns = stamp_ns
+        self._pending.append((number, stamp_ns, gyr, acc))
+        decision = self._zv.update(gyr, acc)
+        if decision is None:
+            return []
+        return self._decided(self._pending.pop(0), decision)
+
+    def flush(self) -> list[SpatialStride]:
+        """The last samples' decisions at the end of the data."""
+        out: list[SpatialStride] = []
+        for decision in self._zv.flush():
+            out += self._decided(self._pending.pop(0), decision)
+        if self._kf is None and self._rest:
+            out += self._start()
+        return out
+
+    def _decided(self, sample, zero_velocity: bool) -> list[SpatialStride]:
+        if self._kf is None:
+            if zero_velocity:
+                self._rest.append(sample)
+                if len(self._rest) * 1.0 / self.rate_hz >= self.params.bias_rest:
+                    return self._start()
+            elif self._rest:
+                return self._start(then=(sample, False))
+            return []
+        return self._step(sample, zero_velocity)
+
+    def _start(self, then=None) -> list[SpatialStride]:
+        rest = self._rest
+        self._rest = []
+        acc = np.mean([s[3] for s in rest], axis=0)
+        long_enough = len(rest) / self.rate_hz >= self.params.bias_rest
+        bias = np.concatenate([np.mean([s[2] for s in rest], axis=0), np.zeros(3)]) if long_enough else None
+        self._kf = FootKalman(self.params.noise, self.params.flat_floor, keep=False)
+        number, ns, gyr, acc0 = rest[0]
+        self._kf.start(acc, gyr, acc0, True, bias)
+        self._record(number, ns)
+        self._in_stance, self._stance_start, self._closed = True, 0, False
+        out: list[SpatialStride] = []
+        for sample in rest[1:]:
+            out += self._step(sample, True)
+        if then is not None:
+            out += self._step(*then)
+        return out
+
+    def _record(self, number: int, ns: int) -> None:
+        step = self._kf.last
+        self._steps.append(step)
+        self._stamps.append(ns)
+        self._numbers.append(number)
+        if self.keep_all:
+            self.kept.append(step)
+            self.index.append(number)
+
+    def _step(self, sample, zero_velocity: bool) -> list[SpatialStride]:
+        number, ns, gyr, acc = sample
+        dt = (ns - self._stamps[-1]) / NS_PER_S
+        self._kf.update(gyr, acc, dt, zero_velocity)
+        self._record(number, ns)
+        k = len(self._steps) - 1
+        out: list[SpatialStride] = []
+        min_swing_ns = self.params.min_swing * NS_PER_S
+        if zero_velocity:
+            if not self._in_stance and self._ended is None:
+                self._stance_start, self._closed = k, False
+            self._in_stance, self._ended = True, None
+            if (not self._closed and self._previous is not None
+                    and (k - self._stance_start + 1) / self.rate_hz >= self.params.close_after):
+                out.append(self._close(k))
+            return out
+        if self._in_stance:
+            self._in_stance, self._ended = False, k - 1
+        if self._ended is not None and self._stamps[k] - self._stamps[self._ended] >= min_swing_ns:
+            if not self._closed and self._previous is not None:
+                out.append(self._close(self._ended))
+            self._previous, self._ended = (self._stance_start, self._ended), None
+            self._trim()
+        return out
+
+    def _close(self, last: int) -> SpatialStride:
+        self._closed = True
+        a0 = self._previous[0]
+        window = self._steps[a0:last + 1]
+        smooth = rts_smooth(window)
+        t = np.array(self._stamps[a0:last + 1], dtype=float) / NS_PER_S
+        first = (0, self._previous[1] - a0)
+        second = (self._stance_start - a0, last - a0)
+        stride = stride_parameters(t, smooth["orientation"], smooth["position"], first, second,
+                                   toe_lever_arm=self.params.toe_lever_arm or None)
+        stride = _numbered(stride, self._numbers[a0:last + 1])
+        swing = t[second[0]] - t[first[1]]
+        if swing > self.params.max_swing:
+            stride = _unknown(stride, f"no stance for {swing:.1f} s: spatial values unknown")
+        self.counts["strides"] += 1
+        return stride
+
+    def _trim(self) -> None:
+        """Drop the steps before the last completed stance (the next stride's start)."""
+        cut = self._previous[0]
+        if cut > 0:
+            del self._steps[:cut], self._stamps[:cut], self._numbers[:cut]
+            self._stance_start -= cut
+            self._previous = (0, self._previous[1] - cut)
+
+
+def _numbered(stride: SpatialStride, numbers: list[int]) -> SpatialStride:
+    return replace(stride, stance_start=numbers[stride.stance_start], foot_off=numbers[stride.foot_off],
+                   foot_flat=numbers[stride.foot_flat], end=numbers[stride.end])
+
+
+def _unknown(stride: SpatialStride, flag: str) -> SpatialStride:
+    values = ("stride_length", "gait_speed", "max_sensor_height", "min_toe_clearance", "foot_angle_ic",
+              "foot_angle_tc", "turning_angle", "lateral_excursion")
+    return replace(stride, **dict.fromkeys(values, math.nan), flags=(*stride.flags, flag))
+
+
+def estimate_foot_trajectory(gyr: np.ndarray, acc: np.ndarray, rate_hz: float,
+                             params: FootTrajectoryParams | None = None, **options) -> dict:
+    """Trajectory of one foot IMU over a whole recording (gait.md §4).
+
+    ``gyr`` rad/s and ``acc`` m/s² (N, 3), sensor frame, at ``rate_hz``. ``options`` override
+    :class:`FootTrajectoryParams` fields (e.g. ``smoother="rts"``, ``flat_floor=False``).
+
+    Returns a dict:
+
+    - ``position`` (N, 3) m and ``velocity`` (N, 3) m/s, in the world frame: z up, heading that of
+      the first stance, origin at the first tracked sample. Samples before the first stance are NaN.
+    - ``orientation`` (N, 4) and ``zero_velocity`` (N,) bool.
+    - ``strides``: the :class:`.strides.SpatialStride` of each stride, as dicts. They are computed
+      from the whole-recording smoother (``smoother``), so they can differ slightly from the live
+      per-stride values.
+    - ``live_strides``: what :class:`FootTrajectoryStream` emitted, stride by stride.
+    """
+    p = params or FootTrajectoryParams()
+    if options:
+        p = replace(p, **options)
+    gyr, acc = np.asarray(gyr, float), np.asarray(acc, float)
+    require(gyr.shape == acc.shape and gyr.ndim == 2 and gyr.shape[1] == 3, "gyr and acc: (N, 3) each")
+    stream = FootTrajectoryStream(rate_hz, p, keep_all=True)
+    period_ns = NS_PER_S / rate_hz
+    live: list[SpatialStride] = []
+    for k in range(len(gyr)):
+        live += stream.update(round(k * period_ns), gyr[k], acc[k])
+    live += stream.flush()
+    n = len(gyr)
+    out = {name: np.full((n, width), np.nan) for name, width in (("position", 3), ("velocity", 3),
+                                                                 ("orientation", 4))}
+    zv = np.zeros(n, bool)
+    strides: list[SpatialStride] = []
+    if stream.kept:
+        steps, index = stream.kept, np.array(stream.index)
+        if p.smoother == "none" or stream.counts["restarts"]:
+            states = apply(steps, np.zeros((len(steps), 9)))
+        elif p.smoother == "rts":
+            states = rts_smooth(steps)
+        else:
+            states = suh_smooth(steps, p.noise, p.flat_floor, bias_prior=steps[0].b)
+        states["position"] = states["position"] - states["position"][0]
+        for name in ("position", "velocity", "orientation"):
+            out[name][index] = states[name]
+        zv[index] = [s.zero_velocity for s in steps]
+        strides = _strides(index, states, zv[index], rate_hz, p)
+    return {**out, "zero_velocity": zv, "strides": [vars(s) for s in strides],
+            "live_strides": [vars(s) for s in live]}
+
+
+def _strides(index: np.ndarray, states: dict, zv: np.ndarray, rate_hz: float,
+             p: FootTrajectoryParams) -> list[SpatialStride]:
+    t = index / rate_hz
+    stances = [list(s) for s in intervals(zv)]
+    merged: list[list[int]] = []
+    for first, last in stances:
+        # the stream ends a stance at the first moving sample min_swing after it: the one before first
+        if merged and t[first - 1] - t[merged[-1][1]] < p.min_swing - 1e-9:
+            merged[-1][1] = last
+        else:
+            merged.append([first, last])
+    stances = merged
+    out = []
+    close = max(1, math.ceil(p.close_after * rate_hz - 1e-9))
+    for (a0, a1), (b0, b1) in itertools.pairwise(stances):
+        stride = stride_parameters(t, states["orientation"], states["position"], (a0, a1),
+                                   (b0, min(b1, b0 + close - 1)), toe_lever_arm=p.toe_lever_arm or None)
+        stride = _numbered(stride, list(index))
+        if t[b0] - t[a1] > p.max_swing:
+            stride = _unknown(stride, f"no stance for {t[b0] - t[a1]:.1f} s: spatial values unknown")
+        out.append(stride)
+    return out

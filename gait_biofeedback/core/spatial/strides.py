@@ -1,0 +1,123 @@
+"""Spatial parameters of one stride from a smoothed foot trajectory (gait.md §4.8, EXT).
+
+Suh 2014 reports no stride parameter; these definitions are the project's (README, *Spatial
+parameters*):
+
+- A stride runs from one zero-velocity interval (stance) to the next. Each stance's position is the
+  mean position over its samples, and its orientation is that of the sample next to the swing.
+- ``stride_length``: horizontal distance between the two stance positions, m.
+- ``stride_time``: from the first stance's start to the next stance's start (foot flat to foot flat).
+  NaN when the first stance is longer than ``MAX_STANCE_S``: the walk started from standing, and
+  that stride has no cycle time. ``gait_speed`` = length / time, m/s.
+- ``max_sensor_height``: the highest sensor position in the swing, above the first stance's, m.
+- ``min_toe_clearance``: with a sensor-to-toe lever arm (sensor frame, m), the toe's lowest height
+  between the first and last local maxima of its swing height higher than ``MIN_TOE_PEAK_M``, above
+  its stance height. NaN without a lever arm, or when the swing has fewer than two such maxima.
+- ``foot_angle_ic`` / ``foot_angle_tc``: the foot's pitch about the stride's lateral axis,
+  relative to its stance orientation, in rad, positive toes up.
+  - Strike (IC): the largest pitch in the swing's second half, relative to the next stance.
+  - Push-off (TC): the smallest pitch in its first half, relative to the first stance; negative
+    means toes down.
+  The zero-velocity intervals start after IC and end before TC, so the extremes of the swing
+  next to them are taken instead of the samples at the events.
+- ``turning_angle``: the heading change of the foot from stance to stance, rad, positive left
+  (about world z).
+- ``lateral_excursion``: the swing's largest horizontal distance from the line joining the stances,
+  m, positive left.
+- Angles need a direction of travel: for strides shorter than ``MIN_LENGTH_M`` they are NaN.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from gait_biofeedback.core import quaternion as quat
+
+MAX_STANCE_S = 1.5  # s: a longer stance is standing, and the stride after it has no cycle time
+MIN_LENGTH_M = 0.1  # m: shorter strides (stepping on the spot) have no direction for the angles
+MIN_TOE_PEAK_M = 0.01  # m: a toe-height maximum lower than this is the toe still rolling on the floor
+
+
+@dataclass(frozen=True)
+class SpatialStride:
+    """One stride's spatial parameters (SI units, NaN when unknown); indices are sample numbers of
+    the recording (``stance_start``: first sample of the first stance, ``foot_off``: its last,
+    ``foot_flat``: first sample of the next stance, ``end``: the last sample used)."""
+
+    stance_start: int
+    foot_off: int
+    foot_flat: int
+    end: int
+    stride_length: float
+    stride_time: float
+    gait_speed: float
+    max_sensor_height: float
+    min_toe_clearance: float
+    foot_angle_ic: float
+    foot_angle_tc: float
+    turning_angle: float
+    lateral_excursion: float
+    flags: tuple[str, ...] = field(default=())
+
+
+def _heading_change(q_from: np.ndarray, q_to: np.ndarray) -> float:
+    m = quat.as_matrix(quat.multiply(q_to, quat.conjugate(q_from)))
+    return math.atan2(m[1, 0] - m[0, 1], m[0, 0] + m[1, 1])
+
+
+def _pitch(q: np.ndarray, q_ref: np.ndarray, lateral: np.ndarray) -> np.ndarray:
+    """Toes-up angle of ``q`` relative to ``q_ref`` about the world horizontal ``lateral`` (left)."""
+    rotvec = quat.as_rotvec(quat.multiply(q, quat.conjugate(q_ref)))
+    return -(rotvec[..., :2] @ lateral)
+
+
+def _min_between_maxima(height: np.ndarray) -> float:
+    """Lowest ``height`` between its first and last local maxima above ``MIN_TOE_PEAK_M``."""
+    inner = height[1:-1]
+    peaks = np.flatnonzero((inner > height[:-2]) & (inner >= height[2:]) & (inner > MIN_TOE_PEAK_M)) + 1
+    if len(peaks) < 2:
+        return math.nan
+    return float(height[peaks[0]:peaks[-1] + 1].min())
+
+
+def stride_parameters(t: np.ndarray, orientation: np.ndarray, position: np.ndarray,
+                      first: tuple[int, int], second: tuple[int, int], offset: int = 0,
+                      toe_lever_arm: np.ndarray | None = None) -> SpatialStride:
+    """The stride between the stances ``first`` and ``second`` (``(first, last)`` sample, indices into
+    ``t``/``orientation``/``position``; ``second`` may be the part of the stance seen so far).
+    ``offset`` is added to the indices reported."""
+    a0, a1 = first
+    b0, b1 = second
+    p_first = position[a0:a1 + 1].mean(axis=0)
+    p_second = position[b0:b1 + 1].mean(axis=0)
+    travel = (p_second - p_first)[:2]
+    length = float(np.linalg.norm(travel))
+    standing_before = t[a1] - t[a0] > MAX_STANCE_S
+    stride_time = math.nan if standing_before else float(t[b0] - t[a0])
+    swing = slice(a1, b0 + 1)
+    height = float(position[swing, 2].max() - p_first[2])
+    clearance = math.nan
+    if toe_lever_arm is not None and len(toe_lever_arm) == 3:
+        toe = position[:, 2] + (quat.as_matrix(orientation) @ np.asarray(toe_lever_arm, float))[:, 2]
+        clearance = _min_between_maxima(toe[swing] - float(toe[a0:a1 + 1].mean()))
+    flags = ["started from standing"] if standing_before else []
+    angle_ic = angle_tc = lateral_excursion = math.nan
+    if length >= MIN_LENGTH_M:
+        forward = travel / length
+        lateral = np.array([-forward[1], forward[0]])
+        mid = (a1 + b0) // 2
+        angle_tc = float(_pitch(orientation[a1:mid + 1], orientation[a1], lateral).min())
+        angle_ic = float(_pitch(orientation[mid:b0 + 1], orientation[b0], lateral).max())
+        side = (position[swing, :2] - p_first[:2]) @ lateral
+        lateral_excursion = float(side[np.argmax(np.abs(side))])
+    else:
+        flags.append("no direction of travel")
+    return SpatialStride(
+        stance_start=a0 + offset, foot_off=a1 + offset, foot_flat=b0 + offset, end=b1 + offset,
+        stride_length=length, stride_time=stride_time, gait_speed=length / stride_time,
+        max_sensor_height=height, min_toe_clearance=clearance, foot_angle_ic=angle_ic,
+        foot_angle_tc=angle_tc, turning_angle=_heading_change(orientation[a1], orientation[b0]),
+        lateral_excursion=lateral_excursion, flags=tuple(flags))

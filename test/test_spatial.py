@@ -1,0 +1,221 @@
+"""Foot trajectory and spatial stride parameters (Suh 2014, issue 16): the zero-velocity detectors
+(stream = batch, hand-made windows), Suh's smoother against the independent RTS pass, stride
+length / speed / clearance / turning against the simulator's truth, the live stream against the
+offline batch, bad input, and the real pyshoe_vicon trials."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import scipy.io as sio
+from conftest import shared_data
+
+from gait_biofeedback.batch import (
+    SCENARIOS,
+    FootTrajectoryParams,
+    FootTrajectoryStream,
+    estimate_foot_trajectory,
+    quaternion,
+    simulate,
+)
+from gait_biofeedback.core.params import ParameterError, from_mapping
+from gait_biofeedback.core.spatial.kalman import FootKalman
+from gait_biofeedback.core.spatial.smoother import rts_smooth, suh_smooth
+from gait_biofeedback.core.spatial.zero_velocity import ZeroVelocityDetector, detect_zero_velocity, intervals
+from gait_biofeedback.sim.simulator import Phase, SimulationConfig
+
+
+@pytest.fixture(scope="module")
+def walk():
+    return simulate(SCENARIOS["walk"](20.0, seed=2, segments=("left_foot",)))
+
+
+def _still_then_moving(n=200):
+    gyr = np.zeros((n, 3))
+    acc = np.tile([0.0, 0.0, 9.81], (n, 1))
+    gyr[100:150, 1] = 2.0  # the foot swings from sample 100 to 149
+    return gyr, acc
+
+
+@pytest.mark.parametrize("detector", ["suh", "shoe"])
+def test_zero_velocity_windows_by_hand(detector):
+    """window 0.05 s at 100 Hz: h = 2 samples each side, so the 2 samples next to the swing are
+    moving too: stances 0-97 and 152-199."""
+    gyr, acc = _still_then_moving()
+    zv = detect_zero_velocity(gyr, acc, 100.0, window_s=0.05, detector=detector)
+    assert intervals(zv).tolist() == [[0, 97], [152, 199]]
+
+
+@pytest.mark.parametrize("detector", ["suh", "shoe"])
+@pytest.mark.parametrize("rate_hz", [50.0, 100.0, 400.0])
+def test_zero_velocity_stream_equals_batch(detector, rate_hz):
+    rng = np.random.default_rng(1)
+    n = 600
+    gyr = rng.normal(0.0, 0.06, (n, 3))
+    gyr[200:260] += 1.5
+    acc = rng.normal(0.0, 0.05, (n, 3)) + np.array([0.0, 0.0, 9.81])
+    acc[400:420] += 4.0
+    stream = ZeroVelocityDetector(rate_hz, 0.4, 150.0, 0.05, detector)
+    live = [d for g, a in zip(gyr, acc, strict=True) if (d := stream.update(g, a)) is not None]
+    live += stream.flush()
+    batch = detect_zero_velocity(gyr, acc, rate_hz, 0.4, 150.0, 0.05, detector)
+    assert 0.1 < batch.mean() < 0.95
+    np.testing.assert_array_equal(live, batch)
+
+
+def test_suh_quadratic_program_equals_the_rts_pass(walk):
+    """Two independent solutions of one estimation problem: Suh's banded normal equations (Eq 30,
+    gait.md §4.5) and the RTS recursion over the 15 states must give the same trajectory."""
+    imu = walk.imu["left_foot"]
+    zv = detect_zero_velocity(imu.gyr, imu.acc, 100.0, 0.4, 150.0, 0.05)
+    kf = FootKalman()
+    kf.start(imu.acc[0], imu.gyr[0], imu.acc[0], bool(zv[0]))
+    for k in range(1, len(imu.t)):
+        kf.update(imu.gyr[k], imu.acc[k], 0.01, bool(zv[k]))
+    suh, rts = suh_smooth(kf.steps, kf.noise), rts_smooth(kf.steps)
+    filtered = np.array([s.r for s in kf.steps])
+    assert np.abs(suh["position"] - filtered).max() > 1e-3  # the smoothers do change the trajectory
+    np.testing.assert_allclose(suh["position"], rts["position"], atol=1e-6)
+    np.testing.assert_allclose(suh["bias"], rts["bias"], atol=1e-8)
+
+
+def _true_stance(truth, stride, first=True):
+    a, b = (stride["stance_start"], stride["foot_off"]) if first else (stride["foot_flat"], stride["end"])
+    return truth[a:b + 1].mean(axis=0)
+
+
+def test_strides_against_the_simulator_truth(walk):
+    """Every stride but the first and last (the simulator's gait initiation and stop slide the flat
+    foot, which no zero-velocity detector sees: benchmarks/spatial.py): length
+    within 15 mm (7 mm worst measured: the default detector's wider thresholds, chosen on real
+    shoes, take in the first and last millimetres of each stance roll; Suh's own thresholds give
+    1 mm here), speed within 0.015 m/s, height within 1 cm (3 mm measured)."""
+    imu, truth = walk.imu["left_foot"], walk.truth.sensor_position["left_foot"]
+    result = estimate_foot_trajectory(imu.gyr, imu.acc, 100.0)
+    strides = result["strides"][1:-1]
+    assert len(strides) >= 12
+    for s in strides:
+        first, second = _true_stance(truth, s), _true_stance(truth, s, first=False)
+        length = np.linalg.norm((second - first)[:2])
+        assert s["stride_length"] == pytest.approx(length, abs=0.015)
+        cycle = (s["foot_flat"] - s["stance_start"]) / 100.0
+        assert s["gait_speed"] == pytest.approx(length / cycle, abs=0.015)
+        height = truth[s["foot_off"]:s["foot_flat"] + 1, 2].max() - first[2]
+        assert s["max_sensor_height"] == pytest.approx(height, abs=0.01)
+        assert abs(s["turning_angle"]) < 0.02 and s["flags"] == ()
+    assert result["position"].shape == (len(imu.t), 3)
+    assert np.all(result["zero_velocity"][: 100])  # the walk starts with standing
+
+
+def test_turning_angles_add_up_to_the_turn():
+    cfg = SimulationConfig(seed=1, segments=("left_foot",), phases=[
+        Phase("stand", 3.0), Phase("walk", 6.0), Phase("turn", 3.0, {"angle": math.pi / 2}),
+        Phase("walk", 6.0), Phase("stand", 2.0)])
+    imu = simulate(cfg).imu["left_foot"]
+    strides = estimate_foot_trajectory(imu.gyr, imu.acc, 100.0)["strides"]
+    assert sum(s["turning_angle"] for s in strides) == pytest.approx(math.pi / 2, abs=0.03)
+
+
+def test_toe_clearance_with_a_lever_arm(walk):
+    """The toe's position in the sensor frame, taken from the simulator's truth at one sample, gives
+    the minimum toe clearance within 5 mm of the true toe's (same definition on the true trajectory;
+    2.5 mm worst measured)."""
+    cfg, truth = walk.config, walk.truth
+    rf = quaternion.as_matrix(truth.segment_orientation["left_foot"])
+    toe = truth.segment_position["left_foot"] + rf[:, :, 0] * cfg.toe_length - rf[:, :, 1] * cfg.ankle_height
+    rs = quaternion.as_matrix(truth.sensor_orientation["left_foot"])
+    lever = rs[0].T @ (toe[0] - truth.sensor_position["left_foot"][0])
+    later = rs[500].T @ (toe[500] - truth.sensor_position["left_foot"][500])
+    np.testing.assert_allclose(later, lever, atol=1e-9)
+    imu = walk.imu["left_foot"]
+    strides = estimate_foot_trajectory(imu.gyr, imu.acc, 100.0, toe_lever_arm=tuple(lever))["strides"][1:-1]
+    checked = 0
+    for s in strides:
+        stance = toe[s["stance_start"]:s["foot_off"] + 1, 2].mean()
+        swing = toe[s["foot_off"]:s["foot_flat"] + 1, 2] - stance
+        high = np.flatnonzero(swing > 0.01)
+        before, after = np.diff(swing, prepend=swing[0])[high], np.diff(swing, append=swing[-1])[high]
+        rising = high[(before > 0) & (after <= 0)]
+        if len(rising) < 2 or math.isnan(s["min_toe_clearance"]):
+            continue
+        true = swing[rising[0]:rising[-1] + 1].min()
+        assert s["min_toe_clearance"] == pytest.approx(true, abs=0.005)
+        checked += 1
+    assert checked >= 8
+
+
+def test_live_strides_agree_with_the_offline_ones(walk):
+    """Live: RTS over each stride's window at 0.15 s latency; offline: Suh over the whole walk. The
+    same strides (same sample numbers), lengths within 1 cm."""
+    imu = walk.imu["left_foot"]
+    result = estimate_foot_trajectory(imu.gyr, imu.acc, 100.0)
+    live, offline = result["live_strides"], result["strides"]
+    def identity(strides):
+        return [(int(s["stance_start"]), int(s["foot_flat"])) for s in strides]
+
+    assert identity(live) == identity(offline)
+    for a, b in zip(live[1:-1], offline[1:-1], strict=True):
+        assert a["stride_length"] == pytest.approx(b["stride_length"], abs=0.01)
+        assert a["end"] == a["foot_flat"] + 9  # closed after 0.1 s of the next stance
+
+
+def test_bad_samples_are_skipped_and_a_gap_restarts_the_foot(walk):
+    imu = walk.imu["left_foot"]
+    stream = FootTrajectoryStream(100.0)
+    strides = []
+    for k in range(len(imu.t)):
+        gyr = np.full(3, np.nan) if k in (700, 701) else imu.gyr[k]
+        ns = k * 10_000_000 + (2_000_000_000 if k >= 1200 else 0)  # 2 s with no data at sample 1200
+        strides += stream.update(ns, gyr, imu.acc[k])
+    assert stream.counts["skipped"] == 2 and stream.counts["restarts"] == 1
+    assert any("restarted" in n.text and "gap 2.01 s" in n.text for n in stream.notices.pop())
+    assert len(strides) >= 12
+
+
+def test_a_long_swing_gives_no_numbers():
+    """3 s without a stance (the foot kept turning) between two standings: the stride is flagged and
+    its values are NaN, never seconds of drift."""
+    n = 800
+    gyr = np.zeros((n, 3))
+    acc = np.tile([0.0, 0.0, 9.81], (n, 1))
+    gyr[200:500, 0] = 1.0
+    result = estimate_foot_trajectory(gyr, acc, 100.0)
+    (stride,) = result["live_strides"]
+    assert math.isnan(stride["stride_length"]) and "no stance for 3.0 s" in stride["flags"][-1]
+    assert math.isnan(result["strides"][0]["gait_speed"])
+
+
+def test_parameters_are_checked():
+    with pytest.raises(ParameterError, match="toe_lever_arm"):
+        FootTrajectoryParams(toe_lever_arm=(0.1, 0.0))
+    with pytest.raises(ParameterError, match="gyro_limt"):
+        from_mapping(FootTrajectoryParams, {"gyro_limt": 0.3})
+    with pytest.raises(ValueError, match="detector"):
+        ZeroVelocityDetector(100.0, detector="magic")
+
+
+def _pyshoe_score(estimate, vicon):
+    """The authors' ARMSE (their x-y frame is left-handed: y mirrored), aligned where the estimate is
+    first 0.8 m from its start."""
+    e = (estimate - estimate[0])[:, :2] * [1.0, -1.0]
+    v = (vicon - vicon[0])[:, :2]
+    k = int(np.argmax(np.hypot(e[:, 0], e[:, 1]) >= 0.8))
+    turn = np.exp(1j * (np.angle(v[k, 0] + 1j * v[k, 1]) - np.angle(e[k, 0] + 1j * e[k, 1])))
+    d = (e[:, 0] + 1j * e[:, 1]) * turn - (v[:, 0] + 1j * v[:, 1])
+    return float(np.mean(np.abs(d) / np.sqrt(2.0)))
+
+
+@pytest.mark.realdata
+def test_pyshoe_walking_trials():
+    """Real shoe IMU with Vicon (the authors' ARMSE, benchmarks/spatial.py): the first four trials
+    measured 0.035, 0.039, 0.055, 0.025 m; each within 1.6x of that, and within 3x of the
+    dataset's per-trial oracle detector."""
+    folder = shared_data("pyshoe_vicon")
+    for path, measured in zip(sorted(folder.glob("*.mat"))[:4], (0.035, 0.039, 0.055, 0.025), strict=True):
+        d = sio.loadmat(path, squeeze_me=True)
+        p = estimate_foot_trajectory(d["imu"][:, 3:6], d["imu"][:, :3], 200.0)["position"]
+        ok = np.isfinite(p[:, 0])
+        score = _pyshoe_score(p[ok], d["gt"][ok])
+        assert score <= 1.6 * measured and score <= 3 * float(d["best_error"]), (path.stem, score)
