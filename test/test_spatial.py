@@ -148,14 +148,16 @@ def test_toe_clearance_with_a_lever_arm(walk):
 
 def test_live_strides_agree_with_the_offline_ones(walk):
     """Live: RTS over each stride's window at 0.15 s latency; offline: Suh over the whole walk. The
-    same strides (same sample numbers), lengths within 1 cm."""
+    same strides (same foot-off and foot-flat samples), lengths within 1 cm. Live, a standing stance
+    keeps only its last 3 s: the first stride starts there."""
     imu = walk.imu["left_foot"]
     result = estimate_foot_trajectory(imu.gyr, imu.acc, 100.0)
     live, offline = result["live_strides"], result["strides"]
     def identity(strides):
-        return [(int(s["stance_start"]), int(s["foot_flat"])) for s in strides]
+        return [(int(s["foot_off"]), int(s["foot_flat"])) for s in strides]
 
     assert identity(live) == identity(offline)
+    assert offline[0]["stance_start"] == 0 and live[0]["stance_start"] == live[0]["foot_off"] + 1 - 300
     for a, b in zip(live[1:-1], offline[1:-1], strict=True):
         assert a["stride_length"] == pytest.approx(b["stride_length"], abs=0.01)
         assert a["end"] == a["foot_flat"] + 9  # closed after 0.1 s of the next stance
@@ -219,3 +221,11 @@ def test_pyshoe_walking_trials():
         ok = np.isfinite(p[:, 0])
         score = _pyshoe_score(p[ok], d["gt"][ok])
         assert score <= 1.6 * measured and score <= 3 * float(d["best_error"]), (path.stem, score)
+
+
+def test_standing_keeps_a_bounded_window():
+    """40 s of standing: the live window stays at the last 3 s (300 samples), not 4000."""
+    stream = FootTrajectoryStream(100.0)
+    for k in range(4000):
+        stream.update(k * 10_000_000, np.zeros(3), np.array([0.0, 0.0, 9.81]))
+    assert len(stream._steps) == 300

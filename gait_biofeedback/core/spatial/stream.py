@@ -13,6 +13,9 @@ first ``bias_rest`` s, or of the whole stance when it is shorter. When the stanc
 mean gyro over it is the gyro bias prior (Suh §4.4: "b_g,init from the sensor at rest"). Samples before
 the first stance have no position (NaN offline).
 
+Memory: the window holds one stride; a standing stance keeps its last ``KEEP_STANDING_S`` s (3 s), so
+a live stride after standing reports that as its ``stance_start`` (offline: the whole standing).
+
 Bad input: a non-finite sample is skipped and counted; a stamp going back, or a gap over ``max_gap``
 s, restarts the foot at its next stance (counted in :attr:`counts`, said in :attr:`notices`). A swing
 longer than ``max_swing`` s (no stance seen: running, a sensor off the foot, a shuffle) gives a stride
@@ -31,7 +34,7 @@ from gait_biofeedback.core.notices import Notices
 from gait_biofeedback.core.params import param, require
 from gait_biofeedback.core.spatial.kalman import FootKalman, KalmanNoise
 from gait_biofeedback.core.spatial.smoother import apply, rts_smooth, suh_smooth
-from gait_biofeedback.core.spatial.strides import SpatialStride, stride_parameters
+from gait_biofeedback.core.spatial.strides import MAX_STANCE_S, SpatialStride, stride_parameters
 from gait_biofeedback.core.spatial.zero_velocity import (
     DETECTORS,
     SHOE_ACC,
@@ -42,6 +45,7 @@ from gait_biofeedback.core.spatial.zero_velocity import (
 from gait_biofeedback.core.stamps import NS_PER_S
 
 SMOOTHERS = ("suh", "rts", "none")
+KEEP_STANDING_S = 2 * MAX_STANCE_S  # s of a standing stance kept live (still "standing" for the next stride)
 
 
 @dataclass(frozen=True)
@@ -200,6 +204,9 @@ class FootTrajectoryStream:
             if (not self._closed and self._previous is not None
                     and (k - self._stance_start + 1) / self.rate_hz >= self.params.close_after):
                 out.append(self._close(k))
+            keep = round(KEEP_STANDING_S * self.rate_hz)
+            if (self._closed or self._previous is None) and k - self._stance_start + 1 > keep:
+                self._cut(k + 1 - keep)  # standing: its older samples are no longer needed
             return out
         if self._in_stance:
             self._in_stance, self._ended = False, k - 1
@@ -229,11 +236,13 @@ class FootTrajectoryStream:
 
     def _trim(self) -> None:
         """Drop the steps before the last completed stance (the next stride's start)."""
-        cut = self._previous[0]
+        self._cut(self._previous[0])
+        self._previous = (0, self._previous[1] - self._previous[0])
+
+    def _cut(self, cut: int) -> None:
         if cut > 0:
             del self._steps[:cut], self._stamps[:cut], self._numbers[:cut]
-            self._stance_start -= cut
-            self._previous = (0, self._previous[1] - cut)
+            self._stance_start = max(0, self._stance_start - cut)  # a standing stance starts at the cut
 
 
 def _numbered(stride: SpatialStride, numbers: list[int]) -> SpatialStride:
