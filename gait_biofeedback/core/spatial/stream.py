@@ -319,11 +319,12 @@ def _strides(index: np.ndarray, states: dict, zv: np.ndarray, rate_hz: float,
             merged.append([first, last])
     stances = merged
     out = []
+    numbers = index.tolist()
     close = max(1, math.ceil(p.close_after * rate_hz - 1e-9))
     for (a0, a1), (b0, b1) in itertools.pairwise(stances):
         stride = stride_parameters(t, states["orientation"], states["position"], (a0, a1),
                                    (b0, min(b1, b0 + close - 1)), toe_lever_arm=p.toe_lever_arm or None)
-        stride = _numbered(stride, list(index))
+        stride = _numbered(stride, numbers)
         if t[b0] - t[a1] > p.max_swing:
             stride = _unknown(stride, f"no stance for {t[b0] - t[a1]:.1f} s: spatial values unknown")
         out.append(stride)
