@@ -136,15 +136,11 @@ def pyshoe(python: Path | None) -> None:
 
 def _oracle_zv(gyr, acc, rate, zero_velocity, gt) -> float:
     """Our filter and Suh smoother with given zero-velocity labels (the detector taken out)."""
-    from gait_biofeedback.core.spatial.kalman import FootKalman
+    from gait_biofeedback.core.spatial.kalman import filter_recording
     from gait_biofeedback.core.spatial.smoother import suh_smooth
 
-    k0 = int(np.argmax(zero_velocity))
-    kf = FootKalman()
-    kf.start(acc[k0], gyr[k0], acc[k0], True)
-    for k in range(k0 + 1, len(gyr)):
-        kf.update(gyr[k], acc[k], 1.0 / rate, bool(zero_velocity[k]))
-    return armse(suh_smooth(kf.steps, kf.noise)["position"], gt[k0:])
+    kf = filter_recording(gyr, acc, rate, zero_velocity)
+    return armse(suh_smooth(kf.steps, kf.noise)["position"], gt[int(np.argmax(zero_velocity)):])
 
 
 def _marker_pitch(heel: np.ndarray, toe: np.ndarray) -> np.ndarray:

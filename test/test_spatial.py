@@ -20,10 +20,11 @@ from gait_biofeedback.batch import (
     quaternion,
     simulate,
 )
+from gait_biofeedback.core.calibration.windows import runs
 from gait_biofeedback.core.params import ParameterError, from_mapping
-from gait_biofeedback.core.spatial.kalman import FootKalman
+from gait_biofeedback.core.spatial.kalman import filter_recording
 from gait_biofeedback.core.spatial.smoother import rts_smooth, suh_smooth
-from gait_biofeedback.core.spatial.zero_velocity import ZeroVelocityDetector, detect_zero_velocity, intervals
+from gait_biofeedback.core.spatial.zero_velocity import ZeroVelocityDetector, detect_zero_velocity
 from gait_biofeedback.sim.simulator import Phase, SimulationConfig
 
 
@@ -42,10 +43,10 @@ def _still_then_moving(n=200):
 @pytest.mark.parametrize("detector", ["suh", "shoe"])
 def test_zero_velocity_windows_by_hand(detector):
     """window 0.05 s at 100 Hz: h = 2 samples each side, so the 2 samples next to the swing are
-    moving too: stances 0-97 and 152-199."""
+    moving too: stances 0-97 and 152-199 ([start, stop) runs)."""
     gyr, acc = _still_then_moving()
     zv = detect_zero_velocity(gyr, acc, 100.0, window_s=0.05, detector=detector)
-    assert intervals(zv).tolist() == [[0, 97], [152, 199]]
+    assert runs(zv) == [(0, 98), (152, 200)]
 
 
 @pytest.mark.parametrize("detector", ["suh", "shoe"])
@@ -70,10 +71,8 @@ def test_suh_quadratic_program_equals_the_rts_pass(walk):
     gait.md §4.5) and the RTS recursion over the 15 states must give the same trajectory."""
     imu = walk.imu["left_foot"]
     zv = detect_zero_velocity(imu.gyr, imu.acc, 100.0, 0.4, 150.0, 0.05)
-    kf = FootKalman()
-    kf.start(imu.acc[0], imu.gyr[0], imu.acc[0], bool(zv[0]))
-    for k in range(1, len(imu.t)):
-        kf.update(imu.gyr[k], imu.acc[k], 0.01, bool(zv[k]))
+    assert zv[0]  # the filter starts at sample 0
+    kf = filter_recording(imu.gyr, imu.acc, 100.0, zv)
     suh, rts = suh_smooth(kf.steps, kf.noise), rts_smooth(kf.steps)
     filtered = np.array([s.r for s in kf.steps])
     assert np.abs(suh["position"] - filtered).max() > 1e-3  # the smoothers do change the trajectory

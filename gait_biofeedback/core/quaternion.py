@@ -49,6 +49,11 @@ def multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     )
 
 
+def skew(v: np.ndarray) -> np.ndarray:
+    """``[v×]`` of one 3-vector: ``skew(a) @ b == cross(a, b)``."""
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
 def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Rotate vectors ``v`` (..., 3) by ``q``: ``q ⊗ [0, v] ⊗ q*``."""
     q = np.asarray(q, dtype=float)

@@ -35,12 +35,13 @@ Every step is kept as a :class:`KalmanStep` for the smoothers (:mod:`.smoother`)
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from gait_biofeedback.core import quaternion as quat
+from gait_biofeedback.core.orientation.filters import _scalar as scalar
+from gait_biofeedback.core.orientation.filters.startup import attitude_from_vectors
 
 GRAVITY = 9.8  # m/s², Suh's g̃ = [0, 0, 9.8]
 STATES = 15
@@ -70,7 +71,7 @@ class KalmanStep:
     update ``dx`` injected at this sample (zeros when there was none), the measurement residual and
     whether the sample was at zero velocity; ``phi``/``q_noise``: the transition to the next sample."""
 
-    q: np.ndarray
+    q: tuple[float, float, float, float]
     r: np.ndarray
     v: np.ndarray
     b: np.ndarray
@@ -82,31 +83,13 @@ class KalmanStep:
     q_noise: np.ndarray | None = None
 
 
-def skew(v: np.ndarray) -> np.ndarray:
-    """``[v×]``: ``skew(a) @ b == cross(a, b)``."""
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-
-
-def initial_orientation(acc: np.ndarray) -> np.ndarray:
-    """TRIAD with the heading zero (Suh §3.1): the rotation taking the measured up to world z whose
-    sensor x axis keeps a zero world heading (x axis in the world x-z plane)."""
-    up = np.asarray(acc, float) / np.linalg.norm(acc)
-    x = np.array([1.0, 0.0, 0.0]) - up[0] * up  # sensor x without its vertical part
-    if np.linalg.norm(x) < 1e-6:  # sensor x vertical: use sensor y for the heading
-        x = np.array([0.0, 1.0, 0.0]) - up[1] * up
-    x /= np.linalg.norm(x)
-    y = np.cross(up, x)
-    # rows: the world axes in sensor coordinates -> R (sensor -> world) has them as rows
-    return quat.from_matrix(np.stack([x, y, up]))
-
-
 def transition(omega: np.ndarray, f: np.ndarray, rot: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """``Φ = I + A T + ½ (A T)²`` (Suh Eq 12) of the error model above, and ``A₁`` (its 9 × 9 part)."""
     a = np.zeros((STATES, STATES))
-    a[0:3, 0:3] = -skew(omega)
+    a[0:3, 0:3] = -quat.skew(omega)
     a[0:3, 9:12] = -np.eye(3)
     a[3:6, 6:9] = np.eye(3)
-    a[6:9, 0:3] = -rot @ skew(f)
+    a[6:9, 0:3] = -rot @ quat.skew(f)
     a[6:9, 12:15] = -rot
     at = a * dt
     return np.eye(STATES) + at + 0.5 * at @ at, a[:NAV, :NAV]
@@ -137,13 +120,13 @@ class FootKalman:
         """First sample: attitude from ``vertical`` (an acceleration at rest, e.g. a stance's mean),
         the sample's own ``gyr``/``acc`` (they act over the next interval), the 6 biases' prior."""
         n = self.noise
-        self.q = initial_orientation(vertical)
+        self.q = tuple(attitude_from_vectors(vertical).tolist())  # TRIAD, heading zero
         self.r = np.zeros(3)
         self.v = np.zeros(3)
         self.b = np.zeros(6) if bias is None else np.asarray(bias, float).copy()
         tilt = n.acc / GRAVITY**2
         # the attitude error is local (sensor frame): the heading variance is about the world z
-        rot = _matrix(self.q)
+        rot = np.array(scalar.matrix(self.q))
         att_world = np.diag([tilt, tilt, n.heading_init])
         self.p = np.zeros((STATES, STATES))
         self.p[0:3, 0:3] = rot.T @ att_world @ rot
@@ -164,14 +147,16 @@ class FootKalman:
     def _propagate(self, gyr: np.ndarray, acc: np.ndarray, dt: float) -> None:
         omega = gyr - self.b[:3]
         f = acc - self.b[3:]
-        rot = _matrix(self.q)
+        rot = np.array(scalar.matrix(self.q))
         phi, a_nav = transition(omega, f, rot, dt)
         q_noise = np.zeros((STATES, STATES))
         q_noise[:NAV, :NAV] = process_noise(a_nav, self.noise, dt)
         self.last.phi = phi
         self.last.q_noise = q_noise
-        acc_world = _matrix(_times_rotvec(self.q, omega * (dt / 2.0))) @ f - np.array([0.0, 0.0, GRAVITY])
-        self.q = _times_rotvec(self.q, omega * dt)
+        wx, wy, wz = omega.tolist()
+        acc_world = np.array(scalar.to_world(scalar.gyro_step(self.q, wx, wy, wz, dt / 2.0), *f.tolist()))
+        acc_world[2] -= GRAVITY
+        self.q = scalar.normalized(scalar.gyro_step(self.q, wx, wy, wz, dt))
         self.r = self.r + self.v * dt + 0.5 * acc_world * dt**2
         self.v = self.v + acc_world * dt
         self.p = phi @ self.p @ phi.T + q_noise
@@ -202,28 +187,20 @@ class FootKalman:
         return step
 
     def _inject(self, dx: np.ndarray) -> None:
-        self.q = _times_rotvec(self.q, dx[0:3])
+        self.q = scalar.normalized(scalar.gyro_step(self.q, *dx[0:3].tolist(), 1.0))
         self.r = self.r + dx[3:6]
         self.v = self.v + dx[6:9]
         self.b = self.b + dx[9:15]
 
 
-def _times_rotvec(q: np.ndarray, rv: np.ndarray) -> np.ndarray:
-    """``q ⊗ exp(rv)`` normalised, in scalars (the per-sample path; :mod:`quaternion` broadcasts)."""
-    x, y, z = float(rv[0]), float(rv[1]), float(rv[2])
-    angle = math.sqrt(x * x + y * y + z * z)
-    bw = math.cos(angle / 2.0)
-    k = math.sin(angle / 2.0) / angle if angle > 1e-9 else 0.5
-    bx, by, bz = x * k, y * k, z * k
-    aw, ax, ay, az = (float(c) for c in q)
-    out = np.array([aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
-                    aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw])
-    return out / math.sqrt(float(out @ out))
 
-
-def _matrix(q: np.ndarray) -> np.ndarray:
-    """``R(q)`` of a unit quaternion, in scalars."""
-    w, x, y, z = (float(c) for c in q)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+def filter_recording(gyr: np.ndarray, acc: np.ndarray, rate_hz: float, zero_velocity: np.ndarray,
+                     noise: KalmanNoise | None = None, flat_floor: bool = True) -> FootKalman:
+    """The filter run over whole arrays from the first zero-velocity sample (its acceleration the
+    vertical), with given zero-velocity labels; its :attr:`~FootKalman.steps` from that sample on."""
+    k0 = int(np.argmax(zero_velocity))
+    kf = FootKalman(noise, flat_floor)
+    kf.start(acc[k0], gyr[k0], acc[k0], bool(zero_velocity[k0]))
+    for k in range(k0 + 1, len(gyr)):
+        kf.update(gyr[k], acc[k], 1.0 / rate_hz, bool(zero_velocity[k]))
+    return kf

@@ -30,6 +30,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from gait_biofeedback.core.calibration.windows import runs
 from gait_biofeedback.core.notices import Notices
 from gait_biofeedback.core.params import param, require
 from gait_biofeedback.core.spatial.kalman import FootKalman, KalmanNoise
@@ -40,7 +41,6 @@ from gait_biofeedback.core.spatial.zero_velocity import (
     SHOE_ACC,
     SHOE_GYRO,
     ZeroVelocityDetector,
-    intervals,
 )
 from gait_biofeedback.core.stamps import NS_PER_S
 
@@ -103,6 +103,8 @@ class FootTrajectoryStream:
         self.notices = Notices()
         self.index: list[int] = []  # input sample number of each filter step (keep_all)
         self.kept: list = []  # every filter step (keep_all)
+        self._min_swing_ns = self.params.min_swing * NS_PER_S
+        self._keep = round(KEEP_STANDING_S * self.rate_hz)
         self._restart()
 
     def _restart(self) -> None:
@@ -196,7 +198,6 @@ class FootTrajectoryStream:
         self._record(number, ns)
         k = len(self._steps) - 1
         out: list[SpatialStride] = []
-        min_swing_ns = self.params.min_swing * NS_PER_S
         if zero_velocity:
             if not self._in_stance and self._ended is None:
                 self._stance_start, self._closed = k, False
@@ -204,13 +205,12 @@ class FootTrajectoryStream:
             if (not self._closed and self._previous is not None
                     and (k - self._stance_start + 1) / self.rate_hz >= self.params.close_after):
                 out.append(self._close(k))
-            keep = round(KEEP_STANDING_S * self.rate_hz)
-            if (self._closed or self._previous is None) and k - self._stance_start + 1 > keep:
-                self._cut(k + 1 - keep)  # standing: its older samples are no longer needed
+            if (self._closed or self._previous is None) and k - self._stance_start + 1 > self._keep:
+                self._cut(k + 1 - self._keep)  # standing: its older samples are no longer needed
             return out
         if self._in_stance:
             self._in_stance, self._ended = False, k - 1
-        if self._ended is not None and self._stamps[k] - self._stamps[self._ended] >= min_swing_ns:
+        if self._ended is not None and self._stamps[k] - self._stamps[self._ended] >= self._min_swing_ns:
             if not self._closed and self._previous is not None:
                 out.append(self._close(self._ended))
             self._previous, self._ended = (self._stance_start, self._ended), None
@@ -226,11 +226,8 @@ class FootTrajectoryStream:
         first = (0, self._previous[1] - a0)
         second = (self._stance_start - a0, last - a0)
         stride = stride_parameters(t, smooth["orientation"], smooth["position"], first, second,
-                                   toe_lever_arm=self.params.toe_lever_arm or None)
-        stride = _numbered(stride, self._numbers[a0:last + 1])
-        swing = t[second[0]] - t[first[1]]
-        if swing > self.params.max_swing:
-            stride = _unknown(stride, f"no stance for {swing:.1f} s: spatial values unknown")
+                                   self._numbers[a0:last + 1], self.params.toe_lever_arm or None,
+                                   self.params.max_swing)
         self.counts["strides"] += 1
         return stride
 
@@ -243,17 +240,6 @@ class FootTrajectoryStream:
         if cut > 0:
             del self._steps[:cut], self._stamps[:cut], self._numbers[:cut]
             self._stance_start = max(0, self._stance_start - cut)  # a standing stance starts at the cut
-
-
-def _numbered(stride: SpatialStride, numbers: list[int]) -> SpatialStride:
-    return replace(stride, stance_start=numbers[stride.stance_start], foot_off=numbers[stride.foot_off],
-                   foot_flat=numbers[stride.foot_flat], end=numbers[stride.end])
-
-
-def _unknown(stride: SpatialStride, flag: str) -> SpatialStride:
-    values = ("stride_length", "gait_speed", "max_sensor_height", "min_toe_clearance", "foot_angle_ic",
-              "foot_angle_tc", "turning_angle", "lateral_excursion")
-    return replace(stride, **dict.fromkeys(values, math.nan), flags=(*stride.flags, flag))
 
 
 def estimate_foot_trajectory(gyr: np.ndarray, acc: np.ndarray, rate_hz: float,
@@ -309,23 +295,15 @@ def estimate_foot_trajectory(gyr: np.ndarray, acc: np.ndarray, rate_hz: float,
 def _strides(index: np.ndarray, states: dict, zv: np.ndarray, rate_hz: float,
              p: FootTrajectoryParams) -> list[SpatialStride]:
     t = index / rate_hz
-    stances = [list(s) for s in intervals(zv)]
-    merged: list[list[int]] = []
-    for first, last in stances:
+    stances: list[list[int]] = []
+    for first, stop in runs(zv):
         # the stream ends a stance at the first moving sample min_swing after it: the one before first
-        if merged and t[first - 1] - t[merged[-1][1]] < p.min_swing - 1e-9:
-            merged[-1][1] = last
+        if stances and t[first - 1] - t[stances[-1][1]] < p.min_swing - 1e-9:
+            stances[-1][1] = stop - 1
         else:
-            merged.append([first, last])
-    stances = merged
-    out = []
+            stances.append([first, stop - 1])
     numbers = index.tolist()
     close = max(1, math.ceil(p.close_after * rate_hz - 1e-9))
-    for (a0, a1), (b0, b1) in itertools.pairwise(stances):
-        stride = stride_parameters(t, states["orientation"], states["position"], (a0, a1),
-                                   (b0, min(b1, b0 + close - 1)), toe_lever_arm=p.toe_lever_arm or None)
-        stride = _numbered(stride, numbers)
-        if t[b0] - t[a1] > p.max_swing:
-            stride = _unknown(stride, f"no stance for {t[b0] - t[a1]:.1f} s: spatial values unknown")
-        out.append(stride)
-    return out
+    return [stride_parameters(t, states["orientation"], states["position"], (a0, a1),
+                              (b0, min(b1, b0 + close - 1)), numbers, p.toe_lever_arm or None, p.max_swing)
+            for (a0, a1), (b0, b1) in itertools.pairwise(stances)]

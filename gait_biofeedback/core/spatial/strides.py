@@ -84,11 +84,13 @@ def _min_between_maxima(height: np.ndarray) -> float:
 
 
 def stride_parameters(t: np.ndarray, orientation: np.ndarray, position: np.ndarray,
-                      first: tuple[int, int], second: tuple[int, int], offset: int = 0,
-                      toe_lever_arm: np.ndarray | None = None) -> SpatialStride:
+                      first: tuple[int, int], second: tuple[int, int], numbers: list[int],
+                      toe_lever_arm: np.ndarray | None = None,
+                      max_swing_s: float = math.inf) -> SpatialStride:
     """The stride between the stances ``first`` and ``second`` (``(first, last)`` sample, indices into
     ``t``/``orientation``/``position``; ``second`` may be the part of the stance seen so far).
-    ``offset`` is added to the indices reported."""
+    ``numbers[i]`` is the recording's sample number of index ``i``, as reported. A swing longer than
+    ``max_swing_s`` gives NaN values and a flag."""
     a0, a1 = first
     b0, b1 = second
     p_first = position[a0:a1 + 1].mean(axis=0)
@@ -115,9 +117,14 @@ def stride_parameters(t: np.ndarray, orientation: np.ndarray, position: np.ndarr
         lateral_excursion = float(side[np.argmax(np.abs(side))])
     else:
         flags.append("no direction of travel")
+    turning = _heading_change(orientation[a1], orientation[b0])
+    swing_s = float(t[b0] - t[a1])
+    if swing_s > max_swing_s:
+        flags.append(f"no stance for {swing_s:.1f} s: spatial values unknown")
+        length = height = clearance = angle_ic = angle_tc = lateral_excursion = turning = math.nan
     return SpatialStride(
-        stance_start=a0 + offset, foot_off=a1 + offset, foot_flat=b0 + offset, end=b1 + offset,
+        stance_start=numbers[a0], foot_off=numbers[a1], foot_flat=numbers[b0], end=numbers[b1],
         stride_length=length, stride_time=stride_time, gait_speed=length / stride_time,
         max_sensor_height=height, min_toe_clearance=clearance, foot_angle_ic=angle_ic,
-        foot_angle_tc=angle_tc, turning_angle=_heading_change(orientation[a1], orientation[b0]),
+        foot_angle_tc=angle_tc, turning_angle=turning,
         lateral_excursion=lateral_excursion, flags=tuple(flags))

@@ -40,6 +40,7 @@ def acc_lag(rate_hz: float) -> int:
 SHOE_ACC = 1.0  # m/s²: scale of |a - g û| in the SHOE statistic
 SHOE_GYRO = 0.5  # rad/s: scale of |ω|
 SHOE_WINDOW_S = 0.05  # s
+GRAVITY_SHOE = 9.81  # m/s², the g of the SHOE statistic
 DETECTORS = ("suh", "shoe")
 
 
@@ -50,8 +51,6 @@ def _shoe_statistic(gyr: np.ndarray, acc: np.ndarray, acc_scale: float, gyro_sca
     acc_part = (np.sum(acc * acc) - 2.0 * GRAVITY_SHOE * np.linalg.norm(total) + n * GRAVITY_SHOE**2)
     return float((acc_part / acc_scale**2 + np.sum(gyr * gyr) / gyro_scale**2) / n)
 
-
-GRAVITY_SHOE = 9.81
 
 
 class ZeroVelocityDetector:
@@ -142,9 +141,3 @@ def detect_zero_velocity(gyr: np.ndarray, acc: np.ndarray, rate_hz: float, gyro_
         quiet[lag:] &= np.linalg.norm(acc[lag:] - acc[:-lag], axis=1) <= jerk_limit * lag / rate_hz
     return window_sum((~quiet).astype(float)) == 0
 
-
-def intervals(zero_velocity: np.ndarray) -> np.ndarray:
-    """(M, 2) int: ``[first, last]`` sample of each run of zero velocity."""
-    z = np.concatenate([[False], np.asarray(zero_velocity, bool), [False]])
-    edges = np.flatnonzero(np.diff(z.astype(np.int8)))
-    return edges.reshape(-1, 2) - np.array([0, 1])

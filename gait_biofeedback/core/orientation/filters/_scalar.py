@@ -50,6 +50,14 @@ def up_in_sensor(q: Quat) -> Vec:
     return (2.0 * (x * z - w * y), 2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
 
 
+def matrix(q: Quat) -> tuple[Vec, Vec, Vec]:
+    """Rows of ``R(q)`` (sensor → world) of a unit quaternion."""
+    w, x, y, z = q
+    return ((1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z), 2.0 * (x * z + w * y)),
+            (2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - w * x)),
+            (2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)))
+
+
 def to_world(q: Quat, vx: float, vy: float, vz: float) -> Vec:
     """``R(q) v``: a sensor-frame vector in the world frame."""
     w, x, y, z = q

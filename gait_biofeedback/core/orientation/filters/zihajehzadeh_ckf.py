@@ -21,12 +21,9 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from gait_biofeedback.core import quaternion as quat
 from gait_biofeedback.core.orientation.filters import _scalar as sq
 from gait_biofeedback.core.orientation.filters.base import OrientationFilter
-
-
-def _skew(v: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
 class ZihajehzadehCKF(OrientationFilter):
@@ -62,11 +59,11 @@ class ZihajehzadehCKF(OrientationFilter):
         return {"external_acc": self._acc.copy()}
 
     def _step(self, gx, gy, gz, ax, ay, az, m, dt, dev_acc, dev_mag):
-        A = np.eye(3) - dt * _skew(np.array([gx, gy, gz]))
+        A = np.eye(3) - dt * quat.skew(np.array([gx, gy, gz]))
         eye = np.eye(3)
         # step 1: tilt
         x1 = A @ self._x1
-        s1 = _skew(self._x1)
+        s1 = quat.skew(self._x1)
         P1 = A @ self._P1 @ A.T + (dt * dt * self.sg2) * (s1 @ s1.T)
         acc = np.array([ax, ay, az])
         z1 = acc - self.ca * self._acc
@@ -78,7 +75,7 @@ class ZihajehzadehCKF(OrientationFilter):
         self._acc = acc - x1
         # step 2: yaw
         x2 = A @ self._x2
-        s2 = _skew(self._x2)
+        s2 = quat.skew(self._x2)
         P2 = A @ self._P2 @ A.T + (dt * dt * self.sg2) * (s2 @ s2.T)
         if m is not None:
             e = np.cross(np.asarray(m), x1)
