@@ -195,6 +195,10 @@ def test_parameters_are_checked():
         from_mapping(FootTrajectoryParams, {"gyro_limt": 0.3})
     with pytest.raises(ValueError, match="detector"):
         ZeroVelocityDetector(100.0, detector="magic")
+    with pytest.raises(ParameterError, match="gyro_limt"):
+        estimate_foot_trajectory(np.zeros((10, 3)), np.zeros((10, 3)), 100.0, gyro_limt=0.3)
+    with pytest.raises(ParameterError, match="window"):
+        estimate_foot_trajectory(np.zeros((10, 3)), np.zeros((10, 3)), 100.0, window=5.0)
 
 
 def _pyshoe_score(estimate, vicon):

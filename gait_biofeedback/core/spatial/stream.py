@@ -26,13 +26,13 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
 from gait_biofeedback.core.calibration.windows import runs
 from gait_biofeedback.core.notices import Notices
-from gait_biofeedback.core.params import param, require
+from gait_biofeedback.core.params import as_mapping, from_mapping, param, require
 from gait_biofeedback.core.spatial.kalman import FootKalman, KalmanNoise
 from gait_biofeedback.core.spatial.smoother import apply, rts_smooth, suh_smooth
 from gait_biofeedback.core.spatial.strides import MAX_STANCE_S, SpatialStride, stride_parameters
@@ -260,8 +260,8 @@ def estimate_foot_trajectory(gyr: np.ndarray, acc: np.ndarray, rate_hz: float,
     - ``live_strides``: what :class:`FootTrajectoryStream` emitted, stride by stride.
     """
     p = params or FootTrajectoryParams()
-    if options:
-        p = replace(p, **options)
+    if options:  # checked as a params file is: a typo or a value out of range is refused by name
+        p = from_mapping(FootTrajectoryParams, {**as_mapping(p), **options}, "estimate_foot_trajectory")
     gyr, acc = np.asarray(gyr, float), np.asarray(acc, float)
     require(gyr.shape == acc.shape and gyr.ndim == 2 and gyr.shape[1] == 3, "gyr and acc: (N, 3) each")
     stream = FootTrajectoryStream(rate_hz, p, keep_all=True)
