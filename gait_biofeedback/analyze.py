@@ -78,7 +78,6 @@ from gait_biofeedback.wire.imu import (
     mag_sample,
     orientation_payload,
     orientation_sample,
-    quaternion,
     raw_sample,
 )
 from gait_biofeedback.wire.joints import joint_state_msg, skeleton_msg
@@ -381,10 +380,12 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
             publish_joints(joints.add(segment, imu.ns, q, gyr, acc, recovering=is_recovering(imu)), log_ns)
         side = segment.removesuffix("_foot")
         if segment == foot_frame(side) and side in gait.detectors:
-            for event, cycle in gait.update(side, imu.ns, quaternion(imu), is_recovering(imu)):
+            _, acc, gyr, q = orientation_sample(imu)
+            events, cycles = gait.update(side, imu.ns, q, is_recovering(imu), gyr, acc)
+            for event in events:
                 emit(topics.GAIT_EVENTS.absolute(), event_msg(event), log_ns)
-                if cycle is not None:
-                    emit(topics.GAIT_CYCLES.absolute(), cycle_msg(cycle), log_ns)
+            for cycle in cycles:
+                emit(topics.GAIT_CYCLES.absolute(), cycle_msg(cycle), log_ns)
 
     if calibration is not None:
         source = f"from {Path(calibration_file).absolute()} (saved {saved_at or 'at an unknown time'})"

@@ -158,11 +158,19 @@ def test_analyze_gives_the_numbers_of_the_live_graph(session_bag, tmp_path):
     np.testing.assert_allclose([e[4:] for e in live_events], [e[4:] for e in off_events], rtol=0, atol=1e-12)
     assert sorted(live_cycles) == sorted(off_cycles) and len(off_cycles) >= 16
     fields = ("stride_time", "stance_time", "swing_time", "stance_fraction", "step_time", "cadence",
-              "double_support_time", "step_time_symmetry_index")
+              "double_support_time", "step_time_symmetry_index", "stride_length", "gait_speed",
+              "max_foot_height", "min_toe_clearance", "foot_angle_ic", "foot_angle_tc", "turning_angle",
+              "lateral_excursion")
+    # the simulator walks 1.2 m/s at 108 steps/min: 1.33 m strides; the stop's last ones are shorter
+    lengths = [c.stride_length for _, c in sorted(off_cycles.items(), key=lambda kv: _ns(kv[1].header.stamp))
+               if not c.spatial_flag]
+    assert len(lengths) >= len(off_cycles) - 1
+    assert all(1.3 < length < 1.36 for length in lengths[:-2]) and 0.1 < lengths[-1] < 1.36
     for key, live in live_cycles.items():
         off = off_cycles[key]
         def identity(c):
-            return c.plausible, c.flag, _ns(c.header.stamp), _ns(c.start), _ns(c.terminal_contact)
+            return (c.plausible, c.flag, c.spatial_flag, _ns(c.header.stamp), _ns(c.start),
+                    _ns(c.terminal_contact))
 
         assert identity(live) == identity(off)
         np.testing.assert_allclose([getattr(live, f) for f in fields], [getattr(off, f) for f in fields],

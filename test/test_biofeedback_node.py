@@ -115,6 +115,8 @@ def test_node_cues_frames_and_commands(ros_context, session):
         names = list(truth.joint_angles)
         angles = np.stack([truth.joint_angles[n] for n in names], axis=1)
         strides = _strides(truth)
+        ankle = {side: truth.segment_position[f"{side}_foot"] for side in ("left", "right")}
+        ics = truth.initial_contacts
         k_stride = 0
         for i, t in enumerate(truth.t):
             msg = JointState(name=names, position=angles[i].tolist())
@@ -123,11 +125,15 @@ def test_node_cues_frames_and_commands(ros_context, session):
             # a GaitCycle comes 1-2 samples after its closing IC
             while k_stride < len(strides) and strides[k_stride][4] <= t + 0.02:
                 side, index, t0, tc, t1 = strides[k_stride]
+                other = ics["right" if side == "left" else "left"]
+                step_time = t1 - other[other < t1][-1]
+                travel = np.interp(t1, truth.t, ankle[side][:, 0]) - np.interp(t0, truth.t, ankle[side][:, 0])
                 c = GaitCycle(side=0 if side == "left" else 1, stride_index=index, start=s_to_stamp(t0),
                               terminal_contact=s_to_stamp(tc), stride_time=t1 - t0, stance_time=tc - t0,
                               swing_time=t1 - tc, stance_fraction=(tc - t0) / (t1 - t0),
                               cadence=2 / (t1 - t0),
-                              step_time_symmetry_index=0.02, plausible=True)
+                              step_time_symmetry_index=0.02, plausible=True, step_time=step_time,
+                              stride_length=travel, gait_speed=travel / (t1 - t0))
                 c.header.stamp = s_to_stamp(t1)
                 cycles.publish(c)
                 k_stride += 1
@@ -138,15 +144,24 @@ def test_node_cues_frames_and_commands(ros_context, session):
                 assert spin_until(executor, lambda target=target: node.counts["joint_states"] >= target,
                                   timeout=5)
         assert spin_until(executor, lambda: node.counts["strides"] >= len(strides), timeout=5)
-        assert spin_until(executor, lambda: len(cues) >= 7 * len(strides), timeout=5)
-
-        # one cue per quantity per stride; kinematics equal to the truth
-        assert len(strides) >= 8 and len(cues) == 7 * len(strides)
+        # 7 kinematic and temporal cues per stride, 3 spatial ones, and the step-length symmetry once
+        # both sides have a step
+        expected = 10 * len(strides) + len(strides) - 1
+        assert spin_until(executor, lambda: len(cues) >= expected, timeout=5)
+        assert len(strides) >= 8 and len(cues) == expected
         t = truth.t
         for side, index, t0, tc, t1 in strides:
             got = {c.quantity: c for c in cues
                    if c.stride_index == index and c.header.frame_id == f"{side}_foot"}
-            assert len(got) == 7
+            assert len(got) == 11 - ((side, index) == strides[0][:2])
+            # the step: from the other foot's footprint to this one's (walking east, along x; the foot
+            # is flat 0.15 s after its IC); measured 1.4-2.5 mm short
+            other = "right" if side == "left" else "left"
+            previous = ics[other][ics[other] < t1][-1]
+            step = (np.interp(t1 + 0.15, t, ankle[side][:, 0])
+                    - np.interp(previous + 0.15, t, ankle[other][:, 0]))
+            if t1 < strides[-1][4]:  # the last step (the walk stops) is 2.7 cm shorter than ours
+                assert got["step_length"].measured == pytest.approx(step, abs=0.004)
             knee = truth.joint_angles[f"{side}_knee_flexion"]
             hip = truth.joint_angles[f"{side}_hip_flexion"]
             swing = (t >= tc) & (t <= t1)

@@ -159,7 +159,7 @@ def test_live_strides_agree_with_the_offline_ones(walk):
     assert offline[0]["stance_start"] == 0 and live[0]["stance_start"] == live[0]["foot_off"] + 1 - 300
     for a, b in zip(live[1:-1], offline[1:-1], strict=True):
         assert a["stride_length"] == pytest.approx(b["stride_length"], abs=0.01)
-        assert a["end"] == a["foot_flat"] + 9  # closed after 0.1 s of the next stance
+        assert a["end"] == a["foot_flat"] + 4  # closed after 0.05 s of the next stance
 
 
 def test_bad_samples_are_skipped_and_a_gap_restarts_the_foot(walk):

@@ -17,6 +17,8 @@ const QUANTITY_LABELS = {
   knee_flexion_peak_swing: "Peak knee flexion (swing)", knee_flexion_at_ic: "Knee flexion at IC",
   hip_extension_peak_stance: "Hip extension (late stance)", ankle_dorsiflexion_at_ic: "Ankle dorsiflexion at IC",
   stance_fraction: "Stance", step_time_symmetry: "Step-time symmetry", cadence: "Cadence",
+  stride_length: "Stride length", gait_speed: "Gait speed", step_length: "Step length",
+  step_length_symmetry: "Step-length symmetry",
 };
 
 // Everything the page knows; exposed for the browser test.
@@ -32,7 +34,7 @@ window.dashboardState = state;
 const data = {
   targets: null, figure: null, angles: null, samples: [], strides: { left: [], right: [] },
   events: [], lastIC: { left: null, right: null }, strideTime: { left: 1.1, right: 1.1 },
-  cycles: { left: null, right: null }, strideCount: { left: 0, right: 0 }, cues: new Map(),
+  cycles: { left: null, right: null }, spatial: { left: null, right: null }, strideCount: { left: 0, right: 0 }, cues: new Map(),
   activity: null, diagnostics: [], icCount: 0, tcPercent: { left: 60, right: 60 },
 };
 let ws = null;
@@ -145,6 +147,7 @@ function onMessage(m) {
       data.strideCount[m.side] += 1;
       break;
     case "stride": addStride(m); break;
+    case "spatial": data.spatial[m.side] = m; break;
     case "cue": data.cues.set(m.quantity + "|" + m.side, m); state.cuesReceived += 1; break;
     case "audio": state.audio = m; break;
     case "reply": showReply(m); break;
@@ -410,6 +413,16 @@ function updateTables() {
   document.getElementById("stat-cadence").textContent = latest && latest.cadence ? (latest.cadence * 60).toFixed(0) + " steps/min" : "–";
   document.getElementById("stat-stance").textContent = pct(cl) + " / " + pct(cr);
   document.getElementById("stat-symmetry").textContent = latest && latest.symmetry !== null ? (latest.symmetry * 100).toFixed(1) + " %" : "–";
+  // spatial values of the latest evaluated stride of each side (none when flagged doubtful)
+  const sl = data.spatial.left, sr = data.spatial.right;
+  const metres = (s, key) => (s && s[key] !== null ? s[key].toFixed(2) + " m" : "–");
+  const newest = [sl, sr].filter(Boolean).sort((a, b) => b.t - a.t)[0];
+  document.getElementById("stat-speed").textContent = newest && newest.gait_speed !== null ? newest.gait_speed.toFixed(2) + " m/s" : "–";
+  document.getElementById("stat-stride-length").textContent = metres(sl, "stride_length") + " / " + metres(sr, "stride_length");
+  document.getElementById("stat-step-length").textContent = metres(sl, "step_length") + " / " + metres(sr, "step_length");
+  document.getElementById("stat-step-symmetry").textContent = newest && newest.step_length_symmetry !== null ?
+    (newest.step_length_symmetry * 100).toFixed(1) + " %" : "–";
+  document.getElementById("stat-spatial-flag").textContent = !newest ? "–" : (newest.flag ? newest.side + ": " + newest.flag : "ok");
   const steps = data.activity ? data.activity.step_count : data.icCount;
   document.getElementById("stat-steps").textContent = String(steps);
   document.getElementById("stat-strides").textContent = data.strideCount.left + " / " + data.strideCount.right;
@@ -427,7 +440,8 @@ function updateTables() {
   const body = document.querySelector("#cues tbody");
   const rows = [...data.cues.values()].sort((x, y) => (x.quantity + x.side).localeCompare(y.quantity + y.side));
   const groups = { knee_flexion_peak_swing: "knee", knee_flexion_at_ic: "knee", hip_extension_peak_stance: "hip",
-    ankle_dorsiflexion_at_ic: "ankle", stance_fraction: "timing", step_time_symmetry: "timing", cadence: "timing" };
+    ankle_dorsiflexion_at_ic: "ankle", stance_fraction: "timing", step_time_symmetry: "timing", cadence: "timing",
+    stride_length: "spatial", gait_speed: "spatial", step_length: "spatial", step_length_symmetry: "spatial" };
   body.innerHTML = "";
   for (const c of rows) {
     const chosen = (state.feedback.side === "both" || c.side === "" || c.side === state.feedback.side) &&

@@ -167,7 +167,14 @@ class BagReader:
             cls = classes.get(topic)
             if cls is None:
                 cls = classes[topic] = message_class(type_name)
-            yield topic, deserialize_message(data, cls), log_time
+            try:
+                msg = deserialize_message(data, cls)
+            except Exception as exc:  # rclpy raises RMWError (not exported) for bytes of another definition
+                raise ValueError(
+                    f"{self.path}: a {type_name} message on {topic} does not decode with this version's "
+                    f"definition ({exc}); a recording made by an older version? Its raw sensor topics "
+                    "still are: run `gait-biofeedback analyze` on it again") from None
+            yield topic, msg, log_time
 
     def close(self) -> None:
         """Release the files."""

@@ -19,7 +19,8 @@ messages (queued, handled by a ROS timer, services called with ``call_async``, n
 ``{"action": "calibrate", "protocol": "auto"|"hip_flexion"|"walking"}`` (default auto: the one the movement
 shows) → ``calibration/calibrate`` (the reply adds ``looks_like``, which the page proposes after a refusal);
 ``{"action": "record_start"}`` / ``"record_stop"`` → ``recorder/start`` / ``recorder/stop``;
-``{"action": "feedback", "side": "left"|"right"|"both", "joint": "hip"|"knee"|"ankle"|"timing"|"all"}``;
+``{"action": "feedback", "side": "left"|"right"|"both", "joint":
+"hip"|"knee"|"ankle"|"timing"|"spatial"|"all"}``;
 ``{"action": "mute", "muted": bool}``. Replies: ``{"type": "reply", "action", "success", "message"}``.
 
 Audio: the cue to sound (largest error of the chosen side/joint among the latest cues, silent when all
@@ -43,6 +44,7 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
 from gait_biofeedback.core.biofeedback.evaluator import (
+    SPATIAL,
     BiofeedbackEvaluator,
     BiofeedbackParams,
     Cue,
@@ -111,7 +113,7 @@ class BiofeedbackNode(GuardedNode):
         self.curve_strides = p.curve_strides
         self.feedback = {"side": p.feedback_side, "joint": p.feedback_joint}
         self.lengths = p.body
-        self.evaluator = BiofeedbackEvaluator(self.targets)
+        self.evaluator = BiofeedbackEvaluator(self.targets, lengths=self.lengths)
         self.muted = False
         # state shared with the server thread: references replaced whole, bounded deques
         self._latest: tuple[float, dict[str, float], tuple[str, ...]] | None = None
@@ -194,7 +196,7 @@ class BiofeedbackNode(GuardedNode):
                              "cadence": _finite(stride.cadence),
                              "symmetry": _finite(stride.step_time_symmetry),
                              "stride_time": _finite(float(msg.stride_time)), "plausible": stride.plausible,
-                             "flag": msg.flag})
+                             "flag": msg.flag, "spatial_flag": msg.spatial_flag})
         if not stride.plausible:
             self.counts["implausible"] += 1
             return
@@ -260,6 +262,9 @@ class BiofeedbackNode(GuardedNode):
         self.counts["strides"] += 1
         if not result.curves:
             self.counts["strides_without_angles"] += 1
+        self._outbox.append({"type": "spatial", "side": stride.side, "stride": stride.index,
+                             "t": stride.t_end, "flag": stride.spatial_flag,
+                             **{k: _finite(result.spatial.get(k, math.nan)) for k in SPATIAL}})
         for c in result.cues:
             self._cues.publish(cue_msg(c, foot_frame(stride.side)))
             self.counts["cues"] += 1

@@ -3,9 +3,11 @@
 Subscribes ``<side>_foot/imu/data`` (sensor_msgs/Imu with orientation, reliable) and
 ``calibration/sensor_to_segment`` (SegmentCalibrationArray, latched: rotation r of each foot, segment →
 sensor). Publishes ``gait/events`` (GaitEvent, one sample after the event: stamp = the event sample's
-stamp, ``detection_latency`` = to the confirming sample) and ``gait/cycles`` (GaitCycle at each IC that
-closes a stride; an implausible stride, < ``min_stride_s`` or > ``max_stride_s`` or without exactly one
-TC, is published with ``plausible = false`` and its ``flag``), plus ``/diagnostics``. The detection is
+stamp, ``detection_latency`` = to the confirming sample) and ``gait/cycles`` (GaitCycle of each stride,
+IC to IC; an implausible stride, < ``min_stride_s`` or > ``max_stride_s`` or without exactly one
+TC, is published with ``plausible = false`` and its ``flag``; its spatial values come from the foot's
+trajectory, :mod:`~gait_biofeedback.core.gait.spatial`, so it is published once the next stance has
+closed that, at most ``spatial_wait`` s after the closing IC), plus ``/diagnostics``. The detection is
 :class:`~gait_biofeedback.core.gait.events.GaitEventDetector` (thesis Algorithm 1), the strides
 :class:`~gait_biofeedback.core.gait.cycles.GaitCycleTracker`, the stream rules below
 :class:`~gait_biofeedback.core.gait.stream.GaitEventStream` (a calibration is in force from its header
@@ -35,7 +37,7 @@ from gait_biofeedback.wire import diagnostics, topics
 from gait_biofeedback.wire.calibration import entries
 from gait_biofeedback.wire.cdr import decode_imu
 from gait_biofeedback.wire.gait import cycle_msg, event_msg, foot_frame
-from gait_biofeedback.wire.imu import is_recovering, quaternion
+from gait_biofeedback.wire.imu import is_recovering, orientation_sample
 from gait_biofeedback_msgs.msg import SegmentCalibrationArray
 
 
@@ -82,10 +84,12 @@ class GaitEventsNode(GuardedNode):
         self._last_arrival[side] = time.monotonic()
         self._stopped[side] = False
         imu = decode_imu(data)
-        for event, cycle in self.stream.update(side, imu.ns, quaternion(imu), is_recovering(imu)):
+        _, acc, gyr, q = orientation_sample(imu)
+        events, cycles = self.stream.update(side, imu.ns, q, is_recovering(imu), gyr, acc)
+        for event in events:
             self._events.publish(event_msg(event))
-            if cycle is not None:
-                self._cycles.publish(cycle_msg(cycle))
+        for cycle in cycles:
+            self._cycles.publish(cycle_msg(cycle))
         log_notices(self.get_logger(), self.stream.notices.pop())
 
     def _check_streams(self) -> None:

@@ -111,12 +111,19 @@ def _cycles(reader: BagReader, recorded: dict) -> dict[str, float]:
     cycles = topics.GAIT_CYCLES.absolute()
     if cycles not in recorded:
         return {}
-    rows = [(m.stride_time, m.stance_fraction, m.cadence, m.double_support_fraction, m.plausible)
-            for _, m, _ in reader.messages([cycles])]
+    rows, spatial = [], []
+    for _, m, _ in reader.messages([cycles]):
+        rows.append((m.stride_time, m.stance_fraction, m.cadence, m.double_support_fraction, m.plausible))
+        if m.plausible and not m.spatial_flag and m.stride_length > 0:
+            spatial.append((m.stride_length, m.gait_speed))
     good = np.array([r[:4] for r in rows if r[4]], dtype=float).reshape(-1, 4)
     if not len(good):
         return {"strides": len(rows), "plausible": 0}
+    space = np.array(spatial, dtype=float).reshape(-1, 2)
     return {
+        "spatial": len(space),
+        "stride_length": float(np.median(space[:, 0])) if len(space) else math.nan,
+        "gait_speed": float(np.nanmedian(space[:, 1])) if len(space) else math.nan,
         "strides": len(rows), "plausible": len(good),
         "stride_time": float(np.median(good[:, 0])), "stance_percent": float(100 * np.median(good[:, 1])),
         "cadence_per_min": float(60 * np.median(good[:, 2])),
@@ -190,6 +197,9 @@ def format_report(report: SessionReport) -> list[str]:
                          f"double support {c['double_support_percent']:.0f} %"
                          if math.isfinite(c["double_support_percent"])
                          else "double support unknown (one foot)"))
+        lines.append(f"spatial: {c['spatial']} of {c['plausible']} plausible strides with spatial values"
+                     + (f"; stride length {c['stride_length']:.2f} m, gait speed {c['gait_speed']:.2f} m/s"
+                        if c["spatial"] else " (the others are flagged in gait/cycles spatial_flag)"))
     if report.transitions or report.steps:
         lines.append(f"activity: {len(report.transitions)} transitions, {report.steps} steps counted"
                      + (f" ({report.true_steps} true)" if report.true_steps else ""))

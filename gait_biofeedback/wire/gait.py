@@ -21,6 +21,8 @@ KIND_CODES = {INITIAL_CONTACT: GaitEventMsg.INITIAL_CONTACT, TERMINAL_CONTACT: G
 KIND_NAMES = {code: kind for kind, code in KIND_CODES.items()}
 _CYCLE_FIELDS = ("stride_time", "stance_time", "swing_time", "stance_fraction", "swing_fraction", "step_time",
                  "cadence", "double_support_time", "double_support_fraction", "step_time_symmetry_index")
+_SPACE_FIELDS = ("stride_length", "gait_speed", "max_foot_height", "min_toe_clearance", "foot_angle_ic",
+                 "foot_angle_tc", "turning_angle", "lateral_excursion")
 
 
 def foot_frame(side: str) -> str:
@@ -66,6 +68,9 @@ def cycle_msg(c: GaitCycle) -> GaitCycleMsg:
     out.terminal_contact = _stamp(c.terminal_contact_ns)
     for name in _CYCLE_FIELDS:
         setattr(out, name, float(getattr(c, name)))
+    for name in _SPACE_FIELDS:
+        setattr(out, name, float(getattr(c.space, name)))
+    out.spatial_flag = c.space.flag
     return out
 
 
@@ -76,4 +81,6 @@ def stride_of(msg: GaitCycleMsg) -> Stride:
                   tc_ns=None if (tc.sec, tc.nanosec) == (0, 0) else stamp_to_ns(tc),
                   end_ns=stamp_to_ns(msg.header.stamp), stance_fraction=float(msg.stance_fraction),
                   cadence=float(msg.cadence), step_time_symmetry=float(msg.step_time_symmetry_index),
-                  plausible=bool(msg.plausible))
+                  plausible=bool(msg.plausible), step_time=float(msg.step_time),
+                  stride_length=float(msg.stride_length),
+                  gait_speed=float(msg.gait_speed), spatial_flag=msg.spatial_flag)

@@ -11,7 +11,21 @@ EXT (gait.md §5.2 "DERIVED-possible"):
   flexion at the opening IC: "knee extension at IC"), ``hip_extension_peak_stance`` (-min hip flexion from
   IC to TC: "hip extension in late stance"), ``ankle_dorsiflexion_at_ic``;
 * temporal, from the GaitCycle: ``stance_fraction`` (per side), ``cadence`` and ``step_time_symmetry``
-  (bilateral, side "").
+  (bilateral, side "");
+* spatial (issue 16), from the GaitCycle's foot trajectory: ``stride_length`` (per side), ``gait_speed``
+  (bilateral), and ``step_length`` (per side) with ``step_length_symmetry`` (bilateral, ``(L - R) /
+  (0.5 (L + R))`` of the mean step lengths over the last ``symmetry_window`` steps of each side).
+  A stride whose ``spatial_flag`` is set gives no spatial cue.
+
+Step length (EXT, :func:`step_length`): two foot trajectories have no common frame (each filter's
+origin and heading drift on their own), so the distance between the feet is taken from the legs'
+sagittal angles instead: the ankle of a leg with hip flexion ``h`` and knee flexion ``k`` is
+``l_thigh sin h + l_shank sin(h - k)`` ahead of the hip (pelvis level). At each IC the leading ankle
+is ``D`` ahead of the trailing one. In a stride of side S (its IC to its next IC) the other foot's
+step ends at its IC (``D_O``) and S's own at the closing IC (``D_S``); without sliding the two steps
+add up to the stride, so ``step_S = stride_length · D_S / (D_S + D_O)``. Only the ratio of the leg
+chain is used, so the segment lengths' scale and the pelvis tilt (common to both legs) hardly
+matter; the length comes from the foot trajectory.
 
 Comparison (gait_biofeedback_msgs/BiofeedbackCue): ``error = measured - nearest band edge`` (0 inside),
 severity IN_BAND (0), MILD (outside by less than one band width) or SEVERE (one band width or more).
@@ -40,6 +54,7 @@ import yaml
 
 from gait_biofeedback.core.biofeedback import normative as normative_gait
 from gait_biofeedback.core.body import BodyDimensions, StickFigureDimensions
+from gait_biofeedback.core.gait.cycles import symmetry_index
 from gait_biofeedback.core.joints.angles import joint_angle_names, relative_rotation_from_angles
 from gait_biofeedback.core.joints.skeleton import stick_figure
 from gait_biofeedback.core.params import param
@@ -59,10 +74,15 @@ QUANTITIES: dict[str, tuple[str, bool, str]] = {
     "stance_fraction": ("timing", False, "1"),
     "step_time_symmetry": ("timing", True, "1"),
     "cadence": ("timing", True, "Hz"),
+    "stride_length": ("spatial", False, "m"),
+    "gait_speed": ("spatial", True, "m/s"),
+    "step_length": ("spatial", False, "m"),
+    "step_length_symmetry": ("spatial", True, "1"),
 }
+SPATIAL = ("stride_length", "gait_speed", "step_length", "step_length_symmetry")
 KINEMATIC = ("knee_flexion_peak_swing", "knee_flexion_at_ic", "hip_extension_peak_stance",
              "ankle_dorsiflexion_at_ic")
-JOINT_GROUPS = ("hip", "knee", "ankle", "timing")
+JOINT_GROUPS = ("hip", "knee", "ankle", "timing", "spatial")
 SAGITTAL = ("hip_flexion", "knee_flexion", "ankle_dorsiflexion")
 """The sagittal angles the evaluator keeps per side (JointState name = ``<side>_<name>``)."""
 
@@ -70,7 +90,7 @@ SAGITTAL = ("hip_flexion", "knee_flexion", "ankle_dorsiflexion")
 _UNITS: dict[str, tuple[float, str]] = {
     "deg": (math.pi / 180.0, "rad"), "rad": (1.0, "rad"), "percent": (0.01, "1"), "%": (0.01, "1"),
     "1": (1.0, "1"), "Hz": (1.0, "Hz"), "steps/s": (1.0, "Hz"), "steps/min": (1.0 / 60.0, "Hz"),
-    "s": (1.0, "s"),
+    "s": (1.0, "s"), "m": (1.0, "m"), "cm": (0.01, "m"), "m/s": (1.0, "m/s"),
 }
 
 
@@ -223,7 +243,7 @@ class Cue:
 @dataclass
 class Stride:
     """Timing of one stride (from a GaitCycle): stamps (int ns) of its opening IC, TC (None: unknown)
-    and closing IC; the temporal parameters as in the GaitCycle."""
+    and closing IC; the temporal and spatial parameters as in the GaitCycle."""
 
     side: str
     index: int
@@ -234,6 +254,10 @@ class Stride:
     cadence: float = math.nan
     step_time_symmetry: float = math.nan
     plausible: bool = True
+    step_time: float = math.nan
+    stride_length: float = math.nan
+    gait_speed: float = math.nan
+    spatial_flag: str = ""
 
     @property
     def t_start(self) -> float:
@@ -257,6 +281,7 @@ class StrideResult:
     percent: np.ndarray | None = None
     curves: dict[str, np.ndarray] = field(default_factory=dict)
     kinematics: dict[str, float] = field(default_factory=dict)
+    spatial: dict[str, float] = field(default_factory=dict)
 
 
 class AngleHistory:
@@ -309,6 +334,21 @@ def stride_kinematics(t: np.ndarray, angles: np.ndarray, stride: Stride) -> dict
     return out
 
 
+def ankle_ahead(hip_flexion: float, knee_flexion: float, lengths: BodyDimensions) -> float:
+    """Forward distance (m) of the ankle from the hip in the leg's sagittal plane, pelvis level."""
+    return (lengths.thigh_length * math.sin(hip_flexion)
+            + lengths.shank_length * math.sin(hip_flexion - knee_flexion))
+
+
+def step_length(stride_length: float, own_lead: float, other_lead: float) -> float:
+    """The stride's own step (m): ``stride_length · D_S / (D_S + D_O)`` (module docstring), from the
+    leading ankle's lead over the trailing one at the closing IC (``own_lead``) and at the other
+    foot's IC inside the stride (``other_lead``); NaN unless both leads are positive."""
+    if not (own_lead > 0.0 and other_lead > 0.0 and math.isfinite(stride_length)):
+        return math.nan
+    return stride_length * own_lead / (own_lead + other_lead)
+
+
 FEEDBACK_SIDES = (*SIDES, "both")
 FEEDBACK_JOINTS = (*JOINT_GROUPS, "all")
 
@@ -338,11 +378,40 @@ class BiofeedbackEvaluator:
     :meth:`add_angles` and strides with :meth:`evaluate` once :meth:`covers` says the angles are in."""
 
     def __init__(self, targets: Targets, max_gap: float = 0.1, history_s: float = 15.0,
-                 rate_hz: float = 100.0) -> None:
+                 rate_hz: float = 100.0, lengths: BodyDimensions | None = None,
+                 symmetry_window: int = 10) -> None:
         self.targets = targets
         self.max_gap = max_gap
         self.history = {side: AngleHistory(int(history_s * rate_hz)) for side in SIDES}
         self.percent = normative_gait.percent_grid(2.0)
+        self.lengths = lengths or BodyDimensions()
+        self.steps: dict[str, deque[float]] = {side: deque(maxlen=symmetry_window) for side in SIDES}
+
+    def _lead(self, side: str, t: float) -> float:
+        """How far ``side``'s ankle is ahead of the other's at ``t`` (m, leg chain; the angles within
+        ``max_gap / 2`` of ``t``, interpolated, the nearest at an end); NaN without angles."""
+        ahead = []
+        for s in (side, SIDES[1 - SIDES.index(side)]):
+            times, angles = self.history[s].window(t, t, margin=self.max_gap / 2)
+            if not len(times):
+                return math.nan
+            hip, knee = (float(np.interp(t, times, angles[:, k])) for k in (0, 1))
+            ahead.append(ankle_ahead(hip, knee, self.lengths))
+        return ahead[0] - ahead[1]
+
+    def spatial(self, stride: Stride) -> dict[str, float]:
+        """The spatial quantities of ``stride`` (none when its spatial values are unknown or doubtful;
+        a stride length of 0, the value of a field nobody filled, is unknown too)."""
+        if stride.spatial_flag or not stride.stride_length > 0.0:
+            return {}
+        other = SIDES[1 - SIDES.index(stride.side)]
+        step = step_length(stride.stride_length, self._lead(stride.side, stride.t_end),
+                           self._lead(other, stride.t_end - stride.step_time))
+        out = {"stride_length": stride.stride_length, "gait_speed": stride.gait_speed, "step_length": step}
+        if math.isfinite(step):
+            self.steps[stride.side].append(step)
+            out["step_length_symmetry"] = symmetry_index(self.steps["left"], self.steps["right"])
+        return out
 
     def add_angles(self, side: str, stamp_ns: int, hip: float, knee: float, ankle: float,
                    doubtful: bool = False) -> None:
@@ -374,6 +443,8 @@ class BiofeedbackEvaluator:
         measured["stance_fraction"] = stride.stance_fraction
         measured["cadence"] = stride.cadence
         measured["step_time_symmetry"] = stride.step_time_symmetry
+        result.spatial = self.spatial(stride)
+        measured.update(result.spatial)
         for quantity, value in measured.items():
             band = self.targets.band(quantity, stride.side)
             if band is None or not math.isfinite(value):

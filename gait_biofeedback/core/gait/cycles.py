@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from gait_biofeedback.core.gait.events import INITIAL_CONTACT, TERMINAL_CONTACT, GaitEvent
 from gait_biofeedback.core.segments import SIDES
@@ -28,9 +28,25 @@ MAX_STRIDE_S = 3.0
 
 
 @dataclass(frozen=True)
+class StrideSpace:
+    """The spatial values of one IC→IC stride (SI, NaN when unknown) and why they are doubtful."""
+
+    stride_length: float = math.nan
+    gait_speed: float = math.nan
+    max_foot_height: float = math.nan
+    min_toe_clearance: float = math.nan
+    foot_angle_ic: float = math.nan
+    foot_angle_tc: float = math.nan
+    turning_angle: float = math.nan
+    lateral_excursion: float = math.nan
+    flag: str = ""
+
+
+@dataclass(frozen=True)
 class GaitCycle:
     """One stride of ``side``: the stamps (int ns) of its opening IC, closing IC and its TC (None when
-    it has not exactly one), durations in s, fractions of the stride time, NaN where unknown."""
+    it has not exactly one), durations in s, fractions of the stride time, NaN where unknown;
+    ``space``: its spatial values (:mod:`.spatial`), all NaN until they are paired."""
 
     side: str
     index: int
@@ -49,6 +65,7 @@ class GaitCycle:
     step_time_symmetry_index: float
     plausible: bool
     flag: str = ""
+    space: StrideSpace = field(default_factory=StrideSpace)
 
     @property
     def start(self) -> float:
@@ -138,13 +155,17 @@ class GaitCycleTracker:
             step_time_symmetry_index=self.symmetry_index(), plausible=plausible, flag="; ".join(flags))
 
     def symmetry_index(self) -> float:
-        """``(L - R) / (0.5 (L + R))`` of the mean step times in the window; NaN until both sides have one."""
-        left, right = self._steps["left"], self._steps["right"]
-        if not left or not right:
-            return math.nan
-        mean_left = sum(left) / len(left)
-        mean_right = sum(right) / len(right)
-        return (mean_left - mean_right) / (0.5 * (mean_left + mean_right))
+        """Symmetry index of the mean step times in the window (:func:`symmetry_index`)."""
+        return symmetry_index(self._steps["left"], self._steps["right"])
+
+
+def symmetry_index(left: Sequence[float], right: Sequence[float]) -> float:
+    """``(L - R) / (0.5 (L + R))`` of the means of ``left`` and ``right``; NaN until both have one."""
+    if not left or not right:
+        return math.nan
+    mean_left = sum(left) / len(left)
+    mean_right = sum(right) / len(right)
+    return (mean_left - mean_right) / (0.5 * (mean_left + mean_right))
 
 
 def cycles_from_events(events: list[GaitEvent], **options: float) -> list[GaitCycle]:

@@ -22,6 +22,13 @@
   stride that contains such a sample, or a stamp gap > ``dropout_gap`` s, is not plausible (flag
   "sensor dropout: ..."), so no cue is given from it.
 
+- Spatial values (issue 16): with ``spatial``, each foot's angular velocity and specific force also
+  feed a :class:`~gait_biofeedback.core.spatial.stream.FootTrajectoryStream`, and a stride closed
+  by an IC is held until the trajectory's stride of the same swing is in
+  (:class:`~gait_biofeedback.core.gait.spatial.SpatialPairing`, at most ``spatial_wait`` s); its
+  values, or NaN and the reason, go with it. A reset of the foot releases the held strides without
+  spatial values.
+
 Samples are identified by their stamps (int ns); the stage's parameters are :class:`GaitEventsParams`.
 """
 
@@ -44,11 +51,13 @@ from gait_biofeedback.core.gait.events import (
     GaitEvent,
     GaitEventDetector,
 )
+from gait_biofeedback.core.gait.spatial import SpatialPairing
 from gait_biofeedback.core.in_force import InForceQueue
 from gait_biofeedback.core.notices import Notices
-from gait_biofeedback.core.params import param, require
+from gait_biofeedback.core.params import param, require, same_as
 from gait_biofeedback.core.rate import RateCheck
 from gait_biofeedback.core.segments import SIDES
+from gait_biofeedback.core.spatial.stream import FootTrajectoryParams, FootTrajectoryStream
 from gait_biofeedback.core.stamps import NS_PER_S
 
 FOOT_SIDES = SIDES
@@ -85,10 +94,31 @@ class GaitEventsParams:
     stale_after: float = param(1.0, "time without a foot's data before its state is reset and reported",
                                "s", low=0.1, high=60.0)
     diagnostics_period: float = param(1.0, "period of the /diagnostics status", "s", low=0.1, high=60.0)
+    spatial: bool = param(True, "estimate each foot's trajectory (Suh 2014) for the strides' spatial values")
+    spatial_wait: float = param(0.7, "longest wait after a stride's closing IC for the next stance that "
+                                "closes its trajectory; then it is published without spatial values", "s",
+                                low=0.05, high=2.0)
+    detector: str = same_as(FootTrajectoryParams, "detector")
+    gyro_limit: float = same_as(FootTrajectoryParams, "gyro_limit")
+    jerk_limit: float = same_as(FootTrajectoryParams, "jerk_limit")
+    flat_floor: bool = same_as(FootTrajectoryParams, "flat_floor")
+    bias_rest: float = same_as(FootTrajectoryParams, "bias_rest")
+    close_after: float = same_as(FootTrajectoryParams, "close_after")
+    min_swing: float = same_as(FootTrajectoryParams, "min_swing")
+    max_swing: float = same_as(FootTrajectoryParams, "max_swing")
+    toe_lever_arm: tuple[float, ...] = same_as(FootTrajectoryParams, "toe_lever_arm")
+
+    @property
+    def foot_trajectory(self) -> FootTrajectoryParams:
+        """The foot-trajectory stage's parameters (the rest at their defaults)."""
+        return FootTrajectoryParams(**{f: getattr(self, f) for f in (
+            "detector", "gyro_limit", "jerk_limit", "flat_floor", "bias_rest", "close_after", "min_swing",
+            "max_swing", "toe_lever_arm")})
 
     def __post_init__(self) -> None:
         require(bool(self.sides) and len(set(self.sides)) == len(self.sides),
                 f"parameter 'sides': {list(self.sides)} must name 'left' and/or 'right' once each")
+        self.foot_trajectory  # noqa: B018 (checked by the foot-trajectory stage's own rules)
         require(self.min_stride_s < self.max_stride_s,
                 f"parameter 'min_stride_s' ({self.min_stride_s:g}) must be below 'max_stride_s' "
                 f"({self.max_stride_s:g})")
@@ -122,13 +152,20 @@ class GaitEventStream:
                           for s in self.sides}
         self.calibrated = {s: False for s in self.sides}
         self.counts = {s: {"samples": 0, "uncalibrated": 0, "resets": 0, "stream_stops": 0, "ic": 0, "tc": 0,
-                           "strides": 0, "implausible_strides": 0} for s in self.sides}
+                           "strides": 0, "implausible_strides": 0, "spatial_strides": 0,
+                           "spatial_unknown": 0} for s in self.sides}
         self.notes: dict[str, str] = {s: "" for s in self.sides}
         self.notices = Notices()
         self._last_ns: dict[str, int | None] = {s: None for s in self.sides}
         self._doubtful: dict[str, tuple[int, str] | None] = {s: None for s in self.sides}
         self.rates = {s: RateCheck(p.rate_hz) for s in self.sides}
         self._waiting: dict[str, InForceQueue[np.ndarray]] = {s: InForceQueue() for s in self.sides}
+        self.feet = {s: self._foot(p.rate_hz) for s in self.sides} if p.spatial else {}
+        self.pairing = {s: SpatialPairing(p.spatial_wait) for s in self.sides}
+        self._released: dict[str, list[GaitCycle]] = {s: [] for s in self.sides}
+
+    def _foot(self, rate_hz: float) -> FootTrajectoryStream:
+        return FootTrajectoryStream(rate_hz, self.params.foot_trajectory)
 
     def set_calibration(self, side: str, rotation: np.ndarray | None, valid: bool = True, message: str = "",
                         from_ns: int = 0) -> None:
@@ -161,6 +198,7 @@ class GaitEventStream:
         """Forget ``side``'s detector state and open strides (counted; noted for /diagnostics)."""
         self.detectors[side].reset()
         self.tracker.reset(side)
+        self._release(side, self.pairing[side].release(f"state reset ({why}): spatial values unknown"))
         self._last_ns[side] = None
         self._doubtful[side] = None
         self.counts[side]["resets"] += 1
@@ -172,19 +210,42 @@ class GaitEventStream:
         self.reset(side, "stream stopped")
         self.notices.say("warn", f"{side} foot: no data for {seconds:.1f} s, state reset")
 
+    def _release(self, side: str, decided: list) -> None:
+        for cycle, space in decided:
+            self.counts[side]["spatial_strides" if not space.flag else "spatial_unknown"] += 1
+            self._released[side].append(replace(cycle, space=space))
+
     def update(self, side: str, stamp_ns: int, q: tuple[float, float, float, float],
-               recovering: bool = False) -> list[tuple[GaitEvent, GaitCycle | None]]:
+               recovering: bool = False, gyr: tuple[float, float, float] | None = None,
+               acc: tuple[float, float, float] | None = None) -> tuple[list[GaitEvent], list[GaitCycle]]:
         """One orientation sample (sensor→world w, x, y, z) of ``side``'s foot stamped ``stamp_ns``
-        (``recovering``: its orientation is being re-acquired after a dropout) → the events it
-        confirmed, each with the stride it closed (or None)."""
+        (``recovering``: its orientation is being re-acquired after a dropout), with its angular
+        velocity (rad/s) and specific force (m/s²) for the foot trajectory → (the events it
+        confirmed, the strides now complete). With ``spatial`` a stride closed by an IC comes out
+        once its trajectory stride is in (:mod:`.spatial`), at most ``spatial_wait`` s later."""
+        events = self._events(side, stamp_ns, q, recovering, gyr, acc)
+        out, self._released[side] = self._released[side], []
+        return events, out
+
+    def _events(self, side: str, stamp_ns: int, q: tuple[float, float, float, float], recovering: bool,
+                gyr: tuple[float, float, float] | None, acc: tuple[float, float, float] | None
+                ) -> list[GaitEvent]:
         counts = self.counts[side]
         counts["samples"] += 1
+        foot = self.feet.get(side)
+        if foot is not None and gyr is not None and acc is not None:
+            for stride in foot.update(stamp_ns, gyr, acc):
+                self.pairing[side].add_stride(stride)
+            for notice in foot.notices.pop():
+                self.notices.say(notice.level, f"{side} foot trajectory: {notice.text}")
         if not all(math.isfinite(v) for v in q) or tuple(q) == (0.0, 0.0, 0.0, 0.0):
             return []
         rate_note = self.rates[side].update(stamp_ns)
         if rate_note:
             self.detectors[side].set_rate(self.rates[side].rate_hz)
             self.detectors[side].reset()
+            if foot is not None:
+                self.feet[side] = self._foot(self.rates[side].rate_hz)
             self.notices.say("warn", f"{side} foot (gait events): {rate_note}")
         for rotation in self._waiting[side].due(stamp_ns):
             self._apply(side, rotation)
@@ -207,8 +268,13 @@ class GaitEventStream:
             self._doubtful[side] = (stamp_ns, RECOVERING_FLAG)
         self._last_ns[side] = stamp_ns
         event = self.detectors[side].update(stamp_ns, q)
-        if event is None:
-            return []
+        events = [] if event is None else [self._event(side, event, recovering)]
+        pairing = self.pairing[side]
+        self._release(side, pairing.due(stamp_ns) if self.feet else pairing.release("spatial values off"))
+        return events
+
+    def _event(self, side: str, event: GaitEvent, recovering: bool) -> GaitEvent:
+        counts = self.counts[side]
         if recovering:
             event = replace(event, flag=RECOVERING_FLAG)
         counts[event.kind] += 1
@@ -218,4 +284,5 @@ class GaitEventStream:
             if not cycle.plausible:
                 counts["implausible_strides"] += 1
                 self.notices.say("warn", f"{cycle.side} stride {cycle.index} flagged: {cycle.flag}")
-        return [(event, cycle)]
+            self.pairing[side].add_cycle(cycle)
+        return event

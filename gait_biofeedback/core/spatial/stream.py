@@ -2,11 +2,11 @@
 (:func:`estimate_foot_trajectory`): zero-velocity detection (Suh Eq 4), the error-state Kalman filter
 (Suh §3), and a smoother (Suh §4 or RTS).
 
-Live, per stride: the filter runs ``h`` samples (50 ms) behind the sensor, the look-ahead of the
-zero-velocity detector. A stride closes once the next stance has lasted ``close_after`` s. Its window,
-from the first stance's start to that sample, is then smoothed by RTS (:func:`.smoother.rts_smooth`)
-and its parameters computed (:mod:`.strides`). The latency is ``h`` + ``close_after`` after foot
-flat: 0.15 s by default.
+Live, per stride: the filter runs ``h`` samples (half the window: 25 ms) behind the sensor, the
+look-ahead of the zero-velocity detector. A stride closes once the next stance has lasted
+``close_after`` s. Its window, from the first stance's start to that sample, is then smoothed by
+RTS (:func:`.smoother.rts_smooth`) and its parameters computed (:mod:`.strides`). The latency is
+``h`` + ``close_after`` after foot flat: 75 ms by default.
 
 Start: the filter starts at the first stance. Its vertical is the mean acceleration of that stance's
 first ``bias_rest`` s, or of the whole stance when it is shorter. When the stance lasts that long, the
@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -70,7 +70,7 @@ class FootTrajectoryParams:
                              low=1e-9, high=10.0)
     bias_rest: float = param(1.0, "a first stance at least this long gives the gyro bias prior", "s",
                              low=0.1, high=120.0)
-    close_after: float = param(0.1, "a stride closes once the next stance has lasted this long", "s",
+    close_after: float = param(0.05, "a stride closes once the next stance has lasted this long", "s",
                                low=0.02, high=1.0)
     min_swing: float = param(0.2, "zero velocity resumed sooner than this is the same stance (a stance "
                              "that flickers is not two strides)", "s", low=0.0, high=1.0)
@@ -229,7 +229,8 @@ class FootTrajectoryStream:
                                    self._numbers[a0:last + 1], self.params.toe_lever_arm or None,
                                    self.params.max_swing)
         self.counts["strides"] += 1
-        return stride
+        return replace(stride, foot_off_ns=self._stamps[self._previous[1]],
+                       foot_flat_ns=self._stamps[self._stance_start])
 
     def _trim(self) -> None:
         """Drop the steps before the last completed stance (the next stride's start)."""

@@ -45,7 +45,8 @@ MIN_TOE_PEAK_M = 0.01  # m: a toe-height maximum lower than this is the toe stil
 class SpatialStride:
     """One stride's spatial parameters (SI units, NaN when unknown); indices are sample numbers of
     the recording (``stance_start``: first sample of the first stance, ``foot_off``: its last,
-    ``foot_flat``: first sample of the next stance, ``end``: the last sample used)."""
+    ``foot_flat``: first sample of the next stance, ``end``: the last sample used); live strides
+    also carry the stamps (int ns) of ``foot_off`` and ``foot_flat``."""
 
     stance_start: int
     foot_off: int
@@ -61,6 +62,8 @@ class SpatialStride:
     turning_angle: float
     lateral_excursion: float
     flags: tuple[str, ...] = field(default=())
+    foot_off_ns: int | None = None
+    foot_flat_ns: int | None = None
 
 
 def _heading_change(q_from: np.ndarray, q_to: np.ndarray) -> float:

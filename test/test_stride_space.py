@@ -1,0 +1,100 @@
+"""Spatial values of a stride: pairing IC→IC strides with the foot trajectory's stance-to-stance strides
+(issue 16), and the step length from the legs' geometry (hand-made numbers)."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from gait_biofeedback.core.biofeedback.evaluator import (
+    BiofeedbackEvaluator,
+    Stride,
+    ankle_ahead,
+    default_targets_path,
+    load_targets,
+    step_length,
+)
+from gait_biofeedback.core.body import BodyDimensions
+from gait_biofeedback.core.gait.cycles import GaitCycle
+from gait_biofeedback.core.gait.spatial import SpatialPairing
+from gait_biofeedback.core.spatial.strides import SpatialStride
+
+S = 1_000_000_000
+DEG = math.pi / 180
+
+
+def _cycle(index: int, start_s: float, end_s: float) -> GaitCycle:
+    nan = math.nan
+    return GaitCycle("left", index, round(start_s * S), round(end_s * S), None, end_s - start_s, nan, nan,
+                     nan, nan, nan, nan, nan, nan, nan, True)
+
+
+def _stride(off_s: float, flat_s: float, length: float = 1.3, flags: tuple[str, ...] = ()) -> SpatialStride:
+    return SpatialStride(0, 0, 0, 0, length, 1.0, length, 0.12, math.nan, 0.35, -1.1, 0.01, 0.02, flags,
+                         foot_off_ns=round(off_s * S), foot_flat_ns=round(flat_s * S))
+
+
+def test_a_stride_gets_the_trajectory_stride_of_its_swing():
+    pairing = SpatialPairing(wait_s=0.4)
+    pairing.add_cycle(_cycle(1, 10.0, 11.1))
+    assert pairing.due(round(11.2 * S)) == []  # the next stance has not closed the trajectory yet
+    pairing.add_stride(_stride(10.5, 11.18))
+    ((cycle, space),) = pairing.due(round(11.3 * S))
+    assert cycle.index == 1 and space.flag == ""
+    assert space.stride_length == 1.3 and space.gait_speed == pytest.approx(1.3 / 1.1)
+    assert space.foot_angle_tc == -1.1 and space.max_foot_height == 0.12
+
+
+def test_a_missed_stance_gives_no_values_to_either_stride():
+    """The trajectory saw no stance between two ICs: its stride spans both, so neither has values."""
+    pairing = SpatialPairing(wait_s=0.4)
+    pairing.add_cycle(_cycle(1, 10.0, 11.0))
+    assert pairing.due(round(11.39 * S)) == []
+    ((_, first),) = pairing.due(round(11.4 * S))
+    assert math.isnan(first.stride_length) and first.flag.startswith("no stance of the foot within 0.4 s")
+    pairing.add_cycle(_cycle(2, 11.0, 12.0))
+    pairing.add_stride(_stride(10.5, 12.1, length=2.6))
+    ((_, second),) = pairing.due(round(12.2 * S))
+    assert math.isnan(second.stride_length) and second.flag.startswith("a stance was missed")
+
+
+def test_a_flagged_trajectory_stride_gives_no_values_an_informative_flag_keeps_them():
+    pairing = SpatialPairing(wait_s=0.4)
+    pairing.add_cycle(_cycle(1, 10.0, 11.0))
+    pairing.add_stride(_stride(10.5, 11.1, flags=("no stance for 2.7 s: spatial values unknown",)))
+    pairing.add_cycle(_cycle(2, 11.0, 12.0))
+    pairing.add_stride(_stride(11.5, 12.1, flags=("started from standing",)))
+    (_, bad), (_, good) = pairing.due(round(12.2 * S))
+    assert math.isnan(bad.stride_length) and bad.flag == "no stance for 2.7 s: spatial values unknown"
+    assert good.stride_length == 1.3 and good.flag == ""
+
+
+def test_step_length_by_hand():
+    legs = BodyDimensions(thigh_length=0.4, shank_length=0.45)
+    assert ankle_ahead(30 * DEG, 0.0, legs) == pytest.approx(0.85 * 0.5)
+    assert ankle_ahead(30 * DEG, 30 * DEG, legs) == pytest.approx(0.2)  # the shank vertical
+    assert step_length(1.4, 0.8, 0.6) == pytest.approx(0.8)
+    assert math.isnan(step_length(1.4, -0.05, 0.6)) and math.isnan(step_length(math.nan, 0.8, 0.6))
+
+
+def test_an_asymmetric_step_from_the_joint_angles():
+    """Right stride 1.0-2.0 s, the left IC at 1.45 s (step time 0.55 s). At 2.0 s the right hip is at
+    +20°, the left at -10°; at 1.45 s the left at +12°, the right at -6° (knees straight)."""
+    evaluator = BiofeedbackEvaluator(load_targets(default_targets_path()))
+    pose = {1.45: {"left": 12.0, "right": -6.0}, 2.0: {"left": -10.0, "right": 20.0}}
+    for t, hips in pose.items():
+        for dt in (-0.01, 0.0, 0.01):
+            for side, hip in hips.items():
+                evaluator.add_angles(side, round((t + dt) * S), hip * DEG, 0.0, 0.0)
+    stride = Stride("right", 3, 1 * S, round(1.6 * S), 2 * S, step_time=0.55, stride_length=1.3,
+                    gait_speed=1.3)
+    got = evaluator.spatial(stride)
+    legs = 0.42 + 0.43  # the default thigh + shank
+    own = legs * (math.sin(20 * DEG) + math.sin(10 * DEG))
+    other = legs * (math.sin(12 * DEG) + math.sin(6 * DEG))
+    assert got["step_length"] == pytest.approx(1.3 * own / (own + other))  # 0.826 m of 1.3
+    assert got["stride_length"] == 1.3 and got["gait_speed"] == 1.3
+    flagged = Stride("right", 4, 1 * S, round(1.6 * S), 2 * S, step_time=0.55, stride_length=1.3,
+                     spatial_flag="a stance was missed")
+    assert evaluator.spatial(flagged) == {}
