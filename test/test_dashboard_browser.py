@@ -203,6 +203,22 @@ def test_dashboard_in_headless_chromium(ros_context, walk_session, tmp_path):
         time.sleep(1.5)  # let the cue table and diagnostics refresh before the picture
         state = browser.state()
         assert state["cuesReceived"] > 0 and state["events"] > 0
+        # the spatial values of the last strides, once a stride of each side has been evaluated: the
+        # simulator walks 1.2 m/s with 1.33 m strides, its stopping stride 1.1 m/s and 1.30 m
+        def shown_number(element: str) -> str:
+            deadline = time.monotonic() + 8.0
+            text = ""
+            while time.monotonic() < deadline:
+                text = browser.evaluate(f"document.getElementById('{element}').textContent")
+                if text[:1].isdigit():
+                    break
+                time.sleep(0.2)
+            return text
+
+        speed, lengths = shown_number("stat-speed"), shown_number("stat-stride-length")
+        flag = browser.evaluate("document.getElementById('stat-spatial-flag').textContent")
+        assert speed.endswith(" m/s") and 1.05 < float(speed.split()[0]) < 1.25, (speed, lengths, flag)
+        assert all(1.25 < float(x.split()[0]) < 1.38 for x in lengths.split(" / ")), lengths
         browser.screenshot(ARTIFACTS / "dashboard.png")
         assert (ARTIFACTS / "dashboard.png").stat().st_size > 20_000
         print(f"\ncalibration reply shown: {shown!r}; page state: {state}")

@@ -26,8 +26,9 @@
   feed a :class:`~gait_biofeedback.core.spatial.stream.FootTrajectoryStream`, and a stride closed
   by an IC is held until the trajectory's stride of the same swing is in
   (:class:`~gait_biofeedback.core.gait.spatial.SpatialPairing`, at most ``spatial_wait`` s); its
-  values, or NaN and the reason, go with it. A reset of the foot releases the held strides without
-  spatial values.
+  values, or NaN and the reason, go with it. A reset of the foot for its stamps (a gap, time going
+  back, a stream that stopped) releases the held strides without spatial values; a new calibration
+  does not (the trajectory does not use it).
 
 Samples are identified by their stamps (int ns); the stage's parameters are :class:`GaitEventsParams`.
 """
@@ -190,15 +191,17 @@ class GaitEventStream:
 
     def _apply(self, side: str, rotation: np.ndarray) -> None:
         self.detectors[side].set_mounting(rotation)
-        self.reset(side, "new calibration")
+        self.reset(side, "new calibration", release=False)  # the foot trajectory does not use it
         self.calibrated[side] = True
         self.notes[side] = ""
 
-    def reset(self, side: str, why: str) -> None:
-        """Forget ``side``'s detector state and open strides (counted; noted for /diagnostics)."""
+    def reset(self, side: str, why: str, release: bool = True) -> None:
+        """Forget ``side``'s detector state and open strides (counted; noted for /diagnostics);
+        ``release``: the strides waiting for their spatial values go out without them."""
         self.detectors[side].reset()
         self.tracker.reset(side)
-        self._release(side, self.pairing[side].release(f"state reset ({why}): spatial values unknown"))
+        if release:
+            self._release(side, self.pairing[side].release(f"state reset ({why}): spatial values unknown"))
         self._last_ns[side] = None
         self._doubtful[side] = None
         self.counts[side]["resets"] += 1
