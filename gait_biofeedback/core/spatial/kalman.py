@@ -36,6 +36,7 @@ Every step is kept as a :class:`KalmanStep` for the smoothers (:mod:`.smoother`)
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cache
 
 import numpy as np
 
@@ -83,21 +84,44 @@ class KalmanStep:
     q_noise: np.ndarray | None = None
 
 
+_I3 = np.eye(3)
+_I15 = np.eye(STATES)
+_A_CONSTANT = np.zeros((STATES, STATES))  # the parts of A that do not change
+_A_CONSTANT[0:3, 9:12] = -_I3
+_A_CONSTANT[3:6, 6:9] = _I3
+
+
 def transition(omega: np.ndarray, f: np.ndarray, rot: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """``Φ = I + A T + ½ (A T)²`` (Suh Eq 12) of the error model above, and ``A₁`` (its 9 × 9 part)."""
-    a = np.zeros((STATES, STATES))
+    a = _A_CONSTANT.copy()
     a[0:3, 0:3] = -quat.skew(omega)
-    a[0:3, 9:12] = -np.eye(3)
-    a[3:6, 6:9] = np.eye(3)
     a[6:9, 0:3] = -rot @ quat.skew(f)
     a[6:9, 12:15] = -rot
     at = a * dt
-    return np.eye(STATES) + at + 0.5 * at @ at, a[:NAV, :NAV]
+    return _I15 + at + 0.5 * at @ at, a[:NAV, :NAV]
+
+
+@cache
+def _continuous_noise(noise: KalmanNoise) -> np.ndarray:
+    return np.diag([noise.gyro] * 3 + [noise.position] * 3 + [noise.acc] * 3)
+
+
+@cache
+def _zero_velocity_model(noise: KalmanNoise, flat_floor: bool) -> tuple[np.ndarray, np.ndarray]:
+    """(H, R) of the zero-velocity update, with the floor row when ``flat_floor``."""
+    rows = 4 if flat_floor else 3
+    h = np.zeros((rows, STATES))
+    h[0:3, 6:9] = _I3
+    r_diag = [noise.zero_velocity] * 3
+    if flat_floor:
+        h[3, 5] = 1.0
+        r_diag.append(noise.floor)
+    return h, np.diag(r_diag)
 
 
 def process_noise(a_nav: np.ndarray, noise: KalmanNoise, dt: float) -> np.ndarray:
     """``∫₀ᵀ e^{A₁τ} Q_c e^{A₁'τ} dτ`` to second order: ``Q_c T + (A₁Q_c + Q_cA₁') T²/2 + A₁Q_cA₁' T³/3``."""
-    qc = np.diag([noise.gyro] * 3 + [noise.position] * 3 + [noise.acc] * 3)
+    qc = _continuous_noise(noise)
     aq = a_nav @ qc
     return qc * dt + (aq + aq.T) * dt**2 / 2.0 + aq @ a_nav.T * dt**3 / 3.0
 
@@ -165,20 +189,13 @@ class FootKalman:
         p_prior = self.p
         dx = np.zeros(STATES)
         if zero_velocity:
-            rows = 4 if self.flat_floor else 3
-            h = np.zeros((rows, STATES))
-            h[0:3, 6:9] = np.eye(3)
-            residual = -self.v
-            r_diag = [self.noise.zero_velocity] * 3
-            if self.flat_floor:
-                h[3, 5] = 1.0
-                residual = np.append(residual, -self.r[2])
-                r_diag.append(self.noise.floor)
-            s = h @ p_prior @ h.T + np.diag(r_diag)
+            h, r_noise = _zero_velocity_model(self.noise, self.flat_floor)
+            residual = np.append(-self.v, -self.r[2]) if self.flat_floor else -self.v
+            s = h @ p_prior @ h.T + r_noise
             gain = np.linalg.solve(s, h @ p_prior).T
             dx = gain @ residual
-            ikh = np.eye(STATES) - gain @ h
-            self.p = ikh @ p_prior @ ikh.T + gain @ np.diag(r_diag) @ gain.T  # Joseph form
+            ikh = _I15 - gain @ h
+            self.p = ikh @ p_prior @ ikh.T + gain @ r_noise @ gain.T  # Joseph form
             self._inject(dx)
         step = KalmanStep(self.q, self.r, self.v, self.b, p_prior, self.p, dx, zero_velocity)
         self.last = step
