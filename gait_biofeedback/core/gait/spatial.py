@@ -4,9 +4,10 @@ The foot trajectory (:class:`~gait_biofeedback.core.spatial.stream.FootTrajector
 walk from stance to stance (zero velocity), the gait events from IC to IC. The trajectory stride
 whose foot-off lies in the IC→IC stride, and whose next stance (foot flat) begins after the closing
 IC (less ``EARLY_FOOT_FLAT_S``, the events' own timing error), is the same stride; the stride's
-message waits for it at most ``wait`` s after the closing IC (the next stance is needed to close
-the trajectory stride: foot flat comes 50-100 ms after IC, and the trajectory closes it
-``close_after`` + 25 ms later).
+message waits for it at most ``wait_s`` (the ``gait_events`` parameter ``spatial_wait``) after the
+closing IC. The next stance is needed to close the trajectory stride: the detector finds foot flat
+0.1-0.3 s after IC (about 0.28 s on gaitmap_example's real gait), and the trajectory closes it
+``close_after`` + 25 ms later.
 
 Never silently wrong: without exactly one such trajectory stride the stride gets NaN spatial values
 and a ``spatial_flag``:
