@@ -153,6 +153,16 @@ def _marker_pitch(heel: np.ndarray, toe: np.ndarray) -> np.ndarray:
     return np.arctan2(v[:, 2], np.linalg.norm(v[:, :2], axis=1))
 
 
+def _mocap(folder: Path) -> dict[str, np.ndarray]:
+    """gaitmap_example's marker trajectories (``<marker>_<axis>``, m, 100 Hz)."""
+    import csv
+
+    with (folder / "mocap_sample.csv").open() as handle:
+        rows = list(csv.reader(handle))
+    names = [f"{m}_{a}" for m, a in zip(rows[0][1:], rows[1][1:], strict=True)]
+    return {n: np.array([float(r[i + 1]) for r in rows[2:]]) / 1000.0 for i, n in enumerate(names)}
+
+
 def gaitmap_example(python: Path | None) -> None:
     folder = DATA / "gaitmap_example"
     if not folder.exists():
@@ -162,10 +172,7 @@ def gaitmap_example(python: Path | None) -> None:
 
     rec = import_gaitmap(folder)
     rate = GAITMAP_RATE_HZ
-    with (folder / "mocap_sample.csv").open() as handle:
-        rows = list(csv.reader(handle))
-    names = [f"{m}_{a}" for m, a in zip(rows[0][1:], rows[1][1:], strict=True)]
-    mocap = {n: np.array([float(r[i + 1]) for r in rows[2:]]) / 1000.0 for i, n in enumerate(names)}
+    mocap = _mocap(folder)
     with (folder / "stride_events_sample.csv").open() as handle:
         ref = list(csv.DictReader(handle))
     err = {"length": [], "ic": [], "tc": [], "gaitmap": []}
@@ -250,8 +257,6 @@ def _s(stamp) -> float:
 
 def through_the_command_line() -> None:
     """The user's path: ``import`` → ``analyze`` → the ``gait/cycles`` messages' spatial values."""
-    import csv
-
     print("\n## through the command line (import → analyze → /gait/cycles)\n")
     folder = DATA / "gaitmap_example"
     with tempfile.TemporaryDirectory() as tmp:
@@ -261,11 +266,8 @@ def through_the_command_line() -> None:
             (tmp / "params.yaml").write_text("/**/gait_events:\n  ros__parameters:\n" + params)
             _cli("import", "gaitmap", str(folder), "-o", str(tmp / "gm"))
             _cli("analyze", str(tmp / "gm"), "-o", str(tmp / "gm_out"), "--params", str(tmp / "params.yaml"))
-            with (folder / "mocap_sample.csv").open() as handle:
-                rows = list(csv.reader(handle))
-            names = [f"{m}_{a}" for m, a in zip(rows[0][1:], rows[1][1:], strict=True)]
-            mocap = {n: np.array([float(r[i + 1]) for r in rows[2:]]) / 1000.0 for i, n in enumerate(names)}
-            t_mocap = np.arange(len(rows) - 2) / 100.0
+            mocap = _mocap(folder)
+            t_mocap = np.arange(len(next(iter(mocap.values())))) / 100.0
             errors, lags, flagged = [], [], 0
             cycles = _cycles(tmp / "gm_out")
             for msg, log_ns in cycles:
