@@ -6,6 +6,7 @@ from setuptools import find_packages, setup
 
 PACKAGE = "gait_biofeedback"
 NODES = {
+    "imu_driver": "gait_biofeedback.nodes.imu_driver:main",
     "imu_replayer": "gait_biofeedback.nodes.imu_replayer:main",
     "recorder": "gait_biofeedback.nodes.recorder:main",
     "orientation_filter": "gait_biofeedback.nodes.orientation_filter:main",

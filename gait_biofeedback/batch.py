@@ -34,6 +34,9 @@ from gait_biofeedback.core.calibration.sensor_to_segment import (
     vertical_calibration,
 )
 from gait_biofeedback.core.calibration.windows import find_standing_then_motion
+from gait_biofeedback.core.driver.clock import DeviceClock, map_device_time
+from gait_biofeedback.core.driver.protocol import DeviceSample, FrameReader, decode_frame, encode_frame
+from gait_biofeedback.core.driver.stream import DriverCore, DriverParams
 from gait_biofeedback.core.gait.comparator import angular_velocity_events, sagittal_rate
 from gait_biofeedback.core.gait.cycles import GaitCycle, GaitCycleTracker, cycles_from_event_times
 from gait_biofeedback.core.gait.detect import detect_gait_events
@@ -103,10 +106,15 @@ __all__ = [
     "BagReader",
     "BagWriter",
     "BodyDimensions",
+    "DeviceClock",
+    "DeviceSample",
+    "DriverCore",
+    "DriverParams",
     "Dropout",
     "EventScore",
     "FootTrajectoryParams",
     "FootTrajectoryStream",
+    "FrameReader",
     "GaitCycle",
     "GaitCycleTracker",
     "GaitEvent",
@@ -135,7 +143,9 @@ __all__ = [
     "classify_activity",
     "compute_joint_angles",
     "cycles_from_event_times",
+    "decode_frame",
     "detect_gait_events",
+    "encode_frame",
     "estimate_foot_trajectory",
     "estimate_joint_position",
     "estimate_orientation",
@@ -153,6 +163,7 @@ __all__ = [
     "inject",
     "joint_angles_from_segments",
     "load_tuned",
+    "map_device_time",
     "match_events",
     "mean_orientation",
     "ns_to_seconds",

@@ -22,7 +22,10 @@ Wearable-IMU gait biofeedback (ROS 2 Jazzy). Typical use:
                                                run a recording through the node graph, record outputs
   gait-biofeedback analyze bags/mine -o output/mine_offline --calibrate-at 36:hip_flexion
                                                the same processing offline, straight from the file
-  gait-biofeedback run --record output/today   process live sensor topics (from your drivers)
+  gait-biofeedback run --driver udp:5600 --record output/today
+                                               live sensors (README: Connecting sensors) through the graph
+  gait-biofeedback stream-sim bags/demo_walk --to udp:127.0.0.1:5600
+                                               send a recording as live sensors would (demos, tests)
   gait-biofeedback info output/mine            what is in a recording
   gait-biofeedback params --check my.yaml      check a parameter file (a typo is refused, naming it)
   gait-biofeedback repair output/mine          make a recording cut off by a crash readable again
@@ -95,10 +98,66 @@ def _node_list(text: str | None) -> list[str] | None:
     return None if text is None else [n for n in text.split(",") if n]
 
 
+def parse_driver(spec: str) -> dict[str, object]:
+    """``--driver`` → imu_driver parameters: ``udp:PORT``, ``udp:ADDRESS:PORT``,
+    ``serial:DEVICE[:BAUD]``, ``simulated[:SCENARIO]``."""
+    kind, _, rest = spec.partition(":")
+    parts = rest.split(":") if rest else []
+    try:
+        if kind == "udp" and len(parts) in (1, 2):
+            address = {"address": parts[0]} if len(parts) == 2 else {}
+            return {"backend": "udp", "port": int(parts[-1]), **address}
+        if kind == "serial" and len(parts) in (1, 2):
+            baud = {"baud": int(parts[1])} if len(parts) == 2 else {}
+            return {"backend": "serial", "device": parts[0], **baud}
+    except ValueError:
+        pass
+    if kind == "simulated" and len(parts) <= 1:
+        return {"backend": "simulated", **({"scenario": parts[0]} if parts else {})}
+    raise ValueError(f"--driver {spec!r}: expected udp:PORT, udp:ADDRESS:PORT, serial:DEVICE[:BAUD] or "
+                     "simulated[:SCENARIO]")
+
+
 def cmd_run(args: argparse.Namespace) -> int:
+    import time
+
     from gait_biofeedback.graph import run_live
 
-    return run_live(_node_list(args.nodes), args.record, _session_parameters(args.params))
+    params = _session_parameters(args.params)
+    if args.driver:
+        params["imu_driver"] = {**params.get("imu_driver", {}), **parse_driver(args.driver)}
+    end = time.monotonic() + args.duration if args.duration > 0 else None
+    return run_live(_node_list(args.nodes), args.record, params, driver=bool(args.driver),
+                    until=None if end is None else (lambda: time.monotonic() > end))
+
+
+def cmd_stream_sim(args: argparse.Namespace) -> int:
+    from gait_biofeedback.io.imu_bag import read_imu_bag
+    from gait_biofeedback.parameters import stage_parameters
+    from gait_biofeedback.sim.sensor_link import FrameSchedule, LinkModel, send_udp
+
+    kind, _, rest = args.to.partition(":")
+    host, _, port = rest.rpartition(":")
+    if kind != "udp" or not host or not port.isdigit():
+        raise ValueError(f"--to {args.to!r}: expected udp:HOST:PORT, e.g. udp:127.0.0.1:5600")
+    driver = stage_parameters("imu_driver", _session_parameters(args.params).get("imu_driver", {}))
+    ids = {segment: sid for sid, segment in driver.mapping().items()}
+    link = LinkModel(args.offset_s, args.drift_ppm, args.jitter_ms, args.loss, args.reorder,
+                     args.samples_per_frame, args.seed)
+    schedule = FrameSchedule(read_imu_bag(args.bag), ids, link)
+    if schedule.missing:
+        print(f"note: the mapping's {', '.join(schedule.missing)} are not in {args.bag}")
+    duration = schedule.send_ns[-1] * 1e-9
+    print(f"sending {schedule.samples} samples of {len(schedule.series)} sensors ({duration:.1f} s) to "
+          f"{host}:{port}; Ctrl-C stops")
+    from gait_biofeedback.nodes.common import STOP, stop_on_signals
+
+    with stop_on_signals():
+        report = send_udp(schedule, host, int(port), stop=STOP.is_set)
+    print(f"sent {report.samples_sent} samples in {report.frames_sent} datagrams, dropped "
+          f"{report.samples_dropped} (--loss {args.loss:g}); the sender was at worst "
+          f"{1e3 * report.worst_lateness_s:.1f} ms late")
+    return 0
 
 
 def _print_calibrations(attempts: list, start_ns: int) -> None:
@@ -310,11 +369,35 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--overwrite", action="store_true", help="replace an existing output")
     p.set_defaults(func=cmd_analyze)
 
-    p = sub.add_parser("run", help="run the processing graph on live sensor topics until Ctrl-C")
+    p = sub.add_parser("run", help="run the processing graph on live sensors (--driver) or live topics "
+                       "until Ctrl-C")
+    p.add_argument("--driver", metavar="SPEC", help="also run imu_driver: udp:PORT, udp:ADDRESS:PORT, "
+                   "serial:DEVICE[:BAUD] or simulated[:SCENARIO] (its other parameters: --params)")
     p.add_argument("--record", help="also record every topic to this bag folder")
     p.add_argument("--params", default=None, help="ROS 2 parameter file, e.g. config/session.yaml")
-    p.add_argument("--nodes", help="comma-separated processing nodes (default: all)")
+    p.add_argument("--nodes", help="comma-separated processing nodes (default: all; '' = none)")
+    p.add_argument("--duration", type=float, default=0.0, help="stop after this many s (0 = at Ctrl-C)")
     p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser("stream-sim", help="send a recording as live sensors would, over UDP",
+                       description="Send a recording's raw IMU samples in the imu_driver's wire format "
+                       "(README: Connecting sensors) in real time, each sensor with its own device clock "
+                       "(offset, drift), over a link with jitter, loss and reordering.")
+    p.add_argument("bag", help="recording with /<segment>/imu/data_raw topics")
+    p.add_argument("--to", required=True, metavar="udp:HOST:PORT", help="where the driver listens")
+    p.add_argument("--offset-s", type=float, default=0.0,
+                   help="device clock offset of the first sensor, s (sensor k: +0.1 k s)")
+    p.add_argument("--drift-ppm", type=float, default=0.0,
+                   help="device clock drift, ppm (+ for even sensors, - for odd ones)")
+    p.add_argument("--jitter-ms", type=float, default=0.0,
+                   help="delay of each datagram, uniform in [0, J] ms")
+    p.add_argument("--loss", type=float, default=0.0, help="fraction of datagrams not sent")
+    p.add_argument("--reorder", type=float, default=0.0,
+                   help="fraction of datagrams held back two datagram periods (they arrive after later ones)")
+    p.add_argument("--samples-per-frame", type=int, default=1, help="samples of one sensor per datagram")
+    p.add_argument("--seed", type=int, default=0, help="random seed of jitter, loss and reordering")
+    p.add_argument("--params", default=None, help="parameter file whose imu_driver 'sensors' gives the ids")
+    p.set_defaults(func=cmd_stream_sim)
 
     p = sub.add_parser("record", help="record live topics to a crash-safe MCAP bag until Ctrl-C")
     p.add_argument("-o", "--output", required=True, help="bag folder to create")

@@ -79,6 +79,16 @@ def _wait_until_recorded(recorder: Recorder, nodes: Sequence[Node], timeout: flo
     raise TimeoutError(f"the recorder did not discover {missing} within {timeout} s")
 
 
+def _wait_until_heard(driver: Node, timeout: float = 5.0) -> None:
+    """Block until every raw topic of the driver has its subscribers matched (the recorder's, the
+    filter's), so the first samples are not published into the void."""
+    deadline = time.monotonic() + timeout
+    raw = [p for p in driver.publishers if p.topic_name.endswith("/imu/data_raw")]
+    while time.monotonic() < deadline and not all(p.get_subscription_count() > 0 for p in raw):
+        time.sleep(0.02)
+    time.sleep(0.25)  # the readers match the writer a moment after it matched them (see imu_replayer)
+
+
 @dataclass
 class ReplayResult:
     """What one in-process replay did."""
@@ -120,13 +130,16 @@ def running_graph(
     node_parameters: dict[str, dict] | None = None,
     args: list[str] | None = None,
     use_sim_time: bool = False,
+    driver: bool = False,
 ) -> Iterator[RunningGraph]:
     """Context, executor, recorder (when ``output`` is given) and the processing ``nodes`` (default:
     all), created in data-flow order; the recorder is subscribed to every output before this
-    yields. ``use_sim_time``: every node follows ``/clock`` (a replayer's). With ``output``, the
-    calibration is saved in it unless the calibration's ``session_dir`` is set. SIGINT and SIGTERM end
-    every spin loop (see :func:`stop_on_signals`). Everything is
-    destroyed (files closed, bags summarised) and rclpy shut down on exit, whatever happened."""
+    yields. ``driver``: an ``imu_driver`` (parameters ``node_parameters["imu_driver"]``) comes first
+    and starts receiving only once the recorder and the nodes listen to it. ``use_sim_time``: every
+    node follows ``/clock`` (a replayer's). With ``output``, the calibration is saved in it unless the
+    calibration's ``session_dir`` is set. SIGINT and SIGTERM end every spin loop (see
+    :func:`stop_on_signals`). Everything is destroyed (files closed, bags summarised) and rclpy shut
+    down on exit, whatever happened."""
     factories = processing_nodes()
     chosen = list(factories) if nodes is None else list(nodes)
     unknown = [n for n in chosen if n not in factories]
@@ -145,14 +158,24 @@ def running_graph(
     ready = False
     with stop_on_signals():
         try:
-            refuse_other_graph(context, [*chosen, *(["recorder"] if output is not None else [])])
+            refuse_other_graph(context, [*chosen, *(["recorder"] if output is not None else []),
+                                         *(["imu_driver"] if driver else [])])
             if output is not None:
                 recorder = Recorder(context, output=str(output), **params.get("recorder", {}))
                 graph.recorder = graph.add(recorder)
+            if driver:
+                from gait_biofeedback.nodes.imu_driver import ImuDriverNode
+
+                graph.nodes["imu_driver"] = graph.add(
+                    ImuDriverNode(context, start=False, **params.get("imu_driver", {})))
             for name in chosen:
                 graph.nodes[name] = graph.add(factories[name](context, **params.get(name, {})))
             if graph.recorder is not None:
                 _wait_until_recorded(graph.recorder, list(graph.nodes.values()))
+            if driver:
+                if graph.recorder is not None or chosen:
+                    _wait_until_heard(graph.nodes["imu_driver"])
+                graph.nodes["imu_driver"].start()
             ready = True
             yield graph
         finally:
@@ -246,13 +269,15 @@ def _calibration_request(stamp_ns: int, protocol: str) -> Callable[[dict[str, No
 
 
 def run_live(nodes: Sequence[str] | None = None, output: str | Path | None = None,
-             node_parameters: dict[str, dict] | None = None, args: list[str] | None = None) -> int:
-    """The processing graph (and the recorder) on live topics until Ctrl-C / SIGTERM."""
-    with running_graph(nodes, output, node_parameters, args) as graph:
+             node_parameters: dict[str, dict] | None = None, args: list[str] | None = None,
+             driver: bool = False, until: Callable[[], bool] | None = None) -> int:
+    """The processing graph (and the recorder, and with ``driver`` the imu_driver) on live topics until
+    Ctrl-C / SIGTERM (or ``until()``)."""
+    with running_graph(nodes, output, node_parameters, args, driver=driver) as graph:
         names = ", ".join(graph.nodes) or "no processing nodes"
         print(f"running {names}" + (f", recording to {output}" if output else "") + "; Ctrl-C stops")
         with suppress(KeyboardInterrupt):
-            spin_until(graph.executor, lambda: False)
+            spin_until(graph.executor, until or (lambda: False))
         recorder = graph.recorder
     if recorder is not None:
         print("recorded to " + ", ".join(str(p) for p in recorder.sessions))

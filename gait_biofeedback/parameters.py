@@ -19,6 +19,7 @@ import yaml
 from gait_biofeedback.core.activity.stream import ActivityParams
 from gait_biofeedback.core.biofeedback.evaluator import BiofeedbackParams
 from gait_biofeedback.core.calibration.stream import CalibrationParams
+from gait_biofeedback.core.driver.stream import DriverParams
 from gait_biofeedback.core.gait.stream import GaitEventsParams
 from gait_biofeedback.core.joints.stream import JointAnglesParams
 from gait_biofeedback.core.orientation.stream import OrientationParams
@@ -33,6 +34,7 @@ from gait_biofeedback.core.params import (
 from gait_biofeedback.io.params import RecorderParams, ReplayerParams
 
 NODE_PARAMETERS: dict[str, type] = {
+    "imu_driver": DriverParams,
     "imu_replayer": ReplayerParams,
     "orientation_filter": OrientationParams,
     "calibration": CalibrationParams,

@@ -137,12 +137,15 @@ def test_every_node_reports_its_parameters_with_unit_and_range_over_ros(ros_cont
 
     from gait_biofeedback.graph import processing_nodes
     from gait_biofeedback.io.bag import write_imu_bag
+    from gait_biofeedback.nodes.imu_driver import ImuDriverNode
     from gait_biofeedback.nodes.imu_replayer import ImuReplayer
     from gait_biofeedback.nodes.recorder import Recorder
 
     bag = write_imu_bag(tmp_path / "in", synthetic_imu(["chest"], duration=0.5))
-    factories = {**processing_nodes(), "recorder": Recorder, "imu_replayer": ImuReplayer}
+    factories = {**processing_nodes(), "recorder": Recorder, "imu_replayer": ImuReplayer,
+                 "imu_driver": ImuDriverNode}
     extra = {"biofeedback": {"port": 0}, "calibration": {"session_dir": str(tmp_path / "s")},
+             "imu_driver": {"port": 0, "start": False},
              "recorder": {"output": str(tmp_path / "rec")}, "imu_replayer": {"bag": str(bag)}}
     for name, factory in factories.items():
         node = factory(ros_context, **extra.get(name, {}))

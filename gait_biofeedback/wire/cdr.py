@@ -15,6 +15,7 @@ match); :func:`decode_imu` / :func:`decode_mag` then fall back to rclpy's ``dese
 from __future__ import annotations
 
 import struct
+from functools import cache
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -179,15 +180,32 @@ def unpack_stamped(data: bytes, n_doubles: int) -> Stamped | None:
                    _doubles(n_doubles).unpack_from(data, offset))
 
 
+class StampedPacker:
+    """:func:`pack_stamped` for one ``frame_id`` and number of doubles, its constant bytes (string
+    length, frame id, padding) computed once."""
+
+    _STAMP = struct.Struct("<iI")
+
+    def __init__(self, frame_id: str, n_doubles: int) -> None:
+        frame = frame_id.encode("utf-8")
+        offset, _ = layout(len(frame) + 1, n_doubles)
+        self._tail = struct.pack("<I", len(frame) + 1) + frame + bytes(offset - _HEADER - len(frame))
+        self._doubles = _doubles(n_doubles)
+
+    def pack(self, ns: int, values: tuple[float, ...] | list[float]) -> bytes:
+        sec, nanosec = divmod(ns, _NS)
+        return b"".join((CDR_LE, self._STAMP.pack(sec, nanosec), self._tail, self._doubles.pack(*values)))
+
+
+@cache
+def _packer(frame_id: str, n_doubles: int) -> StampedPacker:
+    return StampedPacker(frame_id, n_doubles)
+
+
 def pack_stamped(ns: int, frame_id: str, values: tuple[float, ...] | list[float]) -> bytes:
     """CDR bytes of a header stamped ``ns`` with ``frame_id`` and the float64 fields ``values``: the
     message ``serialize_message`` gives (which leaves the padding bytes uninitialised; here they are 0)."""
-    frame = frame_id.encode("utf-8")
-    string_len = len(frame) + 1
-    offset, _ = layout(string_len, len(values))
-    sec, nanosec = divmod(ns, _NS)
-    return b"".join((CDR_LE, _HEAD.pack(sec, nanosec, string_len), frame,
-                     bytes(offset - _HEADER - len(frame)), _doubles(len(values)).pack(*values)))
+    return _packer(frame_id, len(values)).pack(ns, values)
 
 
 def unpack_imu(data: bytes) -> Stamped | None:

@@ -103,6 +103,15 @@ def orientation_payload(segment: str, sample: OrientationSample, raw: Stamped, v
     return pack_imu(sample.stamp_ns, sensor_frame(segment), values)
 
 
+def raw_imu_values(gyr: Vector, acc: Vector) -> tuple[float, ...]:
+    """The 37 doubles of a raw ``<segment>/imu/data_raw`` (for :func:`~gait_biofeedback.wire.cdr.pack_imu`):
+    orientation unknown (identity, covariance[0] = -1), ``gyr`` rad/s, ``acc`` m/s², covariances 0."""
+    return (0.0, 0.0, 0.0, 1.0, -1.0, *_ZEROS[:8], *gyr, *_ZEROS, *acc, *_ZEROS)
+
+
+_ZEROS = (0.0,) * 9
+
+
 def series_topics(segment: str) -> tuple[str, str]:
     """Absolute (raw Imu topic, MagneticField topic) of ``segment`` in a recording."""
     return topics.raw_imu(segment).absolute(), topics.magnetometer(segment).absolute()

@@ -1,0 +1,151 @@
+"""imu_driver over UDP loopback: exact sample accounting, stamp accuracy, alignment, CPU.
+
+Run: ``.venv/bin/python benchmarks/driver.py`` (about 22 min: 10 min of sending per rate, plus setup;
+``--minutes 1`` for a quick look). For each rate (100 and 200 Hz):
+
+1. the simulator makes a straight walk of 8 sensors (``walk``) of that length;
+2. ``gait-biofeedback run --driver udp:PORT --nodes '' --record OUT`` runs in a process of its own
+   (the driver and the recorder, no processing: what is measured is the driver);
+3. this process sends the walk as the sensors would (:func:`gait_biofeedback.sim.sensor_link.send_udp`,
+   the ``stream-sim`` command's sender): device clocks offset by 0.1 s per sensor and drifting
+   ±100 ppm, each datagram delayed uniformly in [0, 5 ms], 1 % of the datagrams dropped, 1 %
+   reordered;
+4. the recording is read back and each sensor's recorded samples are matched in order with the ones
+   sent (their values must be equal: a shifted match would show).
+
+Printed per rate: samples sent (all the sensors took), dropped by the link, recorded, whether
+recorded = sent - dropped exactly and each recorded sample's values are the ones sent, the driver's
+own loss count (= dropped?); the stamp error against the sender's true sample
+times after removing one constant offset (the link's least latency): p50 / p99 / max, over every
+sample from the first; the spread of the per-sensor median offsets (alignment of the sensors); the
+drift estimate error; the receiving thread's CPU (from the driver's /diagnostics) and the whole
+process' CPU (driver + recorder + DDS) as fractions of one core.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from gait_biofeedback.io.bag import BagReader
+from gait_biofeedback.io.imu_bag import read_imu_bag
+from gait_biofeedback.sim.sensor_link import FrameSchedule, LinkModel, send_udp
+from gait_biofeedback.sim.simulator import simulate, walk
+
+CLI = [sys.executable, "-m", "gait_biofeedback.cli"]
+LINK = {"offset_s": 5.0, "drift_ppm": 100.0, "jitter_ms": 5.0, "loss": 0.01, "reorder": 0.01}
+
+
+def free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def driver_diagnostics(bag: Path) -> dict[str, dict[str, str]]:
+    """The last imu_driver status of each name, as key → value."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.serialization import deserialize_message
+
+    last: dict[str, dict[str, str]] = {}
+    with BagReader(bag) as reader:
+        for _topic, _type, data, _ns in reader.raw_messages(["/diagnostics"]):
+            for s in deserialize_message(data, DiagnosticArray).status:
+                if s.name.startswith("imu_driver"):
+                    last[s.name] = {kv.key: kv.value for kv in s.values}
+    return last
+
+
+def run_one(rate_hz: float, minutes: float, workdir: Path) -> dict[str, object]:
+    config = walk(duration=minutes * 60.0)
+    config.rate_hz = rate_hz
+    session = simulate(config)
+    ids = {segment: k for k, segment in enumerate(session.imu)}
+    schedule = FrameSchedule(session.imu, ids, LinkModel(**LINK, seed=int(rate_hz)))
+    out = workdir / f"driver_{rate_hz:g}hz"
+    port = free_port()
+    duration = schedule.send_ns[-1] * 1e-9
+    proc = subprocess.Popen([*CLI, "run", "--driver", f"udp:{port}", "--nodes", "", "--record", str(out),
+                             "--duration", f"{duration + 8:.1f}"],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    for line in proc.stdout:  # wait until the driver listens
+        if "Ctrl-C stops" in line:
+            break
+    report = send_udp(schedule, "127.0.0.1", port)
+    for _ in proc.stdout:
+        pass
+    _, status, usage = os.wait4(proc.pid, 0)
+    if status != 0:
+        raise RuntimeError(f"the driver process ended with status {status}")
+    process_cpu = (usage.ru_utime + usage.ru_stime) / (duration + 8)
+
+    recorded = read_imu_bag(out)
+    errors, offsets, counts_ok, values_ok = [], [], True, True
+    for segment, truth in schedule.truth.items():
+        kept = ~truth.dropped
+        rec = recorded[segment]
+        if len(rec) != int(kept.sum()):
+            counts_ok = False
+            continue
+        values_ok &= bool(np.allclose(rec.acc, session.imu[segment].acc[kept].astype(np.float32), atol=1e-5))
+        true_ns = report.t0_ns + np.round(truth.t[kept] * 1e9)
+        err = (rec.t - true_ns * 1e-9) * 1e3  # ms (float s of the stamps: 0.2 µs resolution)
+        offsets.append(float(np.median(err)))
+        errors.append(err)
+    diag = driver_diagnostics(out)
+    lost = sum(int(v.get("lost", 0)) for k, v in diag.items() if "sensor_id" in v and "lost" in v)
+    drift_error = []
+    for k, segment in enumerate(schedule.truth):
+        _, drift = LinkModel(**LINK).clock(k)
+        values = diag.get(f"imu_driver: {segment}", {})
+        if "clock_drift_ppm" in values:
+            drift_error.append(abs(float(values["clock_drift_ppm"]) - drift * 1e6))
+    e = np.concatenate(errors) - np.median(np.concatenate(errors)) if errors else np.array([np.nan])
+    return {
+        "rate": rate_hz, "sent": schedule.samples, "dropped": report.samples_dropped,
+        "recorded": sum(len(s) for s in recorded.values()), "exact": counts_ok and values_ok,
+        "lost": lost, "p50": float(np.percentile(np.abs(e), 50)), "p99": float(np.percentile(np.abs(e), 99)),
+        "max": float(np.abs(e).max()), "spread": max(offsets) - min(offsets) if offsets else float("nan"),
+        "drift": max(drift_error) if drift_error else float("nan"),
+        "thread_cpu": float(diag.get("imu_driver: receiving", {}).get("cpu_fraction", "nan")),
+        "process_cpu": process_cpu, "late_s": report.worst_lateness_s,
+    }
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--minutes", type=float, default=10.0, help="sending time per rate [%(default)s]")
+    parser.add_argument("--rates", default="100,200", help="comma-separated rates, Hz [%(default)s]")
+    args = parser.parse_args()
+    t0 = time.monotonic()
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for rate in (float(r) for r in args.rates.split(",")):
+            rows.append(run_one(rate, args.minutes, Path(tmp)))
+    print(f"imu_driver, UDP loopback, 8 sensors, {args.minutes:g} min per rate; link: offset 5 s + 0.1 s per "
+          "sensor, drift ±100 ppm, jitter 0-5 ms, 1 % datagrams lost, 1 % reordered")
+    print("| rate | sent | dropped | recorded | = sent - dropped, same values | driver's lost count | "
+          "stamp error p50 / p99 / max (ms) | sensor offsets spread (ms) | drift error (ppm) | "
+          "receiving thread CPU | process CPU |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    for r in rows:
+        print(f"| {r['rate']:g} Hz | {r['sent']} | {r['dropped']} | {r['recorded']} | "
+              f"{'yes' if r['exact'] else 'NO'} | {r['lost']} | "
+              f"{r['p50']:.3f} / {r['p99']:.3f} / {r['max']:.2f} | "
+              f"{r['spread']:.3f} | {r['drift']:.1f} | {100 * r['thread_cpu']:.1f} % | "
+              f"{100 * r['process_cpu']:.1f} % |")
+    print(f"(the sender was at worst {max(r['late_s'] for r in rows) * 1e3:.1f} ms late; "
+          f"{time.monotonic() - t0:.0f} s in all)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

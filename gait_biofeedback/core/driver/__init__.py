@@ -1,0 +1,1 @@
+"""imu_driver's core: the sensors' wire format, device time → ROS time, sequence accounting."""

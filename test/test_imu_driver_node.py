@@ -1,0 +1,276 @@
+"""imu_driver node: UDP, serial (a pseudo-terminal) and simulated sensors → raw topics, exactly;
+``run --driver`` + ``stream-sim`` through the command line into a recording."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+from conftest import synthetic_imu
+
+from gait_biofeedback.sim.sensor_link import FrameSchedule, LinkModel, send_udp
+
+pytestmark = [pytest.mark.ros, pytest.mark.timeout(90)]
+SEGMENTS = ("left_foot", "right_foot")
+IDS = {"left_foot": 3, "right_foot": 6}
+SENSORS = [f"{sid}:{seg}" for seg, sid in IDS.items()]
+
+
+class Listener:
+    """Raw IMU, magnetometer and /diagnostics messages of a node set, as they come."""
+
+    def __init__(self, context, segments=SEGMENTS):
+        from diagnostic_msgs.msg import DiagnosticArray
+        from rclpy.node import Node
+        from sensor_msgs.msg import Imu, MagneticField
+
+        from gait_biofeedback.wire import topics
+
+        self.node = Node("listener", context=context)
+        self.imu = {s: [] for s in segments}
+        self.mag = {s: [] for s in segments}
+        self.diagnostics: dict[str, object] = {}
+        for s in segments:
+            self.node.create_subscription(Imu, f"{s}/imu/data_raw", self.imu[s].append, topics.SENSOR_QOS)
+            self.node.create_subscription(MagneticField, f"{s}/imu/mag", self.mag[s].append,
+                                          topics.SENSOR_QOS)
+        self.node.create_subscription(DiagnosticArray, "/diagnostics", self._diag, 100)
+
+    def _diag(self, msg):
+        for s in msg.status:
+            self.diagnostics[s.name] = s
+
+    def values(self, name):
+        return {kv.key: kv.value for kv in self.diagnostics[name].values}
+
+
+def _graph(context, **params):
+    from gait_biofeedback.nodes.common import make_executor
+    from gait_biofeedback.nodes.imu_driver import ImuDriverNode
+
+    listener = Listener(context)
+    driver = ImuDriverNode(context, start=False, sensors=SENSORS, **params)
+    executor = make_executor(context)
+    executor.add_node(driver)
+    executor.add_node(listener.node)
+    deadline = time.monotonic() + 5
+    while time.monotonic() < deadline and not all(p.get_subscription_count() for p in driver.publishers
+                                                  if p.topic_name.endswith("data_raw")):
+        executor.spin_once(timeout_sec=0.05)
+    for _ in range(10):
+        executor.spin_once(timeout_sec=0.02)
+    driver.start()
+    return driver, listener, executor
+
+
+def _check_exact(schedule, listener, series):
+    for seg in SEGMENTS:
+        kept = ~schedule.truth[seg].dropped
+        got = listener.imu[seg]
+        assert len(got) == int(kept.sum()), f"{seg}: every sample not dropped by the link, once"
+        stamps = np.array([m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for m in got])
+        assert (np.diff(stamps) > 0).all()
+        acc = np.array([[m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z]
+                        for m in got])
+        np.testing.assert_allclose(acc, series[seg].acc[kept].astype(np.float32), rtol=0, atol=0)
+        assert {m.header.frame_id for m in got} == {f"{seg}_imu"}
+        assert all(m.orientation_covariance[0] == -1.0 for m in got)
+        assert len(listener.mag[seg]) == len(got)
+    return stamps
+
+
+def test_udp_sensors_with_loss_reordering_and_drifting_clocks_come_out_exactly(ros_context):
+    from gait_biofeedback.nodes.common import spin_until
+
+    series = synthetic_imu(list(SEGMENTS), duration=3.0, rate_hz=100.0)
+    link = LinkModel(offset_s=7.0, drift_ppm=200.0, jitter_ms=4.0, loss=0.03, reorder=0.05, seed=4)
+    schedule = FrameSchedule(series, IDS, link)
+    driver, listener, executor = _graph(ros_context, port=0)
+    try:
+        sent = {}
+        thread = threading.Thread(target=lambda: sent.update(
+            r=send_udp(schedule, "127.0.0.1", driver.link.port)), daemon=True)
+        thread.start()
+        total = schedule.samples - schedule.samples_dropped
+        def received():
+            return sum(map(len, listener.imu.values())) >= total and not thread.is_alive()
+
+        def reported():
+            name = "imu_driver: left_foot"
+            return name in listener.diagnostics and int(listener.values(name)["published"]) == len(
+                listener.imu["left_foot"])
+
+        spin_until(executor, received, timeout=20)
+        spin_until(executor, reported, timeout=5)
+        stamps = _check_exact(schedule, listener, series)
+        assert schedule.samples_dropped > 0  # the test did lose samples
+        # the stamps are the true sample times in host time, plus the link's least latency (here
+        # mostly the sender's: a thread of this process, late by a few ms waiting for the GIL)
+        truth = schedule.truth["right_foot"]
+        true_ns = sent["r"].t0_ns + np.round(truth.t[~truth.dropped] * 1e9)
+        error_ms = (stamps - true_ns) * 1e-6
+        assert 0 <= np.median(error_ms) < 10.0
+        assert np.percentile(np.abs(error_ms - np.median(error_ms)), 95) < 1.0
+        for seg in SEGMENTS:
+            values = listener.values(f"imu_driver: {seg}")
+            dropped = schedule.truth[seg].dropped
+            inner = int(dropped[np.argmin(dropped):len(dropped) - np.argmin(dropped[::-1])].sum())
+            assert int(values["lost"]) == inner  # losses before the first and after the last are unseen
+            assert int(values["duplicates"]) == 0
+            assert float(values["rate_hz"]) == pytest.approx(100.0, rel=0.01)
+        assert "cpu_fraction" in listener.values("imu_driver: receiving")
+    finally:
+        driver.destroy_node()
+        listener.node.destroy_node()
+        executor.shutdown()
+
+
+def test_unmapped_and_missing_sensors_are_named_on_diagnostics_and_the_dashboard(ros_context, tmp_path):
+    import socket
+
+    from gait_biofeedback.core.driver.protocol import DeviceSample, encode_frame
+    from gait_biofeedback.nodes.biofeedback import BiofeedbackNode
+    from gait_biofeedback.nodes.common import spin_until
+
+    driver, listener, executor = _graph(ros_context, port=0)
+    dashboard = BiofeedbackNode(ros_context, port=0)
+    executor.add_node(dashboard)
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        for k in range(20):
+            frame = encode_frame([DeviceSample(sid, k, 10_000 * k, (0.0, 0.0, 9.8), (0.0, 0.0, 0.0))
+                                  for sid in (3, 11)])
+            sock.sendto(frame, ("127.0.0.1", driver.link.port))
+        sock.sendto(b"not a frame at all", ("127.0.0.1", driver.link.port))
+        names = {"imu_driver: sensor 11", "imu_driver: link"}
+        spin_until(executor, lambda: names <= set(listener.diagnostics), timeout=5)
+        assert "add '11:SEGMENT'" in listener.diagnostics["imu_driver: sensor 11"].message
+        right = listener.diagnostics["imu_driver: right_foot"]
+        assert right.level == b"\x02" and "no data from sensor 6" in right.message
+        assert listener.values("imu_driver: link")["bad_frames"] == "1"
+        assert len(listener.imu["left_foot"]) == 20
+        # the dashboard shows every status: the clinician sees which sensor is missing or unmapped
+        spin_until(executor, lambda: "imu_driver: sensor 11" in dashboard._diag, timeout=5)
+        assert dashboard._diag["imu_driver: right_foot"]["level"] == 2
+        assert "no data from sensor 6" in dashboard._diag["imu_driver: right_foot"]["message"]
+    finally:
+        sock.close()
+        dashboard.destroy_node()
+        driver.destroy_node()
+        listener.node.destroy_node()
+        executor.shutdown()
+
+
+def _pty():
+    import tty
+
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    return master, slave
+
+
+def test_serial_sensors_with_line_noise_and_a_receiver_plugged_out_and_in(ros_context, tmp_path):
+    from gait_biofeedback.core.driver.protocol import decode_frame
+    from gait_biofeedback.nodes.common import spin_until
+
+    series = synthetic_imu(list(SEGMENTS), duration=2.0, rate_hz=100.0)
+    schedule = FrameSchedule(series, IDS, LinkModel(samples_per_frame=5))
+    frames = [schedule.frame(i) for i in range(len(schedule.send_ns))]
+    half = len(frames) // 2
+    device = tmp_path / "ttyIMU"  # a stable name, as udev gives a receiver
+    master, slave = _pty()
+    os.symlink(os.ttyname(slave), device)
+    driver, listener, executor = _graph(ros_context, backend="serial", device=str(device), baud=115200)
+    rng = np.random.default_rng(0)
+    opened = [master, slave]
+    try:
+        for frame in frames[:half]:
+            os.write(master, rng.bytes(3) + frame)  # noise before every frame
+        first = sum(len(decode_frame(f)) for f in frames[:half])
+        spin_until(executor, lambda: sum(map(len, listener.imu.values())) >= first, timeout=10)
+        os.close(opened.pop(0))  # plugged out: reading the device fails
+        spin_until(executor, lambda: driver.link.problem is not None, timeout=5)
+        assert "went away" in driver.link.problem
+        master, slave = _pty()
+        opened += [master, slave]
+        device.unlink()
+        device.symlink_to(os.ttyname(slave))  # plugged in again
+        spin_until(executor, lambda: driver.link.reconnects == 1, timeout=5)
+        for frame in frames[half:]:
+            os.write(master, rng.bytes(3) + frame)
+        spin_until(executor, lambda: sum(map(len, listener.imu.values())) >= schedule.samples, timeout=10)
+        _check_exact(schedule, listener, series)
+        name = "imu_driver: receiving"
+        assert spin_until(executor, lambda: name in listener.diagnostics
+                          and listener.values(name)["reconnects"] == "1", timeout=5)
+    finally:
+        driver.destroy_node()
+        listener.node.destroy_node()
+        executor.shutdown()
+        for fd in opened:
+            os.close(fd)
+
+
+def test_simulated_sensors_run_live_at_their_rate(ros_context):
+    from gait_biofeedback.core.segments import SEGMENTS as ALL
+    from gait_biofeedback.nodes.common import spin_until
+
+    listener = Listener(ros_context, ALL)
+    from gait_biofeedback.nodes.common import make_executor
+    from gait_biofeedback.nodes.imu_driver import ImuDriverNode
+
+    driver = ImuDriverNode(ros_context, backend="simulated", scenario="walk")
+    executor = make_executor(ros_context)
+    executor.add_node(driver)
+    executor.add_node(listener.node)
+    try:
+        spin_until(executor, lambda: len(listener.imu["chest"]) > 0, timeout=20)
+        t0 = time.monotonic()
+        n0 = len(listener.imu["chest"])
+        spin_until(executor, lambda: time.monotonic() - t0 > 2.0)
+        rate = (len(listener.imu["chest"]) - n0) / (time.monotonic() - t0)
+        assert rate == pytest.approx(100.0, rel=0.15)
+        assert all(len(listener.imu[s]) > 0 for s in ALL)
+        stamp = listener.imu["chest"][-1].header.stamp
+        assert abs(stamp.sec + stamp.nanosec * 1e-9 - time.time()) < 0.5  # live: ROS time, now
+    finally:
+        driver.destroy_node()
+        listener.node.destroy_node()
+        executor.shutdown()
+
+
+def test_run_driver_and_stream_sim_record_every_sample_through_the_command_line(tmp_path):
+    from gait_biofeedback.io.bag import read_imu_bag, write_imu_bag
+
+    series = synthetic_imu(["pelvis", "left_foot"], duration=2.0, rate_hz=100.0)
+    bag = write_imu_bag(tmp_path / "in", series)
+    out = tmp_path / "rec"
+    cli = [sys.executable, "-m", "gait_biofeedback.cli"]
+    port = 5600 + os.getpid() % 300
+    run = subprocess.Popen([*cli, "run", "--driver", f"udp:{port}", "--nodes", "", "--record", str(out),
+                            "--duration", "7"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        for line in run.stdout:
+            if "Ctrl-C stops" in line:
+                break
+        sent = subprocess.run([*cli, "stream-sim", str(bag), "--to", f"udp:127.0.0.1:{port}", "--loss",
+                               "0.02", "--jitter-ms", "3", "--seed", "2"], capture_output=True, text=True,
+                              timeout=30)
+        assert sent.returncode == 0, sent.stderr
+        rest = run.communicate(timeout=30)[0]
+    finally:
+        run.kill()
+    assert run.returncode == 0, rest
+    text = sent.stdout.splitlines()[-1]
+    n_sent, n_dropped = int(text.split()[1]), int(text.split("dropped ")[1].split()[0])
+    assert n_sent + n_dropped == 400 and n_dropped > 0
+    recorded = read_imu_bag(out)
+    assert sum(len(s) for s in recorded.values()) == n_sent
+    bad = subprocess.run([*cli, "run", "--driver", "udp:notaport"], capture_output=True, text=True,
+                         timeout=30)
+    assert bad.returncode == 2 and "expected udp:PORT" in bad.stderr
