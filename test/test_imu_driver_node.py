@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 import threading
@@ -253,7 +254,7 @@ def test_run_driver_and_stream_sim_record_every_sample_through_the_command_line(
     cli = [sys.executable, "-m", "gait_biofeedback.cli"]
     port = 5600 + os.getpid() % 300
     run = subprocess.Popen([*cli, "run", "--driver", f"udp:{port}", "--nodes", "", "--record", str(out),
-                            "--duration", "7"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+                            "--duration", "30"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
         for line in run.stdout:
             if "Ctrl-C stops" in line:
@@ -262,6 +263,8 @@ def test_run_driver_and_stream_sim_record_every_sample_through_the_command_line(
                                "0.02", "--jitter-ms", "3", "--seed", "2"], capture_output=True, text=True,
                               timeout=30)
         assert sent.returncode == 0, sent.stderr
+        time.sleep(0.5)  # the last datagrams reach the recorder
+        run.send_signal(signal.SIGINT)  # Ctrl-C: the recording is closed
         rest = run.communicate(timeout=30)[0]
     finally:
         run.kill()
@@ -271,6 +274,14 @@ def test_run_driver_and_stream_sim_record_every_sample_through_the_command_line(
     assert n_sent + n_dropped == 400 and n_dropped > 0
     recorded = read_imu_bag(out)
     assert sum(len(s) for s in recorded.values()) == n_sent
-    bad = subprocess.run([*cli, "run", "--driver", "udp:notaport"], capture_output=True, text=True,
-                         timeout=30)
-    assert bad.returncode == 2 and "expected udp:PORT" in bad.stderr
+
+
+def test_a_malformed_driver_is_refused_naming_the_forms(capsys):
+    from gait_biofeedback.cli import main, parse_driver
+
+    assert main(["run", "--driver", "udp:notaport"]) == 2
+    assert "expected udp:PORT, udp:ADDRESS:PORT, serial:DEVICE[:BAUD]" in capsys.readouterr().err
+    assert parse_driver("udp:0.0.0.0:5601") == {"backend": "udp", "port": 5601, "address": "0.0.0.0"}
+    assert parse_driver("serial:/dev/ttyACM0:115200") == {"backend": "serial", "device": "/dev/ttyACM0",
+                                                          "baud": 115200}
+    assert parse_driver("simulated:walk") == {"backend": "simulated", "scenario": "walk"}

@@ -89,6 +89,7 @@ class SensorStream:
                     and sample.device_time_us < self.last_device_us - CLOCK_BACK_S * 1e6)
             if diff < -REBOOT_SAMPLES or back:
                 self._reboot(sample)
+                diff = 0
             elif sample.sequence in self._lost:
                 self._lost.remove(sample.sequence)
                 self.late += 1
