@@ -13,6 +13,8 @@ batch function; a batch function gives exactly what its stream gives when fed th
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from gait_biofeedback.analyze import AnalysisResult, analyze_recording, parse_calibrate_at
 from gait_biofeedback.core import quaternion
 from gait_biofeedback.core.activity.monitor import (
@@ -82,6 +84,13 @@ from gait_biofeedback.io.importers import (
     import_qmt_fullbody,
     import_recording,
 )
+from gait_biofeedback.report.analysis import (
+    SessionAnalysis,
+    analyse_session,
+    gait_profile_score,
+    gait_variable_score,
+)
+from gait_biofeedback.report.extract import NotASessionError, SessionData, read_session
 from gait_biofeedback.report.session import SessionReport, format_report, session_report
 from gait_biofeedback.sim.faults import Dropout, Reorder, Spike, StampJump, inject, write_faulty_bag
 from gait_biofeedback.sim.recording import write_simulated_bag
@@ -121,13 +130,17 @@ __all__ = [
     "GaitEventDetector",
     "ImuSeries",
     "JointAngleCalculator",
+    "NotASessionError",
+    "Patient",
     "Phase",
     "Recording",
     "RelativeHeadingEstimator",
     "Reorder",
     "SegmentCalibrationResult",
     "SegmentOrientationTracker",
+    "SessionAnalysis",
     "SessionCalibration",
+    "SessionData",
     "SessionReport",
     "SimulatedSession",
     "SimulationConfig",
@@ -136,6 +149,7 @@ __all__ = [
     "StampJump",
     "UnitMismatchWarning",
     "align_headings",
+    "analyse_session",
     "analyze_recording",
     "angular_velocity_events",
     "calibrate_segment",
@@ -156,6 +170,8 @@ __all__ = [
     "foot_calibration",
     "foot_pitch_sine",
     "format_report",
+    "gait_profile_score",
+    "gait_variable_score",
     "helical_angle",
     "import_gaitmap",
     "import_qmt_fullbody",
@@ -170,6 +186,7 @@ __all__ = [
     "parse_calibrate_at",
     "quaternion",
     "read_imu_bag",
+    "read_session",
     "sagittal_rate",
     "seconds_to_ns",
     "segment_orientations",
@@ -179,5 +196,20 @@ __all__ = [
     "vertical_calibration",
     "write_faulty_bag",
     "write_imu_bag",
+    "write_report",
     "write_simulated_bag",
 ]
+
+# The report writer pulls in matplotlib and fpdf2 (0.7 s): imported on first use only.
+if TYPE_CHECKING:
+    from gait_biofeedback.report.build import Patient, write_report
+
+_LAZY = {"Patient": "gait_biofeedback.report.build", "write_report": "gait_biofeedback.report.build"}
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -237,6 +237,20 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_report(args: argparse.Namespace) -> int:
+    from gait_biofeedback.report.build import Patient, patient_from_params, write_report
+
+    patient = patient_from_params(args.params) if args.params else Patient()
+    patient = Patient(args.patient_id or patient.id, args.session_label or patient.session)
+    files = write_report(args.sessions, args.output, patient, labels=args.labels, norms_file=args.norms,
+                         targets_file=args.targets)
+    for note in files.analyses[-1].notes:
+        print(note)
+    for path in (files.html, files.pdf, files.strides_csv, files.joints_csv):
+        print(f"wrote {path}")
+    return 0
+
+
 def cmd_params(args: argparse.Namespace) -> int:
     from gait_biofeedback.parameters import NODE_PARAMETERS, load_params_file, parameter_table
 
@@ -368,6 +382,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--params", default=None, help="ROS 2 parameter file, e.g. config/session.yaml")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output")
     p.set_defaults(func=cmd_analyze)
+
+    p = sub.add_parser(
+        "report", help="clinician's report of one or more sessions: report.html, report.pdf, strides.csv, "
+        "joints.csv", description="Write the session report of the last SESSION (a recording of the graph "
+        "or an analyze output) with a progress page over all of them (one patient's, first = baseline). "
+        "The patient is named only by a pseudonymous code.")
+    p.add_argument("sessions", nargs="+", metavar="SESSION", help="recording of the graph or analyze output")
+    p.add_argument("-o", "--output", required=True, help="folder to write the report files to")
+    p.add_argument("--patient-id", default="", help="pseudonymous patient code (overrides the patient block)")
+    p.add_argument("--session-label", default="", help="label of the last session (overrides the block's)")
+    p.add_argument("--labels", nargs="+", metavar="LABEL", help="a label per SESSION (default: folder names)")
+    p.add_argument("--params", default=None, help="parameter file whose patient: block gives the header")
+    p.add_argument("--norms", default=None, help="YAML of normative bands replacing the built-in ones")
+    p.add_argument("--targets", default=None, help="targets of the offline cues [config/targets.yaml]")
+    p.set_defaults(func=cmd_report)
 
     p = sub.add_parser("run", help="run the processing graph on live sensors (--driver) or live topics "
                        "until Ctrl-C")

@@ -75,7 +75,8 @@ def summarize(input_bag: Path, output: Path, wall_time: float, published: int,
     lines += [
         "-" * 78,
         f"open {output} in Foxglove (File > Open local file, pick the .mcap) or run "
-        f"`gait-biofeedback info {output}`",
+        f"`gait-biofeedback info {output}`; the clinician's report: "
+        f"`gait-biofeedback report {output} -o {output}_report`",
         "=" * 78,
     ]
     return "\n".join(lines)

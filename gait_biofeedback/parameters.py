@@ -47,6 +47,8 @@ NODE_PARAMETERS: dict[str, type] = {
 """Node name → its parameters' dataclass (the node classes declare their ROS parameters from it)."""
 
 EVERY_NODE = "**"
+PATIENT_BLOCK = "patient"  # the report's pseudonymous patient id and session label, no node's parameters
+PATIENT_KEYS = ("id", "session")
 ROS_PARAMETERS = ("use_sim_time",)
 """Parameters rclpy itself declares on every node (accepted and handed on unchecked)."""
 
@@ -78,7 +80,8 @@ def _flatten(values: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
 
 def read_params_file(path: str | Path) -> dict[str, dict[str, Any]]:
     """A params file as node name (or ``"**"``) → flat parameter values, unchecked; ParameterError
-    for a file that is missing, not YAML, or not in the ROS 2 params-file layout."""
+    for a file that is missing, not YAML, or not in the ROS 2 params-file layout. The ``patient:``
+    block (:func:`patient_block`) is checked and left out."""
     path = Path(path)
     if not path.is_file():
         raise ParameterError(f"parameter file {path} not found (see config/session.yaml for the format)")
@@ -96,6 +99,9 @@ def read_params_file(path: str | Path) -> dict[str, dict[str, Any]]:
                              f"got {type(document).__name__}")
     out: dict[str, dict[str, Any]] = {}
     for key, entry in document.items():
+        if key == PATIENT_BLOCK:
+            patient_block(path, entry)
+            continue
         node = str(key).rstrip("/").split("/")[-1]
         if node != EVERY_NODE and node not in NODE_PARAMETERS:
             raise unknown_node(path, str(key), node)
@@ -104,6 +110,22 @@ def read_params_file(path: str | Path) -> dict[str, dict[str, Any]]:
             raise ParameterError(f"{path}: entry {key!r} has no 'ros__parameters' mapping")
         out.setdefault(node, {}).update(_flatten(values))
     return out
+
+
+def patient_block(path: str | Path, entry: Any) -> dict[str, str]:
+    """The ``patient: {ros__parameters: {id: ..., session: ...}}`` block of a params file as strings.
+
+    It is written in the ROS 2 layout (a "node" no node is named after) because rcl refuses a file with
+    plain values at the top (``ros2 run --params-file`` would fail); an unknown key is refused."""
+    values = entry.get("ros__parameters") if isinstance(entry, Mapping) else None
+    if not isinstance(values, Mapping):
+        raise ParameterError(f"{path}: write the patient block as 'patient: {{ros__parameters: {{id: ..., "
+                             "session: ...}}}}' (ROS 2 refuses plain values at the top of a params file)")
+    unknown = sorted(set(map(str, values)) - set(PATIENT_KEYS))
+    if unknown:
+        raise ParameterError(f"{path}: patient block: unknown key(s) {unknown}; "
+                             f"it takes {', '.join(PATIENT_KEYS)}")
+    return {str(k): str(v) for k, v in values.items()}
 
 
 def unknown_node(path: Path, key: str, node: str) -> ParameterError:

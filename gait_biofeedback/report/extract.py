@@ -1,0 +1,221 @@
+"""What a session recording holds for its report: strides, events, joint angles, activity, calibration,
+``/diagnostics`` and the cues, read once (a recording of the graph or what ``analyze`` wrote)."""
+
+from __future__ import annotations
+
+import contextlib
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from gait_biofeedback.io.bag import BagReader
+from gait_biofeedback.wire import topics
+from gait_biofeedback.wire.gait import event_of, stride_of
+from gait_biofeedback.wire.joints import angles_of, recovering_of
+from gait_biofeedback.wire.stamps import stamp_to_ns
+
+GAIT_CYCLE_FIELDS = (
+    "stride_index",
+    "stride_time",
+    "stance_time",
+    "swing_time",
+    "stance_fraction",
+    "swing_fraction",
+    "step_time",
+    "cadence",
+    "double_support_time",
+    "double_support_fraction",
+    "step_time_symmetry_index",
+    "plausible",
+    "flag",
+    "stride_length",
+    "gait_speed",
+    "max_foot_height",
+    "min_toe_clearance",
+    "foot_angle_ic",
+    "foot_angle_tc",
+    "turning_angle",
+    "lateral_excursion",
+    "spatial_flag",
+)
+"""Every field of gait_biofeedback_msgs/GaitCycle besides the header, side and stamps (SI, as on the wire)."""
+
+COUNTERS = (
+    "samples",
+    "published",
+    "nan_skipped",
+    "out_of_range",
+    "duplicates",
+    "late",
+    "bad_stamps",
+    "time_resets",
+    "gaps",
+    "missing",
+    "lost",
+    "received",
+    "reboots",
+)
+"""The counters of the ``/diagnostics`` statuses the report sums up as data quality."""
+LEVELS = {0: "OK", 1: "WARN", 2: "ERROR", 3: "STALE"}
+
+
+class NotASessionError(ValueError):
+    """The recording has no outputs of the graph."""
+
+
+@dataclass
+class StatusSummary:
+    """One ``/diagnostics`` status name over the session: worst level, its last counters, and each
+    distinct WARN/ERROR/STALE message with the time (s into the session) it was first seen."""
+
+    worst: int = 0
+    counters: dict[str, float] = field(default_factory=dict)
+    problems: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass
+class SessionData:
+    """The outputs of one session; times in s from the first message."""
+
+    path: Path
+    start_ns: int
+    duration_s: float
+    strides: list[dict]
+    events: list[tuple[str, str, float]]
+    joint_t: np.ndarray
+    joints: dict[str, np.ndarray]
+    recovering: np.ndarray
+    activity: list[tuple[float, int, int, int, float]]
+    transitions: list[tuple[float, int]]
+    steps: int
+    calibration: dict[str, dict]
+    diagnostics: dict[str, StatusSummary]
+    cues: list[dict]
+    counts: dict[str, int]
+    stride_objects: list = field(default_factory=list)
+
+    def seconds(self, ns: int) -> float:
+        return (ns - self.start_ns) / 1e9
+
+
+def _level(raw) -> int:
+    return raw[0] if isinstance(raw, (bytes, bytearray)) else int(raw)
+
+
+def read_session(path: str | Path) -> SessionData:
+    """Read one session; :class:`NotASessionError` (naming what to run) when it holds no graph outputs."""
+    path = Path(path)
+    reader = BagReader(path)
+    counts = reader.message_counts()
+    outputs = [t.absolute() for t in (topics.GAIT_CYCLES, topics.JOINT_STATES, topics.ACTIVITY)]
+    if not any(t in counts for t in outputs):
+        raise NotASessionError(
+            f"{path} holds no gait/cycles, joint_states or activity/state: it is a raw recording. "
+            f"Run `gait-biofeedback analyze {path} -o OUT --calibrate-at auto` and report OUT"
+        )
+    start_ns = reader.start_time_ns
+    strides, stride_objects, events, cues = [], [], [], []
+    joint_t: list[int] = []
+    rows: list[dict[str, float]] = []
+    recovering: list[bool] = []
+    activity, transitions, steps = [], [], 0
+    calibration: dict[str, dict] = {}
+    diagnostics: dict[str, StatusSummary] = {}
+    wanted = [
+        t.absolute()
+        for t in (
+            topics.GAIT_CYCLES,
+            topics.GAIT_EVENTS,
+            topics.JOINT_STATES,
+            topics.ACTIVITY,
+            topics.CALIBRATION,
+            topics.CUES,
+            topics.DIAGNOSTICS,
+        )
+    ]
+    for topic, msg, log_ns in reader.messages([t for t in wanted if t in counts]):
+        if topic == topics.GAIT_CYCLES.absolute():
+            stride = stride_of(msg)
+            row = {
+                "side": stride.side,
+                "start_s": (stride.start_ns - start_ns) / 1e9,
+                "terminal_contact_s": (math.nan if stride.tc_ns is None else (stride.tc_ns - start_ns) / 1e9),
+                "end_s": (stride.end_ns - start_ns) / 1e9,
+            }
+            row.update({name: getattr(msg, name) for name in GAIT_CYCLE_FIELDS})
+            strides.append(row)
+            stride_objects.append(stride)
+        elif topic == topics.GAIT_EVENTS.absolute():
+            side, kind, stamp_ns, _ = event_of(msg)
+            events.append((side, kind, (stamp_ns - start_ns) / 1e9))
+        elif topic == topics.JOINT_STATES.absolute():
+            stamp_ns, angles = angles_of(msg)
+            if joint_t and stamp_ns == joint_t[-1]:
+                rows[-1].update(angles)
+            else:
+                joint_t.append(stamp_ns)
+                rows.append(dict(angles))
+                recovering.append(bool(recovering_of(msg)))
+        elif topic == topics.ACTIVITY.absolute():
+            t = (stamp_to_ns(msg.header.stamp) - start_ns) / 1e9
+            activity.append((t, msg.posture, msg.locomotion, msg.step_count, msg.trunk_inclination))
+            steps = max(steps, msg.step_count)
+            mark = ((stamp_to_ns(msg.last_transition_stamp) - start_ns) / 1e9, msg.last_transition)
+            if msg.last_transition and (not transitions or transitions[-1] != mark):
+                transitions.append(mark)
+        elif topic == topics.CALIBRATION.absolute():
+            for seg in msg.segments:
+                calibration[seg.segment] = {
+                    "valid": bool(seg.valid),
+                    "quality": float(seg.quality),
+                    "message": seg.message,
+                    "at_s": (log_ns - start_ns) / 1e9,
+                }
+        elif topic == topics.CUES.absolute():
+            cues.append(
+                {
+                    "t": (stamp_to_ns(msg.header.stamp) - start_ns) / 1e9,
+                    "quantity": msg.quantity,
+                    "side": msg.side,
+                    "unit": msg.unit,
+                    "measured": msg.measured,
+                    "error": msg.error,
+                    "severity": int(msg.severity),
+                    "stride_index": int(msg.stride_index),
+                }
+            )
+        else:
+            for status in msg.status:
+                summary = diagnostics.setdefault(status.name, StatusSummary())
+                level = _level(status.level)
+                summary.worst = max(summary.worst, level)
+                if level:
+                    summary.problems.setdefault(
+                        f"{LEVELS.get(level, level)}: {status.message}", (log_ns - start_ns) / 1e9
+                    )
+                for kv in status.values:
+                    if kv.key in COUNTERS:
+                        with contextlib.suppress(ValueError):
+                            summary.counters[kv.key] = float(kv.value)
+    names = sorted({n for r in rows for n in r})
+    joints = {n: np.array([r.get(n, math.nan) for r in rows], dtype=float) for n in names}
+    return SessionData(
+        path=path,
+        start_ns=start_ns,
+        duration_s=reader.duration_ns / 1e9,
+        strides=strides,
+        events=events,
+        joint_t=np.array(joint_t, dtype=np.int64),
+        joints=joints,
+        recovering=np.array(recovering, dtype=bool),
+        activity=activity,
+        transitions=transitions,
+        steps=steps,
+        calibration=calibration,
+        diagnostics=diagnostics,
+        cues=cues,
+        counts=counts,
+        stride_objects=stride_objects,
+    )

@@ -1,0 +1,326 @@
+"""`gait-biofeedback report`: a simulated walk through `analyze` and `report` as a user runs them.
+
+The numbers are checked against what `analyze` printed, against the simulator's truth and against
+hand-derived values; the HTML is rendered in headless chromium (screenshot in test-artifacts/) and the
+PDF's pages and text are read back with pypdf.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import io
+import math
+import re
+import shutil
+import subprocess
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gait_biofeedback.cli import main
+from gait_biofeedback.parameters import load_params_file
+from gait_biofeedback.report.analysis import gait_profile_score, gait_variable_score
+from gait_biofeedback.report.build import Patient, patient_from_params
+from gait_biofeedback.report.extract import read_session
+from gait_biofeedback.report.norms import load_norms
+from gait_biofeedback.report.progress import progress_section
+from gait_biofeedback.sim.recording import write_simulated_bag
+from gait_biofeedback.sim.simulator import Phase, SimulationConfig, simulate
+
+REPO = Path(__file__).resolve().parents[1]
+ARTIFACTS = REPO / "test-artifacts"
+PATIENT_BLOCK = 'patient:\n  ros__parameters:\n    id: P017\n    session: "2026-12-03"\n'
+NUMBER = r"(-?\d+(?:\.\d+)?)"
+
+
+def _cli(*argv: str) -> tuple[int, str, str]:
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        rc = main(list(argv))
+    return rc, out.getvalue(), err.getvalue()
+
+
+@pytest.fixture(scope="module")
+def reported(tmp_path_factory):
+    """A 28 s walk (stand, walk 20 s, stand), analyzed and reported through the CLI."""
+    root = tmp_path_factory.mktemp("report")
+    session = simulate(
+        SimulationConfig(seed=5, phases=[Phase("stand", 5.0), Phase("walk", 20.0), Phase("stand", 3.0)])
+    )
+    raw = write_simulated_bag(root / "walk", session)
+    rc, analyzed, err = _cli(
+        "analyze", str(raw), "-o", str(root / "analyzed"), "--calibrate-at", "12:walking"
+    )
+    assert rc == 0, err
+    params = root / "session.yaml"
+    params.write_text(PATIENT_BLOCK + (REPO / "config" / "session.yaml").read_text())
+    rc, printed, err = _cli(
+        "report", str(root / "analyzed"), "-o", str(root / "report"), "--params", str(params)
+    )
+    assert rc == 0, err
+    return {
+        "root": root,
+        "session": session,
+        "raw": raw,
+        "analyzed": analyzed,
+        "printed": printed,
+        "out": root / "report",
+    }
+
+
+def _rows(path: Path) -> list[dict[str, str]]:
+    with path.open() as f:
+        return list(csv.DictReader(f))
+
+
+def _pdf_pages(path: Path) -> list[str]:
+    import pypdf
+
+    return [page.extract_text() for page in pypdf.PdfReader(str(path)).pages]
+
+
+def test_report_writes_its_four_files_and_never_prints_the_patient(reported):
+    names = [
+        Path(line.removeprefix("wrote ")).name
+        for line in reported["printed"].splitlines()
+        if line.startswith("wrote ")
+    ]
+    assert names == ["report.html", "report.pdf", "strides.csv", "joints.csv"]
+    assert "P017" not in reported["printed"]
+    html = (reported["out"] / "report.html").read_text()
+    assert "P017" in html and "2026-12-03" in html
+    assert not re.search(r"<script|src=\"http|href=\"http|@import", html), "self-contained, no script"
+
+
+def test_strides_csv_holds_every_stride_message_field_and_the_count_analyze_wrote(reported):
+    msg = (REPO / "gait_biofeedback_msgs" / "msg" / "GaitCycle.msg").read_text()
+    declared = [line.split()[:2] for line in msg.splitlines() if line.strip() and not line.startswith("#")]
+    # constants out; the stamps as s into the session; header and side (a column of its own) out
+    fields = [
+        f"{name}_s" if kind == "builtin_interfaces/Time" else name
+        for kind, name in declared
+        if "=" not in name and name not in ("header", "side")
+    ]
+    rows = _rows(reported["out"] / "strides.csv")
+    assert set(fields) <= set(rows[0]), f"missing: {set(fields) - set(rows[0])}"
+    assert {"side", "used", "start_s", "session"} <= set(rows[0])
+    written = int(re.search(r"/gait/cycles (\d+)", reported["analyzed"]).group(1))
+    plausible = int(re.search(r"strides: (\d+) of \d+ plausible", reported["analyzed"]).group(1))
+    assert len(rows) == written
+    used = sum(r["used"] == "True" for r in rows)
+    # the detector's one extra IC (analyze: "1 extra") closes a plausible stride 1 s after the walk ended;
+    # it is outside the activity monitor's walking bout, so the report leaves it out and says so
+    assert used == plausible - 1
+    text = " ".join(_pdf_pages(reported["out"] / "report.pdf"))
+    assert "1 plausible strides outside them left out" in text
+    assert {r["session"] for r in rows} == {"2026-12-03"}
+
+
+def test_report_numbers_equal_analyze_s(reported):
+    """The used strides give the medians `analyze` printed (its rounding); the table shows their per-side
+    mean ± SD (n)."""
+    rows = [r for r in _rows(reported["out"] / "strides.csv") if r["used"] == "True"]
+    stride = re.search(rf"stride length {NUMBER} m, gait speed {NUMBER} m/s", reported["analyzed"])
+    temporal = re.search(
+        rf"stride {NUMBER} s, cadence {NUMBER} steps/min, stance {NUMBER} %", reported["analyzed"]
+    )
+
+    def median(key: str) -> float:
+        return float(np.nanmedian([float(r[key]) for r in rows]))
+
+    assert round(median("stride_length"), 2) == float(stride.group(1))
+    assert round(median("gait_speed"), 2) == float(stride.group(2))
+    assert round(median("stride_time"), 2) == float(temporal.group(1))
+    assert round(60 * median("cadence")) == float(temporal.group(2))
+    text = " ".join(_pdf_pages(reported["out"] / "report.pdf"))
+    for side in ("left", "right"):
+        mine = [float(r["stride_length"]) for r in rows if r["side"] == side and r["stride_length"]]
+        mine = [v for v in mine if math.isfinite(v)]
+        assert f"{np.mean(mine):.2f} ± {np.std(mine, ddof=1):.2f} ({len(mine)})" in text
+    assert stride.group(0).replace("stride length ", "") in text  # the summary section, as printed
+
+
+def test_stride_time_and_cadence_per_side_match_the_simulator(reported):
+    truth = reported["session"].truth
+    rows = [r for r in _rows(reported["out"] / "strides.csv") if r["used"] == "True"]
+    for side in ("left", "right"):
+        ics = truth.initial_contacts[side]
+        errors = []
+        for r in (r for r in rows if r["side"] == side):
+            k = int(np.argmin(np.abs(ics - float(r["start_s"]))))
+            assert abs(ics[k] - float(r["start_s"])) < 0.03, "each stride starts at a true IC"
+            errors.append(float(r["stride_time"]) - (ics[k + 1] - ics[k]))
+        assert len(errors) >= 6
+        # measured: at most 9 ms (one 10 ms sample of either IC)
+        assert max(map(abs, errors)) <= 0.02, errors
+        true_cadence = 120.0 / np.mean(np.diff(ics))
+        cadence = 60 * np.mean([float(r["cadence"]) for r in rows if r["side"] == side])
+        assert cadence == pytest.approx(true_cadence, abs=0.5)  # measured 0.2 steps/min
+
+
+def test_joints_csv_has_each_side_s_angles_and_consistent_values(reported):
+    rows = _rows(reported["out"] / "joints.csv")
+    assert rows and all(not r["angle"].startswith(("left_", "right_")) for r in rows)
+    knee = [r for r in rows if r["angle"] == "knee_flexion"]
+    assert {r["side"] for r in knee} == {"left", "right"}
+    for r in rows:
+        assert float(r["range_of_motion"]) == pytest.approx(float(r["max"]) - float(r["min"]), abs=1e-12)
+        assert float(r["min"]) - 1e-12 <= float(r["at_ic"]) <= float(r["max"]) + 1e-12
+    truth = reported["session"].truth.joint_angles["left_knee_flexion"]
+    peaks = [float(r["peak_swing_deg"]) for r in knee if r["side"] == "left"]
+    # measured: the median swing peak 0.45° below the simulator's
+    assert np.median(peaks) == pytest.approx(math.degrees(truth.max()), abs=1.0)
+
+
+def test_pdf_has_the_sections_on_their_pages_and_the_patient_header(reported):
+    pages = _pdf_pages(reported["out"] / "report.pdf")
+    assert len(pages) == 6
+    for i, page in enumerate(pages, 1):
+        assert page.rstrip().endswith(f"page {i}/{len(pages)}")
+    assert pages[0].startswith("Gait session report\npatient P017\nsession 2026-12-03")
+    assert "Spatiotemporal parameters" in pages[0]
+    assert pages[1].startswith("Joint angles over the stride")
+    assert pages[3].startswith("Strides and events over time")
+    assert pages[-1].startswith("Sources")
+    text = " ".join(pages)
+    for needed in (
+        "Gait Profile Score",
+        "Movement Analysis Profile",
+        "Tilson",
+        "Perry",
+        "Bohannon",
+        "pelvis",
+        "Activity",
+        "Calibration",
+        "Data quality",
+        "coarse",
+    ):
+        assert needed in text, needed
+
+
+def test_gait_variable_and_profile_score_by_hand():
+    reference = np.sin(np.linspace(0, 2 * np.pi, 51))
+    assert gait_variable_score(reference + math.radians(4.0), reference) == pytest.approx(math.radians(4.0))
+    # the RMS of a ±a square wave is a
+    square = np.where(np.arange(51) % 2 == 0, 1.0, -1.0) * 0.05
+    assert gait_variable_score(reference + square, reference) == pytest.approx(0.05)
+    assert gait_profile_score([3.0, 4.0]) == pytest.approx(math.sqrt(12.5))
+    assert gait_profile_score([3.0, math.nan, 4.0]) == pytest.approx(math.sqrt(12.5))
+    assert math.isnan(gait_profile_score([math.nan]))
+
+
+def test_progress_flags_a_gait_speed_change_beyond_its_mcid(reported):
+    from gait_biofeedback.core.biofeedback.evaluator import default_targets_path, load_targets
+    from gait_biofeedback.report.analysis import analyse_session
+
+    baseline = analyse_session(
+        read_session(reported["root"] / "analyzed"), load_targets(default_targets_path())
+    )
+
+    def faster(by: float):
+        return replace(baseline, used=[{**r, "gait_speed": r["gait_speed"] + by} for r in baseline.used])
+
+    table = progress_section(["S1", "S2", "S3"], [baseline, faster(0.10), faster(0.20)]).blocks[0]
+    speed = next(row for row in table.rows if row[0].startswith("gait speed"))
+    assert speed[4] == "+0.20"
+    assert speed[5][0].startswith("beyond MCID (0.16 m/s): better") and speed[5][1] == "in"
+    table = progress_section(["S1", "S2"], [baseline, faster(-0.10)]).blocks[0]
+    speed = next(row for row in table.rows if row[0].startswith("gait speed"))
+    assert speed[3] == "-0.10" and speed[4][0].startswith("within MCID")
+
+
+def test_a_raw_recording_is_refused_with_the_analyze_command(reported, tmp_path):
+    rc, _, err = _cli("report", str(reported["raw"]), "-o", str(tmp_path / "r"))
+    assert rc == 2 and "raw recording" in err and "gait-biofeedback analyze" in err
+    assert not (tmp_path / "r").exists()
+
+
+@pytest.mark.parametrize("patient_id", ["John Smith", "Müller", "x" * 33])
+def test_a_patient_name_is_refused(patient_id):
+    with pytest.raises(ValueError, match="pseudonymous code"):
+        Patient(patient_id)
+
+
+def test_the_patient_block_is_read_checked_and_accepted_by_ros(tmp_path):
+    from rclpy.context import Context
+
+    good = tmp_path / "good.yaml"
+    good.write_text(PATIENT_BLOCK + "/**:\n  ros__parameters:\n    thigh_length: 0.40\n")
+    assert patient_from_params(good) == Patient("P017", "2026-12-03")
+    assert load_params_file(good)["activity_monitor"]["thigh_length"] == 0.40
+    context = Context()
+    context.init(["--ros-args", "--params-file", str(good)])  # rcl parses the same file
+    context.try_shutdown()
+    plain = tmp_path / "plain.yaml"
+    plain.write_text("patient:\n  id: P017\n")
+    with pytest.raises(ValueError, match="ros__parameters"):
+        load_params_file(plain)
+    typo = tmp_path / "typo.yaml"
+    typo.write_text("patient:\n  ros__parameters:\n    idd: P017\n")
+    with pytest.raises(ValueError, match=r"unknown key\(s\) \['idd'\]"):
+        load_params_file(typo)
+
+
+@pytest.mark.parametrize(
+    ("text", "match"),
+    [
+        ("gait_speeed: {low: 1, high: 2, source: x}", "unknown parameter 'gait_speeed'"),
+        ("gait_speed: {low: 1, high: 2}", "needs low, high and source"),
+        ("gait_speed: {low: 2, high: 1, source: x}", "low 2.0 > high 1.0"),
+        ("gait_speed: {low: fast, high: 1, source: x}", "low and high must be numbers"),
+        ("[1, 2]", "expected"),
+    ],
+)
+def test_a_bad_norms_file_is_refused(tmp_path, text, match):
+    path = tmp_path / "norms.yaml"
+    path.write_text(text)
+    with pytest.raises(ValueError, match=match):
+        load_norms(path)
+
+
+def test_a_norms_file_replaces_a_band_and_names_its_source(tmp_path, reported):
+    path = tmp_path / "norms.yaml"
+    path.write_text("gait_speed: {low: 0.40, high: 0.80, source: 'Clinic cohort 2026'}\n")
+    rc, _, err = _cli(
+        "report", str(reported["root"] / "analyzed"), "-o", str(tmp_path / "r"), "--norms", str(path)
+    )
+    assert rc == 0, err
+    html = (tmp_path / "r" / "report.html").read_text()
+    assert "Clinic cohort 2026" in html and "0.40–0.80 m/s" in html
+
+
+def _chromium() -> str | None:
+    return next((p for p in map(shutil.which, ("chromium", "chromium-browser", "google-chrome")) if p), None)
+
+
+@pytest.mark.skipif(
+    _chromium() is None,
+    reason="chromium not installed: run `bash scripts/setup_browser.sh` (apt-get install chromium)",
+)
+def test_the_html_renders_in_headless_chromium(reported, tmp_path):
+    ARTIFACTS.mkdir(exist_ok=True)
+    shot = ARTIFACTS / "report.png"
+    shot.unlink(missing_ok=True)
+    subprocess.run(
+        [
+            _chromium(),
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            f"--user-data-dir={tmp_path}",
+            "--window-size=1100,2400",
+            f"--screenshot={shot}",
+            (reported["out"] / "report.html").as_uri(),
+        ],
+        capture_output=True,
+        timeout=60,
+        check=False,
+    )
+    from PIL import Image
+
+    image = np.asarray(Image.open(shot).convert("L"), dtype=float)
+    assert image.shape == (2400, 1100)
+    assert image.std() > 20, "the page shows text and plots, not a blank page"
