@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -67,3 +68,11 @@ def walking():
     from gait_biofeedback.sim.simulator import SCENARIOS, simulate
 
     return simulate(SCENARIOS["calibration_walking"](seed=6))
+
+
+def find_chromium() -> str | None:
+    """Debian's chromium (or a Chrome) on PATH; None when no browser is installed."""
+    for name in ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable"):
+        if path := shutil.which(name):
+            return path
+    return None

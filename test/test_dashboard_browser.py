@@ -21,19 +21,13 @@ import urllib.request
 from pathlib import Path
 
 import pytest
+from conftest import find_chromium
 
 from gait_biofeedback.sim.recording import write_simulated_bag
 from gait_biofeedback.sim.simulator import Phase, SimulationConfig, simulate
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(120)]
 ARTIFACTS = Path(__file__).resolve().parents[1] / "test-artifacts"
-
-
-def find_chromium() -> str | None:
-    for name in ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable"):
-        if path := shutil.which(name):
-            return path
-    return None
 
 
 class Browser:

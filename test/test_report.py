@@ -12,13 +12,13 @@ import csv
 import io
 import math
 import re
-import shutil
 import subprocess
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import find_chromium
 
 from gait_biofeedback.cli import main
 from gait_biofeedback.parameters import load_params_file
@@ -292,12 +292,8 @@ def test_a_norms_file_replaces_a_band_and_names_its_source(tmp_path, reported):
     assert "Clinic cohort 2026" in html and "0.40–0.80 m/s" in html
 
 
-def _chromium() -> str | None:
-    return next((p for p in map(shutil.which, ("chromium", "chromium-browser", "google-chrome")) if p), None)
-
-
 @pytest.mark.skipif(
-    _chromium() is None,
+    find_chromium() is None,
     reason="chromium not installed: run `bash scripts/setup_browser.sh` (apt-get install chromium)",
 )
 def test_the_html_renders_in_headless_chromium(reported, tmp_path):
@@ -306,7 +302,7 @@ def test_the_html_renders_in_headless_chromium(reported, tmp_path):
     shot.unlink(missing_ok=True)
     subprocess.run(
         [
-            _chromium(),
+            find_chromium(),
             "--headless",
             "--no-sandbox",
             "--disable-gpu",

@@ -107,7 +107,8 @@ def _inside(row: dict, bouts: list[tuple[float, float]]) -> bool:
     return any(row["start_s"] >= a - BOUT_LEAD_S and row["end_s"] <= b + BOUT_TAIL_S for a, b in bouts)
 
 
-def _stats(values: list[float]) -> tuple[float, float, int]:
+def mean_sd_n(values: list[float]) -> tuple[float, float, int]:
+    """(mean, SD, n) of the finite values; SD NaN below two, (NaN, NaN, 0) without any."""
     v = np.array([x for x in values if math.isfinite(x)], dtype=float)
     if not len(v):
         return math.nan, math.nan, 0
@@ -243,7 +244,7 @@ def analyse_session(data: SessionData, targets: Targets) -> SessionAnalysis:
     }
     table = {}
     for name in TABLE:
-        table[name] = {side: _stats([r[name] for r in used if r["side"] == side]) for side in SIDES}
+        table[name] = {side: mean_sd_n([r[name] for r in used if r["side"] == side]) for side in SIDES}
     symmetry = {}
     for name in SYMMETRY:
         per_side = {

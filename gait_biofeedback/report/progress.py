@@ -9,10 +9,8 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from gait_biofeedback.report import figures
-from gait_biofeedback.report.analysis import SessionAnalysis
+from gait_biofeedback.report.analysis import SessionAnalysis, mean_sd_n
 from gait_biofeedback.report.content import DISPLAY, shown
 from gait_biofeedback.report.document import Figure, Paragraph, Section, Table
 from gait_biofeedback.report.norms import MCID
@@ -54,17 +52,7 @@ def value_of(analysis: SessionAnalysis, source: str, side: str | None) -> tuple[
         return analysis.gps["overall"], math.nan, 0
     if source.startswith("symmetry:"):
         return analysis.symmetry[source.split(":")[1]], math.nan, 0
-    v = np.array(
-        [
-            r[source]
-            for r in analysis.used
-            if (side is None or r["side"] == side) and math.isfinite(r[source])
-        ],
-        dtype=float,
-    )
-    if not len(v):
-        return math.nan, math.nan, 0
-    return float(v.mean()), float(v.std(ddof=1)) if len(v) > 1 else math.nan, len(v)
+    return mean_sd_n([r[source] for r in analysis.used if side is None or r["side"] == side])
 
 
 def progress_section(labels: list[str], analyses: list[SessionAnalysis]) -> Section:
