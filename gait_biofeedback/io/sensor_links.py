@@ -2,8 +2,11 @@
 
 Every link has ``receive(timeout_s) -> [(frame bytes, arrival ns), ...]`` (what came within the
 timeout, possibly nothing) and ``close()``. Arrival times are host (ROS) time: the kernel's receive
-timestamp of a datagram (``SO_TIMESTAMPNS``, unaffected by a busy Python process), else the time the
-bytes were read. Frames are in :mod:`gait_biofeedback.core.driver.protocol`'s format.
+timestamp of a datagram (``SO_TIMESTAMPNS``, else ``SO_TIMESTAMP``; unaffected by a busy Python
+process), else the time the bytes were read: :attr:`UdpLink.arrival_clock` says which, and the driver
+names it on ``/diagnostics``. Sandboxed kernels (gVisor, some containers) accept the options and deliver
+no stamp; then the link reads at once instead of gathering, so each stamp is late by the wake-up only.
+Frames are in :mod:`gait_biofeedback.core.driver.protocol`'s format.
 """
 
 from __future__ import annotations
@@ -19,8 +22,12 @@ from gait_biofeedback.core.driver.protocol import FrameReader
 
 Received = list[tuple[bytes, int]]
 _TIMESPEC = struct.Struct("@qq")
-_SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35 if sys.platform.startswith("linux") else None)
-"""Linux's SO_TIMESTAMPNS (= SCM_TIMESTAMPNS, asm-generic/socket.h), which Python 3.11 does not name."""
+_LINUX = sys.platform.startswith("linux")
+_SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35 if _LINUX else None)
+_SO_TIMESTAMP = getattr(socket, "SO_TIMESTAMP", 29 if _LINUX else None)
+"""Linux's SO_TIMESTAMP(NS) (= SCM_TIMESTAMP(NS), asm-generic/socket.h; struct timespec / timeval), which
+Python 3.11 does not name."""
+_UNIT_NS = {_SO_TIMESTAMPNS: 1, _SO_TIMESTAMP: 1000}
 
 
 class UdpLink:
@@ -32,13 +39,16 @@ class UdpLink:
 
     RECEIVE_BUFFER = 4 << 20
     GATHER_S = 0.005
+    arrival_clock: str | None = None
+    """``"kernel"`` once a datagram came with a receive timestamp, ``"read"`` once one came without
+    (from then on: stamped when read, no gathering wait), ``None`` before the first datagram."""
 
     def __init__(self, address: str = "127.0.0.1", port: int = 5600) -> None:
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         try:
             self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, self.RECEIVE_BUFFER)
-            if _SO_TIMESTAMPNS is not None:
-                self.sock.setsockopt(socket.SOL_SOCKET, _SO_TIMESTAMPNS, 1)
+            self._stamp_options = [o for o in (_SO_TIMESTAMPNS, _SO_TIMESTAMP) if o is not None]
+            self._ask_kernel_for_stamps()
             self.sock.bind((address, port))
         except OSError as err:
             self.sock.close()
@@ -53,18 +63,34 @@ class UdpLink:
         out: Received = []
         if not ready:
             return out
-        time.sleep(self.GATHER_S)
+        if self.arrival_clock != "read":
+            time.sleep(self.GATHER_S)
         while True:
             try:
                 data, ancillary, _, _ = self.sock.recvmsg(65536, 64)
             except BlockingIOError:
                 return out
+            read_ns = time.time_ns()
             arrival = None
             for level, kind, value in ancillary:
-                if level == socket.SOL_SOCKET and kind == _SO_TIMESTAMPNS and len(value) >= _TIMESPEC.size:
-                    sec, nsec = _TIMESPEC.unpack_from(value)
-                    arrival = sec * 1_000_000_000 + nsec
-            out.append((data, arrival if arrival is not None else time.time_ns()))
+                if level == socket.SOL_SOCKET and kind in _UNIT_NS and len(value) >= _TIMESPEC.size:
+                    sec, fraction = _TIMESPEC.unpack_from(value)
+                    arrival = sec * 1_000_000_000 + fraction * _UNIT_NS[kind]
+            if arrival is not None:
+                self.arrival_clock = "kernel"
+            elif self.arrival_clock != "kernel":
+                self._ask_kernel_for_stamps()
+            out.append((data, arrival if arrival is not None else read_ns))
+
+    def _ask_kernel_for_stamps(self) -> None:
+        """Enable the next timestamp option this kernel accepts; none left: stamp when read."""
+        while self._stamp_options:
+            try:
+                self.sock.setsockopt(socket.SOL_SOCKET, self._stamp_options.pop(0), 1)
+                return
+            except OSError:
+                continue
+        self.arrival_clock = "read"
 
     def close(self) -> None:
         self.sock.close()

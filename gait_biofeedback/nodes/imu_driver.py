@@ -124,12 +124,16 @@ class ImuDriverNode(GuardedNode):
         bad = getattr(self.link, "bad_frames", 0)
         problem = getattr(self.link, "problem", None)
         level = diagnostics.ERROR if problem else diagnostics.WARN if bad else diagnostics.OK
+        read_stamps = getattr(self.link, "arrival_clock", None) == "read"
         text = problem or (f"{self.link.description}, {100 * cpu:.1f} % of a core"
-                           + (f", {bad} corrupt frame(s) skipped on the line" if bad else ""))
+                           + (f", {bad} corrupt frame(s) skipped on the line" if bad else "")
+                           + (", this kernel gives no receive timestamps: arrivals stamped when read "
+                              "(more jitter in the clock fit)" if read_stamps else ""))
         statuses.append(diagnostics.status(
             "imu_driver: receiving", level, text, hardware_id=self.link.description,
             values={"cpu_fraction": cpu, "line_bad_frames": bad,
-                    "reconnects": getattr(self.link, "reconnects", 0)}))
+                    "reconnects": getattr(self.link, "reconnects", 0),
+                    "arrival_clock": getattr(self.link, "arrival_clock", None) or "unknown"}))
         self.publish_diagnostics(statuses)
 
     def destroy_node(self) -> None:
