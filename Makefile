@@ -11,11 +11,13 @@ setup:
 demo: setup
 	$(PY) -m gait_biofeedback.cli demo
 
-# the outer KILL timeout is the last guard: a hung rclpy process ignores SIGTERM
+# the outer KILL timeout is the last guard: a hung rclpy process ignores SIGTERM. Two pytest-xdist
+# workers, one test module each at a time (module fixtures built once), each on its own DDS domain
+# (test/conftest.py): most tests wait on a live graph or a subprocess, so two cores run it in ~4.5 min
 test: setup
 	@bash scripts/setup_browser.sh
 	$(PY) -m ruff check gait_biofeedback test benchmarks scripts
-	timeout -s KILL 1200 $(PY) -m pytest -q
+	timeout -s KILL 1200 $(PY) -m pytest -q -n 2 --dist loadfile
 
 lint: setup
 	$(PY) -m ruff check gait_biofeedback test benchmarks scripts

@@ -343,7 +343,8 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
 
     def said() -> None:
         for stream in streams:
-            result.warnings.extend(n.text for n in stream.notices.pop() if n.level != "info")
+            if stream.notices:
+                result.warnings.extend(n.text for n in stream.notices.pop() if n.level != "info")
 
     in_force: list[SessionCalibration] = []
 

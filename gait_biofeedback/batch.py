@@ -114,6 +114,8 @@ __all__ = [
     "AnalysisResult",
     "BagReader",
     "BagWriter",
+    "BatchOptions",
+    "BatchResult",
     "BodyDimensions",
     "DeviceClock",
     "DeviceSample",
@@ -166,6 +168,7 @@ __all__ = [
     "estimate_relative_heading",
     "estimate_relative_orientation",
     "events_from_signal",
+    "find_recordings",
     "find_standing_then_motion",
     "foot_calibration",
     "foot_pitch_sine",
@@ -187,6 +190,7 @@ __all__ = [
     "quaternion",
     "read_imu_bag",
     "read_session",
+    "run_batch",
     "sagittal_rate",
     "seconds_to_ns",
     "segment_orientations",
@@ -200,11 +204,17 @@ __all__ = [
     "write_simulated_bag",
 ]
 
-# The report writer pulls in matplotlib and fpdf2 (0.7 s): imported on first use only.
+# The report writer pulls in matplotlib and fpdf2 (0.7 s), the cohort runner Dask: imported on first use.
 if TYPE_CHECKING:
+    from gait_biofeedback.cohort.run import BatchResult, run_batch
+    from gait_biofeedback.cohort.sessions import find_recordings
+    from gait_biofeedback.cohort.task import BatchOptions
     from gait_biofeedback.report.build import Patient, write_report
 
-_LAZY = {"Patient": "gait_biofeedback.report.build", "write_report": "gait_biofeedback.report.build"}
+_LAZY = {"Patient": "gait_biofeedback.report.build", "write_report": "gait_biofeedback.report.build",
+         "run_batch": "gait_biofeedback.cohort.run", "BatchResult": "gait_biofeedback.cohort.run",
+         "BatchOptions": "gait_biofeedback.cohort.task",
+         "find_recordings": "gait_biofeedback.cohort.sessions"}
 
 
 def __getattr__(name: str):

@@ -41,16 +41,24 @@ def _progress(total: int, desc: str):
                 disable=not sys.stderr.isatty())
 
 
+DURATION_SCENARIOS = ("training", "walk")
+
+
 def cmd_simulate(args: argparse.Namespace) -> int:
     from gait_biofeedback.io.bag_writer import check_output
     from gait_biofeedback.sim.recording import write_simulated_bag
     from gait_biofeedback.sim.simulator import SCENARIOS, simulate
 
+    if args.duration is not None and args.scenario == "demo":
+        args.scenario = "training"  # the demo has its own length; a duration asks for a longer session
     if args.scenario not in SCENARIOS:
         print(f"unknown scenario {args.scenario!r}; choose one of {sorted(SCENARIOS)}", file=sys.stderr)
         return 2
+    if args.duration is not None and args.scenario not in DURATION_SCENARIOS:
+        raise ValueError(f"--duration sets the length of the scenarios {', '.join(DURATION_SCENARIOS)}, "
+                         f"not of {args.scenario!r}; e.g. --scenario training --duration 600")
     check_output(args.output, args.overwrite)
-    config = SCENARIOS[args.scenario]()
+    config = SCENARIOS[args.scenario](**({} if args.duration is None else {"duration": args.duration}))
     config.rate_hz = args.rate
     config.seed = args.seed
     if args.no_mag:
@@ -251,6 +259,33 @@ def cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_batch(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from gait_biofeedback.analyze import parse_calibrate_at
+    from gait_biofeedback.cohort.run import run_batch
+    from gait_biofeedback.cohort.task import BatchOptions
+
+    requests = tuple(args.calibrate_at or ["auto"])
+    for text in requests:
+        parse_calibrate_at(text)  # a bad request is refused before any worker starts
+    options = BatchOptions(requests, _session_parameters(args.params), report=not args.no_report)
+    with tqdm(desc="batch", unit="session", disable=not sys.stderr.isatty()) as bar:
+        def done(row: dict) -> None:
+            bar.update()
+            if row["status"] != "done":
+                bar.write(f"{row['session']}: failed: {row['error']}", file=sys.stderr)
+
+        result = run_batch(args.inputs, args.output, options, args.workers, args.scheduler, on_done=done)
+    print(f"batch: {len(result.analysed)} analysed, {len(result.skipped)} skipped (done before, same "
+          f"recording), {len(result.failed)} failed")
+    for name, error in sorted(result.failed.items()):
+        print(f"failed: {name}: {error}  (details: {Path(args.output) / name / 'session.json'}; "
+              "run the batch again to retry)", file=sys.stderr)
+    print(f"wrote {result.csv} and {result.parquet} ({len(result.rows)} sessions)")
+    return 1 if result.failed else 0
+
+
 def cmd_params(args: argparse.Namespace) -> int:
     from gait_biofeedback.parameters import NODE_PARAMETERS, load_params_file, parameter_table
 
@@ -343,6 +378,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("simulate", help="synthetic session with ground truth → MCAP recording")
     p.add_argument("-o", "--output", required=True, help="output bag folder (rosbag2: metadata.yaml + .mcap)")
     p.add_argument("--scenario", default="demo", help="what the subject does [%(default)s]")
+    p.add_argument("--duration", type=float, default=None,
+                   help="length, s, of a training session (the demo's calibration, then 50 s walking laps; "
+                   "the default scenario becomes 'training') or of the walk scenario's walking")
     p.add_argument("--rate", type=float, default=100.0, help="IMU sampling rate, Hz [%(default)s]")
     p.add_argument("--seed", type=int, default=0, help="random seed (same seed, same file) [%(default)s]")
     p.add_argument("--no-mag", action="store_true", help="sensors without magnetometer")
@@ -397,6 +435,27 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--norms", default=None, help="YAML of normative bands replacing the built-in ones")
     p.add_argument("--targets", default=None, help="targets of the offline cues [config/targets.yaml]")
     p.set_defaults(func=cmd_report)
+
+    p = sub.add_parser(
+        "batch", help="analyse many recordings in parallel on Dask (a local cluster or a scheduler): one "
+        "analysis and report per session, a cohort table", description="Analyse every recording of "
+        "INPUTS (a folder, searched recursively, or a glob; quote it) as `analyze` and `report` would, "
+        "on Dask distributed workers: OUT/<session>/analysis (the output bag), OUT/<session>/report, "
+        "OUT/<session>/session.json, and OUT/cohort.csv and OUT/cohort.parquet with one row per session. "
+        "Sessions already done for the same recording are skipped; a failing one is reported and the "
+        "others go on (exit 1 if any failed).")
+    p.add_argument("inputs", metavar="GLOB_OR_DIR", help="folder of recordings, one recording, or a glob")
+    p.add_argument("-o", "--output", required=True, help="folder for the sessions' outputs and the table")
+    p.add_argument("--workers", type=int, default=None,
+                   help="worker processes of the local cluster [one per core]")
+    p.add_argument("--scheduler", metavar="ADDRESS", default=None,
+                   help="run on the Dask scheduler at ADDRESS (e.g. tcp://10.0.0.5:8786) instead of a local "
+                   "cluster; its workers need this package and the same paths")
+    p.add_argument("--calibrate-at", action="append", metavar="T:PROTOCOL",
+                   help="as for analyze, the same for every session [auto]")
+    p.add_argument("--params", default=None, help="ROS 2 parameter file, the same for every session")
+    p.add_argument("--no-report", action="store_true", help="no report files (the cohort row still)")
+    p.set_defaults(func=cmd_batch)
 
     p = sub.add_parser("run", help="run the processing graph on live sensors (--driver) or live topics "
                        "until Ctrl-C")

@@ -12,7 +12,13 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 # One DDS domain per test process (1..100), inherited by the subprocesses the tests start: test runs
 # side by side on one machine must not hear each other's topics.
-os.environ["ROS_DOMAIN_ID"] = os.environ.get("GAIT_TEST_DOMAIN_ID", str(1 + os.getpid() % 100))
+# Under pytest-xdist (`-n 2`) each worker takes its own domain of its run's pair, from the run's pid.
+_WORKER = os.environ.get("PYTEST_XDIST_WORKER", "")
+if _WORKER:
+    _DOMAIN = 1 + os.getppid() % 50 * 2 + int(_WORKER.removeprefix("gw")) % 2
+else:
+    _DOMAIN = 1 + os.getpid() % 100
+os.environ["ROS_DOMAIN_ID"] = os.environ.get("GAIT_TEST_DOMAIN_ID", str(_DOMAIN))
 SHARED_DATA = REPO.parent / "shared" / "data"
 
 

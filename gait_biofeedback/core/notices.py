@@ -31,6 +31,9 @@ class Notices:
             raise ValueError(f"notice level must be one of {LEVELS}, got {level!r}")
         self._items.append(Notice(level, text))
 
+    def __bool__(self) -> bool:
+        return bool(self._items)
+
     def pop(self) -> list[Notice]:
         """Everything said since the last call (and forget it)."""
         out, self._items = self._items, []

@@ -4,18 +4,31 @@ Quaternions are numpy arrays ``(..., 4)`` ordered ``(w, x, y, z)``, Hamilton pro
 orientation ``q`` rotates sensor-frame vectors into the world frame (ENU, z up):
 ``v_world = q ⊗ [0, v_sensor] ⊗ q*`` = ``as_matrix(q) @ v_sensor`` (orientation.md §1.1, thesis
 Eq 10/31). Strap-down kinematics are ``q̇ = ½ q ⊗ [0, ω]`` with ω in the sensor frame (thesis Eq 7–8).
-All functions broadcast over leading dimensions.
+All functions broadcast over leading dimensions. One quaternion (or vector) at a time, as the streams
+call them per sample, takes a path on Python floats: the same IEEE operations in the same order,
+without numpy's per-call overhead (:func:`_single`).
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
 IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
 
 
+def _single(*arrays: object) -> bool:
+    """All are 1-D float64 arrays (one quaternion or vector each)."""
+    return all(type(a) is np.ndarray and a.ndim == 1 and a.dtype == np.float64 for a in arrays)
+
+
 def normalize(q: np.ndarray) -> np.ndarray:
     """Unit-norm copy of ``q`` (any leading shape)."""
+    if _single(q):
+        w, x, y, z = q.tolist()
+        n = math.sqrt(w * w + x * x + y * y + z * z)
+        return np.array((w / n, x / n, y / n, z / n))
     q = np.asarray(q, dtype=float)
     return q / np.linalg.norm(q, axis=-1, keepdims=True)
 
@@ -28,12 +41,20 @@ def canonical(q: np.ndarray) -> np.ndarray:
 
 def conjugate(q: np.ndarray) -> np.ndarray:
     """Conjugate ``q*``: the inverse rotation of a unit quaternion."""
+    if _single(q):
+        w, x, y, z = q.tolist()
+        return np.array((w, -x, -y, -z))
     q = np.asarray(q, dtype=float)
     return q * np.array([1.0, -1.0, -1.0, -1.0])
 
 
 def multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Hamilton product ``p ⊗ q`` (apply q first, then p)."""
+    if _single(p, q):
+        pw, px, py, pz = p.tolist()
+        qw, qx, qy, qz = q.tolist()
+        return np.array((pw * qw - px * qx - py * qy - pz * qz, pw * qx + px * qw + py * qz - pz * qy,
+                         pw * qy - px * qz + py * qw + pz * qx, pw * qz + px * qy - py * qx + pz * qw))
     p = np.asarray(p, dtype=float)
     q = np.asarray(q, dtype=float)
     pw, px, py, pz = np.moveaxis(p, -1, 0)
@@ -56,6 +77,12 @@ def skew(v: np.ndarray) -> np.ndarray:
 
 def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Rotate vectors ``v`` (..., 3) by ``q``: ``q ⊗ [0, v] ⊗ q*``."""
+    if _single(q, v):
+        w, x, y, z = q.tolist()
+        a, b, c = v.tolist()
+        tx, ty, tz = 2.0 * (y * c - z * b), 2.0 * (z * a - x * c), 2.0 * (x * b - y * a)
+        return np.array((a + w * tx + (y * tz - z * ty), b + w * ty + (z * tx - x * tz),
+                         c + w * tz + (x * ty - y * tx)))
     q = np.asarray(q, dtype=float)
     v = np.asarray(v, dtype=float)
     w = q[..., :1]
@@ -71,6 +98,11 @@ def rotate_inverse(q: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 def as_matrix(q: np.ndarray) -> np.ndarray:
     """Rotation matrix ``R(q)`` (..., 3, 3) with ``R @ v_sensor = v_world`` (orientation.md §1.1)."""
+    if _single(q):
+        w, x, y, z = normalize(q).tolist()
+        return np.array(((1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)),
+                         (2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)),
+                         (2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y))))
     w, x, y, z = np.moveaxis(normalize(q), -1, 0)
     return np.stack(
         [

@@ -30,6 +30,7 @@ OP_HEADER, OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK = 0x01, 0x02, 
 OP_MESSAGE_INDEX, OP_CHUNK_INDEX, OP_STATISTICS, OP_METADATA, OP_DATA_END = 0x07, 0x08, 0x0B, 0x0C, 0x0F
 _RECORD_HEAD = struct.Struct("<BQ")
 _MESSAGE_HEAD = struct.Struct("<HIQQ")
+_CHANNEL_ID = struct.Struct("<H")  # the head of a message record
 _FOOTER_SIZE = 1 + 8 + 20
 _NO_LIMIT = 2**64 - 1
 _DAMAGE_ERRORS = (ValueError, struct.error, zstandard.ZstdError, RuntimeError, UnicodeDecodeError, IndexError)
@@ -389,13 +390,11 @@ class McapFile:
         except _DAMAGE_ERRORS as err:
             self._set_aside(chunk.offset, chunk, f"{type(err).__name__}: {err}")
             return []
-        out = []
-        for op, data, p, q in records:
-            if op == OP_MESSAGE:
-                message = _message(data, p, q)
-                if channel_ids is None or message.channel_id in channel_ids:
-                    out.append(message)
-        return out
+        if channel_ids is None:
+            return [_message(data, p, q) for op, data, p, q in records if op == OP_MESSAGE]
+        channel_of = _CHANNEL_ID.unpack_from
+        return [_message(data, p, q) for op, data, p, q in records
+                if op == OP_MESSAGE and channel_of(data, p)[0] in channel_ids]
 
     def messages(
         self, channel_ids: frozenset[int] | None = None, start: int | None = None, stop: int | None = None

@@ -734,6 +734,30 @@ def calibration_walking(**kw) -> SimulationConfig:
     return _cfg([Phase("stand", 5.0), Phase("walk", 7.0), Phase("stand", 2.0)], **kw)
 
 
+TRAINING_LAP = (("walk", 20.0, {}), ("turn", 4.0, {"angle": np.pi}), ("walk", 20.0, {}), ("stand", 6.0, {}))
+"""One lap of :func:`training`: 50 s."""
+
+
+def training(duration: float = 600.0, **kw) -> SimulationConfig:
+    """A walking-training session of ``duration`` s (at least 60): standing 5 s, the hip-flexion
+    calibration 30 s, standing 5 s, then laps (walk 20 s, a 180° turn, walk 20 s, stand 6 s) until
+    ``duration``, the last phase cut short (a walk or stand of under 2 s is left out)."""
+    if not duration >= 60.0:
+        raise ValueError(f"training: duration {duration:g} s is too short; give at least 60 s (40 s of "
+                         "preamble and one walk)")
+    phases = [Phase("stand", 5.0), Phase("hip_flexion", 30.0, {"side": "both"}), Phase("stand", 5.0)]
+    left = duration - 40.0
+    while left >= 2.0:
+        for kind, length, params in TRAINING_LAP:
+            if kind == "turn" and left < length + 2.0:  # no turn into the end of the session
+                left = 0.0
+            if left < 2.0:
+                break
+            phases.append(Phase(kind, min(length, left), dict(params)))
+            left -= phases[-1].duration
+    return _cfg(phases, **kw)
+
+
 def activity(**kw) -> SimulationConfig:
     """Sit / stand / walk / lie sequence for the chest activity monitor (thesis Ch. 7)."""
     return _cfg([Phase("stand", 4.0), Phase("stand_to_sit", 2.5), Phase("sit", 8.0), Phase("sit_to_lie", 3.0),
@@ -766,6 +790,7 @@ def magnet_near_thigh(**kw) -> SimulationConfig:
 SCENARIOS: dict[str, Callable[..., SimulationConfig]] = {
     "demo": demo,
     "walk": walk,
+    "training": training,
     "calibration_hip_flexion": calibration_hip_flexion,
     "calibration_walking": calibration_walking,
     "activity": activity,

@@ -20,6 +20,7 @@ mirrored because its z axis points laterally-right = medially. Gimbal lock at |b
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable
 from typing import Any
 
@@ -99,6 +100,10 @@ def angles_from_relative_rotation(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Clinical (flexion, adduction, internal_rotation) in rad of ``q_rel`` (..., 4), gait.md §1.8."""
     s_fe, s_aa, s_ie = _signs(joint, side)
+    if quat._single(q_rel):  # one instant, as the stream asks: the same formulas on floats
+        (_, m01, _), (_, m11, _), (m20, m21, m22) = quat.as_matrix(q_rel).tolist()
+        return (s_fe * math.atan2(-m01, m11), s_aa * math.asin(min(max(m21, -1.0), 1.0)),
+                s_ie * math.atan2(-m20, m22))
     m = quat.as_matrix(q_rel)
     b = np.arcsin(np.clip(m[..., 2, 1], -1.0, 1.0))
     a = np.arctan2(-m[..., 0, 1], m[..., 1, 1])
