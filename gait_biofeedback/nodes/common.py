@@ -234,7 +234,7 @@ class DomainInUseError(ValueError):
     CLI prints it in one line)."""
 
 
-def refuse_other_graph(context: Context, names: Iterable[str], settle: float = 0.2) -> None:
+def refuse_other_graph(context: Context, names: Iterable[str], settle: float = 0.6) -> None:
     """Raise :class:`DomainInUseError` when another process on this ROS domain (and namespace) already runs
     a node called one of ``names``: two graphs on one domain process each other's data (joint states
     of both patients in one bag). Checked before the nodes exist (no file is opened), for ``settle`` s
