@@ -80,7 +80,7 @@ def analyse_one(recording: Recording, out: str | Path, options: BatchOptions) ->
         record["traceback"] = traceback.format_exc()
     row["analysis_s"] = round(time.perf_counter() - started, 3)
     row["worker_peak_rss_mb"] = round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)
-    record.update(status=row["status"], row=row, options={**asdict(options), "params": options.params})
+    record.update(status=row["status"], row=row, options=asdict(options))
     _write_atomically(where / SESSION_FILE, json.dumps(record, indent=1, default=str, allow_nan=True))
     return row
 
