@@ -21,7 +21,7 @@ def test_node_reports_the_simulated_transitions(tmp_path):
     session = simulate(config)
     bag = write_simulated_bag(tmp_path / "in", session)
     out = tmp_path / "out"
-    replay_through_graph(bag, out, speed=8.0, nodes=["activity_monitor"], timeout=90)
+    replay_through_graph(bag, out, speed=4.0, nodes=["activity_monitor"], timeout=90)
     states = [m for _, m, _ in BagReader(out).messages(["/activity/state"])]
     assert states, "the node published its state"
     seen = []
