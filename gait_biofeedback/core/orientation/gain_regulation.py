@@ -11,6 +11,8 @@ Schemes for one shared gain (Madgwick β, Mahony k_p):
 - ``three_level`` (VST2, READING of orientation.md §3.3, equation not written in the thesis):
   ``gains[0]`` if Δ_A < S_A1 and Δ_M < S_M1; else ``gains[1]`` if Δ_A < S_A2 and Δ_M < S_M2;
   else ``gains[2]``.
+- ``fuzzy`` (VST3, thesis §4.2.2.2): the Mamdani system of
+  :class:`~gait_biofeedback.core.orientation.fuzzy.SharedGainFIS` (:class:`FuzzyGainRegulator`).
 Without a magnetometer (Δ_M is None) only the accelerometer condition applies (Madgwick(IMU), Table 10).
 For Kalman filters each noise level switches on its own signal (thesis Eq 48–50): :func:`switch_level`.
 """
@@ -19,7 +21,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-SCHEMES = ("fixed", "two_level", "three_level")
+SCHEMES = ("fixed", "two_level", "three_level", "fuzzy")
+"""Gain schemes of the complementary filters (thesis Table 5: FOG, VST1, VST2, VST3)."""
 
 
 def switch_level(signal: float, thresholds: Sequence[float], levels: Sequence[float]) -> float:
@@ -40,7 +43,10 @@ class GainRegulator:
 
     def __init__(self, scheme: str, gains: Sequence[float], acc_thresholds: Sequence[float] = (),
                  mag_thresholds: Sequence[float] = ()) -> None:
-        if scheme not in SCHEMES:
+        if scheme == "iae":
+            raise ValueError("gain scheme 'iae' (innovation adaptive estimation of 𝒬) exists for the Kalman "
+                             "filter guo_fkf only (thesis §4.2.2.3); expected one of " + ", ".join(SCHEMES))
+        if scheme not in SCHEMES[:3]:
             raise ValueError(f"unknown gain scheme {scheme!r}; expected one of {SCHEMES}")
         levels = {"fixed": 1, "two_level": 2, "three_level": 3}[scheme]
         if len(gains) < levels:
@@ -62,3 +68,24 @@ class GainRegulator:
             level += 1
         self.level = level
         return self.gains[level]
+
+
+class FuzzyGainRegulator:
+    """VST3: the shared gain from the Mamdani system on (Δ_A, Δ_M); same interface as
+    :class:`GainRegulator` (``level``: the strongest rule, 0 = most trust in acc/mag)."""
+
+    scheme = "fuzzy"
+
+    def __init__(self, acc: Sequence[float], mag: Sequence[float], gain: Sequence[float]) -> None:
+        from gait_biofeedback.core.orientation.fuzzy import SharedGainFIS
+
+        self.fis = SharedGainFIS(acc, mag, gain)
+        self.gains = (self.fis(0.0, 0.0),)
+        self.level = 0
+
+    def gain(self, dev_acc: float, dev_mag: float | None = None) -> float:
+        """Gain for the current deviations (dimensionless, see module docstring)."""
+        g = self.fis(dev_acc, dev_mag)
+        low, mid, high = self.fis.firing
+        self.level = 0 if high >= max(mid, low) else 1 if mid >= low else 2
+        return g

@@ -60,7 +60,8 @@ from gait_biofeedback.core.orientation.filters import (
     calibrate_from_rest,
     quiet_samples,
 )
-from gait_biofeedback.core.orientation.filters.config import load_tuned
+from gait_biofeedback.core.orientation.filters.config import load_tuned, segment_location
+from gait_biofeedback.core.orientation.filters.guo_fkf import KF_SCHEMES
 from gait_biofeedback.core.orientation.reacquire import attitude_after_gap
 from gait_biofeedback.core.params import param, require
 from gait_biofeedback.core.rate import MISSING_WARN, RateCheck
@@ -69,6 +70,7 @@ from gait_biofeedback.core.sequencer import DROPPED, StreamSequencer
 from gait_biofeedback.core.stamps import NS_PER_S, ns_to_seconds, seconds_to_ns
 
 _CHOICES = tuple(sorted(ALGORITHMS))
+_SCHEMES = KF_SCHEMES  # fixed, two_level, three_level, fuzzy, iae: every scheme of thesis ch. 4
 RANGE_MARGIN = 1.1
 """A sample is rejected beyond its range by this factor: a sensor that saturates (a heel strike on a
 ±16 g accelerometer reads up to 158 m/s² on gaitmap's example) is clipped, not glitching."""
@@ -85,6 +87,9 @@ class OrientationParams:
     segment_algorithm: dict[str, str] = param(
         "", "orientation filter of this segment ('' = the 'algorithm' parameter)", choices=("", *_CHOICES),
         keys=SEGMENTS, name="{key}.algorithm")
+    scheme: str = param("", "gain scheme of the filters that have one (thesis ch. 4: fixed = FOG, "
+                        "two_level = VST1, three_level = VST2, fuzzy = VST3, iae = innovation adaptive, "
+                        "guo_fkf only); '' = the tuned one", choices=("", *_SCHEMES))
     rate_hz: float = param(100.0, "nominal sample rate, for the filters' defaults (dt comes from the stamps; "
                            "the rate measured at start-up is used when it differs by over 10 %)",
                            "Hz", low=1.0, high=2000.0)
@@ -121,7 +126,7 @@ class OrientationParams:
     def tracker(self, segment: str) -> SegmentOrientationTracker:
         """The stream of one segment with these parameters."""
         return SegmentOrientationTracker(segment, rate_hz=self.rate_hz, algorithm=self.algorithm_of(segment),
-                                         startup_s=self.startup_s, max_gap=self.max_gap,
+                                         scheme=self.scheme, startup_s=self.startup_s, max_gap=self.max_gap,
                                          mag_max_age=self.mag_max_age, reorder_window=self.reorder_window,
                                          acc_range=self.acc_range, gyr_range=self.gyr_range,
                                          recover_s=self.recover_s)
@@ -152,13 +157,18 @@ class SegmentOrientationTracker:
                  params: dict[str, Any] | None = None, startup_s: float = 1.0, max_gap: float = 0.15,
                  mag_max_age: float = 0.05, mag_delay: float = 0.05, reorder_window: float = 0.03,
                  acc_range: float = 16 * 9.80665, gyr_range: float = 2000 * math.pi / 180,
-                 recover_s: float = 2.0) -> None:
+                 recover_s: float = 2.0, scheme: str = "") -> None:
         self.segment = segment
         self.algorithm = algorithm or DEFAULT_ALGORITHM
         if self.algorithm not in ALGORITHMS:
             raise ValueError(f"{segment}: unknown orientation algorithm {self.algorithm!r}; "
                              f"choose one of {sorted(ALGORITHMS)}")
-        self.params = {**load_tuned().get(self.algorithm, {}), **(params or {})}
+        if scheme and "scheme" not in ALGORITHMS[self.algorithm].DEFAULTS:
+            raise ValueError(f"{segment}: orientation algorithm {self.algorithm!r} has no gain scheme; set "
+                             "'scheme' to '' or choose madgwick, mahony, guo_fkf or roetenberg_ikf")
+        # tuned for this body location (thesis §4.3), else for every sensor; then the scheme and overrides
+        self.params = {**load_tuned(location=segment_location(segment)).get(self.algorithm, {}),
+                       **({"scheme": scheme} if scheme else {}), **(params or {})}
         self.rate_hz = float(rate_hz)
         self.startup_s = float(startup_s)
         self.max_gap = float(max_gap)

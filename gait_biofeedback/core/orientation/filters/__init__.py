@@ -12,11 +12,13 @@ from __future__ import annotations
 
 from gait_biofeedback.core.orientation.filters.base import OrientationFilter
 from gait_biofeedback.core.orientation.filters.batch import estimate_orientation
+from gait_biofeedback.core.orientation.filters.guo_fkf import GuoFKF
 from gait_biofeedback.core.orientation.filters.inertial_cf import InertialCF
 from gait_biofeedback.core.orientation.filters.madgwick import MadgwickFilter
 from gait_biofeedback.core.orientation.filters.mahony import MahonyFilter
 from gait_biofeedback.core.orientation.filters.nazarahari_lkf import NazarahariLKF
 from gait_biofeedback.core.orientation.filters.nazarahari_rekf import NazarahariREKF
+from gait_biofeedback.core.orientation.filters.roetenberg_ikf import RoetenbergIKF
 from gait_biofeedback.core.orientation.filters.startup import (
     StartupCalibration,
     attitude_from_vectors,
@@ -27,11 +29,13 @@ from gait_biofeedback.core.orientation.filters.yi_cf import YiCF
 from gait_biofeedback.core.orientation.filters.zihajehzadeh_ckf import ZihajehzadehCKF
 
 ALGORITHMS: dict[str, type[OrientationFilter]] = {
+    "guo_fkf": GuoFKF,
     "inertial_cf": InertialCF,
     "madgwick": MadgwickFilter,
     "mahony": MahonyFilter,
     "nazarahari_rekf": NazarahariREKF,
     "nazarahari_lkf": NazarahariLKF,
+    "roetenberg_ikf": RoetenbergIKF,
     "yi_cf": YiCF,
     "zihajehzadeh_ckf": ZihajehzadehCKF,
 }
@@ -40,12 +44,14 @@ DEFAULT_ALGORITHM = "inertial_cf"  # lowest mean total RMSE of ours on BROAD (be
 __all__ = [
     "ALGORITHMS",
     "DEFAULT_ALGORITHM",
+    "GuoFKF",
     "InertialCF",
     "MadgwickFilter",
     "MahonyFilter",
     "NazarahariLKF",
     "NazarahariREKF",
     "OrientationFilter",
+    "RoetenbergIKF",
     "StartupCalibration",
     "YiCF",
     "ZihajehzadehCKF",

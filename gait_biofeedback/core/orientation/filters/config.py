@@ -1,4 +1,10 @@
-"""Tuned default parameters shipped in ``config/orientation_filters.yaml``."""
+"""Tuned default parameters shipped in ``config/orientation_filters.yaml``.
+
+Layout: ``algorithms: {name: {params: {...}, tuning: {...}}}`` (one set for every sensor) and, optional,
+``locations: {location: {name: {params: {...}, tuning: {...}}}}``: parameters tuned for the sensors of
+one body location (thesis §4.3: "the optimal gains for one IMU may result in poor performance for
+another IMU"), which override the algorithm's own for the segments there (:func:`segment_location`).
+"""
 
 from __future__ import annotations
 
@@ -7,15 +13,34 @@ from typing import Any
 
 import yaml
 
+from gait_biofeedback.core.segments import SIDES
 from gait_biofeedback.resources import config_path
 
 TUNED_PATH = config_path("orientation_filters.yaml")
 
 
-def load_tuned(path: Path | str | None = None) -> dict[str, dict[str, Any]]:
-    """Per-algorithm parameter dicts from the YAML (``{algorithm: {param: value}}``); {} if absent."""
+def segment_location(segment: str) -> str:
+    """Body location of a segment, the side dropped (``left_shank`` → ``shank``)."""
+    for side in SIDES:
+        if segment.startswith(side + "_"):
+            return segment[len(side) + 1:]
+    return segment
+
+
+def read_tuned(path: Path | str | None = None) -> dict[str, Any]:
+    """The whole YAML document ({} if the file is absent)."""
     p = Path(path) if path is not None else TUNED_PATH
     if not p.is_file():
         return {}
-    data = yaml.safe_load(p.read_text()) or {}
-    return {name: dict(entry.get("params", {})) for name, entry in data.get("algorithms", {}).items()}
+    return yaml.safe_load(p.read_text()) or {}
+
+
+def load_tuned(path: Path | str | None = None, location: str | None = None) -> dict[str, dict[str, Any]]:
+    """Per-algorithm parameter dicts (``{algorithm: {param: value}}``); with ``location``, that location's
+    tuned parameters override each algorithm's own."""
+    data = read_tuned(path)
+    out = {name: dict(entry.get("params", {})) for name, entry in (data.get("algorithms") or {}).items()}
+    if location is not None:
+        for name, entry in ((data.get("locations") or {}).get(location) or {}).items():
+            out[name] = {**out.get(name, {}), **dict(entry.get("params", {}))}
+    return out

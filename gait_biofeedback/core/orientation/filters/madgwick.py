@@ -7,8 +7,9 @@ q ← q ⊗ exp(½ ω_c dt) − β ŝ dt, normalised (closed-form strap-down ins
 The Earth field b = (0, √(h_x²+h_y²), h_z) with h = R(q) m (ENU: horizontal field along +y, north).
 β is regulated by :class:`~gait_biofeedback.core.orientation.gain_regulation.GainRegulator`
 (thesis Eq 23, VST2):
-parameters ``scheme`` ∈ {fixed, two_level, three_level}, ``beta1..3`` (rad/s), ``s_acc1/2``,
-``s_mag1/2`` (dimensionless deviations), ``zeta`` (rad/s²).
+parameters ``scheme`` ∈ {fixed, two_level, three_level, fuzzy}, ``beta1..3`` (rad/s), ``s_acc1/2``,
+``s_mag1/2`` (dimensionless deviations), ``zeta`` (rad/s²); VST3 (``fuzzy``): ``fuzzy_acc``,
+``fuzzy_mag`` (8 numbers each, on the deviations) and ``fuzzy_beta`` (8 numbers, rad/s).
 """
 
 from __future__ import annotations
@@ -19,17 +20,19 @@ from typing import Any, ClassVar
 import numpy as np
 
 from gait_biofeedback.core.orientation.filters import _scalar as sq
-from gait_biofeedback.core.orientation.filters._regulated import regulator_from
+from gait_biofeedback.core.orientation.filters._regulated import FUZZY_DEVIATION, regulator_from
 from gait_biofeedback.core.orientation.filters.base import OrientationFilter
 
 
 class MadgwickFilter(OrientationFilter):
-    """Madgwick MARG/IMU filter with fixed / two-level / three-level β (thesis ch. 4)."""
+    """Madgwick MARG/IMU filter with fixed / two-level / three-level / fuzzy β (thesis ch. 4)."""
 
     name = "madgwick"
     DEFAULTS: ClassVar[dict[str, Any]] = {
         "scheme": "three_level", "beta1": 0.1, "beta2": 0.02, "beta3": 0.002,
         "s_acc1": 0.03, "s_acc2": 0.15, "s_mag1": 0.03, "s_mag2": 0.15, "zeta": 0.0,
+        "fuzzy_acc": FUZZY_DEVIATION, "fuzzy_mag": FUZZY_DEVIATION,
+        "fuzzy_beta": (0.002, 0.02, 0.005, 0.03, 0.05, 0.08, 0.05, 0.12),
     }
 
     def _configure(self, params: dict[str, Any]) -> None:

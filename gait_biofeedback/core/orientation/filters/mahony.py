@@ -6,7 +6,8 @@ Project choice (thesis §2.7 block 6, decouple attitude from y_M): with ``mag_he
 the magnetometer error m̂ × w (w = R(q)ᵀ b, b = (0, √(h_x²+h_y²), h_z)) is projected on the estimated
 up axis v, so a magnetic disturbance can only move the heading, never the inclination.
 k_p is regulated by :class:`~gait_biofeedback.core.orientation.gain_regulation.GainRegulator` (thesis Eq 23,
-VST2): ``scheme``, ``kp1..3`` (rad/s), ``s_acc1/2``, ``s_mag1/2``; ``ki`` (rad/s²) fixed, as in Table 5;
+VST2, VST3): ``scheme``, ``kp1..3`` (rad/s), ``s_acc1/2``, ``s_mag1/2``; ``fuzzy_acc``, ``fuzzy_mag``,
+``fuzzy_kp`` (8 numbers each) for ``scheme: fuzzy``; ``ki`` (rad/s²) fixed, as in Table 5;
 ``mag_weight`` scales the magnetometer error relative to the accelerometer one.
 """
 
@@ -18,18 +19,20 @@ from typing import Any, ClassVar
 import numpy as np
 
 from gait_biofeedback.core.orientation.filters import _scalar as sq
-from gait_biofeedback.core.orientation.filters._regulated import regulator_from
+from gait_biofeedback.core.orientation.filters._regulated import FUZZY_DEVIATION, regulator_from
 from gait_biofeedback.core.orientation.filters.base import OrientationFilter
 
 
 class MahonyFilter(OrientationFilter):
-    """Mahony explicit complementary filter with fixed / two-level / three-level k_p (thesis ch. 4)."""
+    """Mahony explicit complementary filter, fixed / two-level / three-level / fuzzy k_p (thesis ch. 4)."""
 
     name = "mahony"
     DEFAULTS: ClassVar[dict[str, Any]] = {
         "scheme": "three_level", "kp1": 1.0, "kp2": 0.2, "kp3": 0.02,
         "s_acc1": 0.03, "s_acc2": 0.15, "s_mag1": 0.03, "s_mag2": 0.15, "ki": 0.0,
         "mag_weight": 1.0, "mag_heading_only": True,
+        "fuzzy_acc": FUZZY_DEVIATION, "fuzzy_mag": FUZZY_DEVIATION,
+        "fuzzy_kp": (0.02, 0.2, 0.1, 0.3, 0.5, 0.8, 0.5, 1.2),
     }
 
     def _configure(self, params: dict[str, Any]) -> None:
