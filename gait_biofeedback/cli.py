@@ -286,6 +286,40 @@ def cmd_batch(args: argparse.Namespace) -> int:
     return 1 if result.failed else 0
 
 
+def cmd_tune(args: argparse.Namespace) -> int:
+    from gait_biofeedback.tuning.data import broad_recordings, simulated_recordings
+    from gait_biofeedback.tuning.pso import PsoSettings
+    from gait_biofeedback.tuning.run import table, tune, write
+    from gait_biofeedback.tuning.space import SearchSpace
+
+    SearchSpace(args.algorithm, args.scheme)  # a bad name is refused before any data is read
+    if not args.broad and not args.simulated:
+        raise ValueError("tune needs recordings with reference orientations: --broad DIR (BROAD trials) "
+                         "and/or --simulated N (simulated subjects)")
+    locations = args.locations.split(",") if args.locations else None
+    recs = []
+    if args.broad:
+        recs += broad_recordings(args.broad, args.trials.split(",") if args.trials else None)
+    if args.simulated:
+        recs += simulated_recordings(args.simulated, args.sim_seconds, locations)
+    if locations:
+        recs = [r for r in recs if r.location in locations]
+    if not recs:
+        raise ValueError(f"tune: no recording of the locations {locations}")
+    recs = [r.cut(args.seconds) for r in recs]
+    settings = PsoSettings(args.particles, args.iterations, seed=args.seed)
+    verbose = sys.stderr.isatty() or args.verbose
+    results = tune(args.algorithm, args.scheme, recs, settings, args.folds,
+                   log=(lambda m: print(m, file=sys.stderr, flush=True)) if verbose else (lambda _: None))
+    print(table(args.algorithm, args.scheme, results))
+    if args.write is not None:
+        command = "gait-biofeedback tune " + " ".join(sys.argv[2:] if sys.argv[1:2] == ["tune"] else [])
+        path = write(args.algorithm, results, command.strip(), args.write or None,
+                     shared_location="board")
+        print(f"wrote {path}")
+    return 0
+
+
 def cmd_params(args: argparse.Namespace) -> int:
     from gait_biofeedback.parameters import NODE_PARAMETERS, load_params_file, parameter_table
 
@@ -456,6 +490,32 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--params", default=None, help="ROS 2 parameter file, the same for every session")
     p.add_argument("--no-report", action="store_true", help="no report files (the cohort row still)")
     p.set_defaults(func=cmd_batch)
+
+    p = sub.add_parser(
+        "tune", help="optimise an orientation filter's gains by particle swarm (thesis ch. 4) per sensor "
+        "location, cross-validated by group", description="Particle swarm optimisation with the thesis' "
+        "settings (50 particles, 50 iterations, inertia 0.73 damped by 0.99, learning coefficients 1.5) of "
+        "the decision variables of thesis Table 5, on recordings with reference orientations, per location; "
+        "prints the held-out RMSE per location and writes config/orientation_filters.yaml with --write.")
+    p.add_argument("algorithm", choices=("madgwick", "mahony", "guo_fkf", "roetenberg_ikf"))
+    p.add_argument("--scheme", default="two_level",
+                   help="fixed (FOG), two_level (VST1), three_level (VST2), fuzzy (VST3), iae [two_level]")
+    p.add_argument("--broad", metavar="DIR", help="BROAD trials (location 'board', written as the "
+                   "algorithm's parameters for every sensor)")
+    p.add_argument("--trials", help="comma-separated BROAD trial numbers (default: all in DIR)")
+    p.add_argument("--simulated", type=int, default=0, metavar="N", help="N simulated subjects (groups)")
+    p.add_argument("--sim-seconds", type=float, default=30.0, help="walking time per simulated subject [30]")
+    p.add_argument("--locations", help="comma-separated locations to tune (default: all present)")
+    p.add_argument("--seconds", type=float, default=None, help="score only this long after the motion "
+                   "starts (faster tuning)")
+    p.add_argument("--folds", type=int, default=3, help="cross-validation folds by group; 1 = none [3]")
+    p.add_argument("--particles", type=int, default=50)
+    p.add_argument("--iterations", type=int, default=50)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--write", nargs="?", const="", default=None, metavar="YAML",
+                   help="store the result [config/orientation_filters.yaml]")
+    p.add_argument("--verbose", action="store_true", help="progress on stderr even when not a terminal")
+    p.set_defaults(func=cmd_tune)
 
     p = sub.add_parser("run", help="run the processing graph on live sensors (--driver) or live topics "
                        "until Ctrl-C")

@@ -221,15 +221,28 @@ def step(
     qn = np.empty(4)
     for i in range(4):
         qn[i] = qp[i] + K[i, 0] * r0 + K[i, 1] * r1 + K[i, 2] * r2 + K[i, 3] * r3
+    Pn = np.empty((4, 4))
     for i in range(4):
         for j in range(i, 4):
             acc = Pp[i, j]
             for k in range(4):
                 acc -= 0.5 * (K[i, k] * Pp[k, j] + K[j, k] * Pp[k, i])
-            P[i, j] = acc
-            P[j, i] = acc
+            Pn[i, j] = acc
+            Pn[j, i] = acc
     nq = math.sqrt(qn[0] * qn[0] + qn[1] * qn[1] + qn[2] * qn[2] + qn[3] * qn[3])
     for i in range(4):
         q[i] = qn[i] / nq
-        s_diag[i] = S[i, i]
+    # P⁺ projected on the tangent space of the unit sphere at q⁺ (T P T, T = I − q qᵀ): the norm is
+    # fixed by normalising, so no variance is left along q itself
+    Pq = np.zeros(4)
+    for i in range(4):
+        for k in range(4):
+            Pq[i] += Pn[i, k] * q[k]
+    qPq = q[0] * Pq[0] + q[1] * Pq[1] + q[2] * Pq[2] + q[3] * Pq[3]
+    for i in range(4):
+        for j in range(4):
+            P[i, j] = Pn[i, j] - q[i] * Pq[j] - Pq[i] * q[j] + q[i] * q[j] * qPq
+    for i in range(4):
+        # Ŝ for IAE: P⁻ + ℛ of the sensors, without the pseudo-variances (norm, unmeasured heading)
+        s_diag[i] = S[i, i] - _S_FLOOR - _NORM_VARIANCE * zq[i] * zq[i] - (0.0 if has_mag else hv[i] * hv[i])
     innov[0], innov[1], innov[2], innov[3] = r0, r1, r2, r3

@@ -14,7 +14,8 @@ follows the structure it gives, and the reference paper: Guo, Wu, Wang, Qian, Se
   degrees of error on real data). READING: σ_G, σ_A, σ_M are standard deviations
   (they are squared in 𝒬 and ℛ, orientation.md §12 item 17). Units: σ_G rad/s; σ_A in g, σ_M in
   units of ‖y_M,stat‖ (the readings are divided by their reference norms).
-- update: H = I, K = P⁻(P⁻ + ℛ)⁻¹, q⁺ = q⁻ + K(z − q⁻) normalised, P⁺ = (I − K)P⁻.
+- update: H = I, K = P⁻(P⁻ + ℛ)⁻¹, q⁺ = q⁻ + K(z − q⁻) normalised, P⁺ = (I − K)P⁻ projected on the
+  tangent space at q⁺ (T P⁺ T, T = I − q⁺q⁺ᵀ: the norm is set by normalising, not estimated).
 - 6D (no or a gated magnetometer): the measurement is q⁻ tilted the shortest way that puts the
   accelerometer on world up, so its heading is the prior's; a 1 rad² pseudo-variance about world z
   is added to ℛ (the heading is not measured).
@@ -128,7 +129,7 @@ class GuoFKF(OrientationFilter):
 
     def _reset_state(self) -> None:
         self._st = np.zeros(gk.N_STATE)
-        self._st[gk.P0 : gk.P0 + 16] = np.eye(4).ravel() * self.p0
+        self._st[gk.P0 : gk.P0 + 16] = np.eye(4).ravel() * self.p0  # projected at the first update
         self._sigma_g = [self._levels["g"][0]] * 3
         self._st[gk.SG : gk.SG + 3] = self._sigma_g
         self._sigmas = (self._levels["g"][0], self._levels["a"][0], self._levels["m"][0])
