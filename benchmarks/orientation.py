@@ -2,7 +2,15 @@
 """Orientation filters on BROAD: accuracy (total / heading / inclination RMSE) and per-sample cost.
 
 Usage: .venv/bin/python benchmarks/orientation.py [--trials 03,09] [--algorithms mahony,vqf]
-                                                   [--no-peers] [--cost-samples 5000]
+                                                   [--no-peers] [--cost-samples 5000] [--schemes]
+
+``--schemes``: instead, thesis ch. 4's table: every gain-regulated filter (Madgwick, Mahony, Guo,
+Roetenberg) × every scheme it has (FOG, VST1, VST2, VST3, IAE), on the development and held-out
+trials, and the thesis' Table 6 Madgwick gains (thigh, shank, foot; trained on Xsens MTw at 100 Hz)
+run as given. Parameters: with ``--params-dir DIR``, the file ``DIR/<filter>_<scheme>.yaml`` written by
+``gait-biofeedback tune <filter> --scheme <scheme> --write DIR/<filter>_<scheme>.yaml`` (every scheme
+tuned with the same budget: a fair comparison of the schemes); else the shipped tuned ones when they
+were tuned for that scheme, else the filter's defaults for the scheme (marked "untuned").
 
 Data: BROAD (Laidig, Caruso, Cereatti, Seel, "BROAD—A Benchmark for Robust Inertial Orientation
 Estimation", Data 6(7), 2021, CC BY 4.0) from ../shared/data/broad (never copied into the repo).
@@ -132,16 +140,78 @@ def cost_us(name: str, t: dict[str, np.ndarray], n: int, params: dict, method: s
     return float(np.median(best))
 
 
+# thesis Table 6 (orientation.md §4.6): Madgwick gains optimised on the thesis' first three participants
+TABLE_6 = {
+    ("fixed", "thigh"): (0.073, 6e-04), ("fixed", "shank"): (0.004, 6e-06), ("fixed", "foot"): (0.003, 1e-12),
+    ("two_level", "thigh"): (0.082, 1e-05, 0.122, 0.051, 1e-12),
+    ("two_level", "shank"): (0.050, 1e-05, 0.064, 0.085, 9e-05),
+    ("two_level", "foot"): (0.045, 1e-12, 0.019, 0.404, 1e-25),
+    ("three_level", "thigh"): (0.089, 0.005, 0.135, 0.052, 1e-18, 0.200, 0.201, 2e-14),
+    ("three_level", "shank"): (0.082, 1e-03, 0.067, 0.086, 1e-18, 0.150, 0.128, 1e-04),
+    ("three_level", "foot"): (0.050, 0.006, 0.100, 0.200, 1e-18, 0.204, 0.207, 1e-25),
+}
+TABLE_6_NAMES = {"fixed": ("beta1", "zeta"), "two_level": ("beta1", "beta2", "s_acc1", "s_mag1", "zeta"),
+                 "three_level": ("beta1", "beta2", "s_acc1", "s_mag1", "beta3", "s_acc2", "s_mag2", "zeta")}
+SCHEME_LABEL = {"fixed": "FOG", "two_level": "VST1", "three_level": "VST2", "fuzzy": "VST3", "iae": "IAE"}
+
+
+def scheme_runs(params_dir: Path | None = None) -> list[tuple[str, str, str, dict]]:
+    """(label, algorithm, parameter source, params) of every filter × scheme, then Table 6."""
+    from gait_biofeedback.tuning.space import SPACES
+
+    tuned = load_tuned()
+    runs = []
+    for name, schemes in SPACES.items():
+        own = tuned.get(name, {})
+        for scheme in schemes:
+            path = params_dir / f"{name}_{scheme}.yaml" if params_dir else None
+            if path is not None and path.is_file():
+                params, source = {**load_tuned(path)[name], "scheme": scheme}, "tuned (dir)"
+            elif own.get("scheme", ALGORITHMS[name].DEFAULTS.get("scheme")) == scheme and own:
+                params, source = {**own, "scheme": scheme}, "tuned (shipped)"
+            else:
+                params, source = {"scheme": scheme}, "untuned"
+            runs.append((f"{name} {SCHEME_LABEL[scheme]}", name, source, params))
+    for (scheme, location), values in TABLE_6.items():
+        params = {"scheme": scheme, **dict(zip(TABLE_6_NAMES[scheme], values, strict=True))}
+        runs.append((f"madgwick {SCHEME_LABEL[scheme]} T6 {location}", "madgwick", "thesis Table 6", params))
+    return runs
+
+
+def scheme_table(trials: dict[str, dict[str, np.ndarray]], cost_samples: int,
+                 params_dir: Path | None = None) -> None:
+    """The ``--schemes`` table (module docstring)."""
+    first = next(iter(trials.values()))
+    print(f"BROAD, {len(trials)} trials ({sum(k[:2] in DEV_TRIALS for k in trials)} development); total RMSE "
+          "in degrees (mean over trials; median in brackets); inclination: mean over all trials")
+    print(f"{'filter / scheme':<30}{'parameters':<17}{'dev':>14}{'held-out':>14}{'inclination':>13}"
+          f"{'µs/sample':>11}")
+    for label, name, source, params in scheme_runs(params_dir):
+        res = {k: broad_errors(run_ours(name, t, params), t["quat"], t["movement"])
+               for k, t in trials.items()}
+        dev = [v[0] for k, v in res.items() if k[:2] in DEV_TRIALS]
+        test = [v[0] for k, v in res.items() if k[:2] not in DEV_TRIALS]
+        cells = [f"{np.mean(x):.2f} ({np.median(x):.1f})" if x else "n/a" for x in (dev, test)]
+        incl = np.mean([v[2] for v in res.values()])
+        print(f"{label:<30}{source:<17}{cells[0]:>14}{cells[1]:>14}{incl:>13.2f}"
+              f"{cost_us(name, first, cost_samples, params):>11.1f}", flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--trials", help="comma-separated trial numbers (default: all present)")
     ap.add_argument("--algorithms", help="comma-separated names (default: all ours + peers)")
     ap.add_argument("--no-peers", action="store_true")
     ap.add_argument("--cost-samples", type=int, default=5000)
+    ap.add_argument("--schemes", action="store_true", help="thesis ch. 4: every filter × gain scheme")
+    ap.add_argument("--params-dir", type=Path, help="with --schemes: <filter>_<scheme>.yaml files from tune")
     args = ap.parse_args()
     if not DATA.is_dir():
         sys.exit(f"BROAD not found at {DATA}: nothing to benchmark")
     trials = load_trials(args.trials.split(",") if args.trials else None)
+    if args.schemes:
+        scheme_table(trials, args.cost_samples, args.params_dir)
+        return
     names = args.algorithms.split(",") if args.algorithms else list(ALGORITHMS)
     if not args.no_peers and not args.algorithms:
         names += ["vqf", "ahrs_madgwick", "ahrs_mahony"]

@@ -95,6 +95,9 @@ from gait_biofeedback.report.session import SessionReport, format_report, sessio
 from gait_biofeedback.sim.faults import Dropout, Reorder, Spike, StampJump, inject, write_faulty_bag
 from gait_biofeedback.sim.recording import write_simulated_bag
 from gait_biofeedback.sim.simulator import SCENARIOS, Phase, SimulatedSession, SimulationConfig, simulate
+from gait_biofeedback.tuning.data import ReferenceRecording, broad_recordings, simulated_recordings
+from gait_biofeedback.tuning.pso import PsoSettings, particle_swarm
+from gait_biofeedback.tuning.run import tune as tune_gains
 
 __all__ = [
     "ALGORITHMS",
@@ -135,7 +138,9 @@ __all__ = [
     "NotASessionError",
     "Patient",
     "Phase",
+    "PsoSettings",
     "Recording",
+    "ReferenceRecording",
     "RelativeHeadingEstimator",
     "Reorder",
     "SegmentCalibrationResult",
@@ -154,6 +159,7 @@ __all__ = [
     "analyse_session",
     "analyze_recording",
     "angular_velocity_events",
+    "broad_recordings",
     "calibrate_segment",
     "calibrate_session",
     "classify_activity",
@@ -187,6 +193,7 @@ __all__ = [
     "mean_orientation",
     "ns_to_seconds",
     "parse_calibrate_at",
+    "particle_swarm",
     "quaternion",
     "read_imu_bag",
     "read_session",
@@ -196,7 +203,9 @@ __all__ = [
     "segment_orientations",
     "session_report",
     "simulate",
+    "simulated_recordings",
     "track_orientation",
+    "tune_gains",
     "vertical_calibration",
     "write_faulty_bag",
     "write_imu_bag",

@@ -1,6 +1,6 @@
 """Recordings with reference orientations for gain optimisation, and the thesis' error measure.
 
-A :class:`Recording` is one IMU's samples with the reference orientation of the same sensor (sensor →
+A :class:`ReferenceRecording` is one IMU's samples with the reference orientation of the same sensor (sensor →
 world), a body ``location`` (gains are optimised per location, thesis §4.3) and a ``group`` (the unit
 of cross-validation: a participant, a day, a trial). Sources: BROAD (Laidig et al. 2021: one
 hand-moved board, location ``board``, each trial its own group; references already aligned) and the
@@ -28,7 +28,7 @@ ALIGN_S = 1.0
 
 
 @dataclass
-class Recording:
+class ReferenceRecording:
     """One sensor's samples (SI), its reference orientation (N, 4) and which samples are scored."""
 
     name: str
@@ -41,14 +41,14 @@ class Recording:
     reference: np.ndarray
     scored: np.ndarray
 
-    def cut(self, seconds: float | None) -> Recording:
+    def cut(self, seconds: float | None) -> ReferenceRecording:
         """The first ``seconds`` after the first scored sample (all of it when None)."""
         if seconds is None:
             return self
         first = int(np.argmax(self.scored)) if self.scored.any() else 0
         n = min(len(self.gyr), first + round(seconds * self.rate_hz))
         mag = None if self.mag is None else self.mag[:n]
-        return Recording(
+        return ReferenceRecording(
             self.name,
             self.location,
             self.group,
@@ -61,7 +61,7 @@ class Recording:
         )
 
 
-def broad_recordings(folder: str | Path, trials: Sequence[str] | None = None) -> list[Recording]:
+def broad_recordings(folder: str | Path, trials: Sequence[str] | None = None) -> list[ReferenceRecording]:
     """BROAD trials (``NN_*.mat``) of ``folder``, optionally only the numbers in ``trials``."""
     import scipy.io
 
@@ -76,7 +76,7 @@ def broad_recordings(folder: str | Path, trials: Sequence[str] | None = None) ->
         d = scipy.io.loadmat(path, squeeze_me=True)
         ref = np.asarray(d["opt_quat"], dtype=float)
         out.append(
-            Recording(
+            ReferenceRecording(
                 path.stem,
                 "board",
                 path.stem[:2],
@@ -95,7 +95,7 @@ def broad_recordings(folder: str | Path, trials: Sequence[str] | None = None) ->
 
 def simulated_recordings(
     subjects: int, seconds: float = 30.0, locations: Sequence[str] | None = None, first_seed: int = 1
-) -> list[Recording]:
+) -> list[ReferenceRecording]:
     """``subjects`` simulated walks (seeds ``first_seed``…), every sensor whose location is wanted."""
     from gait_biofeedback.sim.simulator import simulate as run_simulation
     from gait_biofeedback.sim.simulator import walk
@@ -110,14 +110,14 @@ def simulated_recordings(
             ref = session.truth.sensor_orientation[segment]
             scored = imu.t >= 5.0  # after the 5 s of standing
             out.append(
-                Recording(
+                ReferenceRecording(
                     f"s{seed}_{segment}", loc, f"s{seed}", imu.rate_hz, imu.gyr, imu.acc, imu.mag, ref, scored
                 )
             )
     return out
 
 
-def euler_errors(estimate: np.ndarray, rec: Recording, onset: int) -> np.ndarray:
+def euler_errors(estimate: np.ndarray, rec: ReferenceRecording, onset: int) -> np.ndarray:
     """(M, 3) roll, pitch, yaw errors (rad) of the scored samples, after the world alignment over the
     ``ALIGN_S`` s before sample ``onset``, the start of the motion (module docstring)."""
     valid = np.isfinite(estimate).all(1) & np.isfinite(rec.reference).all(1)
@@ -139,7 +139,7 @@ def euler_errors(estimate: np.ndarray, rec: Recording, onset: int) -> np.ndarray
     return np.stack([roll, pitch, yaw], 1)
 
 
-def rms_errors(estimate: np.ndarray, rec: Recording, onset: int) -> np.ndarray:
+def rms_errors(estimate: np.ndarray, rec: ReferenceRecording, onset: int) -> np.ndarray:
     """RMS roll, pitch, yaw error (rad) of one recording."""
     e = euler_errors(estimate, rec, onset)
     return np.sqrt(np.mean(e * e, axis=0))

@@ -22,7 +22,7 @@ import yaml
 
 from gait_biofeedback.core.orientation.filters import estimate_orientation
 from gait_biofeedback.core.orientation.filters.config import TUNED_PATH, load_tuned, read_tuned
-from gait_biofeedback.tuning.data import Recording, rms_errors
+from gait_biofeedback.tuning.data import ReferenceRecording, rms_errors
 from gait_biofeedback.tuning.pso import PsoSettings, particle_swarm
 from gait_biofeedback.tuning.space import SearchSpace
 
@@ -30,7 +30,7 @@ STARTUP_S = 5.0
 MOTION_RAD_S = 0.3
 
 
-def run_filter(algorithm: str, params: dict[str, Any], rec: Recording) -> tuple[np.ndarray, int]:
+def run_filter(algorithm: str, params: dict[str, Any], rec: ReferenceRecording) -> tuple[np.ndarray, int]:
     """The filter's estimate of a recording (start-up step on its leading quiet samples), and the sample
     where the motion starts (the gyro first above ``MOTION_RAD_S``)."""
     q = estimate_orientation(rec.gyr, rec.acc, rec.mag, rec.rate_hz, algorithm, startup_s=STARTUP_S, **params)
@@ -38,7 +38,7 @@ def run_filter(algorithm: str, params: dict[str, Any], rec: Recording) -> tuple[
     return q, int(np.argmax(moving)) if moving.any() else 0
 
 
-def errors(algorithm: str, params: dict[str, Any], recs: Sequence[Recording]) -> np.ndarray:
+def errors(algorithm: str, params: dict[str, Any], recs: Sequence[ReferenceRecording]) -> np.ndarray:
     """(len(recs), 3) RMS roll, pitch, yaw errors (rad); inf for a filter that fails."""
     out = np.empty((len(recs), 3))
     for i, rec in enumerate(recs):
@@ -50,7 +50,7 @@ def errors(algorithm: str, params: dict[str, Any], recs: Sequence[Recording]) ->
     return out
 
 
-def cost(algorithm: str, params: dict[str, Any], recs: Sequence[Recording]) -> float:
+def cost(algorithm: str, params: dict[str, Any], recs: Sequence[ReferenceRecording]) -> float:
     """Mean over recordings of RMS(roll) + RMS(pitch) + RMS(yaw), degrees (thesis ch. 5)."""
     return float(np.degrees(errors(algorithm, params, recs).sum(1).mean()))
 
@@ -69,7 +69,7 @@ class LocationResult:
     seconds: float = 0.0
 
 
-def folds_of(recs: Sequence[Recording], folds: int) -> list[list[int]]:
+def folds_of(recs: Sequence[ReferenceRecording], folds: int) -> list[list[int]]:
     """Recording indices per fold: the sorted groups dealt round-robin (a group never spans folds)."""
     groups = sorted({r.group for r in recs})
     if folds > len(groups):
@@ -83,7 +83,7 @@ def folds_of(recs: Sequence[Recording], folds: int) -> list[list[int]]:
 
 def tune_location(
     space: SearchSpace,
-    recs: Sequence[Recording],
+    recs: Sequence[ReferenceRecording],
     start: dict[str, Any],
     settings: PsoSettings,
     folds: int,
@@ -95,7 +95,7 @@ def tune_location(
     start_params = space.params(seed_point, start)
     evaluations = 0
 
-    def optimise(train: Sequence[Recording], label: str) -> tuple[dict[str, Any], float]:
+    def optimise(train: Sequence[ReferenceRecording], label: str) -> tuple[dict[str, Any], float]:
         nonlocal evaluations
         result = particle_swarm(
             lambda u: cost(space.algorithm, space.params(u, start), train),
@@ -131,7 +131,7 @@ def tune_location(
 def tune(
     algorithm: str,
     scheme: str,
-    recordings: Sequence[Recording],
+    recordings: Sequence[ReferenceRecording],
     settings: PsoSettings | None = None,
     folds: int = 3,
     log: Callable[[str], None] = lambda _: None,
@@ -173,6 +173,13 @@ def table(algorithm: str, scheme: str, results: Sequence[LocationResult]) -> str
     return "\n".join(lines)
 
 
+def _rounded(value: Any) -> Any:
+    """4 significant digits (the optimum is not sharper than that), lists as YAML lists."""
+    if isinstance(value, (list, tuple)):
+        return [_rounded(v) for v in value]
+    return float(f"{value:.4g}") if isinstance(value, float) else value
+
+
 def write(
     algorithm: str,
     results: Sequence[LocationResult],
@@ -200,7 +207,14 @@ def write(
             data.setdefault("algorithms", {})[algorithm] = entry
         else:
             data.setdefault("locations", {}).setdefault(r.location, {})[algorithm] = entry
+    header = ""
+    if p.is_file():  # keep the file's leading comment lines
+        lines = p.read_text().splitlines(keepends=True)
+        header = "".join(
+            line
+            for line in lines[: next((i for i, x in enumerate(lines) if not x.startswith("#")), len(lines))]
+        )
     tmp = p.with_suffix(".tmp")
-    tmp.write_text(yaml.safe_dump(data, sort_keys=False))
+    tmp.write_text(header + yaml.safe_dump(data, sort_keys=False, allow_unicode=True))
     tmp.replace(p)
     return p
