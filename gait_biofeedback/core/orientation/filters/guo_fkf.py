@@ -109,6 +109,9 @@ class GuoFKF(OrientationFilter):
         self.p0 = float(p["p0"])
         self._fis = None
         if self.scheme == "fuzzy":
+            for key in ("fuzzy_sigma_g", "fuzzy_sigma_a", "fuzzy_sigma_m"):
+                if not min(p[key]) > 0.0:  # the output universe is [min, max] of the 8 numbers
+                    raise ValueError(f"{self.name}: {key} must be positive numbers, got {list(p[key])}")
             self._fis = SisoFIS(
                 [p["fuzzy_gyr"], p["fuzzy_acc"], p["fuzzy_mag"]],
                 [p["fuzzy_sigma_g"], p["fuzzy_sigma_a"], p["fuzzy_sigma_m"]],
