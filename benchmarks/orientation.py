@@ -7,7 +7,8 @@ Usage: .venv/bin/python benchmarks/orientation.py [--trials 03,09] [--algorithms
 ``--schemes``: instead, thesis ch. 4's table: every gain-regulated filter (Madgwick, Mahony, Guo,
 Roetenberg) × every scheme it has (FOG, VST1, VST2, VST3, IAE), on the development and held-out
 trials, and the thesis' Table 6 Madgwick gains (thigh, shank, foot; trained on Xsens MTw at 100 Hz)
-run as given. Parameters: with ``--params-dir DIR``, the file ``DIR/<filter>_<scheme>.yaml`` written by
+run as given; the cost column is per ``update`` call fed tuples, as the node does. Parameters: with
+``--params-dir DIR``, the file ``DIR/<filter>_<scheme>.yaml`` written by
 ``gait-biofeedback tune <filter> --scheme <scheme> --write DIR/<filter>_<scheme>.yaml`` (every scheme
 tuned with the same budget: a fair comparison of the schemes); else the shipped tuned ones when they
 were tuned for that scheme, else the filter's defaults for the scheme (marked "untuned").
@@ -194,7 +195,7 @@ def scheme_table(trials: dict[str, dict[str, np.ndarray]], cost_samples: int,
         cells = [f"{np.mean(x):.2f} ({np.median(x):.1f})" if x else "n/a" for x in (dev, test)]
         incl = np.mean([v[2] for v in res.values()])
         print(f"{label:<30}{source:<17}{cells[0]:>14}{cells[1]:>14}{incl:>13.2f}"
-              f"{cost_us(name, first, cost_samples, params):>11.1f}", flush=True)
+              f"{cost_us(name, first, cost_samples, params, rows='tuple'):>11.1f}", flush=True)
 
 
 def main() -> None:
