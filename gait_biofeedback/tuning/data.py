@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +26,7 @@ from gait_biofeedback.core import quaternion as quat
 from gait_biofeedback.core.orientation.filters.config import segment_location
 
 ALIGN_S = 1.0
+MOTION_RAD_S = 0.3
 
 
 @dataclass
@@ -40,6 +42,12 @@ class ReferenceRecording:
     mag: np.ndarray | None
     reference: np.ndarray
     scored: np.ndarray
+
+    @cached_property
+    def motion_onset(self) -> int:
+        """First sample with the gyro above ``MOTION_RAD_S`` (0 if never): where the motion starts."""
+        moving = np.linalg.norm(self.gyr, axis=1) > MOTION_RAD_S
+        return int(np.argmax(moving)) if moving.any() else 0
 
     def cut(self, seconds: float | None) -> ReferenceRecording:
         """The first ``seconds`` after the first scored sample (all of it when None)."""
@@ -117,9 +125,10 @@ def simulated_recordings(
     return out
 
 
-def euler_errors(estimate: np.ndarray, rec: ReferenceRecording, onset: int) -> np.ndarray:
+def euler_errors(estimate: np.ndarray, rec: ReferenceRecording) -> np.ndarray:
     """(M, 3) roll, pitch, yaw errors (rad) of the scored samples, after the world alignment over the
-    ``ALIGN_S`` s before sample ``onset``, the start of the motion (module docstring)."""
+    ``ALIGN_S`` s before the motion starts (module docstring)."""
+    onset = rec.motion_onset
     valid = np.isfinite(estimate).all(1) & np.isfinite(rec.reference).all(1)
     ok = rec.scored & valid
     n = max(1, int(ALIGN_S * rec.rate_hz))
@@ -139,7 +148,7 @@ def euler_errors(estimate: np.ndarray, rec: ReferenceRecording, onset: int) -> n
     return np.stack([roll, pitch, yaw], 1)
 
 
-def rms_errors(estimate: np.ndarray, rec: ReferenceRecording, onset: int) -> np.ndarray:
+def rms_errors(estimate: np.ndarray, rec: ReferenceRecording) -> np.ndarray:
     """RMS roll, pitch, yaw error (rad) of one recording."""
-    e = euler_errors(estimate, rec, onset)
+    e = euler_errors(estimate, rec)
     return np.sqrt(np.mean(e * e, axis=0))

@@ -39,12 +39,14 @@ class PsoSettings:
 
 @dataclass
 class PsoResult:
-    """Best point (unit box), its cost, the best cost after each iteration and the evaluations made."""
+    """Best point (unit box), its cost, the best cost after each iteration, the evaluations made and the
+    costs of the ``seeds`` given (their first evaluation)."""
 
     best: np.ndarray
     cost: float
     history: list[float] = field(default_factory=list)
     evaluations: int = 0
+    seed_costs: list[float] = field(default_factory=list)
 
 
 def particle_swarm(
@@ -70,7 +72,13 @@ def particle_swarm(
     f = np.array([evaluate(p) for p in x])
     best_x, best_f = x.copy(), f.copy()
     g = int(np.argmin(best_f))
-    result = PsoResult(best_x[g].copy(), float(best_f[g]), [float(best_f[g])], settings.particles)
+    result = PsoResult(
+        best_x[g].copy(),
+        float(best_f[g]),
+        [float(best_f[g])],
+        settings.particles,
+        [float(c) for c in f[: min(len(seeds), settings.particles)]],
+    )
     w = settings.inertia
     for it in range(settings.iterations):
         r1 = rng.random(x.shape)

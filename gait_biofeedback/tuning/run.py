@@ -27,15 +27,13 @@ from gait_biofeedback.tuning.pso import PsoSettings, particle_swarm
 from gait_biofeedback.tuning.space import SearchSpace
 
 STARTUP_S = 5.0
-MOTION_RAD_S = 0.3
 
 
-def run_filter(algorithm: str, params: dict[str, Any], rec: ReferenceRecording) -> tuple[np.ndarray, int]:
-    """The filter's estimate of a recording (start-up step on its leading quiet samples), and the sample
-    where the motion starts (the gyro first above ``MOTION_RAD_S``)."""
-    q = estimate_orientation(rec.gyr, rec.acc, rec.mag, rec.rate_hz, algorithm, startup_s=STARTUP_S, **params)
-    moving = np.linalg.norm(rec.gyr, axis=1) > MOTION_RAD_S
-    return q, int(np.argmax(moving)) if moving.any() else 0
+def run_filter(algorithm: str, params: dict[str, Any], rec: ReferenceRecording) -> np.ndarray:
+    """The filter's estimate of a recording (start-up step on its leading quiet samples)."""
+    return estimate_orientation(
+        rec.gyr, rec.acc, rec.mag, rec.rate_hz, algorithm, startup_s=STARTUP_S, **params
+    )
 
 
 def errors(algorithm: str, params: dict[str, Any], recs: Sequence[ReferenceRecording]) -> np.ndarray:
@@ -43,8 +41,7 @@ def errors(algorithm: str, params: dict[str, Any], recs: Sequence[ReferenceRecor
     out = np.empty((len(recs), 3))
     for i, rec in enumerate(recs):
         try:
-            q, start = run_filter(algorithm, params, rec)
-            out[i] = rms_errors(q, rec, start)
+            out[i] = rms_errors(run_filter(algorithm, params, rec), rec)
         except (ValueError, ArithmeticError):
             out[i] = np.inf
     return out
@@ -95,7 +92,8 @@ def tune_location(
     start_params = space.params(seed_point, start)
     evaluations = 0
 
-    def optimise(train: Sequence[ReferenceRecording], label: str) -> tuple[dict[str, Any], float]:
+    def optimise(train: Sequence[ReferenceRecording], label: str) -> tuple[dict[str, Any], float, float]:
+        """Tuned parameters, their cost and the starting parameters' cost (the swarm's seed)."""
         nonlocal evaluations
         result = particle_swarm(
             lambda u: cost(space.algorithm, space.params(u, start), train),
@@ -105,22 +103,22 @@ def tune_location(
             progress=lambda it, c: log(f"{label}: iteration {it}/{settings.iterations}, cost {c:.2f}°"),
         )
         evaluations += result.evaluations
-        return space.params(result.best, start), result.cost
+        return space.params(result.best, start), result.cost, result.seed_costs[0]
 
     held, held_start = [], []
     if folds > 1:
         for k, test_idx in enumerate(folds_of(recs, folds)):
             train = [r for i, r in enumerate(recs) if i not in test_idx]
             test = [recs[i] for i in test_idx]
-            params, _ = optimise(train, f"{recs[0].location} fold {k + 1}/{folds}")
+            params, _, _ = optimise(train, f"{recs[0].location} fold {k + 1}/{folds}")
             held.append(errors(space.algorithm, params, test))
             held_start.append(errors(space.algorithm, start_params, test))
-    params, train_cost = optimise(list(recs), f"{recs[0].location} all")
+    params, train_cost, start_cost = optimise(list(recs), f"{recs[0].location} all")
     return LocationResult(
         recs[0].location,
         params,
         train_cost,
-        cost(space.algorithm, start_params, recs),
+        start_cost,
         np.concatenate(held) if held else np.zeros((0, 3)),
         np.concatenate(held_start) if held_start else np.zeros((0, 3)),
         evaluations,

@@ -70,7 +70,6 @@ from gait_biofeedback.core.sequencer import DROPPED, StreamSequencer
 from gait_biofeedback.core.stamps import NS_PER_S, ns_to_seconds, seconds_to_ns
 
 _CHOICES = tuple(sorted(ALGORITHMS))
-_SCHEMES = KF_SCHEMES  # fixed, two_level, three_level, fuzzy, iae: every scheme of thesis ch. 4
 RANGE_MARGIN = 1.1
 """A sample is rejected beyond its range by this factor: a sensor that saturates (a heel strike on a
 ±16 g accelerometer reads up to 158 m/s² on gaitmap's example) is clipped, not glitching."""
@@ -89,7 +88,7 @@ class OrientationParams:
         keys=SEGMENTS, name="{key}.algorithm")
     scheme: str = param("", "gain scheme of the filters that have one (thesis ch. 4: fixed = FOG, "
                         "two_level = VST1, three_level = VST2, fuzzy = VST3, iae = innovation adaptive, "
-                        "guo_fkf only); '' = the tuned one", choices=("", *_SCHEMES))
+                        "guo_fkf only); '' = the tuned one", choices=("", *KF_SCHEMES))
     rate_hz: float = param(100.0, "nominal sample rate, for the filters' defaults (dt comes from the stamps; "
                            "the rate measured at start-up is used when it differs by over 10 %)",
                            "Hz", low=1.0, high=2000.0)

@@ -18,9 +18,9 @@ their reference norms: gravity = 1, field ≈ 1):
 - next P⁻: θθ = P⁺θθ + κ²(P⁺bb + ζ) + κ²σ_G², θb = −κ(P⁺bb + ζ), bb = P⁺bb + ζ,
   aa = ν² P⁺aa + ξ, dd = σ² P⁺dd + γ (σ = ``mag_disturbance_decay``); other blocks zero.
 READINGs: the thesis' Table 5 variables (P₀, σ_G, σ_A, σ_M, ζ, ξ, γ, σ, m_exp) map to ``p0`` (P₀ =
-p0·I), ``sigma_g*``/``sigma_a*``/``sigma_m*`` (standard deviations: rad/s, g, field units),
-(default 1e-6: after the start-up step the static bias is removed and the attitude set, and a
+p0·I; default 1e-6: after the start-up step the static bias is removed and the attitude set, and a
 larger P₀ lets the bias states absorb the first motions: 33° instead of 2° on BROAD's fast rotation),
+``sigma_g*``/``sigma_a*``/``sigma_m*`` (standard deviations: rad/s, g, field units),
 ``gyro_drift_noise`` ζ ((rad/s)², variance per sample), ``lin_acc_noise`` ξ (g²), ``mag_disturbance_noise``
 γ (field units²), ``mag_disturbance_decay`` σ, ``expected_field`` m_exp (field units; 1 = the start-up
 field); ν is not a thesis decision variable (MATLAB's default 0.5). MATLAB adds ξ and γ to ℛ as well;
@@ -39,6 +39,7 @@ import numpy as np
 from gait_biofeedback.core.jit import fast
 from gait_biofeedback.core.orientation.filters import _roetenberg_kernel as rk
 from gait_biofeedback.core.orientation.filters.base import OrientationFilter
+from gait_biofeedback.core.orientation.gain_regulation import switch_level
 
 SCHEMES = ("fixed", "two_level")
 
@@ -100,10 +101,8 @@ class RoetenbergIKF(OrientationFilter):
                 raise ValueError(f"{self.name}: {key} must be within [0, 1], got {p[key]}")
         self.p0 = float(p["p0"])
         two = self.scheme == "two_level"
-        self._levels = {
-            s: (float(p[f"sigma_{s}1"]), float(p[f"sigma_{s}2" if two else f"sigma_{s}1"])) for s in "gam"
-        }
-        self._thresholds = {s: float(p[f"s_{s}"]) if two else math.inf for s in "gam"}
+        self._levels = {s: tuple(float(p[f"sigma_{s}{i}"]) for i in ((1, 2) if two else (1,))) for s in "gam"}
+        self._thresholds = {s: (float(p[f"s_{s}"]),) if two else () for s in "gam"}
         self._c = np.array(
             [
                 self._levels["g"][0],
@@ -143,10 +142,10 @@ class RoetenbergIKF(OrientationFilter):
     def _step(self, gx, gy, gz, ax, ay, az, m, dt, dev_acc, dev_mag):
         st, c, lv, th = self._st, self._c, self._levels, self._thresholds
         use_mag = m is not None and self._mag_ref is not None
-        c[rk.SG] = lv["g"][0] if gx * gx + gy * gy + gz * gz < th["g"] * th["g"] else lv["g"][1]
-        c[rk.SA] = lv["a"][0] if dev_acc < th["a"] else lv["a"][1]
+        c[rk.SG] = switch_level(math.sqrt(gx * gx + gy * gy + gz * gz), th["g"], lv["g"])
+        c[rk.SA] = switch_level(dev_acc, th["a"], lv["a"])
         if use_mag:
-            c[rk.SM] = lv["m"][0] if dev_mag < th["m"] else lv["m"][1]
+            c[rk.SM] = switch_level(dev_mag, th["m"], lv["m"])
             mx, my, mz = m
             if self._mag_ref is not self._field_of:  # a new reference (initialise / calibrate)
                 n, u = self._field_of = self._mag_ref
