@@ -305,7 +305,7 @@ def cmd_tune(args: argparse.Namespace) -> int:
     if locations:
         recs = [r for r in recs if r.location in locations]
     if not recs:
-        raise ValueError(f"tune: no recording of the locations {locations}")
+        raise ValueError(f"no recording of the locations {locations}")
     recs = [r.cut(args.seconds) for r in recs]
     settings = PsoSettings(args.particles, args.iterations, seed=args.seed)
     verbose = sys.stderr.isatty() or args.verbose

@@ -76,7 +76,7 @@ def broad_recordings(folder: str | Path, trials: Sequence[str] | None = None) ->
     folder = Path(folder)
     paths = sorted(folder.glob("[0-9][0-9]_*.mat"))
     if not paths:
-        raise ValueError(f"tune: no BROAD trials (NN_*.mat) in {folder}")
+        raise ValueError(f"no BROAD trials (NN_*.mat) in {folder}")
     out = []
     for path in paths:
         if trials and path.stem[:2] not in trials:
@@ -97,7 +97,7 @@ def broad_recordings(folder: str | Path, trials: Sequence[str] | None = None) ->
             )
         )
     if not out:
-        raise ValueError(f"tune: none of the trials {list(trials or [])} is in {folder}")
+        raise ValueError(f"none of the trials {list(trials or [])} is in {folder}")
     return out
 
 

@@ -71,7 +71,7 @@ def folds_of(recs: Sequence[ReferenceRecording], folds: int) -> list[list[int]]:
     groups = sorted({r.group for r in recs})
     if folds > len(groups):
         raise ValueError(
-            f"tune: {folds} folds need at least {folds} groups, the recordings have {len(groups)} "
+            f"{folds} folds need at least {folds} groups, the recordings have {len(groups)} "
             f"({', '.join(groups)}); pass --folds {max(1, len(groups))} or more recordings"
         )
     fold_of = {g: i % folds for i, g in enumerate(groups)}

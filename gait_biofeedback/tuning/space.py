@@ -147,11 +147,11 @@ class SearchSpace:
     def __init__(self, algorithm: str, scheme: str) -> None:
         if algorithm not in SPACES:
             raise ValueError(
-                f"tune: {algorithm!r} has no thesis-ch.-4 decision variables; choose one of {sorted(SPACES)}"
+                f"{algorithm!r} has no thesis-ch.-4 decision variables; choose one of {sorted(SPACES)}"
             )
         if scheme not in SPACES[algorithm]:
             raise ValueError(
-                f"tune: {algorithm} has no scheme {scheme!r}; choose one of {sorted(SPACES[algorithm])}"
+                f"{algorithm} has no scheme {scheme!r}; choose one of {sorted(SPACES[algorithm])}"
             )
         self.algorithm = algorithm
         self.scheme = scheme
