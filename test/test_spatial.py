@@ -21,9 +21,12 @@ from gait_biofeedback.batch import (
     simulate,
 )
 from gait_biofeedback.core.calibration.windows import runs
+from gait_biofeedback.core.gait.cycles import GaitCycle
+from gait_biofeedback.core.gait.spatial import stride_space
 from gait_biofeedback.core.params import ParameterError, from_mapping
 from gait_biofeedback.core.spatial.kalman import filter_recording
 from gait_biofeedback.core.spatial.smoother import rts_smooth, suh_smooth
+from gait_biofeedback.core.spatial.strides import LOST_FLAG, SpatialStride, unknown
 from gait_biofeedback.core.spatial.zero_velocity import ZeroVelocityDetector, detect_zero_velocity
 from gait_biofeedback.sim.simulator import Phase, SimulationConfig
 
@@ -173,6 +176,56 @@ def test_bad_samples_are_skipped_and_a_gap_restarts_the_foot(walk):
     assert stream.counts["skipped"] == 2 and stream.counts["restarts"] == 1
     assert any("restarted" in n.text and "gap 2.01 s" in n.text for n in stream.notices.pop())
     assert len(strides) >= 12
+
+
+def test_lost_samples_are_filled_and_a_stride_that_lost_too_many_has_no_values(walk):
+    """Samples lost at 100 Hz (the simulator's walk, the detector's strides 720-831, 941-1053 and the
+    stance 1165-1184): one in mid-swing is interpolated and the stride keeps its length (0.3 mm
+    measured) with an informational flag; two in a swing give NaN (the next stride: 4.7 mm); a 60 ms
+    gap in a stance gives NaN to the stride it is in and to the next; the others are unchanged."""
+    imu = walk.imu["left_foot"]
+
+    def run(lost=frozenset()):
+        stream, strides = FootTrajectoryStream(100.0), []
+        for k in range(len(imu.t)):
+            if k not in lost:
+                strides += stream.update(k * 10_000_000, imu.gyr[k], imu.acc[k])
+        return stream, {s.foot_flat_ns: s for s in strides}
+
+    _, every = run()
+    stream, strides = run({785, 995, 996, *range(1170, 1175)})
+    assert stream.counts["interpolated"] == 8 and stream.counts["restarts"] == 0
+    assert sorted(strides) == sorted(every)
+    one = strides[8_310_000_000]
+    assert one.flags == (LOST_FLAG,)
+    assert one.stride_length == pytest.approx(every[8_310_000_000].stride_length, abs=0.001)
+    assert math.isnan(strides[10_530_000_000].stride_length)
+    assert strides[10_530_000_000].flags == ("20 ms of lost samples in the swing: spatial values unknown",)
+    for flat_ns in (12_760_000_000, 13_870_000_000):
+        assert math.isnan(strides[flat_ns].stride_length) and math.isnan(strides[flat_ns].foot_angle_ic)
+        assert strides[flat_ns].flags == ("a 60 ms gap in the data: spatial values unknown",)
+    unchanged_mm = {7_200_000_000: 0.1, 9_420_000_000: 0.1, 11_650_000_000: 10, 14_980_000_000: 0.1,
+                    22_920_000_000: 0.1}
+    for flat_ns, mm in unchanged_mm.items():
+        assert strides[flat_ns].flags == every[flat_ns].flags
+        assert strides[flat_ns].stride_length == pytest.approx(every[flat_ns].stride_length, abs=mm / 1000)
+
+
+def test_an_interpolated_stride_keeps_its_values_through_the_gait_events():
+    cycle = GaitCycle(side="left", index=1, start_ns=0, end_ns=1_000_000_000,
+                      terminal_contact_ns=600_000_000, stride_time=1.0, stance_time=0.6, swing_time=0.4,
+                      stance_fraction=0.6, swing_fraction=0.4, step_time=0.5, cadence=2.0,
+                      double_support_time=0.2, double_support_fraction=0.2, step_time_symmetry_index=0.0,
+                      plausible=True)
+    stride = SpatialStride(stance_start=0, foot_off=60, foot_flat=100, end=105, stride_length=1.3,
+                           stride_time=1.0, gait_speed=1.3, max_sensor_height=0.12,
+                           min_toe_clearance=math.nan, foot_angle_ic=0.3, foot_angle_tc=-0.5,
+                           turning_angle=0.0, lateral_excursion=0.01, flags=(LOST_FLAG,))
+    assert stride_space(cycle, stride).stride_length == 1.3 and stride_space(cycle, stride).flag == ""
+    lost = unknown(stride, "20 ms of lost samples in the swing: spatial values unknown")
+    assert math.isnan(lost.foot_angle_tc) and lost.foot_off == 60
+    assert math.isnan(stride_space(cycle, lost).stride_length)
+    assert stride_space(cycle, lost).flag == "20 ms of lost samples in the swing: spatial values unknown"
 
 
 def test_a_long_swing_gives_no_numbers():

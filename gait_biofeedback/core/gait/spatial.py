@@ -16,7 +16,8 @@ and a ``spatial_flag``:
 - the trajectory stride carries a problem flag (no stance for longer than ``max_swing``);
 - its foot-off is before the opening IC: it spans more than one IC→IC stride (a missed stance).
 
-A flag that only informs (``started from standing``, ``no direction of travel``) keeps the values.
+A flag that only informs (``started from standing``, ``no direction of travel``, ``lost samples
+interpolated``) keeps the values.
 ``gait_speed`` is the stride length over the IC→IC stride time.
 """
 
@@ -25,11 +26,11 @@ from __future__ import annotations
 from collections import deque
 
 from gait_biofeedback.core.gait.cycles import GaitCycle, StrideSpace
-from gait_biofeedback.core.spatial.strides import SpatialStride
+from gait_biofeedback.core.spatial.strides import LOST_FLAG, SpatialStride
 from gait_biofeedback.core.stamps import NS_PER_S
 
 EARLY_FOOT_FLAT_S = 0.05  # s: foot flat found before the IC the events found, still the same stride
-INFORMATIONAL = ("started from standing", "no direction of travel")
+INFORMATIONAL = ("started from standing", "no direction of travel", LOST_FLAG)
 
 
 def stride_space(cycle: GaitCycle, stride: SpatialStride) -> StrideSpace:

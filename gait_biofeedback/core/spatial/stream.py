@@ -17,9 +17,25 @@ Memory: the window holds one stride; a standing stance keeps its last ``KEEP_STA
 a live stride after standing reports that as its ``stance_start`` (offline: the whole standing).
 
 Bad input: a non-finite sample is skipped and counted; a stamp going back, or a gap over ``max_gap``
-s, restarts the foot at its next stance (counted in :attr:`counts`, said in :attr:`notices`). A swing
-longer than ``max_swing`` s (no stance seen: running, a sensor off the foot, a shuffle) gives a stride
-with NaN values and a flag, never a number integrated over seconds.
+s, restarts the foot at its next stance (counted in :attr:`counts`, said in :attr:`notices`). A shorter
+gap (lost samples: a radio, a loaded DDS queue) is filled by linear interpolation of gyro and
+acceleration at the sample rate, so that the filter and the detector windows keep their step, and
+counted (``interpolated``). Interpolation only halves the error: on the simulator's walk at 100 Hz one
+lost sample moves the stride length by up to 4.6 cm interpolated (8.2 cm held), two by 12 cm, worst
+at heel strike and push-off; a 80 ms gap in a stance leaves an attitude error that costs the next
+stride up to 8 cm. Hence, per stride (``_judge_lost``):
+
+- more than ``max_swing_lost`` s lost in its swing (from the last zero-velocity sample of the first
+  stance to the first of the next, widened by the detector's look-ahead): NaN values and a flag;
+- a gap longer than ``max_stance_gap`` s in its window or in the previous stride's: NaN and a flag;
+- fewer lost samples: the values, with the informational flag ``lost samples interpolated``.
+
+With 1 % of the samples lost at random (100 Hz), 27 % of the strides get no values and the others
+are within 3.8 cm of the lossless ones (0.7 cm p95); at 200 Hz 28 % and 0.7 cm
+(``benchmarks/spatial.py --lost-samples``).
+
+A swing longer than ``max_swing`` s (no stance seen: running, a sensor off the foot, a shuffle) gives a
+stride with NaN values and a flag, never a number integrated over seconds.
 """
 
 from __future__ import annotations
@@ -35,7 +51,13 @@ from gait_biofeedback.core.notices import Notices
 from gait_biofeedback.core.params import as_mapping, from_mapping, param, require
 from gait_biofeedback.core.spatial.kalman import FootKalman, KalmanNoise
 from gait_biofeedback.core.spatial.smoother import apply, rts_smooth, suh_smooth
-from gait_biofeedback.core.spatial.strides import MAX_STANCE_S, SpatialStride, stride_parameters
+from gait_biofeedback.core.spatial.strides import (
+    LOST_FLAG,
+    MAX_STANCE_S,
+    SpatialStride,
+    stride_parameters,
+    unknown,
+)
 from gait_biofeedback.core.spatial.zero_velocity import (
     DETECTORS,
     SHOE_ACC,
@@ -78,6 +100,10 @@ class FootTrajectoryParams:
                              low=0.5, high=10.0)
     max_gap: float = param(0.2, "a longer stamp gap restarts the foot at its next stance", "s",
                            low=0.01, high=10.0)
+    max_swing_lost: float = param(0.01, "more lost (interpolated) time in a swing gives no spatial values",
+                                  "s", low=0.0, high=0.2)
+    max_stance_gap: float = param(0.035, "a longer stamp gap gives no spatial values to the stride it is in "
+                                  "and to the next", "s", low=0.0, high=0.2)
     toe_lever_arm: tuple[float, ...] = param((), "toe position in the sensor frame, for the toe clearance "
                                              "(empty: unknown)", "m")
     smoother: str = param("suh", "offline smoother over the whole recording (live strides use rts)",
@@ -99,12 +125,14 @@ class FootTrajectoryStream:
         self.rate_hz = float(rate_hz)
         self.params = params or FootTrajectoryParams()
         self.keep_all = keep_all
-        self.counts = {"samples": 0, "skipped": 0, "restarts": 0, "strides": 0}
+        self.counts = {"samples": 0, "skipped": 0, "restarts": 0, "interpolated": 0, "strides": 0}
         self.notices = Notices()
-        self.index: list[int] = []  # input sample number of each filter step (keep_all)
+        self.index: list[int] = []  # input sample number of each filter step, -1 if filled (keep_all)
         self.kept: list = []  # every filter step (keep_all)
         self._min_swing_ns = self.params.min_swing * NS_PER_S
         self._keep = round(KEEP_STANDING_S * self.rate_hz)
+        self._period_ns = NS_PER_S / self.rate_hz
+        self._margin = max(1, round(self.params.window * self.rate_hz / 2))  # the detector's look-ahead
         self._restart()
 
     def _restart(self) -> None:
@@ -117,12 +145,16 @@ class FootTrajectoryStream:
         self._steps: list = []
         self._stamps: list[int] = []
         self._numbers: list[int] = []
+        self._filled: list[bool] = []  # per step: interpolated over lost samples
+        self._long_gaps: list[tuple[int, int]] = []  # (last sample before, first after) of gaps, ns
+        self._window_ns: int | None = None  # where the last closed stride's window began
         self._in_stance = False
         self._stance_start = 0  # position in the window
         self._previous: tuple[int, int] | None = None  # last completed stance, positions in the window
         self._ended: int | None = None  # last zero-velocity sample of a stance that may resume
         self._closed = False
         self._last_ns: int | None = None
+        self._last: tuple[np.ndarray, np.ndarray] | None = None
 
     def update(self, stamp_ns: int, gyr: np.ndarray, acc: np.ndarray) -> list[SpatialStride]:
         number = self.counts["samples"]
@@ -137,9 +169,30 @@ class FootTrajectoryStream:
             why = "went back" if gap <= 0 else f"gap {gap:.2f} s"
             self.notices.say("warn", f"foot trajectory restarted at its next stance: stamp {why}")
             self._restart()
-        self._last_ns = stamp_ns
-        self._pending.append((number, stamp_ns, gyr, acc))
-        decision = self._zv.update(gyr, acc)
+        out = self._fill(number - 1, stamp_ns, gyr, acc) if self._last_ns is not None else []
+        self._last_ns, self._last = stamp_ns, (gyr, acc)
+        return out + self._feed((number, stamp_ns, gyr, acc, False))
+
+    def _fill(self, number: int, stamp_ns: int, gyr: np.ndarray, acc: np.ndarray) -> list[SpatialStride]:
+        """Linearly interpolated samples for the ones lost after the sample ``number`` (reported as
+        theirs) and before this one."""
+        missing = round((stamp_ns - self._last_ns) / self._period_ns) - 1
+        out: list[SpatialStride] = []
+        if missing < 1:
+            return out
+        self.counts["interpolated"] += missing
+        if (missing + 1) / self.rate_hz > self.params.max_stance_gap + 1e-9:
+            self._long_gaps.append((self._last_ns, stamp_ns))
+        (gyr0, acc0), span = self._last, stamp_ns - self._last_ns
+        for j in range(1, missing + 1):
+            f = j / (missing + 1)
+            out += self._feed((number, self._last_ns + round(f * span), gyr0 + f * (gyr - gyr0),
+                               acc0 + f * (acc - acc0), True))
+        return out
+
+    def _feed(self, sample: tuple) -> list[SpatialStride]:
+        self._pending.append(sample)
+        decision = self._zv.update(sample[2], sample[3])
         if decision is None:
             return []
         return self._decided(self._pending.pop(0), decision)
@@ -171,9 +224,9 @@ class FootTrajectoryStream:
         long_enough = len(rest) / self.rate_hz >= self.params.bias_rest
         bias = np.concatenate([np.mean([s[2] for s in rest], axis=0), np.zeros(3)]) if long_enough else None
         self._kf = FootKalman(self.params.noise, self.params.flat_floor, keep=False)
-        number, ns, gyr, acc0 = rest[0]
+        number, ns, gyr, acc0, filled = rest[0]
         self._kf.start(acc, gyr, acc0, True, bias)
-        self._record(number, ns)
+        self._record(number, ns, filled)
         self._in_stance, self._stance_start, self._closed = True, 0, False
         out: list[SpatialStride] = []
         for sample in rest[1:]:
@@ -182,20 +235,21 @@ class FootTrajectoryStream:
             out += self._step(*then)
         return out
 
-    def _record(self, number: int, ns: int) -> None:
+    def _record(self, number: int, ns: int, filled: bool) -> None:
         step = self._kf.last
         self._steps.append(step)
         self._stamps.append(ns)
         self._numbers.append(number)
+        self._filled.append(filled)
         if self.keep_all:
             self.kept.append(step)
-            self.index.append(number)
+            self.index.append(-1 if filled else number)
 
     def _step(self, sample, zero_velocity: bool) -> list[SpatialStride]:
-        number, ns, gyr, acc = sample
+        number, ns, gyr, acc, filled = sample
         dt = (ns - self._stamps[-1]) / NS_PER_S
         self._kf.update(gyr, acc, dt, zero_velocity)
-        self._record(number, ns)
+        self._record(number, ns, filled)
         k = len(self._steps) - 1
         out: list[SpatialStride] = []
         if zero_velocity:
@@ -228,9 +282,30 @@ class FootTrajectoryStream:
         stride = stride_parameters(t, smooth["orientation"], smooth["position"], first, second,
                                    self._numbers[a0:last + 1], self.params.toe_lever_arm or None,
                                    self.params.max_swing)
+        stride = self._judge_lost(stride, a0, last)
         self.counts["strides"] += 1
         return replace(stride, foot_off_ns=self._stamps[self._previous[1]],
                        foot_flat_ns=self._stamps[self._stance_start])
+
+    def _judge_lost(self, stride: SpatialStride, a0: int, last: int) -> SpatialStride:
+        """NaN values when samples were lost in the swing, or a long gap came in this stride or the one
+        before (its attitude error outlasts the stance's zero-velocity update; module docstring)."""
+        start_ns, end_ns = self._stamps[a0], self._stamps[last]
+        since = start_ns if self._window_ns is None else self._window_ns
+        self._window_ns = start_ns
+        hit = [(a, b) for a, b in self._long_gaps if a < end_ns and b > since]
+        self._long_gaps = [(a, b) for a, b in self._long_gaps if b > start_ns]
+        if hit:
+            gap_s = max(b - a for a, b in hit) / NS_PER_S
+            return unknown(stride, f"a {gap_s * 1e3:.0f} ms gap in the data: spatial values unknown")
+        if not any(self._filled[a0:last + 1]):
+            return stride
+        swing = self._filled[max(0, self._previous[1] - self._margin):self._stance_start + self._margin + 1]
+        lost_s = sum(swing) / self.rate_hz
+        if lost_s > self.params.max_swing_lost + 1e-9:
+            return unknown(stride, f"{lost_s * 1e3:.0f} ms of lost samples in the swing: "
+                           "spatial values unknown")
+        return replace(stride, flags=(*stride.flags, LOST_FLAG))
 
     def _trim(self) -> None:
         """Drop the steps before the last completed stance (the next stride's start)."""
@@ -239,7 +314,7 @@ class FootTrajectoryStream:
 
     def _cut(self, cut: int) -> None:
         if cut > 0:
-            del self._steps[:cut], self._stamps[:cut], self._numbers[:cut]
+            del self._steps[:cut], self._stamps[:cut], self._numbers[:cut], self._filled[:cut]
             self._stance_start = max(0, self._stance_start - cut)  # a standing stance starts at the cut
 
 
@@ -278,6 +353,7 @@ def estimate_foot_trajectory(gyr: np.ndarray, acc: np.ndarray, rate_hz: float,
     strides: list[SpatialStride] = []
     if stream.kept:
         steps, index = stream.kept, np.array(stream.index)
+        real = index >= 0  # (the stamps here are regular: nothing is filled)
         if p.smoother == "none" or stream.counts["restarts"]:
             states = apply(steps, np.zeros((len(steps), 9)))
         elif p.smoother == "rts":
@@ -285,6 +361,8 @@ def estimate_foot_trajectory(gyr: np.ndarray, acc: np.ndarray, rate_hz: float,
         else:
             states = suh_smooth(steps, p.noise, p.flat_floor, bias_prior=steps[0].b)
         states["position"] = states["position"] - states["position"][0]
+        states = {name: value[real] for name, value in states.items()}
+        index, steps = index[real], [s for s, keep in zip(steps, real, strict=True) if keep]
         for name in ("position", "velocity", "orientation"):
             out[name][index] = states[name]
         zv[index] = [s.zero_velocity for s in steps]

@@ -30,7 +30,7 @@ parameters*):
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -38,6 +38,7 @@ from gait_biofeedback.core import quaternion as quat
 
 MAX_STANCE_S = 1.5  # s: a longer stance is standing, and the stride after it has no cycle time
 MIN_LENGTH_M = 0.1  # m: shorter strides (stepping on the spot) have no direction for the angles
+LOST_FLAG = "lost samples interpolated"  # informational: within the stream's max_swing_lost, max_stance_gap
 MIN_TOE_PEAK_M = 0.01  # m: a toe-height maximum lower than this is the toe still rolling on the floor
 
 
@@ -64,6 +65,15 @@ class SpatialStride:
     flags: tuple[str, ...] = field(default=())
     foot_off_ns: int | None = None
     foot_flat_ns: int | None = None
+
+
+UNKNOWN_VALUES = ("stride_length", "gait_speed", "max_sensor_height", "min_toe_clearance", "foot_angle_ic",
+                  "foot_angle_tc", "turning_angle", "lateral_excursion")
+
+
+def unknown(stride: SpatialStride, why: str) -> SpatialStride:
+    """``stride`` with NaN spatial values and the flag ``why`` added (its samples and timing kept)."""
+    return replace(stride, flags=(*stride.flags, why), **dict.fromkeys(UNKNOWN_VALUES, math.nan))
 
 
 def _heading_change(q_from: np.ndarray, q_to: np.ndarray) -> float:
@@ -121,13 +131,13 @@ def stride_parameters(t: np.ndarray, orientation: np.ndarray, position: np.ndarr
     else:
         flags.append("no direction of travel")
     turning = _heading_change(orientation[a1], orientation[b0])
-    swing_s = float(t[b0] - t[a1])
-    if swing_s > max_swing_s:
-        flags.append(f"no stance for {swing_s:.1f} s: spatial values unknown")
-        length = height = clearance = angle_ic = angle_tc = lateral_excursion = turning = math.nan
-    return SpatialStride(
+    stride = SpatialStride(
         stance_start=numbers[a0], foot_off=numbers[a1], foot_flat=numbers[b0], end=numbers[b1],
         stride_length=length, stride_time=stride_time, gait_speed=length / stride_time,
         max_sensor_height=height, min_toe_clearance=clearance, foot_angle_ic=angle_ic,
         foot_angle_tc=angle_tc, turning_angle=turning,
         lateral_excursion=lateral_excursion, flags=tuple(flags))
+    swing_s = float(t[b0] - t[a1])
+    if swing_s > max_swing_s:
+        return unknown(stride, f"no stance for {swing_s:.1f} s: spatial values unknown")
+    return stride
