@@ -404,7 +404,9 @@ def build_parser() -> argparse.ArgumentParser:
                        "whole graph, record the outputs and print a summary")
     p.add_argument("--bag", default=str(DEMO_BAG), help="demo recording (made if missing) [%(default)s]")
     p.add_argument("--output", default=str(DEMO_OUTPUT), help="where the outputs are recorded [%(default)s]")
-    p.add_argument("--speed", type=float, default=2.0, help="replay speed factor [%(default)s]")
+    p.add_argument("--speed", type=float, default=1.5,
+                   help="replay speed factor [%(default)s; at 2 the whole graph needs 85-90 %% of a core and "
+                        "this 2-core machine loses samples in some runs]")
     p.add_argument("--dashboard-port", type=int, default=0,
                    help="port of the live dashboard on 127.0.0.1 (0 = any free port; the log says which)")
     p.set_defaults(func=cmd_demo)

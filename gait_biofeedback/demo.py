@@ -82,7 +82,7 @@ def summarize(input_bag: Path, output: Path, wall_time: float, published: int,
     return "\n".join(lines)
 
 
-def run_demo(bag: Path, output: Path, speed: float = 2.0, dashboard_port: int = 0) -> int:
+def run_demo(bag: Path, output: Path, speed: float = 1.5, dashboard_port: int = 0) -> int:
     """Run the demo; returns the process exit code."""
     t0 = time.monotonic()
     bag, made = ensure_demo_bag(bag)
