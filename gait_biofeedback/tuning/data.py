@@ -16,7 +16,7 @@ is RMS(roll) + RMS(pitch) + RMS(yaw) over the scored samples (thesis ch. 5 cost)
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 from pathlib import Path
 
@@ -56,17 +56,8 @@ class ReferenceRecording:
         first = int(np.argmax(self.scored)) if self.scored.any() else 0
         n = min(len(self.gyr), first + round(seconds * self.rate_hz))
         mag = None if self.mag is None else self.mag[:n]
-        return ReferenceRecording(
-            self.name,
-            self.location,
-            self.group,
-            self.rate_hz,
-            self.gyr[:n],
-            self.acc[:n],
-            mag,
-            self.reference[:n],
-            self.scored[:n],
-        )
+        return replace(self, gyr=self.gyr[:n], acc=self.acc[:n], mag=mag, reference=self.reference[:n],
+                       scored=self.scored[:n])
 
 
 def broad_recordings(folder: str | Path, trials: Sequence[str] | None = None) -> list[ReferenceRecording]:
@@ -139,7 +130,7 @@ def euler_errors(estimate: np.ndarray, rec: ReferenceRecording) -> np.ndarray:
     window &= valid
     if not ok.any():
         return np.full((1, 3), np.inf)
-    align = np.array([1.0, 0.0, 0.0, 0.0])
+    align = quat.IDENTITY
     if window.any():  # mean of q_ref ⊗ q_est* (hemisphere-aligned), the world alignment of Eq 25
         d = quat.canonical(quat.multiply(rec.reference[window], quat.conjugate(estimate[window])))
         align = quat.normalize(d.mean(0))
