@@ -69,9 +69,7 @@ def test_estimate_relative_orientation_refuses_mismatched_arrays():
 DFJIMU = SHARED_DATA / "dfjimu_weygers"
 
 
-@pytest.mark.skipif(not DFJIMU.exists(), reason=f"real recordings not found: {DFJIMU}")
-@pytest.mark.parametrize(("name", "measured"), [("data_1D_02", 1.17), ("data_3D_01", 2.99)])
-def test_dfjimu_relative_orientation_against_optical_truth(name, measured):
+def _dfjimu_rmse_deg(name: str) -> float:
     """6D filters, no magnetometer: RMSE of conj(q1)⊗q2 against the optical one (Weygers & Kok 2020
     data), samples where the optical step disagrees with the gyro by > 5° (marker glitches) left out."""
     d = sio.loadmat(DFJIMU / f"{name}.mat", struct_as_record=False, squeeze_me=True)["data"]
@@ -87,7 +85,20 @@ def test_dfjimu_relative_orientation_against_optical_truth(name, measured):
         good[:-1] &= ~bad
         good[1:] &= ~bad
     err = np.degrees(quat.angle_between(q[good], quat.multiply(quat.conjugate(o1), o2)[good]))
-    assert np.sqrt(np.mean(err**2)) < 2.0 * measured
+    return float(np.sqrt(np.mean(err**2)))
+
+
+@pytest.mark.skipif(not DFJIMU.exists(), reason=f"real recordings not found: {DFJIMU}")
+def test_dfjimu_hinge_relative_orientation_against_optical_truth():
+    assert _dfjimu_rmse_deg("data_1D_02") < 2.0 * 1.27
+
+
+@pytest.mark.skipif(not DFJIMU.exists(), reason=f"real recordings not found: {DFJIMU}")
+def test_dfjimu_two_dof_joints_median_against_optical_truth():
+    """The five 2-DoF recordings: median 2.64° (4.82° while the products were high-passed by a causal
+    mean: a bias of 2–5° in δ)."""
+    names = ("data_2D_01", "data_2D_02", "data_2D_03", "data_2D_05", "data_2D_07")
+    assert np.median([_dfjimu_rmse_deg(n) for n in names]) < 1.5 * 2.64
 
 
 def test_a_long_stillness_before_the_motion_neither_grows_the_window_nor_spoils_the_estimate(walk):
@@ -147,3 +158,40 @@ def test_time_going_back_restarts_the_estimate(walk):
         assert results[-1].established
         assert abs(np.degrees(np.angle(np.exp(1j * (results[-1].delta - turn))))) < 1.0, turn_deg
     assert not results[5].established, "the replay starts over"
+
+
+def test_the_products_are_high_passed_by_a_mean_centred_on_their_sample():
+    """The estimate equals an independent evaluation of the module docstring's step 2: each sample's
+    horizontal joint-centre force minus its mean over the samples within ±highpass_s/2 of it, the
+    products weighed by 1/(1 + mismatch²) and averaged exponentially. Zero rates and r = 0 make the
+    centre force the accelerometer's; sensor 2's world is turned by 0.4 rad (its filter at identity)."""
+    from gait_biofeedback.core.joints.relative_heading import HUBER, RelativeHeadingEstimator
+
+    rng = np.random.default_rng(3)
+    rate, n, delta = 50.0, 400, 0.4
+    acc1 = rng.normal(0.0, 2.0, (n, 3)) + np.array([0.0, 0.0, 9.81])
+    acc2 = acc1 + rng.normal(0.0, 0.5, (n, 3))
+    turned = (acc2[:, 0] + 1j * acc2[:, 1]) * np.exp(-1j * delta)  # sensor 2's world is turned by -δ
+    acc2 = np.column_stack([turned.real, turned.imag, acc2[:, 2]])
+    est = RelativeHeadingEstimator(time_constant=2.0, highpass_s=0.5)
+    est.r1, est.r2, est.state = np.zeros(3), np.zeros(3), "converging"
+    t_ns = (np.arange(n) * 1e9 / rate).astype(np.int64)
+    zero, ident = (0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0)
+    for k in range(n):
+        est.update(int(t_ns[k]), ident, zero, tuple(acc1[k]), ident, zero, tuple(acc2[k]))
+
+    rows = np.arange(1, n - 1)  # a sample enters once the next one has come (central difference)
+    h1 = acc1[rows, 0] + 1j * acc1[rows, 1]
+    h2 = acc2[rows, 0] + 1j * acc2[rows, 1]
+    mismatch = (np.linalg.norm(acc1[rows], axis=1) - np.linalg.norm(acc2[rows], axis=1)) / HUBER
+    weight = 1.0 / (1.0 + mismatch**2)
+    t = rows / rate
+    total = 0j
+    for k in range(len(rows)):
+        if t[-1] < t[k] + 0.25 - 1e-12:
+            break  # its centred mean is not complete yet
+        near = np.abs(t - t[k]) <= 0.25 + 1e-12
+        p = (h1[k] - h1[near].mean()) * np.conj(h2[k] - h2[near].mean()) * weight[k]
+        total += (1.0 / rate / 2.0) * (p - total)
+    assert est.delta == pytest.approx(np.angle(total), abs=1e-9)
+    assert est.delta == pytest.approx(delta, abs=0.05)
