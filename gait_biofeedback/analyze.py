@@ -378,7 +378,8 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
                                             log_ns, attempt.calibration)
         if segment in STREAM_SEGMENTS:
             _, acc, gyr, q = orientation_sample(imu)
-            publish_joints(joints.add(segment, imu.ns, q, gyr, acc, recovering=is_recovering(imu)), log_ns)
+            publish_joints(joints.add(segment, imu.ns, q, gyr, acc, recovering=is_recovering(imu),
+                                      magnetic=has_heading(imu)), log_ns)
         side = segment.removesuffix("_foot")
         if segment == foot_frame(side) and side in gait.detectors:
             _, acc, gyr, q = orientation_sample(imu)

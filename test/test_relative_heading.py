@@ -195,3 +195,35 @@ def test_the_products_are_high_passed_by_a_mean_centred_on_their_sample():
         total += (1.0 / rate / 2.0) * (p - total)
     assert est.delta == pytest.approx(np.angle(total), abs=1e-9)
     assert est.delta == pytest.approx(delta, abs=0.05)
+
+
+def test_a_magnetic_filter_s_heading_turn_is_followed_at_once(walk):
+    """A 9D filter turns its world when it corrects its heading (a magnet near the sensor): the shank's
+    world is turned by 40°, then by 25° more within 0.3 s at 17 s (the estimate is established at
+    15.2 s). Read as a world turn (its heading is magnetic) the estimate follows at once; the kinematic
+    average alone lags it by seconds. Rates are the truth's own (orientation differences), so a gyro
+    bias does not enter the turn read."""
+    thigh, shank = walk.imu["left_thigh"], walk.imu["left_shank"]
+    rate = thigh.rate_hz
+    t = thigh.t - thigh.t[0]
+    turn = np.radians(40.0) + np.radians(25.0) * np.clip((t - 17.0) / 0.3, 0.0, 1.0)
+    q1 = walk.truth.sensor_orientation["left_thigh"]
+    q2_true = walk.truth.sensor_orientation["left_shank"]
+    q2 = quat.multiply(quat.from_axis_angle([0.0, 0.0, 1.0], -turn), q2_true)
+
+    def body_rates(q):
+        from scipy.spatial.transform import Rotation
+
+        relative = quat.multiply(quat.conjugate(q[:-1]), q[1:])
+        step = Rotation.from_quat(relative[:, [1, 2, 3, 0]]).as_rotvec() * rate
+        return np.vstack([step[:1], 0.5 * (step[:-1] + step[1:]), step[-1:]])
+
+    t_ns = np.round(thigh.t * 1e9).astype(np.int64)
+    args = (t_ns, q1, body_rates(q1), thigh.acc, q2, body_rates(q2_true), shank.acc)
+    after = (t > 17.3) & (t < 19.0)
+    for magnetic, within in (((False, True), lambda e: np.max(np.abs(e)) < 0.6),  # measured 0.29°
+                             ((False, False), lambda e: np.max(np.abs(e)) > 10.0)):  # 25°: the whole turn
+        delta, ok = estimate_relative_heading(*args, magnetic=magnetic)
+        assert ok[after].all()
+        error = np.degrees(np.angle(np.exp(1j * (delta[after] - turn[after]))))
+        assert within(error), (magnetic, np.max(np.abs(error)))

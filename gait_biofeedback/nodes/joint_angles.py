@@ -37,7 +37,7 @@ from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
 from gait_biofeedback.wire import diagnostics, topics
 from gait_biofeedback.wire.calibration import rotations
 from gait_biofeedback.wire.cdr import decode_imu
-from gait_biofeedback.wire.imu import is_recovering, orientation_sample
+from gait_biofeedback.wire.imu import has_heading, is_recovering, orientation_sample
 from gait_biofeedback.wire.joints import joint_state_msg, skeleton_msg
 from gait_biofeedback_msgs.msg import SegmentCalibrationArray
 
@@ -80,7 +80,8 @@ class JointAnglesNode(GuardedNode):
     def _on_imu(self, segment: str, data: bytes) -> None:
         imu = decode_imu(data)
         ns, acc, gyr, q = orientation_sample(imu)
-        self._publish(self.stream.add(segment, ns, q, gyr, acc, time.monotonic(), is_recovering(imu)))
+        self._publish(self.stream.add(segment, ns, q, gyr, acc, time.monotonic(), is_recovering(imu),
+                                      has_heading(imu)))
 
     def _flush(self) -> None:
         self._publish(self.stream.flush(time.monotonic()))

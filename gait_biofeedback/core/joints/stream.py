@@ -112,6 +112,7 @@ class JointAngleStream:
         self._waiting: InForceQueue[JointAngleCalculator] = InForceQueue()
         self.pending: dict[int, dict[str, tuple[np.ndarray, tuple, tuple, bool]]] = {}
         self._seen: dict[str, int] = {}
+        self._magnetic: dict[str, bool] = {}  # segment → its newest sample's heading is magnetic
         self.headings: dict[str, RelativeHeadingEstimator] = {
             f"{side}_{joint}": RelativeHeadingEstimator(p.heading_time_constant,
                                                         position_window_s=p.heading_position_window)
@@ -149,12 +150,15 @@ class JointAngleStream:
         return [s for s in self.segments if s in calculator.rotations]
 
     def add(self, segment: str, ns: int, q: np.ndarray, gyr: tuple, acc: tuple,
-            arrival: float | None = None, recovering: bool = False) -> list[SyncedAngles]:
+            arrival: float | None = None, recovering: bool = False,
+            magnetic: bool = False) -> list[SyncedAngles]:
         """One sample (sensor→world q, bias-corrected rate rad/s, specific force m/s²) of ``segment`` at
-        stamp ``ns``; the instants ready now."""
+        stamp ``ns``; the instants ready now. ``magnetic``: its heading came from a magnetometer (the
+        joint headings then follow that filter's heading corrections at once)."""
         if segment not in self.segments or not (self.active or self.headings):
             return []
         self._seen[segment] = max(ns, self._seen.get(segment, ns))
+        self._magnetic[segment] = bool(magnetic)
         self.pending.setdefault(ns, {})[segment] = (np.asarray(q, dtype=float), tuple(gyr), tuple(acc),
                                                     bool(recovering))
         self.first_arrival.setdefault(ns, arrival if arrival is not None else math.inf)
@@ -192,7 +196,8 @@ class JointAngleStream:
                 estimator = self.headings[f"{side}_{joint}"]
                 if prox in samples and dist in samples and not (samples[prox][3] or samples[dist][3]):
                     (q1, g1, a1, _), (q2, g2, a2, _) = samples[prox], samples[dist]
-                    estimator.update(ns, tuple(q1), g1, a1, tuple(q2), g2, a2)
+                    estimator.update(ns, tuple(q1), g1, a1, tuple(q2), g2, a2,
+                                     (self._magnetic.get(prox, False), self._magnetic.get(dist, False)))
                 if estimator.established and prox in turn:
                     turn[dist] = turn[prox] + estimator.delta
                 else:
