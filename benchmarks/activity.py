@@ -1,6 +1,7 @@
 """Chest activity monitor (gait_biofeedback.core.activity.monitor) against real and simulated data.
 
-Run: ``.venv/bin/python benchmarks/activity.py`` (about 25 s). Prints tables for
+Run: ``.venv/bin/python benchmarks/activity.py`` (about 25 s; ``--rates``: only the HAPT table, with
+the phone resampled to 20, 50, 100 and 200 Hz). Prints tables for
 - UCI "Activity Recognition from a Single Chest-Mounted Accelerometer" (Casale, Pujol, Radeva 2011;
   CC BY 4.0): per-window posture / locomotion accuracy, confusion matrix, sit→stand detection, split
   into development subjects 1–7 (all thresholds chosen there) and held-out 8–15, next to the goals;
@@ -208,13 +209,16 @@ HAPT_GOALS = {"lying vs upright": 0.97, "walking vs static": 0.97, "sitting vs s
               "level vs stairs": 0.85, "stairs walking detected": None, "transitions found": 0.90}  # issue 15
 
 
-def hapt() -> None:
-    """UCI HAPT waist phone (Reyes-Ortiz et al.; CC BY 4.0), users 16-30: per-sample scores, transitions."""
+def hapt(rate_hz: float = HAPT_RATE) -> None:
+    """UCI HAPT waist phone (Reyes-Ortiz et al.; CC BY 4.0), users 16-30: per-sample scores, transitions.
+    ``rate_hz`` other than the phone's 50 Hz: the accelerometer resampled (``_resample``), each label
+    taken from the original sample nearest in time (issue 15 item 5)."""
     files = sorted(glob.glob(str(DATA / "hapt_waist" / "user*_run*.csv.gz")))
     if not files:
         print("[skip] hapt_waist missing")
         return
-    print(f"\n== HAPT waist phone (Reyes-Ortiz et al.), {len(files)} recordings of users 16-30, 50 Hz, "
+    print(f"\n== HAPT waist phone (Reyes-Ortiz et al.), {len(files)} recordings of users 16-30, "
+          f"{rate_hz:g} Hz{'' if rate_hz == HAPT_RATE else ' (resampled from 50 Hz)'}, "
           "placement=pelvis, nothing handed (automatic reference, initial posture standing) ==")
     hits = {name: [0, 0] for name in HAPT_GOALS if name != "transitions found"}
     per_kind = {kind: [0, 0] for kind in HAPT_TRANSITIONS.values()}
@@ -222,9 +226,16 @@ def hapt() -> None:
     for path in files:
         raw = np.loadtxt(path, delimiter=",", skiprows=1)
         label = raw[:, 7].astype(int)
+        acc = raw[:, :3]
+        if rate_hz != HAPT_RATE:
+            from _resample import resample
+
+            t0 = np.arange(len(raw)) / HAPT_RATE
+            t, acc = resample(t0, acc, HAPT_RATE, rate_hz)
+            label = label[np.minimum(np.round(t * HAPT_RATE).astype(int), len(label) - 1)]
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UnitMismatchWarning)
-            out = classify_activity(raw[:, :3], HAPT_RATE, units="g", placement="pelvis")
+            out = classify_activity(acc, rate_hz, units="g", placement="pelvis")
         posture, moving = out["posture"], out["locomotion"] != "none"
         stairs = np.isin(out["locomotion"], ["upstairs", "downstairs"])
         activity = np.isin(label, [1, 2, 3, 4, 5, 6])
@@ -245,12 +256,12 @@ def hapt() -> None:
             if kind is None:
                 continue
             near = [i for i, (t, k) in enumerate(out["transitions"])
-                    if k == kind and a / HAPT_RATE - 2.0 <= t <= b / HAPT_RATE + 2.0]
+                    if k == kind and a / rate_hz - 2.0 <= t <= b / rate_hz + 2.0]
             per_kind[kind][0] += bool(near)
             per_kind[kind][1] += 1
             used.update(near)
         false += len(out["transitions"]) - len(used)
-        hours += len(label) / HAPT_RATE / 3600.0
+        hours += len(label) / rate_hz / 3600.0
         replaced += out["reference"][-1][1] == "walking"
     print(f"{'score (per labelled sample)':>28} {'value':>7} {'goal':>5}")
     for name, (right, total) in hits.items():
@@ -409,6 +420,12 @@ def cost() -> None:
 
 
 def main() -> None:
+    import sys
+
+    if "--rates" in sys.argv:  # issue 15 item 5: the waist phone at other rates
+        for rate in (20.0, 50.0, 100.0, 200.0):
+            hapt(rate)
+        return
     start = time.perf_counter()
     cost()
     uci(handed=True)

@@ -1,6 +1,7 @@
 """Real-time gait events (thesis ch. 6 Algorithm 1) and the angular-velocity comparator, scored.
 
-Run: ``.venv/bin/python benchmarks/gait_events.py`` (about 10 s). Prints one table:
+Run: ``.venv/bin/python benchmarks/gait_events.py`` (about 10 s). ``--rates``: the real recordings
+resampled to 20-400 Hz instead (about 2 min). Prints one table:
 - gaitmap example (Küderle et al., gaitmap, MIT): 2 foot IMUs at 204.8 Hz, 57 strides with
   motion-capture IC/TC. Scored inside the reference strides (stride start → end per foot: the
   mocap stride list leaves out a few strides, e.g. at turns, and detections there are not errors);
@@ -247,7 +248,61 @@ def _cost_us() -> float:
     return (time.perf_counter() - start) / len(q) * 1e6
 
 
+RATES_HZ = (20.0, 50.0, 100.0, 200.0, 400.0)
+
+
+def rate_rows() -> None:
+    """Issue 15 item 5: the same real recordings resampled to 20-400 Hz (``_resample``), Algorithm 1
+    through ``detect_gait_events`` at each rate; the same scoring as the main table."""
+    from _resample import resample
+
+    sets = []
+    folder = DATA / "gaitmap_example"
+    if folder.is_dir():
+        rec = import_gaitmap(folder)
+        ref = rec.reference["events"]
+        feet = [(side, rec.imu[f"{side}_foot"], ref[side],
+                 list(zip(ref[side]["start"], ref[side]["end"], strict=True)))
+                for side in ("left", "right")]
+        sets.append(("gaitmap (204.8 Hz)", rec.imu["left_foot"].rate_hz, feet, MATCH_S))
+    folder = DATA / "ipol_gait"
+    if folder.is_dir():
+        feet = []
+        for path in sorted(folder.glob("*.json"), key=lambda p: tuple(int(x) for x in p.stem.split("-"))):
+            rec = import_recording("ipol_gait", path)
+            feet += [(f"{path.stem} {side}", rec.imu[f"{side}_foot"], rec.reference["events"][side],
+                      [rec.reference["trial"]]) for side in ("left", "right")]
+        sets.append(("ipol_gait (100 Hz)", IPOL_RATE_HZ, feet, IPOL_MATCH_S))
+    print("\nGait events at other rates (real recordings resampled; Algorithm 1): Se / Pr %, error ms")
+    print(f"{'data':20} {'rate Hz':>7} {'IC Se':>6} {'IC Pr':>6} {'IC error ms':>14} {'TC Se':>6} "
+          f"{'TC Pr':>6} {'TC error ms':>14} refused")
+    for name, native, feet, tolerance in sets:
+        for rate in RATES_HZ:
+            per_kind: dict[str, list] = {k: [] for k in KINDS}
+            refused = 0
+            for label, series, reference, intervals in feet:
+                t, both = resample(series.t, np.hstack([series.gyr, series.acc]), native, rate)
+                try:
+                    events = detect_gait_events(both[:, :3], both[:, 3:], rate, t=t)
+                except ValueError:
+                    refused += 1
+                    events = {k: [] for k in KINDS}
+                for kind in KINDS:
+                    per_kind[kind].append((f"{label} {kind}", np.array(events[kind]), reference[kind],
+                                           intervals))
+            cells = []
+            for kind in KINDS:
+                r = score(per_kind[kind], tolerance)
+                cells.append(f"{r['se']:6.1f} {r['pr']:6.1f} {r['mean']:6.1f} ± {r['sd']:5.1f}")
+            print(f"{name:20} {rate:7.0f} " + " ".join(cells) + f" {refused}")
+
+
 def main() -> None:
+    import sys
+
+    if "--rates" in sys.argv:
+        rate_rows()
+        return
     start = time.perf_counter()
     ipol, refusals = ipol_rows()
     rows = gaitmap_rows() + ipol + simulator_rows()

@@ -381,3 +381,31 @@ def test_other_labs_feet_are_never_refused():
             found, total, extra = found + len(matched.errors), total + len(ref), extra + len(matched.extra)
     # measured on subject 4: 186 of 195 found (95.4 %), no extra detection
     assert found / total > 0.9 and extra <= 2
+
+
+def _events_with_stamps(s: np.ndarray, keep: np.ndarray) -> list[tuple[str, int, str]]:
+    detector = GaitEventDetector(rate_hz=100.0)
+    out = []
+    for k in np.flatnonzero(keep):
+        if (event := detector.update_signal(int(k) * 10_000_000, float(s[k]))) is not None:
+            out.append((event.kind, event.stamp_ns // 10_000_000, event.flag))
+    while (event := detector.flush()) is not None:
+        out.append((event.kind, event.stamp_ns // 10_000_000, event.flag))
+    return out
+
+
+def test_a_hole_of_lost_samples_is_filled_before_algorithm1_counts_them(monkeypatch):
+    """8 samples (80 ms) lost in the toe-off's fall: the 15 samples the minimum looks back over would
+    reach into the flat standing before it (fewer than 12 of them falling) and the toe-off would be
+    missed; filled (linearly, exact on this ramp) the events are those of the whole signal."""
+    from gait_biofeedback.core.gait import events
+
+    s = _hand_made()
+    keep = np.ones(len(s), dtype=bool)
+    keep[36:44] = False
+    whole = _events_with_stamps(s, np.ones(len(s), dtype=bool))
+    assert whole == [("tc", 49, ""), ("ic", 69, "")]
+    assert _events_with_stamps(s, keep) == whole
+    monkeypatch.setattr(events, "MAX_FILL_S", 0.05)  # the same hole, not filled: the toe-off is missed,
+    # and found only late, at the heel strike, with the flag that makes its stride doubtful
+    assert _events_with_stamps(s, keep) == [("tc", 49, LATE_TC_FLAG), ("ic", 69, "")]

@@ -55,6 +55,6 @@ def detect_gait_events(gyr: np.ndarray, acc: np.ndarray, rate_hz: float, mag: np
     for stamp_ns, qk in zip(seconds_to_ns(t_q).tolist(), q.tolist(), strict=True):
         if (event := detector.update(stamp_ns, qk)) is not None:
             out[event.kind].append(event.t)
-    if (event := detector.flush()) is not None:
+    while (event := detector.flush()) is not None:
         out[event.kind].append(event.t)
     return out

@@ -37,6 +37,13 @@ READINGs / choices (documented and tested):
   and the heel strike follows one sample later, unflagged: the stride is whole. On ipol_gait 31 of the
   66 missed toe-offs were the first from standing.
 
+- Lost samples (a radio drops packets: up to 18 % of an ipol_gait trial). Algorithm 1 counts samples,
+  so a hole would stretch its windows and refractory periods in time. A stamp gap of 2 to
+  ``MAX_FILL_S`` / period sample periods is filled first: the missing samples' ``s`` linearly between
+  its two neighbours, at the missing stamps (an event may then carry such a stamp). Longer gaps are
+  left as they are (the stream flags a stride with a gap over 0.1 s). On ipol_gait IC Se
+  97.9 → 98.0 %, Pr 98.6 → 98.7 % (benchmarks/gait_events.py).
+
 Samples and events are identified by their stamps (int ns, ``docs/conventions.md``); Algorithm 1 itself
 counts samples and never looks at time.
 """
@@ -65,6 +72,7 @@ MISSED_TC_FLAG = "no toe-off detected before this heel strike"
 LATE_TC_THRESHOLD = -0.03  # -sin(beta), 1.7° toes down: the shallowest toe-off taken late (EXT)
 LATE_TC_LOOKBACK_S = 1.5  # how far back from such a heel strike its toe-off is looked for
 LATE_TC_FLAG = "toe-off shallower than the threshold, found at the next heel strike"
+MAX_FILL_S = 0.1  # s: the longest stamp gap whose missing samples are filled (module docstring)
 
 
 @dataclass(frozen=True)
@@ -135,7 +143,7 @@ class GaitEventDetector:
         self.set_rate(rate_hz)
         self.set_mounting(mounting)
         self.counts = {INITIAL_CONTACT: 0, TERMINAL_CONTACT: 0}
-        self._queued: GaitEvent | None = None  # a heel strike that follows its late toe-off
+        self._queued: deque[GaitEvent] = deque()  # events not returned yet: one per update, in order
         self.reset()
 
     def set_rate(self, rate_hz: float) -> None:
@@ -177,15 +185,24 @@ class GaitEventDetector:
 
     def update_signal(self, stamp_ns: int, s: float) -> GaitEvent | None:
         """One ``-sin(beta)`` sample stamped ``stamp_ns`` → the event of the previous sample, if any (a
-        heel strike whose toe-off was found late comes one sample after that toe-off)."""
-        queued, self._queued = self._queued, None
-        event = self._step(stamp_ns, s)
-        if queued is None:
-            return event
-        self._queued = event
-        return queued
+        heel strike whose toe-off was found late comes one sample after that toe-off; so does the
+        second event of a filled hole)."""
+        if self._stamps:
+            last_ns, last_s = self._stamps[-1], self._s[-1]
+            gap = stamp_ns - last_ns
+            missing = round(gap * self.rate_hz / NS_PER_S) - 1
+            if missing >= 1 and gap <= MAX_FILL_S * NS_PER_S:
+                for j in range(1, missing + 1):
+                    f = j / (missing + 1)
+                    self._step(last_ns + round(f * gap), last_s + f * (s - last_s))
+        self._step(stamp_ns, s)
+        return self._queued.popleft() if self._queued else None
 
-    def _step(self, stamp_ns: int, s: float) -> GaitEvent | None:
+    def _step(self, stamp_ns: int, s: float) -> None:
+        """Algorithm 1 on one sample; its events join the queue."""
+        self._queued.extend(self._detect(stamp_ns, s))
+
+    def _detect(self, stamp_ns: int, s: float) -> tuple[GaitEvent, ...]:
         buf = self._s
         buf.append(s)
         self._stamps.append(stamp_ns)
@@ -193,34 +210,33 @@ class GaitEventDetector:
         k = self._k
         self._recent.append((k, stamp_ns, s))
         if len(buf) < self.window + 3:
-            return None
+            return ()
         prev = buf[-2]
         if not self.waiting_for_ic:
             if k - self._k_tc > self.refractory and s < self.threshold and prev < s and self._is_minimum():
                 self._k_tc = k
                 self.waiting_for_ic = True
-                return self._event(TERMINAL_CONTACT, stamp_ns, prev)
+                return (self._event(TERMINAL_CONTACT, stamp_ns, prev),)
             if (k - self._k_ic > self._ic_alone and s > IC_WITHOUT_TC and prev > s
                     and self._is_maximum()):
                 late = self._late_toe_off(k)
                 self._k_ic = k
                 if late is None:
-                    return self._event(INITIAL_CONTACT, stamp_ns, prev, MISSED_TC_FLAG)
+                    return (self._event(INITIAL_CONTACT, stamp_ns, prev, MISSED_TC_FLAG),)
                 k_tc, tc_ns, value = late
                 self._k_tc = k_tc + 1  # as Algorithm 1 counts a TC: at its confirming sample
                 toe_off = self._event(TERMINAL_CONTACT, stamp_ns, value, LATE_TC_FLAG, stamp_ns=tc_ns)
-                self._queued = self._event(INITIAL_CONTACT, stamp_ns, prev)
-                return toe_off
+                return toe_off, self._event(INITIAL_CONTACT, stamp_ns, prev)
         elif k - self._k_ic > self.refractory and s > self.threshold and prev > s and self._is_maximum():
             self._k_ic = k
             self.waiting_for_ic = False
-            return self._event(INITIAL_CONTACT, stamp_ns, prev)
-        return None
+            return (self._event(INITIAL_CONTACT, stamp_ns, prev),)
+        return ()
 
     def flush(self) -> GaitEvent | None:
-        """The heel strike still queued behind its late toe-off (call at the end of the data)."""
-        queued, self._queued = self._queued, None
-        return queued
+        """The next event still queued (a heel strike behind its late toe-off): call at the end of the
+        data until it returns None."""
+        return self._queued.popleft() if self._queued else None
 
     def _late_toe_off(self, k: int) -> tuple[int, int, float] | None:
         """(k, stamp, s) of the deepest sample between the last IC's refractory and the refractory
@@ -277,6 +293,6 @@ def events_from_signal(signal: np.ndarray, rate_hz: float, **options: Any) -> di
         event = detector.update_signal(stamp_ns, sk)
         if event is not None:
             out[event.kind].append(index_of[event.stamp_ns])
-    if (event := detector.flush()) is not None:
+    while (event := detector.flush()) is not None:
         out[event.kind].append(index_of[event.stamp_ns])
     return {kind: np.array(v, dtype=int) for kind, v in out.items()}
