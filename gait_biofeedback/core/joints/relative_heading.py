@@ -29,8 +29,9 @@ treat it):
    joints: 2.3° at 0.3–0.5 s), longer keeps more of walking's stride-frequency accelerations (a 0.6 s
    mean removed keeps half of a 1 Hz component; at 0.3 s the qmt walk's hips never establish).
 3. **Heading turns the gyro does not explain** (our addition): a filter's world frame turns whenever
-   the filter corrects its heading (a magnetometer, disturbed or not; a re-acquired attitude), and δ
-   turns with it at once, faster than step 2 can follow. Per sensor, the correction of each sample,
+   the filter corrects its heading from its magnetometer (disturbed or not: a magnet that becomes the
+   filter's new reference turns it by tens of degrees within seconds), and δ turns with it at once,
+   faster than step 2 can follow. Per sensor, the correction of each sample,
    ``C = q_k ⊗ conj(q_{k−1} ⊗ exp(ω̄ dt))`` (ω̄ the mean of the two samples' bias-corrected rates), has
    a twist about the vertical ``2·atan2(C_z, C_w)``; their running sum ``E`` is that sensor's world
    turn. Step 2 runs on ``R_z(−E) ⊗ q`` (worlds that turn only with gyro drift) and the estimate is
@@ -39,7 +40,7 @@ treat it):
    filters whose heading comes from a magnetometer (``magnetic``) are read so; a 6D filter's
    corrections twist its heading by a few degrees a minute as well, but compensating them made
    dfjimu_weygers worse (median 2.61° → 2.83°), so there step 2 alone follows them. With a magnet
-   near the thigh (simulator) the knee's error fell from 2.06° to the 6D figure (README).
+   near the thigh (simulator) the knee's error fell from 2.06° to 1.01°, the 6D figure (README).
 4. **Established** once the products summed since the start weigh ``min_information`` (m²/s⁴·s) and
    agree (``|Σ|`` / ``Σ|·|`` ≥ ``min_coherence``). Before that the estimate is not used (live: that
    joint's angles are not published; offline: :func:`estimate_relative_heading` holds the first
