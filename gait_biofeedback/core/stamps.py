@@ -42,3 +42,11 @@ def sample_stamps(n: int, rate_hz: float) -> np.ndarray:
     """Stamps (int64 ns) of ``n`` samples at ``rate_hz`` starting at 0: the batch entry points' time
     base, ``seconds_to_ns(k / rate_hz)``."""
     return seconds_to_ns(np.arange(n) / rate_hz)
+
+
+def lost_between(last_ns: int, ns: int, rate_hz: float) -> list[tuple[int, float]]:
+    """The samples lost between two consecutive stamps at ``rate_hz``: (stamp ns, fraction of the
+    way from ``last_ns`` to ``ns``) of each, evenly spaced; none when the gap is under 1.5 periods."""
+    gap = ns - last_ns
+    missing = round(gap * rate_hz / NS_PER_S) - 1
+    return [(last_ns + round(j / (missing + 1) * gap), j / (missing + 1)) for j in range(1, missing + 1)]

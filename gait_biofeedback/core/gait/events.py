@@ -58,7 +58,7 @@ from typing import Any
 import numpy as np
 
 from gait_biofeedback.core import quaternion as quat
-from gait_biofeedback.core.stamps import NS_PER_S, sample_stamps
+from gait_biofeedback.core.stamps import NS_PER_S, lost_between, sample_stamps
 
 INITIAL_CONTACT = "ic"
 TERMINAL_CONTACT = "tc"
@@ -187,14 +187,10 @@ class GaitEventDetector:
         """One ``-sin(beta)`` sample stamped ``stamp_ns`` → the event of the previous sample, if any (a
         heel strike whose toe-off was found late comes one sample after that toe-off; so does the
         second event of a filled hole)."""
-        if self._stamps:
-            last_ns, last_s = self._stamps[-1], self._s[-1]
-            gap = stamp_ns - last_ns
-            missing = round(gap * self.rate_hz / NS_PER_S) - 1
-            if missing >= 1 and gap <= MAX_FILL_S * NS_PER_S:
-                for j in range(1, missing + 1):
-                    f = j / (missing + 1)
-                    self._step(last_ns + round(f * gap), last_s + f * (s - last_s))
+        if self._stamps and stamp_ns - self._stamps[-1] <= MAX_FILL_S * NS_PER_S:
+            last_s = self._s[-1]
+            for lost_ns, f in lost_between(self._stamps[-1], stamp_ns, self.rate_hz):
+                self._step(lost_ns, last_s + f * (s - last_s))
         self._step(stamp_ns, s)
         return self._queued.popleft() if self._queued else None
 

@@ -69,6 +69,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gait_biofeedback.core import quaternion as quat
+from gait_biofeedback.core.orientation.filters import _scalar as scalar
 from gait_biofeedback.core.stamps import seconds_to_ns
 
 TIME_CONSTANT_S = 5.0
@@ -315,28 +316,15 @@ def _wrap(angle: float) -> float:
 
 def _turned_back(q: tuple, turn: float) -> tuple[float, float, float, float]:
     """R_z(−turn) ⊗ q."""
-    c, s = math.cos(0.5 * turn), math.sin(0.5 * turn)
-    w, x, y, z = q
-    return (c * w + s * z, c * x + s * y, c * y - s * x, c * z - s * w)
+    return scalar.multiply((math.cos(0.5 * turn), 0.0, 0.0, -math.sin(0.5 * turn)), q)
 
 
 def _vertical_correction(q_last: tuple, gyr_last: tuple, q: tuple, gyr: tuple, dt: float) -> float:
-    """Twist about the world vertical (rad) of ``q ⊗ conj(q_last ⊗ exp(ω̄ dt))`` (module docstring step 3)."""
-    rx, ry, rz = ((a + b) * 0.5 * dt for a, b in zip(gyr_last, gyr, strict=True))
-    angle = math.sqrt(rx * rx + ry * ry + rz * rz)
-    if angle > 1e-12:
-        k = math.sin(0.5 * angle) / angle
-        sw, sx, sy, sz = math.cos(0.5 * angle), rx * k, ry * k, rz * k
-    else:
-        sw, sx, sy, sz = 1.0, 0.5 * rx, 0.5 * ry, 0.5 * rz
-    w0, x0, y0, z0 = q_last  # p = q_last ⊗ step
-    pw = w0 * sw - x0 * sx - y0 * sy - z0 * sz
-    px = w0 * sx + x0 * sw + y0 * sz - z0 * sy
-    py = w0 * sy - x0 * sz + y0 * sw + z0 * sx
-    pz = w0 * sz + x0 * sy - y0 * sx + z0 * sw
-    w, x, y, z = q  # c = q ⊗ conj(p): only its w and z are needed
-    cw = w * pw + x * px + y * py + z * pz
-    cz = -w * pz + z * pw - x * py + y * px
+    """Twist about the world vertical (rad) of ``q ⊗ conj(q_last ⊗ exp(ω̄ dt))`` (module docstring
+    step 3)."""
+    mean_rate = ((a + b) * 0.5 for a, b in zip(gyr_last, gyr, strict=True))
+    pw, px, py, pz = scalar.gyro_step(q_last, *mean_rate, dt)
+    cw, _, _, cz = scalar.multiply(q, (pw, -px, -py, -pz))
     return 2.0 * math.atan2(cz, cw) if cw >= 0 else 2.0 * math.atan2(-cz, -cw)
 
 

@@ -64,7 +64,7 @@ from gait_biofeedback.core.spatial.zero_velocity import (
     SHOE_GYRO,
     ZeroVelocityDetector,
 )
-from gait_biofeedback.core.stamps import NS_PER_S
+from gait_biofeedback.core.stamps import NS_PER_S, lost_between
 
 SMOOTHERS = ("suh", "rts", "none")
 KEEP_STANDING_S = 2 * MAX_STANCE_S  # s of a standing stance kept live (still "standing" for the next stride)
@@ -131,7 +131,6 @@ class FootTrajectoryStream:
         self.kept: list = []  # every filter step (keep_all)
         self._min_swing_ns = self.params.min_swing * NS_PER_S
         self._keep = round(KEEP_STANDING_S * self.rate_hz)
-        self._period_ns = NS_PER_S / self.rate_hz
         self._margin = max(1, round(self.params.window * self.rate_hz / 2))  # the detector's look-ahead
         self._restart()
 
@@ -176,18 +175,16 @@ class FootTrajectoryStream:
     def _fill(self, number: int, stamp_ns: int, gyr: np.ndarray, acc: np.ndarray) -> list[SpatialStride]:
         """Linearly interpolated samples for the ones lost after the sample ``number`` (reported as
         theirs) and before this one."""
-        missing = round((stamp_ns - self._last_ns) / self._period_ns) - 1
+        lost = lost_between(self._last_ns, stamp_ns, self.rate_hz)
         out: list[SpatialStride] = []
-        if missing < 1:
+        if not lost:
             return out
-        self.counts["interpolated"] += missing
-        if (missing + 1) / self.rate_hz > self.params.max_stance_gap + 1e-9:
+        self.counts["interpolated"] += len(lost)
+        if (len(lost) + 1) / self.rate_hz > self.params.max_stance_gap + 1e-9:
             self._long_gaps.append((self._last_ns, stamp_ns))
-        (gyr0, acc0), span = self._last, stamp_ns - self._last_ns
-        for j in range(1, missing + 1):
-            f = j / (missing + 1)
-            out += self._feed((number, self._last_ns + round(f * span), gyr0 + f * (gyr - gyr0),
-                               acc0 + f * (acc - acc0), True))
+        gyr0, acc0 = self._last
+        for lost_ns, f in lost:
+            out += self._feed((number, lost_ns, gyr0 + f * (gyr - gyr0), acc0 + f * (acc - acc0), True))
         return out
 
     def _feed(self, sample: tuple) -> list[SpatialStride]:
