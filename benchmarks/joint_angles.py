@@ -18,6 +18,8 @@
    ``auto`` and the wrong one: flips, refusals, worst calibration errors.
 5. ``report_magnet``: the ``magnet_near_thigh`` scenario through ``analyze --calibrate-at auto``,
    knee flexion RMSE with the kinematic heading, the filters' heading and without magnetometer.
+6. ``report_hips``: a walk with a 180° turn through ``analyze --calibrate-at auto``, 6D and 9D, hip
+   and knee angle RMSE with the hips' heading from the segment axes and from the joint centre.
 
 Run: ``.venv/bin/python benchmarks/joint_angles.py [--seeds 5]``.
 """
@@ -392,8 +394,40 @@ def report_magnet(seeds: tuple[int, ...] = (4, 5, 6)) -> None:
         print(f"    {label:32s} {left:5.2f} / {right:5.2f}")
 
 
+def report_hips(seeds: tuple[int, ...] = (4, 5, 6)) -> None:
+    """Hip angles through analyze (--calibrate-at auto) on a walk with a 180° turn, both hip headings."""
+    import tempfile
+
+    from gait_biofeedback.batch import analyze_recording, write_simulated_bag
+
+    phases = [Phase("stand", 5.0), Phase("walk", 10.0), Phase("stand", 5.0), Phase("walk", 20.0),
+              Phase("turn", 4.0, {"angle": np.pi}), Phase("walk", 20.0), Phase("stand", 3.0)]
+    names = [f"{side}_{n}" for side in ("left", "right") for n in
+             ("hip_flexion", "hip_adduction", "hip_internal_rotation", "knee_flexion")]
+    print(f"\n[simulator] hips: walk, 180° turn, walk (analyze --calibrate-at auto), RMSE 20-64 s (deg), "
+          f"mean over seeds {list(seeds)}, left / right")
+    header = "  ".join(f"{n.removeprefix('left_'):>21s}" for n in names[:4])
+    print(f"    {'filters, hip heading':30s} {header}")
+    for mag in (False, True):
+        for hip_heading in ("segment_axes", "joint_centre"):
+            rmse = []
+            for seed in seeds:
+                session = simulate(SimulationConfig(phases=phases, seed=seed, with_magnetometer=mag))
+                with tempfile.TemporaryDirectory() as tmp:
+                    bag = write_simulated_bag(Path(tmp) / "bag", session)
+                    result = analyze_recording(bag, None, calibrate_at=[(None, "auto")],
+                                               params={"joint_angles": {"hip_heading": hip_heading}})
+                rmse.append(_joint_rmse(session, result, 20.0, 64.0, names))
+            mean = np.nanmean(rmse, axis=0)
+            cells = [f"{mean[k]:9.2f} / {mean[k + 4]:9.2f}" for k in range(4)]
+            print(f"    {('9D' if mag else '6D') + ', ' + hip_heading:30s} " + "  ".join(cells))
+
+
 def _knee_rmse(session, result, t0: float, t1: float) -> list[float]:
-    names = ("left_knee_flexion", "right_knee_flexion")
+    return _joint_rmse(session, result, t0, t1, ("left_knee_flexion", "right_knee_flexion"))
+
+
+def _joint_rmse(session, result, t0: float, t1: float, names) -> list[float]:
     rows: dict[str, list] = {n: [] for n in names}
     rate = session.config.rate_hz
     for topic, msg, _ in result.messages:
@@ -429,6 +463,7 @@ def main() -> None:
     report_qmt_cli("auto")
     report_flips(args.flip_seeds)
     report_magnet()
+    report_hips()
     print(f"\nrun time {time.perf_counter() - start:.0f} s")
 
 

@@ -25,6 +25,10 @@ MOUNTS = {s: quat.canonical(quat.normalize(RNG.normal(size=4))) for s in
           ("pelvis", "left_thigh", "left_shank", "left_foot", "right_thigh", "right_shank", "right_foot")}
 
 
+UPRIGHT = quat.from_axis_angle([1, 0, 0], np.pi / 2)  # segment frames upright in ENU, facing east:
+# anatomical z (right) → world -y
+
+
 def _sensor_quats(segment_quats):
     """q_sensor = q_segment ⊗ conj(r) for the random mountings."""
     return {s: quat.multiply(q, quat.conjugate(MOUNTS[s])) for s, q in segment_quats.items()}
@@ -112,10 +116,9 @@ def test_streaming_calculator_equals_batch(walk):
 
 
 def test_stick_figure_of_standing_pose():
-    upright = quat.from_axis_angle([1, 0, 0], np.pi / 2)  # facing east: anatomical z (right) → world -y
     body = BodyDimensions(thigh_length=0.45, shank_length=0.41, hip_width=0.2, foot_length=0.15,
                           ankle_height=0.07)
-    lines = stick_figure({s: upright for s in MOUNTS}, body)
+    lines = stick_figure({s: UPRIGHT for s in MOUNTS}, body)
     ends = {seg: end for seg, _start, end in lines}
     np.testing.assert_allclose(ends["right_foot"], [0.15, -0.10, -0.45 - 0.41 - 0.07], atol=1e-12)
     np.testing.assert_allclose(ends["left_thigh"], [0.0, 0.10, -0.45], atol=1e-12)
@@ -123,10 +126,10 @@ def test_stick_figure_of_standing_pose():
 
 def _knee_pose(knee_deg: float) -> dict[str, np.ndarray]:
     """Sensor orientations of a standing pose with both knees flexed by ``knee_deg`` (hip, ankle 0)."""
-    segs = {"pelvis": quat.IDENTITY}
+    segs = {"pelvis": UPRIGHT}
     for side in ("left", "right"):
-        shank = relative_rotation_from_angles("knee", side, knee_deg * DEG, 0.0, 0.0)
-        segs.update({f"{side}_thigh": quat.IDENTITY, f"{side}_shank": shank, f"{side}_foot": shank})
+        shank = quat.multiply(UPRIGHT, relative_rotation_from_angles("knee", side, knee_deg * DEG, 0.0, 0.0))
+        segs.update({f"{side}_thigh": UPRIGHT, f"{side}_shank": shank, f"{side}_foot": shank})
     return _sensor_quats(segs)
 
 

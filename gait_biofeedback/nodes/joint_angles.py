@@ -101,13 +101,18 @@ class JointAnglesNode(GuardedNode):
                                         "not calibrated: run calibration")
         else:
             missing = {s: n for s, n in self.missing_counts.items() if n}
+            waiting, heading_values = self.stream.heading_status()
             level, text = DiagnosticStatus.OK, "publishing"
             if missing:
                 level = DiagnosticStatus.WARN
                 text = "missing samples from " + ", ".join(missing) + ": their joints were skipped"
+            elif waiting:
+                level = DiagnosticStatus.WARN
+                text = (f"no angles yet for {', '.join(w.replace('_', ' ') for w in waiting)}: their two "
+                        "sensors have no common heading yet (walk a few steps)")
             elif self.calculator.offset_pending:
                 text = f"publishing; standing offset pending: stand still {self.params.offset_window_s:g} s"
-            values = {f"missing_{s}": n for s, n in self.missing_counts.items()}
+            values = {f"missing_{s}": n for s, n in self.missing_counts.items()} | heading_values
             values["published"] = self.published
             values["recovering_instants"] = self.stream.recovering_count
             status = diagnostics.status("joint_angles", level, text, values=values)

@@ -15,9 +15,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gait_biofeedback.core import quaternion as quat
 from gait_biofeedback.core.body import StickFigureDimensions
 from gait_biofeedback.core.in_force import InForceQueue
 from gait_biofeedback.core.joints.angles import JOINTS, JointAngleCalculator, joint_angle_names, segment_pair
+from gait_biofeedback.core.joints.axis_heading import AxisHeadingEstimator
 from gait_biofeedback.core.joints.relative_heading import (
     POSITION_WINDOW_S,
     TIME_CONSTANT_S,
@@ -27,6 +29,7 @@ from gait_biofeedback.core.params import param
 from gait_biofeedback.core.segments import SIDES
 
 HEADING_SOURCES: tuple[str, ...] = ("kinematic", "filters")
+HIP_HEADING_SOURCES: tuple[str, ...] = ("segment_axes", "joint_centre")
 
 
 @dataclass(frozen=True)
@@ -54,6 +57,14 @@ class JointAnglesParams(StickFigureDimensions):
     heading_position_window: float = param(POSITION_WINDOW_S, "motion collected before a joint's centre is "
                                            "estimated (its angles are published once the heading is "
                                            "established)", "s", low=2.0, high=120.0)
+    hip_heading: str = param("segment_axes", "kinematic heading of the hips: 'segment_axes' = the pelvis' "
+                             "and thigh's calibrated medio-lateral axes agree on average (robust on real "
+                             "sensors; the hip's slow internal rotation is held at its standing value), "
+                             "'joint_centre' = the hip centre's acceleration seen by both sensors",
+                             choices=HIP_HEADING_SOURCES)
+    standing_max_tilt: float = param(0.52, "a still instant counts as standing for the standing offset only "
+                                     "when every calibrated thigh and shank is within this of vertical",
+                                     "rad", low=0.05, high=1.5)
 
 
 STREAM_SEGMENTS: tuple[str, ...] = ("pelvis", "left_thigh", "left_shank", "left_foot", "right_thigh",
@@ -114,12 +125,26 @@ class JointAngleStream:
         self._seen: dict[str, int] = {}
         self._magnetic: dict[str, bool] = {}  # segment → its newest sample's heading is magnetic
         self.headings: dict[str, RelativeHeadingEstimator] = {
-            f"{side}_{joint}": RelativeHeadingEstimator(p.heading_time_constant,
-                                                        position_window_s=p.heading_position_window)
+            f"{side}_{joint}": self._heading_estimator(joint)
             for side in SIDES for joint in JOINTS} if p.heading == "kinematic" else {}
+        self._axes_of: JointAngleCalculator | None = None  # the calculator whose axes the hips have
         self.first_arrival: dict[int, float] = {}
         self.missing_counts: dict[str, int] = {s: 0 for s in self.segments}
         self.recovering_count = 0  # emitted instants with a recovering segment
+
+    def _heading_estimator(self, joint: str) -> RelativeHeadingEstimator:
+        p = self.params
+        if joint == "hip" and p.hip_heading == "segment_axes":
+            return AxisHeadingEstimator(p.heading_time_constant)
+        return RelativeHeadingEstimator(p.heading_time_constant, position_window_s=p.heading_position_window)
+
+    def _give_axes(self, rotations: dict[str, np.ndarray]) -> None:
+        """The calibrated medio-lateral axes (sensor coordinates) to the hips' axis estimators."""
+        for name, estimator in self.headings.items():
+            if isinstance(estimator, AxisHeadingEstimator):
+                side, joint = name.split("_", 1)
+                estimator.set_axes(*(tuple(quat.rotate(rotations[s], _Z)) if s in rotations else None
+                                     for s in segment_pair(side, joint)))
 
     def _new_calculator(self, rotations: dict[str, np.ndarray]) -> JointAngleCalculator:
         calculator = JointAngleCalculator(rotations)
@@ -207,9 +232,12 @@ class JointAngleStream:
 
     def _emit(self, ns: int, samples: dict[str, tuple[np.ndarray, tuple, tuple, bool]],
               wanted: list[str]) -> SyncedAngles | None:
-        turn, no_heading = self._chain(ns, samples) if self.headings else ({}, ())
         for calculator in self._waiting.due(ns):
             self.calculator = calculator
+        if self.calculator is not self._axes_of and self.calculator is not None:
+            self._axes_of = self.calculator
+            self._give_axes(self.calculator.rotations)
+        turn, no_heading = self._chain(ns, samples) if self.headings else ({}, ())
         if self.calculator is None:
             return None
         for seg in wanted:
@@ -219,10 +247,38 @@ class JointAngleStream:
         recovering = tuple(s for s, (_, _, _, r) in samples.items() if r)
         self.recovering_count += bool(recovering)
         still = (not recovering and len(samples) == len(wanted)
-                 and all(math.hypot(*g) < self.still_gyro for _, g, _, _ in samples.values()))
+                 and all(math.hypot(*g) < self.still_gyro for _, g, _, _ in samples.values())
+                 and self._legs_upright(quats))
         leave_out = [key for joint in no_heading for key in joint_angle_names(*joint.split("_", 1))]
         angles = self.calculator.update(ns, quats, still=still, leave_out=leave_out)
         return SyncedAngles(ns, angles, quats, self.calculator.rotations, recovering, no_heading)
+
+    def heading_status(self) -> tuple[list[str], dict[str, str]]:
+        """(joints of the calibration in force whose two sensors have no common heading yet, so that
+        their angles are not published; per joint: its estimator's state and δ in degrees), for
+        /diagnostics."""
+        rotations = self.calculator.rotations if self.calculator is not None else {}
+        waiting, values = [], {}
+        for name, estimator in self.headings.items():
+            if not all(s in rotations for s in segment_pair(*name.split("_", 1))):
+                continue
+            values[f"{name}_heading"] = (f"{estimator.state}, δ {math.degrees(estimator.delta):.1f}°"
+                                         if estimator.established else estimator.state)
+            if not estimator.established:
+                waiting.append(name)
+        return waiting, values
+
+    def _legs_upright(self, quats: dict[str, np.ndarray]) -> bool:
+        """Every calibrated thigh and shank present has its long axis (anatomical y) within
+        ``standing_max_tilt`` of vertical: still, but not sitting or lying (no standing offset there)."""
+        rotations = self.calculator.rotations if self.calculator is not None else {}
+        least = math.cos(self.params.standing_max_tilt)
+        return all(quat.rotate(quat.multiply(q, rotations[seg]), _Y)[2] >= least for seg, q in quats.items()
+                   if seg.endswith(("_thigh", "_shank")) and seg in rotations)
+
+
+_Y = np.array([0.0, 1.0, 0.0])
+_Z = np.array([0.0, 0.0, 1.0])
 
 
 def _turned(q: np.ndarray, angle: float) -> np.ndarray:
