@@ -182,7 +182,7 @@ def write_in_flushed_batches(folder: Path, batches: int = 4, per_batch: int = 30
 
 
 def test_open_chunk_reaches_disk_on_flush(tmp_path: Path) -> None:
-    """Guards the crash-safety point (bag_writer.finish_open_chunk) against mcap library changes."""
+    """The crash-safety point: a flush writes the open chunk and hands the file to the OS."""
     writer = BagWriter(tmp_path / "open", flush_period=0.05)
     for i in range(10):
         writer.write("/chatter", string_msg(i), i)
@@ -343,3 +343,31 @@ def test_bag_survives_kill_9(tmp_path: Path) -> None:
     assert len(got) >= flushed[-1]
     assert got == [string_msg(i) for i in range(len(got))]
     assert repair(folder)["message_count"] == len(got)
+
+
+@pytest.mark.parametrize("compression", ["zstd", "lz4", "none"])
+def test_mcap_writer_indexes_read_by_the_mcap_library(tmp_path: Path, compression: str) -> None:
+    """The project's MCAP writer (io/mcap_writer.py) against the PyPI mcap reader: three channels, 4 kB
+    chunks (many of them, a channel registered after the first closed), log times out of order within
+    a chunk. The summary's statistics and chunk indexes, and the messages read through the indexes in
+    log-time order, are what was written."""
+    writer = BagWriter(tmp_path / "bag", compression=compression, chunk_size=4096)
+    written = []
+    for i in range(400):
+        topic = ("/a", "/b")[i % 2] if i < 200 else ("/a", "/b", "/late")[i % 3]
+        log = 1_000_000 * i + (500_000 if i % 7 == 3 else 0) - (700_000 if i % 11 == 5 else 0)
+        writer.write(topic, string_msg(i), log)
+        written.append((log, topic, serialize_message(string_msg(i))))
+    writer.close()
+    with open(writer.files[0], "rb") as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        assert summary.statistics.message_count == 400
+        assert summary.statistics.chunk_count == len(summary.chunk_indexes) >= 8
+        counts = {summary.channels[c].topic: n for c, n in summary.statistics.channel_message_counts.items()}
+        assert counts == {t: sum(w[1] == t for w in written) for t in ("/a", "/b", "/late")}
+        assert summary.statistics.message_start_time == min(w[0] for w in written)
+        assert summary.statistics.message_end_time == max(w[0] for w in written)
+        got = [(m.log_time, c.topic, m.data) for _, c, m in reader.iter_messages(log_time_order=True)]
+    assert got == sorted(written, key=lambda w: w[0])
+    assert McapFile.open(writer.files[0]).complete

@@ -19,8 +19,6 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any, BinaryIO
 
-from mcap.writer import CompressionType, Writer
-
 from gait_biofeedback.core.calibration.stream import CALIBRATION_FILE
 from gait_biofeedback.io.bag_metadata import (
     FileRecord,
@@ -30,22 +28,13 @@ from gait_biofeedback.io.bag_metadata import (
     qos_to_text,
     write_metadata,
 )
+from gait_biofeedback.io.mcap_writer import McapWriter
 from gait_biofeedback.io.params import COMPRESSIONS as COMPRESSION_NAMES
 from gait_biofeedback.io.schemas import schema_text, type_description_hash, type_name_of
 from gait_biofeedback.wire.cdr import serialize
 
-COMPRESSIONS = dict(zip(COMPRESSION_NAMES, (CompressionType.ZSTD, CompressionType.LZ4, CompressionType.NONE),
-                        strict=True))
+COMPRESSIONS = dict(zip(COMPRESSION_NAMES, ("zstd", "lz4", ""), strict=True))
 LIBRARY = "gait_biofeedback"
-
-
-def finish_open_chunk(writer: Writer) -> None:
-    """Write the chunk in progress to the stream and flush the stream (the crash-safety point).
-
-    ``mcap`` 1.6 does this in its public ``Writer.flush()``. This is the one place that relies on
-    it; test_bag_io.test_open_chunk_reaches_disk_on_flush fails if a library change breaks it.
-    """
-    writer.flush()
 
 
 def check_output(path: str | Path, overwrite: bool = False) -> None:
@@ -89,18 +78,17 @@ class _McapPart:
 
     path: Path
     stream: BinaryIO
-    writer: Writer
+    writer: McapWriter
     schema_ids: dict[str, int] = field(default_factory=dict)
     channel_ids: dict[str, int] = field(default_factory=dict)
     record: FileRecord = field(default_factory=lambda: FileRecord(""))
-    pending_bytes: int = 0
     good_offset: int = 0  # end of the last complete chunk handed to the OS
     good_end_ns: int = 0  # log time of the newest message before it
     good_messages: int = 0  # messages before it
 
     def size_estimate(self) -> int:
         """Bytes on disk plus the open chunk uncompressed (an upper bound of the final size)."""
-        return self.stream.tell() + self.pending_bytes
+        return self.stream.tell() + self.writer.pending_bytes
 
 
 class BagWriter:
@@ -163,7 +151,7 @@ class BagWriter:
         stream = open(path, "wb")  # noqa: SIM115 - closed in _close_part
         self.files.append(path)
         try:
-            writer = Writer(stream, chunk_size=self._chunk_size, compression=self._compression)
+            writer = McapWriter(stream, chunk_size=self._chunk_size, compression=self._compression)
             writer.start(profile="ros2", library=LIBRARY)
             stream.flush()
         except OSError:  # e.g. a full disk: no half-started file is left behind
@@ -216,31 +204,26 @@ class BagWriter:
         part = self._part
         channel_id = part.channel_ids.get(topic) or self._register(part, record)
         self._sequence[topic] += 1
-        part.writer.add_message(
-            channel_id,
-            log_time=log_time_ns,
-            data=data,
-            publish_time=log_time_ns if publish_time_ns is None else int(publish_time_ns),
-            sequence=self._sequence[topic] & 0xFFFFFFFF,
-        )
-        part.pending_bytes += len(data) + 31
+        part.writer.add_message(channel_id, log_time_ns, data,
+                                log_time_ns if publish_time_ns is None else int(publish_time_ns),
+                                self._sequence[topic] & 0xFFFFFFFF)
         file_record = part.record
         if file_record.message_count == 0 or log_time_ns < file_record.start_time:
             file_record.start_time = log_time_ns
-        file_record.end_time = max(file_record.end_time, log_time_ns)
+        if log_time_ns > file_record.end_time:
+            file_record.end_time = log_time_ns
         file_record.message_count += 1
         record.message_count += 1
         self.message_count += 1
-        if part.pending_bytes > 0.9 * self._chunk_size and part.stream.tell() != part.good_offset:
-            # the mcap writer has closed the chunk by itself (this message included): hand it to the
-            # OS, so that after a write error the file is cut back to here, not to the last flush
+        if part.writer.pending_bytes == 0:
+            # the chunk closed with this message: hand it to the OS, so that after a write error the
+            # file is cut back to here, not to the last flush
             part.stream.flush()
             self._mark_good(part)
         self.maybe_flush()
 
     @staticmethod
     def _mark_good(part: _McapPart) -> None:
-        part.pending_bytes = 0
         part.good_offset, part.good_end_ns = part.stream.tell(), part.record.end_time
         part.good_messages = part.record.message_count
 
@@ -273,7 +256,7 @@ class BagWriter:
         if self._closed:
             return
         part = self._part
-        finish_open_chunk(part.writer)
+        part.writer.flush()
         self._mark_good(part)
         self._last_flush = time.monotonic()
 
