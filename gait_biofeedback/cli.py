@@ -8,6 +8,8 @@ import sys
 import warnings
 from pathlib import Path
 
+from gait_biofeedback.core.words import plural
+
 DEMO_BAG = Path("bags/demo_walk")
 DEMO_OUTPUT = Path("output/demo_session")
 
@@ -66,7 +68,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     session = simulate(config)
     path = write_simulated_bag(args.output, session, overwrite=args.overwrite)
     n = len(next(iter(session.imu.values())))
-    print(f"wrote {path}: scenario {args.scenario}, {len(session.imu)} sensors x {n} samples "
+    print(f"wrote {path}: scenario {args.scenario}, {plural(len(session.imu), 'sensor')} x {n} samples "
           f"at {config.rate_hz:g} Hz ({n / config.rate_hz:.1f} s), seed {config.seed}")
     return 0
 
@@ -92,7 +94,8 @@ def cmd_import(args: argparse.Namespace) -> int:
     for warning in recording.warnings:
         print(f"warning: {warning}", file=sys.stderr)
     path = write_imu_bag(args.output, recording.imu)
-    print(f"wrote {path}: {len(recording.imu)} sensors ({', '.join(recording.imu)}) from {args.path}")
+    sensors = plural(len(recording.imu), "sensor")
+    print(f"wrote {path}: {sensors} ({', '.join(recording.imu)}) from {args.path}")
     return 0
 
 
@@ -242,6 +245,11 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     if result.calibration_file is not None:
         print(f"calibration in force saved as {result.calibration_file}")
     print("\n".join(format_report(session_report(result.output))))
+    if requests and not any(a.success for a in result.calibrations):
+        print("analyze: no calibration took effect (see the REFUSED or 'never ran' lines above), so there "
+              "are no joint angles and no calibrated gait outputs; change the --calibrate-at request, or "
+              "pass --calibration FILE", file=sys.stderr)
+        return 1
     return 0
 
 
@@ -424,7 +432,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_simulate)
 
     p = sub.add_parser("import", help="real recording (CSV/MAT) → the project's MCAP layout")
-    p.add_argument("kind", help="qmt_fullbody, gaitmap, broad, csv, or auto")
+    p.add_argument("kind", help="qmt_fullbody, gaitmap, broad, ipol_gait, csv (with --mapping; .csv or "
+                                "gzip-compressed .csv.gz), or auto (from the file name)")
     p.add_argument("path", help="the file to import")
     p.add_argument("-o", "--output", required=True, help="output bag folder (rosbag2: metadata.yaml + .mcap)")
     p.add_argument("--mapping", help="csv: YAML file mapping segments to columns")

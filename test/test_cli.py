@@ -184,3 +184,32 @@ def test_import_csv_refuses_unknown_segments_and_malformed_units(tmp_path, capsy
     assert main(["import", "csv", str(csv), "--mapping", str(mapping), "--units", "acc=g",
                  "-o", str(tmp_path / "b")]) == 0
     assert "if the file is in m/s², say so with --units acc=m/s2" in capsys.readouterr().err
+
+
+def test_analyze_exits_1_when_no_calibration_took_effect(tmp_path, capsys):
+    """A request after the end never runs: the outputs are written, the reason printed, exit 1."""
+    assert main(["simulate", "--scenario", "calibration_walking", "-o", str(tmp_path / "walk")]) == 0
+    capsys.readouterr()
+    assert main(["analyze", str(tmp_path / "walk"), "-o", str(tmp_path / "out"), "--calibrate-at",
+                 "1000:walking"]) == 1
+    captured = capsys.readouterr()
+    assert "never ran" in captured.err and "no calibration took effect" in captured.err
+    assert BagReader(tmp_path / "out").message_count > 0
+
+
+def test_import_reads_a_gzip_csv_and_says_what_a_csv_needs(tmp_path, capsys):
+    """A .csv.gz reads as its .csv (auto from the name, with a mapping); a CSV without --mapping, and a
+    missing file, are refused in one line that says what to give."""
+    import gzip
+
+    csv, mapping, foot = _walk_csv(tmp_path)
+    packed = tmp_path / "walk.csv.gz"
+    packed.write_bytes(gzip.compress(csv.read_bytes()))
+    assert main(["import", "auto", str(packed), "--mapping", str(mapping), "-o", str(tmp_path / "a")]) == 0
+    assert "1 sensor (left_foot)" in capsys.readouterr().out
+    np.testing.assert_allclose(read_imu_bag(tmp_path / "a")["left_foot"].gyr, foot.gyr, rtol=1e-5, atol=1e-5)
+    for argv, says in ((["csv", str(csv)], "--mapping map.yaml"), (["auto", str(csv)], "--mapping map.yaml"),
+                       (["csv", str(tmp_path / "none.csv"), "--mapping", str(mapping)], "not found")):
+        assert main(["import", *argv, "-o", str(tmp_path / "b")]) == 2
+        err = capsys.readouterr().err
+        assert says in err and "Traceback" not in err and err.count("\n") == 1, err

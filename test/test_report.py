@@ -212,6 +212,22 @@ def test_gait_variable_and_profile_score_by_hand():
     assert math.isnan(gait_profile_score([math.nan]))
 
 
+def test_walking_time_in_band_counts_each_second_once():
+    """Two 1.0 s strides per foot, the feet's strides overlapping: the cadence (both sides, cued at every
+    stride) covers 2 s of walking, not 4; the left knee (cued at the left strides) 2 s. Cadence in band
+    at 3 of its 4 cues: 1.5 s in band."""
+    from gait_biofeedback.report.analysis import _cue_summary
+
+    durations = {(side, k): 1.0 for side in ("left", "right") for k in (1, 2)}
+    cues = [{"quantity": "cadence", "side": "", "stride_side": side, "stride_index": k,
+             "severity": 0 if (side, k) != ("right", 2) else 1} for side in ("left", "right") for k in (1, 2)]
+    cues += [{"quantity": "knee_flexion_peak_swing", "side": "left", "stride_index": k, "severity": 0}
+             for k in (1, 2)]
+    summary = _cue_summary(cues, durations)
+    assert summary["cadence"]["time_s"] == 2.0 and summary["cadence"]["time_in_band_s"] == 1.5
+    assert summary["knee_flexion_peak_swing (left)"]["time_s"] == 2.0
+
+
 def test_progress_flags_a_gait_speed_change_beyond_its_mcid(reported):
     from gait_biofeedback.core.biofeedback.evaluator import default_targets_path, load_targets
     from gait_biofeedback.report.analysis import analyse_session

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import csv
 import difflib
+import gzip
 import math
 import re
 from collections.abc import Callable, Mapping
@@ -423,7 +424,9 @@ def _unit_factors(units: Mapping[str, str]) -> dict[str, float]:
 
 
 def _read_header(path: Path) -> tuple[list[str], str]:
-    with path.open(newline="", encoding="utf-8-sig") as handle:  # a BOM (Excel's UTF-8) is not a name
+    """(column names, delimiter) of a CSV, gzip-compressed (``.gz``) or not."""
+    opener = gzip.open if path.suffix == ".gz" else open
+    with opener(path, "rt", newline="", encoding="utf-8-sig") as handle:  # a BOM (Excel's) is not a name
         first_line = handle.readline()
     if not first_line.strip():
         raise ValueError(f"{path}: empty file or empty header line; expected one row of column names")
@@ -618,16 +621,17 @@ def detect_kind(path: str | Path, **options: Any) -> str:
                 return "broad"
             if {"t", "hip", "foot_left"} <= variables:
                 return "qmt_fullbody"
-    if name.endswith(".csv"):
+    if name.endswith((".csv", ".csv.gz")):
         if name.startswith("imu_sample"):
             return "gaitmap"
         if "mapping" in options:
             return "csv"
-        raise ValueError(f"cannot tell the kind of {path}: a generic CSV needs a column mapping; call "
-                         "import_recording('csv', path, mapping={segment: {'acc': [...], 'gyr': [...]}})")
-    raise ValueError(f"cannot tell the kind of {path} from its name; pass kind= one of {list(IMPORTERS)} "
-                     "(known names: full_body*.mat, NN_*.mat (BROAD), imu_sample*.csv (gaitmap), "
-                     "S-T.json (ipol_gait))")
+        raise ValueError(f"cannot tell the kind of {path}: a CSV of your own needs a column mapping (the "
+                         f"command line: import csv {path} --mapping map.yaml; Python: mapping=...), see "
+                         "the README, Replaying your own recording")
+    raise ValueError(f"cannot tell the kind of {path} from its name; name the kind, one of "
+                     f"{list(IMPORTERS)} (known names: full_body*.mat, NN_*.mat (BROAD), imu_sample*.csv "
+                     "(gaitmap), S-T.json (ipol_gait))")
 
 
 def import_recording(kind: str, path: str | Path, **options: Any) -> Recording:
@@ -636,8 +640,15 @@ def import_recording(kind: str, path: str | Path, **options: Any) -> Recording:
     ``options`` go to the importer (e.g. ``include_unmapped`` for qmt_fullbody, ``rotated`` for gaitmap,
     ``segment`` for broad, ``mapping``/``units``/``rate_hz`` for csv).
     """
+    ipol_base = kind == "ipol_gait" or TRIAL_NAME.match(Path(path).name)  # a trial's base name is no file
+    if not Path(path).exists() and not ipol_base:
+        raise FileNotFoundError(f"{path} not found: give the path of the recording to import")
     if kind == "auto":
         kind = detect_kind(path, **options)
     if kind not in IMPORTERS:
         raise ValueError(f"unknown recording kind '{kind}'; known: {[*IMPORTERS, 'auto']}")
+    if kind == "csv" and "mapping" not in options:
+        raise ValueError(f"{path}: a CSV of your own needs a column mapping (the command line: --mapping "
+                         "map.yaml; Python: mapping=...) naming the time column and each segment's acc/gyr "
+                         "columns; see the README, Replaying your own recording")
     return IMPORTERS[kind](path, **options)

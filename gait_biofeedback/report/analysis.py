@@ -34,6 +34,7 @@ from gait_biofeedback.core.biofeedback.evaluator import (
     SAGITTAL,
     SEVERITY_IN_BAND,
     BiofeedbackEvaluator,
+    Stride,
     Targets,
 )
 from gait_biofeedback.core.gait.cycles import symmetry_index
@@ -83,8 +84,18 @@ class SessionAnalysis:
     gps: dict[str, float]
     cues: dict[str, dict]
     cue_source: str
-    strides_without_curves: int
+    strides_without_curves: dict[str, int]
+    """Why strides used have no curves: :data:`NO_CURVES` reason → how many."""
     notes: list[str] = field(default_factory=list)
+
+
+NO_CURVES = {
+    "no_sensors": "there are no hip, knee and ankle angles of that side in the recording (a thigh, shank "
+                  "or foot sensor missing, or not calibrated)",
+    "not_published": "no joint angles were published during them (a joint still waiting for its two "
+                     "sensors' common heading, which needs walking, or no calibration in force yet)",
+    "holes": "their joint angles had a hole over 0.1 s or were marked recovering",
+}
 
 
 def walking_bouts(data: SessionData) -> list[tuple[float, float]] | None:
@@ -171,7 +182,10 @@ def _stride_side(used: list[dict], cue: dict) -> str:
 
 
 def _cue_summary(cues: list[dict], durations: dict[tuple[str, int], float]) -> dict[str, dict]:
-    """Per quantity (and side): cues, in band %, severe, and the walking time of in-band strides."""
+    """Per quantity (and side): cues, in band %, severe, and the walking time of in-band strides. A
+    quantity of both sides (cadence, gait speed, symmetries) is cued at every stride of either foot,
+    and the two feet's strides overlap: each such cue counts half its stride's time, so the walking
+    time is counted once."""
     out: dict[str, dict] = {}
     for c in cues:
         key = c["quantity"] + (f" ({c['side']})" if c["side"] else "")
@@ -182,11 +196,23 @@ def _cue_summary(cues: list[dict], durations: dict[tuple[str, int], float]) -> d
         entry["in_band"] += c["severity"] == SEVERITY_IN_BAND
         entry["severe"] += c["severity"] == 2
         stride_time = durations.get((c.get("stride_side") or c["side"], c["stride_index"]), 0.0)
+        if not c["side"]:
+            stride_time *= 0.5
         entry["time_s"] += stride_time
         entry["time_in_band_s"] += stride_time if c["severity"] == SEVERITY_IN_BAND else 0.0
     for entry in out.values():
         entry["in_band_percent"] = 100.0 * entry["in_band"] / entry["cues"]
     return out
+
+
+def _why_no_curves(data: SessionData, names: list[str], stride: Stride) -> str:
+    """The :data:`NO_CURVES` reason of a stride the evaluator gave no curves."""
+    if not all(n in data.joints for n in names):
+        return "no_sensors"
+    inside = (data.joint_t >= stride.start_ns) & (data.joint_t <= stride.end_ns)
+    if not np.all([np.isfinite(data.joints[n]) for n in names], axis=0)[inside].any():
+        return "not_published"
+    return "holes"
 
 
 def analyse_session(data: SessionData, targets: Targets) -> SessionAnalysis:
@@ -213,7 +239,8 @@ def analyse_session(data: SessionData, targets: Targets) -> SessionAnalysis:
             evaluator.add_angles(side, int(data.joint_t[k]), float(hip[k]), float(knee[k]), float(ankle[k]))
     t = (data.joint_t - data.start_ns) * 1e-9
     curves: dict[str, dict[str, list]] = {side: {n: [] for n in SAGITTAL} for side in SIDES}
-    used, discrete, offline_cues, without = [], [], [], 0
+    used, discrete, offline_cues = [], [], []
+    without: dict[str, int] = {}
     for row, stride in sorted(chosen, key=lambda rs: rs[1].end_ns):
         result = evaluator.evaluate(stride)
         row = dict(
@@ -226,7 +253,8 @@ def analyse_session(data: SessionData, targets: Targets) -> SessionAnalysis:
             for n in SAGITTAL:
                 curves[stride.side][n].append(result.curves[n])
         else:
-            without += 1
+            reason = _why_no_curves(data, names[stride.side], stride)
+            without[reason] = without.get(reason, 0) + 1
         discrete.extend(_discrete(data, row, t))
         offline_cues.extend(
             {

@@ -10,8 +10,9 @@ from collections import Counter
 from gait_biofeedback.core.biofeedback import normative
 from gait_biofeedback.core.biofeedback.evaluator import Targets
 from gait_biofeedback.core.segments import SIDES
+from gait_biofeedback.core.words import plural
 from gait_biofeedback.report import figures
-from gait_biofeedback.report.analysis import GPS_MISSING, TABLE, SessionAnalysis
+from gait_biofeedback.report.analysis import GPS_MISSING, NO_CURVES, TABLE, SessionAnalysis
 from gait_biofeedback.report.document import Bullets, Figure, Paragraph, Section, Table
 from gait_biofeedback.report.extract import LEVELS, SessionData
 from gait_biofeedback.report.norms import BAKER_2009, BAKER_2012, MCID, NormBand
@@ -49,15 +50,15 @@ def _band_text(name: str, band: NormBand) -> str:
 def spatiotemporal(analysis: SessionAnalysis, norms: dict[str, NormBand]) -> Section:
     section = Section("Spatiotemporal parameters")
     where = (
-        "inside the activity monitor's walking bouts"
+        "the plausible ones inside the activity monitor's walking bouts"
         if analysis.walking_bouts is not None
-        else "all of them: no activity/state in the recording"
+        else "every plausible one: no activity/state in the recording"
     )
     section.add(
         Paragraph(
-            f"{len(analysis.used)} strides: the plausible ones {where}"
+            f"{plural(len(analysis.used), 'stride')}: {where}"
             + (
-                f"; {analysis.left_out_outside_walking} plausible strides outside walking left out "
+                f"; {plural(analysis.left_out_outside_walking, 'plausible stride')} outside walking left out "
                 "(the summary above counts them)"
                 if analysis.left_out_outside_walking
                 else ""
@@ -129,14 +130,9 @@ def joint_curves(analysis: SessionAnalysis, targets: Targets) -> Section:
             "warning",
         )
     )
-    if analysis.strides_without_curves:
-        section.add(
-            Paragraph(
-                f"{analysis.strides_without_curves} strides used have no curves: their joint "
-                "angles had a hole over 0.1 s or were marked recovering.",
-                "note",
-            )
-        )
+    for reason, count in analysis.strides_without_curves.items():
+        section.add(Paragraph(f"{plural(count, 'stride')} used {'has' if count == 1 else 'have'} "
+                              f"no curves: {NO_CURVES[reason]}.", "note"))
     return section
 
 
