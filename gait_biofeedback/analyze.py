@@ -59,6 +59,7 @@ from gait_biofeedback.core.calibration.stream import (
     write_calibration_file,
 )
 from gait_biofeedback.core.gait.stream import GaitEventsParams, GaitEventStream
+from gait_biofeedback.core.joints.angles import segment_pair
 from gait_biofeedback.core.joints.stream import STREAM_SEGMENTS, JointAnglesParams, JointAngleStream
 from gait_biofeedback.core.orientation.stream import OrientationParams, SegmentOrientationTracker
 from gait_biofeedback.core.stamps import NS_PER_S, s_to_ns
@@ -108,6 +109,8 @@ class AnalysisResult:
 
 
 AUTO_MARGIN_S = 0.5  # an auto calibration instant: this long after the motion it found (or the end)
+WAITING_WARN_NS = 2 * NS_PER_S
+"""A calibrated joint left without angles this long (no common heading yet) is named in the warnings."""
 SESSION_CONDITIONS = ("losing samples", "6D")
 """Orientation conditions ``analyze`` also sums up in its warnings (the others are said as they happen)."""
 
@@ -134,13 +137,15 @@ def parse_calibrate_at(text: str) -> tuple[float | None, str]:
     return t, protocol
 
 
-def resolve_calibrate_at(bag: str | Path, requests: Sequence[tuple[float | None, str]]
+def resolve_calibrate_at(bag: str | Path, requests: Sequence[tuple[float | None, str]],
+                         standing_duration: float = CalibrationParams.default_standing_duration
                          ) -> tuple[list[tuple[float, str]], list[str]]:
     """(requests with every ``auto`` time found, what was found in words). An ``auto`` time is the
     end (+ 0.5 s) of the first calibration in the recording's raw IMU data
-    (:func:`~gait_biofeedback.core.calibration.protocol.find_calibration`: a quiet standing, then
-    movement that looks like a protocol); with protocol ``auto`` the protocol it looks like. ValueError
-    (saying what was looked for) when there is none."""
+    (:func:`~gait_biofeedback.core.calibration.protocol.find_calibration`: a quiet standing of
+    ``standing_duration`` s, the calibration stage's ``default_standing_duration``, then movement that
+    looks like a protocol); with protocol ``auto`` the protocol it looks like. ValueError (saying what
+    was looked for) when there is none."""
     if all(t is not None for t, _ in requests):
         return [(float(t), p) for t, p in requests], []
     if sum(t is None for t, _ in requests) > 1:
@@ -148,7 +153,7 @@ def resolve_calibrate_at(bag: str | Path, requests: Sequence[tuple[float | None,
     data = read_imu_bag(bag)
     with BagReader(bag) as reader:
         start_s = reader.start_time_ns / NS_PER_S
-    standing, motion, check = find_calibration(data)
+    standing, motion, check = find_calibration(data, standing_duration)
     (s0, s1), (m0, m1) = ((a - start_s, b - start_s) for a, b in (standing, motion))
     at = min(m1 + AUTO_MARGIN_S, max(d.t[-1] for d in data.values() if len(d)) - start_s)
     resolved, notes = [], []
@@ -237,7 +242,8 @@ def analyze_recording(
             raise ValueError(f"unknown calibration protocol {protocol!r}; use one of {list(REQUESTS)}")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", BagRecoveryWarning)  # they go into result.warnings
-        requests, notes = resolve_calibrate_at(bag, list(calibrate_at or []))
+        standing_s = (stages.get("calibration") or CalibrationParams()).default_standing_duration
+        requests, notes = resolve_calibrate_at(bag, list(calibrate_at or []), standing_s)
         is_auto = [asked is None for asked, _ in calibrate_at or []]
         auto = [r for r, a in zip(requests, is_auto, strict=True) if a]
         found = _calibrate_ahead(bag, auto[0], stages) if auto else None
@@ -356,9 +362,14 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
         if activity is not None:
             activity.stream.apply_calibration(*entries(msg))
 
+    waiting: dict[str, list[int]] = {}  # joint → [first, last] stamp it was left out for want of a heading
+
     def publish_joints(emitted: list, log_ns: int) -> None:
         nonlocal emitted_joints
         for synced in emitted:
+            for joint in synced.no_heading:
+                if all(s in synced.rotations for s in segment_pair(*joint.split("_", 1))):
+                    waiting.setdefault(joint, [synced.ns, synced.ns])[1] = synced.ns
             if synced.angles:
                 msg = joint_state_msg(synced.angles, synced.ns, synced.recovering)
                 emit(topics.JOINT_STATES.absolute(), msg, log_ns)
@@ -453,6 +464,13 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
         report_status(reader.end_time_ns)
     publish_joints(joints.flush(force=True), reader.end_time_ns)
     result.warnings[:0] = reader.warnings  # a damaged file, a chunk skipped: the time range lost
+    for joint, (first, last) in waiting.items():
+        if last - first < WAITING_WARN_NS:
+            continue  # a hip's axis heading: 1 s after the calibration
+        result.warnings.append(
+            f"{joint.replace('_', ' ')}: no angles from {(first - start_ns) / NS_PER_S:.1f} to "
+            f"{(last - start_ns) / NS_PER_S:.1f} s into the recording, though calibrated: its two sensors "
+            "had no common heading yet (the kinematic heading needs about 15 s of walking)")
     for seg, tracker in trackers.items():  # what only /diagnostics said along the way, over the session
         for text in tracker.conditions({}):
             if text.startswith(SESSION_CONDITIONS):

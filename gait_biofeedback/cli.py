@@ -199,9 +199,12 @@ def cmd_replay(args: argparse.Namespace) -> int:
     from gait_biofeedback.analyze import resolve_calibrate_at
     from gait_biofeedback.graph import replay_through_graph
     from gait_biofeedback.io.bag import BagReader
+    from gait_biofeedback.parameters import stage_parameters
 
     params = _session_parameters(args.params)
-    requests, notes = resolve_calibrate_at(args.bag, _calibration_options(args, params))
+    calibration = stage_parameters("calibration", params.get("calibration", {}))
+    requests, notes = resolve_calibrate_at(args.bag, _calibration_options(args, params),
+                                           calibration.default_standing_duration)
     for note in notes:
         print(note)
     with BagReader(args.bag) as reader:
@@ -259,7 +262,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     patient = patient_from_params(args.params) if args.params else Patient()
     patient = Patient(args.patient_id or patient.id, args.session_label or patient.session)
     files = write_report(args.sessions, args.output, patient, labels=args.labels, norms_file=args.norms,
-                         targets_file=args.targets)
+                         targets_file=args.targets, overwrite=args.overwrite)
     for note in files.analyses[-1].notes:
         print(note)
     for path in (files.html, files.pdf, files.strides_csv, files.joints_csv):
@@ -479,6 +482,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--params", default=None, help="parameter file whose patient: block gives the header")
     p.add_argument("--norms", default=None, help="YAML of normative bands replacing the built-in ones")
     p.add_argument("--targets", default=None, help="targets of the offline cues [config/targets.yaml]")
+    p.add_argument("--overwrite", action="store_true", help="replace a report already in the output folder")
     p.set_defaults(func=cmd_report)
 
     p = sub.add_parser(

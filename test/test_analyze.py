@@ -4,6 +4,7 @@ refused with a message saying what is needed; the CLI subcommand runs and prints
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -222,8 +223,14 @@ def test_cli_analyze_with_a_calibration_file(tmp_path, capsys):
     write_calibration_file(tmp_path / "calibration.yaml", cal, "2026-12-01T10:00:00")
     assert main(["analyze", str(bag), "-o", str(tmp_path / "out"), "--calibration",
                  str(tmp_path / "calibration.yaml"), "--params", str(SESSION_PARAMS)]) == 0
-    out = capsys.readouterr().out
+    captured = capsys.readouterr()
+    out = captured.out
     assert "/joint_states" in out and "joint-angle RMSE vs truth" in out and "gait events IC" in out
+    # in force from the start, the knees wait for 5 s standing and about 10 s of walking: said, with when
+    waits = re.findall(r"left knee: no angles from 0\.0 to (\d+\.\d) s into the recording, though "
+                       r"calibrated: its two sensors had no common heading yet", captured.err)
+    assert len(waits) == 1 and 14.0 < float(waits[0]) < 17.0, captured.err  # measured 15.2 s
+    assert "left hip: no angles" not in captured.err  # the hips' axis heading: after 1 s
     counts = BagReader(tmp_path / "out").message_counts()
     assert counts["/calibration/sensor_to_segment"] == 1 and counts["/ground_truth/joint_states"] > 0
     assert counts["/left_foot/imu/data"] == counts["/left_foot/imu/data_raw"]

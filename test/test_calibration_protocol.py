@@ -93,6 +93,24 @@ def test_no_calibration_found_says_what_was_looked_for():
         find_calibration(session.imu)
 
 
+def test_analyze_auto_takes_the_calibration_stage_s_standing_duration(tmp_path, capsys):
+    """A recording that starts walking after 1.2 s of standing (gaitmap's example has about 1 s): auto
+    refuses with the default 3 s, naming the parameter, and finds it with default_standing_duration 1."""
+    from gait_biofeedback.cli import main
+    from gait_biofeedback.sim.recording import write_simulated_bag
+
+    session = simulate(SimulationConfig(seed=3, phases=[Phase("stand", 1.2), Phase("walk", 8.0),
+                                                        Phase("stand", 3.0)]))
+    bag = write_simulated_bag(tmp_path / "walk", session)
+    assert main(["analyze", str(bag), "-o", str(tmp_path / "a"), "--calibrate-at", "auto"]) == 2
+    assert "default_standing_duration" in capsys.readouterr().err
+    params = tmp_path / "short.yaml"
+    params.write_text("calibration:\n  ros__parameters:\n    default_standing_duration: 1.0\n")
+    assert main(["analyze", str(bag), "-o", str(tmp_path / "b"), "--calibrate-at", "auto", "--params",
+                 str(params)]) == 0
+    assert "--calibrate-at auto: quiet standing 0.23-1.23 s, then walking 1.23-" in capsys.readouterr().out
+
+
 @pytest.mark.parametrize("scenario, protocol", [("calibration_hip_flexion", "hip_flexion"),
                                                 ("calibration_walking", "walking")])
 def test_random_mountings_through_the_6d_filters_never_flip(scenario, protocol):
@@ -156,3 +174,17 @@ def test_calibrate_at_auto_is_parsed_and_given_once():
     assert resolve_calibrate_at("no/such/bag", [(36.0, "walking")]) == ([(36.0, "walking")], [])
     with pytest.raises(ValueError, match="give it once"):
         resolve_calibrate_at("no/such/bag", [(None, "auto"), (None, "walking")])
+
+
+def test_a_pelvis_without_thighs_is_refused_naming_the_thighs_not_the_protocol():
+    """Feet and a lower-back sensor (ipol_gait, a waist phone) walking: the pelvis' forward direction
+    comes from the thighs, so its refusal says to put them on, not to walk (it did walk)."""
+    segments = ("pelvis", "left_foot", "right_foot")
+    session = simulate(SCENARIOS["calibration_walking"](seed=4, segments=segments))
+    ori = {s: track_orientation(session.imu[s])[1] for s in segments}
+    standing, motion = find_standing_then_motion(session.imu)
+    cal = calibrate_session(session.imu, standing, motion, "walking", orientations=ori)
+    pelvis = cal.segments["pelvis"]
+    assert cal.segments["left_foot"].valid and not pelvis.valid
+    assert "from the thighs, so put those sensors on" in pelvis.message
+    assert "walking protocol" not in pelvis.message

@@ -254,6 +254,22 @@ def test_a_raw_recording_is_refused_with_the_analyze_command(reported, tmp_path)
     assert not (tmp_path / "r").exists()
 
 
+def test_an_existing_report_is_replaced_only_when_asked(reported, tmp_path):
+    """Like analyze and import: a folder holding a report is refused (nothing written) until
+    --overwrite; a session given twice is refused."""
+    analyzed = str(reported["root"] / "analyzed")
+    before = (reported["out"] / "report.html").stat().st_mtime_ns
+    rc, _, err = _cli("report", analyzed, "-o", str(reported["out"]))
+    assert rc == 2 and "already holds a report (report.html" in err and "--overwrite" in err
+    assert (reported["out"] / "report.html").stat().st_mtime_ns == before
+    rc, _, err = _cli("report", analyzed, analyzed, "-o", str(tmp_path / "twice"))
+    assert rc == 2 and "given twice" in err and not (tmp_path / "twice").exists()
+    rc, _, err = _cli("report", analyzed, "-o", str(tmp_path / "again"))
+    assert rc == 0, err
+    rc, _, err = _cli("report", analyzed, "-o", str(tmp_path / "again"), "--overwrite")
+    assert rc == 0, err
+
+
 @pytest.mark.parametrize("patient_id", ["John Smith", "Müller", "x" * 33])
 def test_a_patient_name_is_refused(patient_id):
     with pytest.raises(ValueError, match="pseudonymous code"):

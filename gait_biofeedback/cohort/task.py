@@ -94,7 +94,7 @@ def _parameters(where: Path, with_report: bool) -> dict[str, Any]:
 
     data = read_session(where / ANALYSIS)
     if with_report:
-        analysis = write_report([where / ANALYSIS], where / REPORT).analyses[-1]
+        analysis = write_report([where / ANALYSIS], where / REPORT, overwrite=True).analyses[-1]
     else:
         analysis = analyse_session(data, load_targets(default_targets_path()))
     row: dict[str, Any] = {"duration_s": round(data.duration_s, 3), "strides": len(analysis.strides),

@@ -150,6 +150,9 @@ def _write_csvs(out: Path, labels: list[str], analyses: list[SessionAnalysis]) -
     return strides, joints
 
 
+REPORT_FILES = ("report.html", "report.pdf", "strides.csv", "joints.csv")
+
+
 def write_report(
     sessions: list[str | Path],
     output: str | Path,
@@ -157,10 +160,23 @@ def write_report(
     labels: list[str] | None = None,
     norms_file: str | Path | None = None,
     targets_file: str | Path | None = None,
+    overwrite: bool = False,
 ) -> ReportFiles:
-    """The report files of ``sessions`` in ``output`` (module docstring)."""
+    """The report files of ``sessions`` in ``output`` (module docstring). A folder that already holds a
+    report is refused unless ``overwrite``; so is a session given twice."""
     if not sessions:
         raise ValueError("report: give at least one session (a recording of the graph or an analyze output)")
+    resolved = [Path(s).resolve() for s in sessions]
+    twice = [s for s, r in zip(sessions, resolved, strict=True) if resolved.count(r) > 1]
+    if twice:
+        raise ValueError(f"report: session {twice[0]} is given twice; give each session once, oldest first")
+    out = Path(output)
+    if out.exists() and not out.is_dir():
+        raise FileExistsError(f"report: {out} is a file; the report is written to a folder")
+    taken = [name for name in REPORT_FILES if (out / name).exists()]
+    if taken and not overwrite:
+        raise FileExistsError(f"report: {out} already holds a report ({', '.join(taken)}): write to another "
+                              "folder, or pass --overwrite to replace it")
     patient = patient or Patient()
     labels = list(labels) if labels else [Path(s).name for s in sessions]
     if len(labels) != len(sessions):
@@ -174,7 +190,6 @@ def write_report(
     analyses = [analyse_session(d, targets) for d in datas]
     data, analysis = datas[-1], analyses[-1]
     summary = session_report(data.path)
-    out = Path(output)
     out.mkdir(parents=True, exist_ok=True)
     header = [
         ("patient", patient.id or "not given (--patient-id or a patient: block)"),

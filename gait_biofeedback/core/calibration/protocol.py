@@ -189,4 +189,5 @@ def find_calibration(data: dict[str, ImuSeries], standing_duration: float = 3.0,
     raise ValueError("no calibration found (quiet standing of "
                      f"{standing_duration:g} s, then hip flexion or walking for {min_motion:g} s or more)"
                      + (": " + "; ".join(tried) if tried else "")
-                     + "; give the instant with --calibrate-at SECONDS:PROTOCOL")
+                     + "; give the instant with --calibrate-at SECONDS:PROTOCOL, or lower the calibration "
+                       "parameter default_standing_duration for a recording with a shorter standing")

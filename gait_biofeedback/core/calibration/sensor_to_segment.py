@@ -469,10 +469,14 @@ def calibrate_trunk(segment: str, standing_acc: np.ndarray, standing_gyr: np.nda
         if not common_heading or standing_orientation is None or not usable:
             via = "the thighs" if segment == "pelvis" else "a calibrated pelvis"
             why = "; ".join(why_no_forward or [])
-            result.message = (f"{name}: no heading from {via}" + (f" ({why})" if why else "")
-                              + ": a still pelvis, as in hip flexion, does not show it"
-                              + (", and the sensors have no shared magnetometer heading" if not common_heading
-                                 else "") + "; calibrate with the walking protocol (8 straight steps)")
+            if any(w.startswith(("no calibrated", "no pelvis")) for w in why_no_forward or []):
+                advice = (f": its forward direction comes from {via}, so put those sensors on (or fix their "
+                          "calibration) and calibrate again; the other segments do not need it")
+            else:
+                advice = (": a still pelvis, as in hip flexion, does not show it"
+                          + (", and the sensors have no shared magnetometer heading" if not common_heading
+                             else "") + "; calibrate with the walking protocol (8 straight steps)")
+            result.message = f"{name}: no heading from {via}" + (f" ({why})" if why else "") + advice
             return result
         source = "magnetometer heading of the thighs in standing"
         for t in usable:

@@ -85,9 +85,12 @@ def find_standing_then_motion(
     need_motion = max(min_motion, motion_duration)
     long_enough = [(a, b) for a, b in runs(still) if t[b - 1] - t[a] >= standing_duration - 1e-9]
     if not long_enough:
+        longest = max((t[b - 1] - t[a] for a, b in runs(still)), default=0.0)
         raise ValueError(f"no quiet standing of {standing_duration:g} s found in the last "
-                         f"{t[-1] - t[0]:.0f} s: "
-                         "ask the subject to stand still, then repeat the movements and calibrate")
+                         f"{t[-1] - t[0]:.0f} s (the longest: {longest:.1f} s): "
+                         "ask the subject to stand still, then repeat the movements and calibrate (a "
+                         "recording with a shorter standing: lower the calibration parameter "
+                         "default_standing_duration)")
     moving_after = [(a, b) for a, b in long_enough if np.sum(~still[b:]) / ref.rate_hz >= min_motion]
     if not moving_after:
         raise ValueError("no movement after the quiet standing: do the calibration movements "
