@@ -155,7 +155,8 @@ def resolve_calibrate_at(bag: str | Path, requests: Sequence[tuple[float | None,
         start_s = reader.start_time_ns / NS_PER_S
     standing, motion, check = find_calibration(data, standing_duration)
     (s0, s1), (m0, m1) = ((a - start_s, b - start_s) for a, b in (standing, motion))
-    at = min(m1 + AUTO_MARGIN_S, max(d.t[-1] for d in data.values() if len(d)) - start_s)
+    ends = min(d.t[-1] for d in data.values() if len(d))  # every sensor's data reaches the instant
+    at = min(m1 + AUTO_MARGIN_S, ends - start_s)
     resolved, notes = [], []
     for t, protocol in requests:
         if t is None:
@@ -293,7 +294,8 @@ def _calibrate_ahead(bag: str | Path, request: tuple[float, str], stages: dict[s
         for seg, raw in last_raw.items():
             if done := feed(seg, trackers[seg].flush(), raw):
                 return done[0]
-    return CalibrationAttempt(request[1], False, "no sensor data up to the calibration instant")
+    return CalibrationAttempt(request[1], False, f"the recording ends before every sensor's data reaches "
+                              f"the calibration instant ({request[0]:.2f} s): ask for an earlier one")
 
 
 def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
@@ -315,6 +317,11 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
     o_params: OrientationParams = stages.get("orientation_filter") or OrientationParams()
     trackers: dict[str, SegmentOrientationTracker] = {
         seg: o_params.tracker(seg) for seg in o_params.segments if seg in raw_topics}
+    for seg in raw_topics:
+        if seg not in o_params.segments:
+            known = ", ".join(o_params.segments)
+            result.warnings.append(f"{raw_topics[seg]}: '{seg}' is not one of the graph's segments "
+                                   f"({known}): not analysed; import it under the segment it was worn on")
     variance = o_params.orientation_variance
     buffer = CalibrationBuffer(c_params)
     j_params: JointAnglesParams = stages.get("joint_angles") or JointAnglesParams()

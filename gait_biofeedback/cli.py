@@ -10,6 +10,8 @@ from pathlib import Path
 
 from gait_biofeedback.core.words import plural
 
+LOST_WARN = 0.005
+"""replay says so, and exits 1, when the graph lost more than this share of the raw IMU samples."""
 DEMO_BAG = Path("bags/demo_walk")
 DEMO_OUTPUT = Path("output/demo_session")
 
@@ -225,6 +227,15 @@ def cmd_replay(args: argparse.Namespace) -> int:
     if result.write_error:
         print(f"warning: {result.write_error}", file=sys.stderr)
         return 1
+    lost = sum(n for n, _ in result.raw_lost.values())
+    sent = sum(n for _, n in result.raw_lost.values())
+    if sent and lost > LOST_WARN * sent:
+        worst = max(result.raw_lost, key=lambda s: result.raw_lost[s][0] / result.raw_lost[s][1])
+        print(f"replay: the graph lost {100 * lost / sent:.1f} % of the raw IMU samples (worst {worst}: "
+              f"{result.raw_lost[worst][0]} of {result.raw_lost[worst][1]}): this machine could not keep up "
+              f"at --speed {args.speed:g}; its outputs miss those samples. Replay slower (--speed 1), or "
+              "run `gait-biofeedback analyze`, which loses none", file=sys.stderr)
+        return 1
     return 0
 
 
@@ -244,7 +255,8 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     for warning in result.warnings:
         print(f"warning: {warning}", file=sys.stderr)
     outputs = ", ".join(f"{t} {n}" for t, n in sorted(result.counts.items()) if "/imu/" not in t)
-    print(f"wrote {result.output}: {outputs or 'orientations only'}")
+    oriented = any("/imu/" in t for t in result.counts)
+    print(f"wrote {result.output}: {outputs or ('orientations only' if oriented else 'no output')}")
     if result.calibration_file is not None:
         print(f"calibration in force saved as {result.calibration_file}")
     print("\n".join(format_report(session_report(result.output))))

@@ -104,6 +104,9 @@ class ReplayResult:
     calibrations: list[CalibrationAttempt] = field(default_factory=list)  # each request's outcome
     start_ns: int = 0  # log time of the replayed recording's first message (the zero of calibrate_at)
     calibration_file: Path | None = None  # where the calibration node saved its last result
+    raw_lost: dict[str, tuple[int, int]] = field(default_factory=dict)
+    """Segment → (raw IMU samples the orientation filter never received, samples replayed): what a
+    graph that could not keep up lost (DDS best effort drops the samples a busy process cannot take)."""
 
 
 @dataclass
@@ -254,7 +257,20 @@ def replay_through_graph(
                         list(graph.nodes), list(recorder.sessions) if recorder is not None else [],
                         recorder.write_error if recorder is not None else None, interrupted,
                         list(getattr(calibration, "attempts", [])), start_ns,
-                        getattr(calibration, "saved_file", None))
+                        getattr(calibration, "saved_file", None),
+                        _raw_lost(replayer.published_by_topic, graph.nodes.get("orientation_filter")))
+
+
+def _raw_lost(sent: dict[str, int], orientation: Node | None) -> dict[str, tuple[int, int]]:
+    """Per tracked segment: (raw samples replayed that its filter never received, samples replayed)."""
+    if orientation is None:
+        return {}
+    out = {}
+    for segment, tracker in orientation.trackers.items():
+        replayed = sum(n for topic, n in sent.items() if topic.endswith(f"/{segment}/imu/data_raw"))
+        if replayed:
+            out[segment] = (max(replayed - tracker.counts["samples"], 0), replayed)
+    return out
 
 
 SETTLE_MAX_S = 10.0

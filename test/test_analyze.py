@@ -206,6 +206,22 @@ def test_analyze_refuses_a_bag_without_imu_topics(tmp_path, capsys):
     assert "SECONDS:PROTOCOL" in capsys.readouterr().err
 
 
+def test_a_sensor_named_after_no_segment_is_said_not_silently_skipped(tmp_path, capsys):
+    """BROAD's importer names its sensor 'board': analyze says it was not analysed and why, and the CLI
+    does not call a copy of the input 'orientations only'."""
+    from gait_biofeedback.cli import main
+    from gait_biofeedback.core.segments import ImuSeries
+    from gait_biofeedback.io.bag import write_imu_bag
+
+    t = np.arange(300) / 100.0
+    series = ImuSeries("board", t, np.tile([0.0, 0.0, 9.81], (300, 1)), np.zeros((300, 3)))
+    bag = write_imu_bag(tmp_path / "board", {"board": series})
+    assert main(["analyze", str(bag), "-o", str(tmp_path / "out")]) == 0
+    captured = capsys.readouterr()
+    assert "/board/imu/data_raw: 'board' is not one of the graph's segments" in captured.err
+    assert "wrote " + str(tmp_path / "out") + ": no output" in captured.out
+
+
 def test_cli_analyze_with_a_calibration_file(tmp_path, capsys):
     from gait_biofeedback.cli import main
     from gait_biofeedback.core.calibration.sensor_to_segment import (

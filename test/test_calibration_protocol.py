@@ -188,3 +188,16 @@ def test_a_pelvis_without_thighs_is_refused_naming_the_thighs_not_the_protocol()
     assert cal.segments["left_foot"].valid and not pelvis.valid
     assert "from the thighs, so put those sensors on" in pelvis.message
     assert "walking protocol" not in pelvis.message
+
+
+def test_a_request_at_the_first_sample_says_there_is_no_data_before_it():
+    """--calibrate-at 0:walking: the sensors sent data, just not before the instant; the refusal says
+    to ask for a later one, not that the sensors are silent."""
+    from gait_biofeedback.core.calibration.stream import CalibrationBuffer
+
+    buffer = CalibrationBuffer()
+    for k in range(100):
+        for seg in ("left_thigh", "left_shank"):
+            buffer.add(seg, 10_000_000 * k, (0.0, 0.0, 9.81), (0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0))
+    attempt = buffer.calibrate("walking", until_ns=0)
+    assert not attempt.success and attempt.message.startswith("no sensor data before the calibration instant")

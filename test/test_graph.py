@@ -320,3 +320,18 @@ def test_a_second_graph_on_the_same_domain_is_refused_before_it_opens_anything(t
     result = replay_through_graph(bag, tmp_path / "second", speed=0.0, nodes=["orientation_filter"],
                                   timeout=30)
     assert result.published == 50
+
+
+def test_raw_samples_a_busy_graph_lost_are_counted_per_segment():
+    """What replay says when the graph could not keep up: per tracked segment, the raw samples replayed
+    (under any namespace) that its orientation filter never received; untracked segments are left out."""
+    from types import SimpleNamespace
+
+    from gait_biofeedback.graph import _raw_lost
+
+    sent = {"/left_foot/imu/data_raw": 1000, "/left_foot/imu/mag": 1000, "/p1/pelvis/imu/data_raw": 800,
+            "/chest/imu/data_raw": 500}
+    trackers = {"left_foot": SimpleNamespace(counts={"samples": 570}),
+                "pelvis": SimpleNamespace(counts={"samples": 800})}
+    assert _raw_lost(sent, SimpleNamespace(trackers=trackers)) == {"left_foot": (430, 1000), "pelvis": (0, 800)}
+    assert _raw_lost(sent, None) == {}

@@ -59,6 +59,7 @@ class ImuReplayer(GuardedNode):
         }
         self._clock_pub = self.create_publisher(Clock, "/clock", 10) if p.publish_clock else None
         self.published = 0
+        self.published_by_topic: dict[str, int] = {}  # recorded topic → messages published
         self.position_ns = self.reader.start_time_ns  # log time of the newest published message
         self.loops_done = 0
         self.finished = threading.Event()
@@ -122,6 +123,7 @@ class ImuReplayer(GuardedNode):
                     next_tick = log_ns + period_ns
                 self._topic_publishers[topic].publish(data)
                 self.published += 1
+                self.published_by_topic[topic] = self.published_by_topic.get(topic, 0) + 1
                 self.position_ns = log_ns
             self.loops_done += 1
             if not self.loop or first_ns is None:

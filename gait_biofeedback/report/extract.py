@@ -111,9 +111,13 @@ def read_session(path: str | Path) -> SessionData:
     counts = reader.message_counts()
     outputs = [t.absolute() for t in (topics.GAIT_CYCLES, topics.JOINT_STATES, topics.ACTIVITY)]
     if not any(t in counts for t in outputs):
+        analysed = any(t.endswith("/imu/data") or t == "/diagnostics" for t in counts)
         raise NotASessionError(
-            f"{path} holds no gait/cycles, joint_states or activity/state: it is a raw recording. "
-            f"Run `gait-biofeedback analyze {path} -o OUT --calibrate-at auto` and report OUT"
+            f"{path} holds no gait/cycles, joint_states or activity/state: "
+            + ("it was analysed, but no calibration took effect and no trunk sensor gave activity: analyse "
+               "the raw recording again with a --calibrate-at request that succeeds (or --calibration FILE)"
+               if analysed else f"it is a raw recording. Run `gait-biofeedback analyze {path} -o OUT "
+               "--calibrate-at auto` and report OUT")
         )
     start_ns = reader.start_time_ns
     strides, stride_objects, events, cues = [], [], [], []

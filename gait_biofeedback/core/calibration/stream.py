@@ -207,6 +207,10 @@ class CalibrationBuffer:
             return CalibrationAttempt(protocol, False, f"segments {bad} are not handled by this node "
                                       f"({self.segments})")
         data, ori = self.series(wanted, until_ns)
+        if not data and until_ns is not None and any(self.buffers[s] for s in wanted):
+            return CalibrationAttempt(protocol, False, "no sensor data before the calibration instant: ask "
+                                      "for an instant after the quiet standing and the movements; previous "
+                                      "calibration stays in force", until_ns=until_ns)
         silent = [s for s in wanted if s not in data]
         if silent and (segments or not data):  # named segments must all have data; else any one suffices
             text = (f"no data from {', '.join(silent)}: check these sensors and the orientation filter; "
