@@ -131,7 +131,7 @@ def parse_calibrate_at(text: str) -> tuple[float | None, str]:
         except ValueError:
             raise ValueError(f"--calibrate-at {text!r}: {example}") from None
         if not math.isfinite(t) or t < 0:
-            raise ValueError(f"--calibrate-at {text!r}: the time must be >= 0 s ({example})")
+            raise ValueError(f"--calibrate-at {text!r}: the time must be finite and >= 0 s ({example})")
     if protocol not in REQUESTS:
         raise ValueError(f"--calibrate-at {text!r}: the protocol must be one of {list(REQUESTS)}")
     return t, protocol

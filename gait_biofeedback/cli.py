@@ -396,8 +396,15 @@ def cmd_repair(args: argparse.Namespace) -> int:
     from gait_biofeedback.io.bag import repair
 
     report = repair(args.bag)
-    for key, value in report.items():
-        print(f"{key}: {value}")
+    for entry in report["files"]:
+        line = f"{entry['file']}: {entry['status']}, {plural(entry['messages'], 'message')}"
+        if entry.get("damage"):
+            line += f"; lost: {entry['damage']}"
+        if entry.get("original"):
+            line += f"; the original is kept as {entry['original']}"
+        print(line)
+    total = plural(report["message_count"], "message")
+    print(f"{report['path']}: {total}, metadata.yaml {report['metadata']}")
     return 0
 
 

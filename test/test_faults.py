@@ -303,3 +303,20 @@ def test_a_reset_forgets_the_doubt_of_the_time_before():
     stream.update("left", 1_000_000_000, (1.0, 0.0, 0.0, 0.0))  # time went back: the foot is reset
     assert stream.counts["left"]["resets"] == 1
     assert stream._doubtful["left"] is None
+
+
+def test_a_stream_mostly_beyond_range_is_said_to_be_in_other_units():
+    """A foot's gyro in deg/s sent as rad/s (300 'rad/s'): not 100 glitches but wrong units, said once
+    as an error naming --units; three glitches among good samples are not."""
+    from gait_biofeedback.batch import SegmentOrientationTracker
+
+    def said(bad: set[int]) -> list[str]:
+        tracker = SegmentOrientationTracker("left_foot")
+        for k in range(300):
+            tracker.update(10_000_000 * k, (0.0, 0.0, 300.0 if k in bad else 0.1), (0.0, 0.0, 9.81))
+        return [n.text for n in tracker.notices.pop() if n.level == "error"]
+
+    wrong = said(set(range(300)))
+    assert len(wrong) == 1 and "100 of the first 100 samples are beyond the sensor's range" in wrong[0]
+    assert "--units" in wrong[0]
+    assert said({50, 120, 200}) == []

@@ -84,7 +84,7 @@ class ReportFiles:
 
 def _recorded(data: SessionData) -> str:
     if data.start_ns < 946684800 * 10**9:  # before 2000: a simulated or replayed time base
-        return "no date (simulated or replayed time base)"
+        return "no date (the recording's clock starts near 0: simulated, imported or replayed)"
     return dt.datetime.fromtimestamp(data.start_ns * 1e-9, dt.UTC).strftime("%Y-%m-%d %H:%M UTC")
 
 

@@ -73,6 +73,8 @@ _CHOICES = tuple(sorted(ALGORITHMS))
 RANGE_MARGIN = 1.1
 """A sample is rejected beyond its range by this factor: a sensor that saturates (a heel strike on a
 ±16 g accelerometer reads up to 158 m/s² on gaitmap's example) is clipped, not glitching."""
+UNITS_SUSPECT = 100
+"""This many samples beyond the range among the first 2 × as many: the units are wrong, not a glitch."""
 STARTUP_GAP_S = 1.0
 """During start-up the rate is not known yet: a gap there is a silence of over this long."""
 
@@ -226,6 +228,12 @@ class SegmentOrientationTracker:
         acc_peak, gyr_peak = max(map(abs, a)), max(map(abs, g))
         if acc_peak > RANGE_MARGIN * self.acc_range or gyr_peak > RANGE_MARGIN * self.gyr_range:
             self.counts["out_of_range"] += 1
+            if self.counts["out_of_range"] == UNITS_SUSPECT and self.counts["samples"] < 2 * UNITS_SUSPECT:
+                first = self.counts["samples"]
+                self._say("error", f"{UNITS_SUSPECT} of the first {first} samples are beyond the sensor's "
+                                   "range: the data are probably in other units than the wire's (a gyro in "
+                                   "deg/s sent as rad/s, an accelerometer in counts or g sent as m/s²); a "
+                                   "recording: import it again with the right --units")
             if self.counts["out_of_range"] == 1:
                 self._say("warn", f"sample beyond the sensor's range (acc {acc_peak:.4g} m/s², gyro "
                                   f"{gyr_peak:.4g} rad/s; ranges {self.acc_range:.4g}, "
