@@ -186,7 +186,8 @@ def test_a_pelvis_without_thighs_is_refused_naming_the_thighs_not_the_protocol()
     cal = calibrate_session(session.imu, standing, motion, "walking", orientations=ori)
     pelvis = cal.segments["pelvis"]
     assert cal.segments["left_foot"].valid and not pelvis.valid
-    assert "from the thighs, so put those sensors on" in pelvis.message
+    assert ("(no thigh sensors): its forward direction comes from the thighs, so put those sensors on"
+            in pelvis.message)
     assert "walking protocol" not in pelvis.message
 
 

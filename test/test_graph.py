@@ -333,5 +333,6 @@ def test_raw_samples_a_busy_graph_lost_are_counted_per_segment():
             "/chest/imu/data_raw": 500}
     trackers = {"left_foot": SimpleNamespace(counts={"samples": 570}),
                 "pelvis": SimpleNamespace(counts={"samples": 800})}
-    assert _raw_lost(sent, SimpleNamespace(trackers=trackers)) == {"left_foot": (430, 1000), "pelvis": (0, 800)}
+    lost = _raw_lost(sent, SimpleNamespace(trackers=trackers))
+    assert lost == {"left_foot": (430, 1000), "pelvis": (0, 800)}
     assert _raw_lost(sent, None) == {}

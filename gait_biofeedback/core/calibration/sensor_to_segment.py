@@ -469,9 +469,9 @@ def calibrate_trunk(segment: str, standing_acc: np.ndarray, standing_gyr: np.nda
         if not common_heading or standing_orientation is None or not usable:
             via = "the thighs" if segment == "pelvis" else "a calibrated pelvis"
             why = "; ".join(why_no_forward or [])
-            if any(w.startswith(("no calibrated", "no pelvis")) for w in why_no_forward or []):
-                advice = (f": its forward direction comes from {via}, so put those sensors on (or fix their "
-                          "calibration) and calibrate again; the other segments do not need it")
+            if any(w in ("no thigh sensors", "no pelvis sensor") for w in why_no_forward or []):
+                advice = (f": its forward direction comes from {via}, so put those sensors on and calibrate "
+                          "again; the other segments do not need it")
             else:
                 advice = (": a still pelvis, as in hip flexion, does not show it"
                           + (", and the sensors have no shared magnetometer heading" if not common_heading
@@ -525,7 +525,9 @@ def _trunk_forward(segment: str, data: dict[str, ImuSeries], orientations: dict[
                    ) -> tuple[list[np.ndarray], list[str]]:
     """(forward directions of a trunk sensor from the kinematic heading, why the others gave none)
     (module docstring step 4)."""
-    if "pelvis" not in data or "pelvis" not in orientations:
+    if "pelvis" not in data:
+        return [], ["no pelvis sensor"]
+    if "pelvis" not in orientations:
         return [], ["no pelvis orientation"]
     pelvis, q_pelvis = data["pelvis"], orientations["pelvis"]
     found = []
@@ -537,7 +539,8 @@ def _trunk_forward(segment: str, data: dict[str, ImuSeries], orientations: dict[
                                                      motion)
                 found.append((direction, f"{label(t)}: {how}"))
         if not found:
-            return [], ["no calibrated thigh"]
+            worn = any(f"{side}_thigh" in data for side in SIDES)
+            return [], ["no calibrated thigh" if worn else "no thigh sensors"]
     elif segment in orientations and results.get("pelvis") is not None and results["pelvis"].valid:
         x_pelvis = quat.rotate(results["pelvis"].rotation, [1.0, 0.0, 0.0])
         direction, how = forward_in_proximal(pelvis, q_pelvis, data[segment], orientations[segment], x_pelvis,
