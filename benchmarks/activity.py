@@ -206,7 +206,8 @@ HAPT_RATE = 50.0
 HAPT_TRANSITIONS = {7: "stand_to_sit", 8: "sit_to_stand", 9: "sit_to_lie", 10: "lie_to_sit",
                     11: "stand_to_lie", 12: "lie_to_stand"}
 HAPT_GOALS = {"lying vs upright": 0.97, "walking vs static": 0.97, "sitting vs standing": 0.90,
-              "level vs stairs": 0.85, "stairs walking detected": None, "transitions found": 0.90}  # issue 15
+              "level vs stairs": 0.85, "upstairs vs downstairs": None, "stairs walking detected": None,
+              "transitions found": 0.90}  # issue 15
 
 
 def hapt(rate_hz: float = HAPT_RATE) -> None:
@@ -245,6 +246,8 @@ def hapt(rate_hz: float = HAPT_RATE) -> None:
             "sitting vs standing": (np.isin(label, [4, 5]),
                                     posture == np.where(label == 4, "sitting", "standing")),
             "level vs stairs": (np.isin(label, [1, 2, 3]) & moving, stairs == np.isin(label, [2, 3])),
+            "upstairs vs downstairs": (np.isin(label, [2, 3]) & stairs,
+                                       out["locomotion"] == np.where(label == 2, "upstairs", "downstairs")),
             "stairs walking detected": (np.isin(label, [2, 3]), moving),
         }
         for name, (mask, right) in cases.items():
@@ -275,8 +278,9 @@ def hapt(rate_hz: float = HAPT_RATE) -> None:
     print(f"upright reference replaced by a walking bout in {replaced} of {len(files)} recordings (the first "
           "quiet period was not upright: phone on a table before it was worn)")
     print("a sample is scored against its video label (transitions and unlabelled samples excluded); level "
-          "vs stairs among walking samples detected as walking; a transition is found when one of its kind "
-          "lies within 2 s of its labelled interval, every other detected transition is false")
+          "vs stairs among walking samples detected as walking, up vs down among stairs samples detected as "
+          "stairs; a transition is found when one of its kind lies within 2 s of its labelled interval, "
+          "every other detected transition is false")
 
 
 def older() -> None:

@@ -19,7 +19,7 @@ from gait_biofeedback.core.activity.monitor import (
     UnitMismatchWarning,
     classify_activity,
 )
-from gait_biofeedback.core.stamps import s_to_ns, sample_stamps, seconds_to_ns
+from gait_biofeedback.core.stamps import s_to_ns, sample_stamps
 
 G = 9.80665
 # sensor ← body rotation of an awkward mounting (sensor axes are a permutation + tilt of body axes)
@@ -77,23 +77,40 @@ class Template:
         return self
 
     def walk(
-        self, n_steps: int, step_s: float = 0.55, amplitude: float = 2.5, sway_deg: float = 2.0
+        self, n_steps: int, step_s: float = 0.55, amplitude: float = 2.5, sway_deg: float = 2.0,
+        riser: float = 0.0, impact: float = 0.0, level_ground: bool = False,
     ) -> Template:
-        """Level walking: one vertical acceleration peak per step (chest bounce), the trunk swaying
-        ±sway_deg about its lean once per stride."""
+        """Walking: one vertical acceleration peak per step (chest bounce), the trunk swaying
+        ±sway_deg about its lean once per stride. z = A/ω²·(ωt − sin ωt) has acceleration A·sin(ωt):
+        one peak per step at (k + ¼)·step_s, zero at both ends of the bout (the body also rises A/ω
+        m/s, which no accelerometer sees once it goes on); ``level_ground``: z = A/ω²·(1 − cos ωt)
+        instead, peaks at k·step_s, z back to its start after each step. ``riser`` (m): stairs, each
+        step lifts (> 0) or drops (< 0) the body by it, r·(ωt − sin ωt)/2π: a velocity that stops
+        between steps. ``impact`` (m/s²): a heel-strike pulse (40 ms) on each step's peak, which is
+        what a slow walker's steps are seen by."""
         n = round(n_steps * step_s * self.rate)
         tt = np.arange(n) / self.rate
         omega = 2 * np.pi / step_s
-        # z = A/ω²·(ωt − sin ωt) has acceleration A·sin(ωt): one peak per step at (k + ¼)·step_s,
-        # zero at both ends of the bout
-        z = self._z + amplitude / omega**2 * (omega * tt - np.sin(omega * tt))
+        if level_ground:
+            z = self._z + amplitude / omega**2 * (1 - np.cos(omega * tt))
+            first = 0.0
+        else:
+            z = self._z + amplitude / omega**2 * (omega * tt - np.sin(omega * tt))
+            first = 0.25 * step_s
+        z += riser / (2 * np.pi) * (omega * tt - np.sin(omega * tt))
+        if impact:
+            phase = ((tt - first + 0.5 * step_s) % step_s) - 0.5 * step_s
+            pulse = impact * np.exp(-0.5 * (phase / 0.02) ** 2)
+            pulse -= pulse.mean()
+            velocity = np.cumsum(pulse) / self.rate
+            z += np.cumsum(velocity - velocity.mean()) / self.rate
         t0 = self.t
-        self.steps += [t0 + (k + 0.25) * step_s for k in range(n_steps)]
+        self.steps += [t0 + first + k * step_s for k in range(n_steps)]
         self.lean += (self._lean + math.radians(sway_deg) * np.sin(omega * tt / 2)).tolist()
         self.height += z.tolist()
         self.forward += (0.8 * np.sin(omega * tt)).tolist()
         self.lateral_lean += (math.radians(1.5) * np.sin(omega * tt / 2)).tolist()
-        self._z = float(z[-1])  # z and z' (= 0 after whole cycles) continuous at the end
+        self._z = float(z[-1])  # z and z' continuous at the end (whole cycles)
         return self
 
     def acc(self, seed: int = 0, noise: float = 0.05) -> np.ndarray:
@@ -175,9 +192,11 @@ def test_lean_beyond_70_without_static_period_is_not_lying() -> None:
     assert all(k not in ("sit_to_lie", "lie_to_sit") for _, k in out["transitions"])
 
 
-@pytest.mark.parametrize(("rate", "step_s"), [(20.0, 0.6), (52.0, 0.5), (100.0, 0.55), (200.0, 0.9)])
-def test_step_count_of_synthetic_walk(rate: float, step_s: float) -> None:
-    tpl = Template(rate).hold(4.0, 0.0).walk(60, step_s=step_s).hold(5.0)
+@pytest.mark.parametrize(("rate", "step_s", "amplitude", "impact"), [
+    (20.0, 0.6, 2.5, 0.0), (52.0, 0.5, 2.5, 0.0), (100.0, 0.55, 2.5, 0.0), (200.0, 0.9, 0.6, 3.0)])
+def test_step_count_of_synthetic_walk(rate: float, step_s: float, amplitude: float, impact: float) -> None:
+    # the slow walker (0.9 s steps) bounces 1.5 cm and is seen by its heel strikes
+    tpl = Template(rate).hold(4.0, 0.0).walk(60, step_s=step_s, amplitude=amplitude, impact=impact).hold(5.0)
     out = _run(tpl, rate)
     assert len(out["steps"]) == pytest.approx(len(tpl.steps), abs=1)
     matched = [min(abs(s - t) for t in tpl.steps) for s in out["steps"]]
@@ -437,78 +456,117 @@ def test_long_lean_with_brief_upright_moments_means_sitting() -> None:
     assert out["transitions"] == []
 
 
-def test_forward_axis_decides_upstairs_on_simulated_stairs() -> None:
-    from gait_biofeedback.core import quaternion
-    from gait_biofeedback.sim.simulator import SCENARIOS, simulate
+def _walk(tpl: Template, n_steps: int, step_s: float = 0.55, amplitude: float = 2.5, riser: float = 0.0
+          ) -> Template:
+    return tpl.walk(n_steps, step_s=step_s, amplitude=amplitude, riser=riser, level_ground=True)
 
-    session = simulate(SCENARIOS["stairs"]())
-    chest = session.imu["chest"]
-    # sensor-to-segment rotation maps segment axes into sensor axes: trunk forward (x) in the sensor
-    forward = quaternion.rotate(session.truth.mounting["chest"], np.array([1.0, 0.0, 0.0]))
-    truth = session.truth.locomotion
-    climbing = truth == "upstairs"
-    right = classify_activity(chest.acc, session.config.rate_hz, forward_axis=forward)["locomotion"]
-    wrong = classify_activity(chest.acc, session.config.rate_hz, forward_axis=-forward)["locomotion"]
-    assert np.mean(right[climbing] == "upstairs") > 0.8
-    assert np.mean(wrong[climbing] == "upstairs") < 0.2
+
+def _stairs(flight_steps: int = 24) -> Template:
+    """Standing, 6 s of level walking (too little to know the wearer's level lean), a flight up leaning
+    12° forward (from FLIGHT_S), level walking."""
+    tpl = _walk(Template(RATE).hold(4.0, 0.0), 11)
+    return _walk(_walk(tpl.hold(0.0, 12.0), flight_steps, riser=0.17).hold(0.0, 0.0), 4).hold(3.0)
+
+
+FLIGHT_S = 4.0 + 11 * 0.55
+FLIGHT = (FLIGHT_S, FLIGHT_S + 24 * 0.55)
+
+
+def _share(labels: np.ndarray, t0: float, t1: float, label: str, t: np.ndarray | None = None) -> float:
+    t = np.arange(len(labels)) / RATE if t is None else t
+    return float(np.mean(labels[(t > t0) & (t < t1)] == label))
+
+
+def test_stairs_from_the_vertical_displacement_and_up_from_the_forward_axis() -> None:
+    # each step of the flight lifts the body by 17 cm (σ of the displacement 2.3 cm against 1.4 cm on
+    # level ground: a riser r adds a bounce of amplitude r/2π); before the wearer's level walking is
+    # known, up vs down is the lean along the forward axis. 3 s from either end the window is all flight
+    tpl = _stairs()
+    right = _run(tpl)["locomotion"]
+    wrong = _run(tpl, forward_axis=-FORWARD_IN_SENSOR)["locomotion"]
+    assert _share(right, 7.0, FLIGHT[0] - 3.0, "level") == 1.0
+    assert _share(right, FLIGHT[0] + 3.0, FLIGHT[1] - 3.0, "upstairs") == 1.0
+    assert _share(wrong, FLIGHT[0] + 3.0, FLIGHT[1] - 3.0, "downstairs") == 1.0
+
+
+def test_brisk_walking_bounces_higher_but_faster_than_stairs() -> None:
+    # a 3 cm bounce (σ 2.1 cm, above STAIRS_DISPLACEMENT_M) at 2 steps/s is level (referred to 1.6 Hz:
+    # 1.7 cm); the same bounce at 1.25 steps/s is stairs, until the wearer's own walking is known
+    brisk = _run(_walk(Template(RATE).hold(4.0, 0.0), 50, step_s=0.5, amplitude=4.8).hold(3.0))
+    assert _share(brisk["locomotion"], 7.0, 26.0, "level") == 1.0
+    slow = _run(_walk(Template(RATE).hold(4.0, 0.0), 25, step_s=0.8, amplitude=1.6).hold(3.0))
+    assert _share(slow["locomotion"], 7.0, 21.0, "level") == 0.0
+
+
+def test_stairs_threshold_adapts_to_a_bouncy_walker_and_up_is_a_lean_beyond_level_walking() -> None:
+    # the slow bouncy walker above: stairs for its first 30 s of walking, then level (its own usual
+    # walking × 1.3); a flight with 17 cm risers stands out again. Up vs down is then the lean beyond
+    # its level walking's, whatever the forward axis: 12° more is up, the same lean is down
+    def walker(lean_deg: float) -> Template:
+        tpl = _walk(Template(RATE).hold(4.0, 0.0).hold(1.0, 5.0), 70, step_s=0.8, amplitude=1.6)
+        riser = 0.17 if lean_deg > 5.0 else -0.17
+        tpl = _walk(tpl.hold(0.0, lean_deg), 20, step_s=0.8, amplitude=1.6, riser=riser)
+        return _walk(tpl.hold(0.0, 5.0), 5, step_s=0.8, amplitude=1.6).hold(3.0)
+
+    t_flight = 5.0 + 70 * 0.8
+    for lean_deg, direction in ((17.0, "upstairs"), (5.0, "downstairs")):
+        for axis in (FORWARD_IN_SENSOR, -FORWARD_IN_SENSOR):
+            labels = _run(walker(lean_deg), forward_axis=axis)["locomotion"]
+            assert _share(labels, 8.0, 30.0, "level") == 0.0
+            assert _share(labels, 45.0, t_flight - 3.0, "level") == 1.0
+            assert _share(labels, t_flight + 3.0, t_flight + 16 - 3.0, direction) == 1.0
+
+
+def test_vertical_displacement_filter_integrates_twice_without_drift() -> None:
+    from scipy import signal
+
+    from gait_biofeedback.core.activity.signal import vertical_displacement_sections
+
+    for rate in (20.0, 100.0, 400.0):
+        t = np.arange(round(30 * rate)) / rate
+        acc = 0.3 + 2.0 * np.sin(2 * np.pi * 1.8 * t)  # a 0.3 m/s² offset (gain error) and a 1.8 Hz bounce
+        sos = np.array([np.r_[b, a] for b, a in vertical_displacement_sections(rate)])
+        z = signal.sosfilt(sos, acc)[t > 10.0]
+        # amplitude 2/(2π·1.8)² = 1.56 cm; the offset leaves nothing behind
+        assert (z.max() - z.min()) / 2 == pytest.approx(2.0 / (2 * np.pi * 1.8) ** 2, rel=0.03)
+        assert abs(z.mean()) < 1e-4
 
 
 def test_stream_takes_the_forward_axis_from_its_stamp() -> None:
-    from gait_biofeedback.core import quaternion
     from gait_biofeedback.core.activity.stream import ActivityParams, ActivityStream
-    from gait_biofeedback.sim.simulator import SCENARIOS, simulate
 
-    session = simulate(SCENARIOS["stairs"]())
-    chest, rate = session.imu["chest"], session.config.rate_hz
-    forward = quaternion.rotate(session.truth.mounting["chest"], np.array([1.0, 0.0, 0.0]))
-    stream = ActivityStream(ActivityParams(rate_hz=rate))
+    acc = _stairs(flight_steps=40).acc()
+    stream = ActivityStream(ActivityParams(rate_hz=RATE))
     with pytest.raises(ValueError, match="non-zero 3-vector"):
         stream.set_forward_axis([0.0, 0.0, 0.0])
-    states, t0, said = [], float(chest.t[0]), []
-    in_force = t0 + 13.0  # in the middle of the flight up (9–17 s)
-    stamps = seconds_to_ns(chest.t).tolist()
-    for k, (stamp_ns, acc) in enumerate(zip(stamps, chest.acc.tolist(), strict=True)):
+    states, said = [], []
+    in_force = FLIGHT_S + 11.0  # in the middle of the 22 s flight up
+    stamps = sample_stamps(len(acc), RATE).tolist()
+    for k, (stamp_ns, sample) in enumerate(zip(stamps, acc.tolist(), strict=True)):
         if k == 1:
-            stream.set_forward_axis(forward, from_ns=s_to_ns(in_force))  # arrives early: waits for its stamp
-        state, _ = stream.update(stamp_ns, acc)
+            stream.set_forward_axis(FORWARD_IN_SENSOR, from_ns=s_to_ns(in_force))  # waits for its stamp
+        state, _ = stream.update(stamp_ns, sample)
         said += [n.text for n in stream.notices.pop()]
-        in_force_now = stream.options["forward_axis"] == pytest.approx(list(forward))
+        in_force_now = stream.options["forward_axis"] == pytest.approx(list(FORWARD_IN_SENSOR))
         processed = stamps[k - 3] if k >= 3 else 0  # the 30 ms reorder window holds 3 samples
         assert in_force_now == (processed >= s_to_ns(in_force))
         if state is not None:
             states.append(state)
-    # the simulated wearer stands still for the first 2 s: that is the upright reference; nothing else
-    # is said
-    assert said == [f"chest: trunk upright reference at {t0 + 2.0:.1f} s from the first quiet period"]
+    # the wearer stands still for the first 2 s: that is the upright reference, which the walk confirms;
+    # nothing else is said
+    assert said == ["chest: trunk upright reference at 2.0 s from the first quiet period",
+                    "chest: trunk upright reference at 9.2 s from a walking bout confirms it, 0° from the "
+                    "quiet one"]
     labels = np.array([s.locomotion for s in states])
     t_state = np.array([s.t for s in states])
-    climbing = session.truth.locomotion[: len(labels)] == "upstairs"
-    # sensor x points backwards for this mounting: before the axis, the flight reads as downstairs;
-    # states emitted once it is in force (from DELAY_S before its stamp) read upstairs
-    assert np.mean(labels[climbing & (t_state < in_force - DELAY_S - 0.5)] == "downstairs") > 0.8
-    assert np.mean(labels[climbing & (t_state > in_force - DELAY_S + 0.5)] == "upstairs") > 0.8
+    # sensor x is the trunk's right for this mounting: before the axis, the flight (12° forward) reads
+    # as downstairs; states emitted once it is in force (from DELAY_S before its stamp) read upstairs
+    assert _share(labels, FLIGHT_S + 3.0, in_force - DELAY_S - 0.5, "downstairs", t_state) == 1.0
+    assert _share(labels, in_force - DELAY_S + 0.5, FLIGHT_S + 22.0 - 3.0, "upstairs", t_state) == 1.0
     # once the mounting is known, an axis along "up" cannot give a heading: refused, previous kept
-    up = quaternion.rotate(session.truth.mounting["chest"], np.array([0.0, 1.0, 0.0]))
     with pytest.raises(ValueError, match="nearly vertical"):
-        stream.set_forward_axis(up)
-    assert stream.options["forward_axis"] == pytest.approx(list(forward))
-
-
-def test_stairs_threshold_adapts_to_the_wearers_own_sway() -> None:
-    # a slow walker leaning 14° forward with a large sway (±7°, sway std ≈ 0.2 m/s²): above the fixed
-    # threshold, so the first 30 s of walking read as stairs; then the wearer's own median takes over
-    # (level), and a stretch with twice the sway (stairs: ≈ 0.4 m/s²) stands out again
-    tpl = Template(RATE).hold(4.0, 0.0).hold(1.0, 14.0).walk(75, step_s=0.8, sway_deg=7.0)
-    t_stairs = tpl.t
-    tpl.walk(20, step_s=0.8, sway_deg=15.0).hold(3.0)
-    out = _run(tpl)
-    t = np.arange(len(out["locomotion"])) / RATE
-    early = (t > 8.0) & (t < 20.0)
-    settled = (t > 45.0) & (t < t_stairs - 4.0)
-    climbing = (t > t_stairs + 4.0) & (t < t_stairs + 12.0)
-    assert np.mean(out["locomotion"][early] == "upstairs") > 0.9
-    assert np.mean(out["locomotion"][settled] == "level") > 0.9
-    assert np.mean(out["locomotion"][climbing] == "upstairs") > 0.9
+        stream.set_forward_axis(MOUNTING @ np.array([0.0, 1.0, 0.0]))
+    assert stream.options["forward_axis"] == pytest.approx(list(FORWARD_IN_SENSOR))
 
 
 def _pelvis_sequence() -> Template:

@@ -12,7 +12,7 @@ trunk forward axis (from the chest's sensor-to-segment calibration) is handed to
 first sample at or after its "in force" stamp, or at once if that has passed, as the calibration is
 for the other consumers (the monitor applies it to the states it emits from then on, see
 ``ActivityMonitor.set_forward_axis``). A restart keeps the forward axis and the wearer's walking-
-sway history. The last ``reorder_window`` s of a stream stay held: the monitor labels a sample 3 s
+displacement history. The last ``reorder_window`` s of a stream stay held: the monitor labels a sample 3 s
 after it anyway. Warnings go to :attr:`ActivityStream.notices`.
 
 Samples are identified by their stamps (int ns); the stage's parameters are :class:`ActivityParams`.
