@@ -258,6 +258,49 @@ def test_handling_at_the_start_is_not_taken_as_upright() -> None:
     assert [k for _, k in out["transitions"]] == ["stand_to_sit"]
 
 
+@pytest.mark.parametrize("rate", [20.0, 50.0, 200.0])
+def test_gyro_window_tells_a_wearer_from_sensor_noise(rate: float) -> None:
+    from gait_biofeedback.core.activity.reference import GyroWindow
+
+    rng = np.random.default_rng(1)
+    t = np.arange(round(3.0 * rate)) / rate  # 1 s for the filters to settle, then the 2 s window
+    # white noise of 0.002 rad/s/√Hz (0.01 rad/s at 50 Hz) and a bias
+    noise = 0.002 * math.sqrt(rate / 2) * rng.standard_normal((len(t), 3)) + np.array([0.02, -0.01, 0.005])
+    # a wearer's trunk sways at 0.4 Hz by ±1.7°/s (0.03 rad/s) about a horizontal axis
+    sway = np.outer(0.03 * np.sin(2 * np.pi * 0.4 * t), [1.0, 0.0, 0.3])
+    assert GyroWindow(rate, round(2.0 * rate)).shows_wearer() is None  # nothing heard: no gyro
+    for gyro, expected in ((noise, False), (noise + sway, True), (np.zeros((len(t), 3)), None)):
+        window = GyroWindow(rate, round(2.0 * rate))
+        for row in gyro.tolist():
+            window.update(row)
+            if expected is not None:
+                assert window.shows_wearer() in (False, expected)  # False until the window is full
+        assert window.shows_wearer() is expected
+
+
+def test_a_sensor_on_a_table_before_it_is_worn_is_not_the_upright() -> None:
+    # 10 s flat on a table (90° from the wearer's upright: it reads lying), 5 s of handling, then worn
+    # standing, sitting down and up: to the accelerometer the table is as quiet as standing, to the gyro
+    # it is only noise (the wearer sways); without the gyro the table is taken as "up"
+    tpl = Template(RATE).hold(10.0, 90.0)
+    for _ in range(5):
+        tpl.hold(0.5, 130.0).walk(1, step_s=0.3, amplitude=6.0).hold(0.2, 60.0)
+    start_worn = tpl.t
+    tpl.hold(8.0, 0.0).transition("stand_to_sit", 2.4, 8.0, -0.45, 45.0).hold(10.0)
+    rng = np.random.default_rng(2)
+    t = np.arange(len(tpl.lean)) / RATE
+    gyro = 0.006 * rng.standard_normal((len(t), 3)) + 0.007
+    worn = t >= start_worn
+    gyro[worn] += np.outer(0.02 * np.sin(2 * np.pi * 0.3 * t[worn]), [1.0, 0.2, 0.0])
+    with_gyro = _run(tpl, gyro=gyro)
+    assert with_gyro["reference"][0][:2] == (pytest.approx(start_worn + 2.0, abs=0.3), "quiet")
+    assert np.degrees(with_gyro["trunk_inclination"][-100]) == pytest.approx(8.0, abs=1.5)
+    assert [k for _, k in with_gyro["transitions"]] == ["stand_to_sit"]
+    without = _run(tpl)
+    assert without["reference"][0][:2] == (pytest.approx(2.0, abs=0.05), "quiet")
+    assert "lying" in set(without["posture"][round(start_worn * RATE):])
+
+
 def test_no_transition_while_walking() -> None:
     tpl = Template(RATE).hold(4.0, 0.0).walk(80, step_s=0.5, amplitude=4.0).hold(4.0)
     out = _run(tpl)

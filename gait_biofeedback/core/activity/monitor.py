@@ -174,7 +174,9 @@ SIT_LEAN_HOLD_S = 30.0  # ... for 30 s ⇒ sitting (standing is upright). Dev: f
 # (0/61 sit-stand transitions found). Posture is therefore a level with hysteresis on θ.
 PELVIS_SIT_RAD = math.radians(12.0)  # θ held above this ⇒ sitting (dev: 11-14° alike, 10° flickers)
 PELVIS_STAND_RAD = math.radians(8.0)  # θ held below this (or walking) ⇒ standing
-PELVIS_HOLD_S = 2.0  # the new level must hold this long (1 s: 1.7× the false transitions) ...
+PELVIS_HOLD_S = 3.0  # the new level must hold this long: a pause at a stair landing with the pelvis
+# tilted is no seat (hapt users 16-22, with the gyro: false transitions 32 at 2 s, 20 at 3 s and 4 s, the
+# same 77/85 found; 1 s gave 1.7× the false transitions of 2 s; confirmed on 23-30: 68 → 46, 78 → 79) ...
 PELVIS_STEADY_RAD = math.radians(2.0)  # ... and θ must be steady (range over the last 1 s) when confirmed
 MERGE_S = 5.0  # stand→sit then sit→lie (lie→sit then sit→stand) within 5 s is one stand→lie (lie→stand)
 LEAN_RECOVERY = 4.0  # leaky hold: a second upright takes back 4 s (≥ 80 % of the time leaning)
@@ -421,8 +423,11 @@ class ActivityMonitor:
         self._wearer_sorted = list(previous._wearer_sorted)
 
     # ---------------------------------------------------------------- per sample
-    def update(self, stamp_ns: int, acc) -> ActivityState | None:
-        """Feed one sample (its stamp, acceleration 3-vector); return the state of stamp − DELAY_S.
+    def update(self, stamp_ns: int, acc, gyro=None) -> ActivityState | None:
+        """Feed one sample (its stamp, acceleration 3-vector, angular velocity 3-vector or None);
+        return the state of stamp − DELAY_S. The gyro only helps find the upright reference
+        (:class:`~gait_biofeedback.core.activity.reference.GyroWindow`); the detectors are the thesis's,
+        on the accelerometer.
 
         READING of Eq 54: θ = arccos(GA_v/|GA|) rather than GA_v/g. Both are the angle between the
         trunk's vertical axis and gravity when still; dividing by |GA| removes the step-frequency
@@ -432,7 +437,7 @@ class ActivityMonitor:
         t = stamp_ns / NS_PER_S
         ax, ay, az = float(acc[0]), float(acc[1]), float(acc[2])
         rot = self._rot
-        if self._finder is not None and self._find_reference(t, ax, ay, az):
+        if self._finder is not None and self._find_reference(t, ax, ay, az, gyro):
             rot = self._rot
         if rot is None and self._finder is not None:
             self._pending.append([t, self.posture, False, self._theta_prev, stamp_ns, False])
@@ -495,7 +500,7 @@ class ActivityMonitor:
         self._pending.append([t, self.posture, self.walking, theta, stamp_ns, True])
         return self._emit()
 
-    def _find_reference(self, t: float, ax: float, ay: float, az: float) -> bool:
+    def _find_reference(self, t: float, ax: float, ay: float, az: float, gyro) -> bool:
         """Feed the :class:`UprightFinder`; True when the mounting changed at this sample.
 
         The first quiet period (or walking bout, if that comes first) calibrates; a walking bout then
@@ -504,7 +509,7 @@ class ActivityMonitor:
         measured from the wrong "up") and takes the bout's steps as a walk in progress.
         """
         finder = self._finder
-        found = finder.update(t, ax, ay, az)
+        found = finder.update(t, ax, ay, az, gyro)
         if found is None:
             return False
         if finder.done:
@@ -1015,6 +1020,7 @@ def classify_activity(
     initial_posture: str = "standing",
     placement: str = "chest",
     thighs: Mapping[str, np.ndarray] | None = None,
+    gyro: np.ndarray | None = None,
 ) -> dict:
     """Batch entry point: the streaming monitor run over ``acc`` (N×3), labels per sample.
 
@@ -1024,7 +1030,8 @@ def classify_activity(
     "transitions": [(t, kind)], "steps": [t], "trunk_inclination": (N,) rad,
     "reference": [(t, source, rad from the one replaced)]}``, t from 0 at sample 0. ``thighs``: thigh
     accelerometers (N×3 each, the same samples' times) that tell sitting from standing, as
-    ``ActivityStream`` does with the ``thighs`` it hears.
+    ``ActivityStream`` does with the ``thighs`` it hears. ``gyro``: the trunk sensor's angular velocity
+    (N×3 rad/s), which tells a sensor not yet worn from a still wearer (the upright reference).
     """
     acc = np.asarray(acc, dtype=float)
     reference_acc, mode = None, "auto"
@@ -1049,13 +1056,14 @@ def classify_activity(
     update = monitor.update
     thigh_rows = {seg: np.asarray(a, dtype=float).tolist() for seg, a in (thighs or {}).items()}
     inputs = ThighInputs(list(thigh_rows), rate_hz, reference_s)
-    for k, (stamp_ns, sample) in enumerate(zip(sample_stamps(len(acc), rate_hz).tolist(), acc.tolist(),
-                                               strict=True)):
+    rates = [None] * len(acc) if gyro is None else np.asarray(gyro, dtype=float).tolist()
+    for k, (stamp_ns, sample, rate) in enumerate(zip(sample_stamps(len(acc), rate_hz).tolist(), acc.tolist(),
+                                                     rates, strict=True)):
         if thigh_rows:
             for seg, rows in thigh_rows.items():
                 inputs.add(seg, stamp_ns, rows[k])
             monitor.thigh_inclination = inputs.inclination_at(stamp_ns, stamp_ns)
-        state = update(stamp_ns, sample)
+        state = update(stamp_ns, sample, rate)
         if state is not None:
             states.append(state)
     states.extend(monitor.flush())

@@ -157,13 +157,17 @@ class ActivityStream:
         self.options["forward_axis"] = forward  # kept across restarts
         return ""
 
-    def update(self, stamp_ns: int, acc: tuple[float, float, float]) -> tuple[ActivityState | None, bool]:
-        """One sample → (the newest state released or None, whether any state released changed)."""
+    def update(self, stamp_ns: int, acc: Sequence[float], gyro: Sequence[float] | None = None
+               ) -> tuple[ActivityState | None, bool]:
+        """One sample (acceleration, and the same sensor's angular velocity if it has a gyro) → (the
+        newest state released or None, whether any state released changed). A sample whose acceleration
+        is not finite is skipped; a gyro reading that is not is left out."""
         self.counts["samples"] += 1
         if not all(math.isfinite(v) for v in acc):
             self.counts["nan_skipped"] += 1
             return None, False
-        return self._released(self.sequencer.push(stamp_ns, tuple(acc)))
+        rate = tuple(gyro) if gyro is not None and all(math.isfinite(v) for v in gyro) else None
+        return self._released(self.sequencer.push(stamp_ns, (tuple(acc), rate)))
 
     def update_thigh(self, segment: str, stamp_ns: int, acc: Sequence[float]) -> tuple[ActivityState | None,
                                                                                         bool]:
@@ -185,7 +189,8 @@ class ActivityStream:
         return self._collect([out for r in released
                               for out in self._sample(r.stamp_ns, r.payload, r.restart_s)])
 
-    def _sample(self, stamp_ns: int, acc: tuple, restart_s: float) -> list[tuple[ActivityState, bool]]:
+    def _sample(self, stamp_ns: int, sample: tuple, restart_s: float) -> list[tuple[ActivityState, bool]]:
+        """One sample (``(acc, gyro or None)``) in stamp order, after the sequencer."""
         segment = self.params.segment
         out: list[tuple[ActivityState, bool]] = []
         dt = None if self._last_ns is None else (stamp_ns - self._last_ns) / NS_PER_S
@@ -210,25 +215,25 @@ class ActivityStream:
                 self.monitor.keep_mounting(previous)
         self._last_ns = stamp_ns
         if self.rate.measured_hz is None:  # the first samples wait until the rate is known
-            self._held.append((stamp_ns, acc))
+            self._held.append((stamp_ns, sample))
             rate_note = self.rate.update(stamp_ns)
             if self.rate.measured_hz is None:
                 return out
             if rate_note:
                 self._set_rate(rate_note)
             held, self._held = self._held, []
-            for held_ns, held_acc in held:
-                out += self._feed(held_ns, held_acc)
+            for held_ns, held_sample in held:
+                out += self._feed(held_ns, held_sample)
             return out
-        return out + self._feed(stamp_ns, acc)
+        return out + self._feed(stamp_ns, sample)
 
-    def _feed(self, stamp_ns: int, acc: tuple) -> list[tuple[ActivityState, bool]]:
+    def _feed(self, stamp_ns: int, sample: tuple) -> list[tuple[ActivityState, bool]]:
         """One sample towards the monitor (thinned above MAX_RATE_HZ), through the thighs' wait."""
         if self._every > 1:
             self._skip = (self._skip + 1) % self._every
             if self._skip:
                 return []
-        self._waiting.append((stamp_ns, acc))
+        self._waiting.append((stamp_ns, sample))
         return self._release()
 
     def _release(self, *, force: bool = False) -> list[tuple[ActivityState, bool]]:
@@ -237,13 +242,13 @@ class ActivityStream:
         out: list[tuple[ActivityState, bool]] = []
         newest = self._last_ns or 0
         while self._waiting and (force or self.thighs.ready(self._waiting[0][0], newest)):
-            stamp_ns, acc = self._waiting.popleft()
+            stamp_ns, (acc, gyro) = self._waiting.popleft()
             for forward in self._waiting_forward.due(stamp_ns):
                 problem = self._apply_forward(forward)
                 if problem:
                     self.notices.say("warn", f"{segment}: {problem}")
             self.monitor.thigh_inclination = self.thighs.inclination_at(stamp_ns, newest)
-            state = self.monitor.update(stamp_ns, acc)
+            state = self.monitor.update(stamp_ns, acc, gyro)
             if len(self.monitor.reference_log) > self._references_said:
                 self._say_reference()
             if state is not None:
