@@ -632,6 +632,36 @@ def test_pelvis_posture_follows_its_tilt_and_names_six_transitions() -> None:
     assert set(out["posture"][seated]) == {"sitting"}
 
 
+@pytest.mark.parametrize(("pause", "names"), [("still", ["stand_to_lie", "lie_to_sit", "sit_to_stand"]),
+                                               ("moving", ["stand_to_lie", "lie_to_stand"])])
+def test_getting_up_with_a_moving_pause_on_the_edge_is_one_lie_to_stand(pause: str, names: list[str]) -> None:
+    # lying, then sitting up and standing 8-9 s later: a wearer who shifts about on the bed's edge in
+    # between is getting up (one lie→stand), one who sits still for 6 s sat first
+    tpl = Template(RATE).hold(4.0, 0.0).transition("stand_to_lie", 3.0, 88.0, -0.6, 60.0).hold(10.0)
+    tpl.transition("lie_to_sit", 2.5, 25.0, 0.1, 25.0)
+    if pause == "still":
+        tpl.hold(6.0)
+    else:
+        for _ in range(3):
+            tpl.transition("shift", 2.0, 25.0, 0.0, 35.0)
+    tpl.transition("sit_to_stand", 2.0, 2.0, 0.45, 35.0).hold(8.0)
+    out = _run(tpl, placement="pelvis")
+    assert [k for _, k in out["transitions"]] == names
+    if pause == "still":  # 7-10 s apart: beyond MERGE_S, within MERGE_MOVING_S
+        assert 7.0 < out["transitions"][2][0] - out["transitions"][1][0] < 10.0
+
+
+@pytest.mark.parametrize(("placement", "delay"), [("pelvis", False), ("chest", True)])
+def test_a_pelvis_lying_down_past_110_degrees_is_not_sensor_handling(placement: str, delay: bool) -> None:
+    # a waist sensor lies back further than the chest: lying down briskly, θ (of the GA) passes 115° on
+    # the way to 95° while moving; the chest reads that as handling and waits 5 s
+    tpl = Template(RATE).hold(4.0, 0.0).transition("stand_to_lie", 1.5, 95.0, -0.6, 100.0).hold(12.0)
+    out = _run(tpl, placement=placement)
+    assert [k for _, k in out["transitions"]] == ["stand_to_lie"]
+    late = out["transitions"][0][0] - tpl.events[0][0]
+    assert (late > 3.0) if delay else (abs(late) < 1.0)
+
+
 def test_chest_lying_down_from_standing_is_stand_to_lie() -> None:
     tpl = Template(RATE).hold(4.0, 0.0).transition("stand_to_lie", 3.0, 90.0, -0.6, 60.0).hold(10.0)
     out = _run(tpl)

@@ -37,7 +37,7 @@ standing entered by a sit→stand without walking within 60 s reverts to sitting
 seated/lying posture after 8 steps, and a θ excursion ending from 5 s before to 2 s after the first
 step of such a walk (whatever its ΔY) names the sit→stand; a lean held (leaky) in [25°, 70°) for
 30 s without walking ⇒ sitting; lie-to-sit needs θ 10° below the lying threshold (hysteresis); while
-the sensor is handled (θ > 110° while moving) nothing is detected and the last posture is kept.
+the sensor is handled (θ > 110°, pelvis 120°, while moving) nothing is detected and the last posture is kept.
 
 Numbers the thesis does not give (gait.md §3.7) are chosen here; each constant says where from.
 """
@@ -178,7 +178,15 @@ PELVIS_HOLD_S = 3.0  # the new level must hold this long: a pause at a stair lan
 # tilted is no seat (hapt users 16-22, with the gyro: false transitions 32 at 2 s, 20 at 3 s and 4 s, the
 # same 77/85 found; 1 s gave 1.7× the false transitions of 2 s; confirmed on 23-30: 68 → 46, 78 → 79) ...
 PELVIS_STEADY_RAD = math.radians(2.0)  # ... and θ must be steady (range over the last 1 s) when confirmed
-MERGE_S = 5.0  # stand→sit then sit→lie (lie→sit then sit→stand) within 5 s is one stand→lie (lie→stand)
+PELVIS_HANDLING_RAD = math.radians(120.0)  # the pelvis lies back further than the chest: hapt lying θ up to
+# 102°, 113° passing through while lying down (user22_run2; at 110° detection paused: its stand→lie 6 s
+# late). Users 16-22: 77 → 79 of 85 found, 22 → 21 false; 23-30: 79 of 92 either way, 46 → 47 false
+MERGE_S = 5.0  # stand→sit then sit→lie (lie→sit then sit→stand) within 5 s is one stand→lie (lie→stand) ...
+MERGE_MOVING_S = 10.0  # ... and within 10 s if the wearer was never still (STATIC_*, θ steady) for 2 s in
+MERGE_STILL_S = 2.0  # between: getting up, people sit on the bed's edge a few seconds, moving, before they
+# stand. Chosen on hapt users 23-30, the only half whose lie→stand sat that long (7-8 s: 79/92 found at
+# 5 s, 81 at 10 s; false 46 → 42); 16-22 unchanged (77/85). The simulator's 5 s of sitting still between
+# lie→sit and sit→stand stay two events
 LEAN_RECOVERY = 4.0  # leaky hold: a second upright takes back 4 s (≥ 80 % of the time leaning)
 
 
@@ -207,6 +215,33 @@ class ActivityState:
     def t(self) -> float:
         """The described sample's stamp in seconds."""
         return self.stamp_ns / NS_PER_S
+
+
+class _RunningRange:
+    """Smallest and largest value over the last ``span_s`` seconds (monotonic queues, O(1) per sample)."""
+
+    def __init__(self, span_s: float) -> None:
+        self.span_s = span_s
+        self._low: deque[tuple[float, float]] = deque()
+        self._high: deque[tuple[float, float]] = deque()
+
+    def push(self, t: float, value: float) -> None:
+        low, high = self._low, self._high
+        while low and low[-1][1] >= value:
+            low.pop()
+        while high and high[-1][1] <= value:
+            high.pop()
+        low.append((t, value))
+        high.append((t, value))
+        while low[0][0] < t - self.span_s:
+            low.popleft()
+        while high[0][0] < t - self.span_s:
+            high.popleft()
+
+    @property
+    def spread(self) -> float:
+        """Largest minus smallest value (inf before any)."""
+        return self._high[0][1] - self._low[0][1] if self._low else math.inf
 
 
 class _Ring:
@@ -267,6 +302,7 @@ class ActivityMonitor:
         self.strong_height_change = STRONG_THIGH_FRACTION * thigh_length_m
         self.posture = initial_posture
         self.placement = placement
+        self._handling_rad = PELVIS_HANDLING_RAD if placement == "pelvis" else HANDLING_THETA_RAD
         self._level: tuple[str, float] | None = None  # pelvis/thighs: (posture the level points to, since)
         # the thighs' mean inclination (rad) at the next sample, set by the caller before each update
         # (ActivityStream, from ThighTilt); None: no thigh data, the trunk decides sitting vs standing
@@ -305,6 +341,9 @@ class ActivityMonitor:
         self._static_n = round(STATIC_WINDOW_S * rate_hz)
         self._static_ring: deque[float] = deque()
         self._static_sum = [0.0, 0.0]
+        self._still_s = 0.0  # how long the wearer has been still (STATIC_*, θ steady) up to now ...
+        self._longest_still = 0.0  # ... and the longest such moment since the last transition
+        self._theta_range = _RunningRange(1.0)  # θ over the last second (steady: PELVIS_STEADY_RAD)
         self.transitions: list[tuple[float, str]] = []
         # diagnostics (bounded): (t_peak, window or None, decision) of the latest stand/sit candidates
         self.candidate_log: deque[tuple[float, SitStandWindow | None, str]] = deque(maxlen=256)
@@ -468,10 +507,14 @@ class ActivityMonitor:
         self._history.push(t, f, v, lat)
         magnitude = math.sqrt(f * f + v * v + lat * lat)
         self._update_static(magnitude)
+        self._theta_range.push(t, theta)
+        still = self._is_static() and self._theta_range.spread < PELVIS_STEADY_RAD
+        self._still_s = self._still_s + 1.0 / self.rate_hz if still else 0.0
+        self._longest_still = max(self._longest_still, self._still_s)
         self._update_stairs_window(
             (f * gf + v * gv + lat * gl) * inv_norm - STANDARD_GRAVITY, gf * inv_norm, gl * inv_norm)
         svm = self._step_filter.step(magnitude - STANDARD_GRAVITY)
-        if theta > HANDLING_THETA_RAD and not self._is_static():
+        if theta > self._handling_rad and not self._is_static():
             self.handling_pauses += t >= self._handled_until
             self._handled_until = t + HANDLING_SETTLE_S
         if t < self._handled_until:
@@ -729,19 +772,23 @@ class ActivityMonitor:
     def _add_transition(self, t: float, kind: str, posture: str, *, walked: bool = False) -> None:
         """Record an event; a sit→stand not yet followed by walking must see walking within 60 s.
 
-        Stand→sit then sit→lie within MERGE_S is one stand→lie at the first instant, lie→sit then
-        sit→stand one lie→stand (HAPT's six transitions; the thesis names four). The first event may
-        have been published already: the merged one replaces it, with its stamp.
+        Stand→sit then sit→lie within MERGE_S (MERGE_MOVING_S without a still moment between) is one
+        stand→lie at the first instant, lie→sit then sit→stand one lie→stand (HAPT's six transitions;
+        the thesis names four). The first event may have been published already: the merged one
+        replaces it, with its stamp.
         """
         merged = {("stand_to_sit", "sit_to_lie"): "stand_to_lie",
                   ("lie_to_sit", "sit_to_stand"): "lie_to_stand"}
         last = self.transitions[-1] if self.transitions else None
-        if last is not None and t - last[0] <= MERGE_S and (last[1], kind) in merged:
+        gap = math.inf if last is None else t - last[0]
+        moving = self._longest_still < MERGE_STILL_S
+        if (gap <= MERGE_S or (gap <= MERGE_MOVING_S and moving)) and (last[1], kind) in merged:
             self.transitions[-1] = (last[0], merged[(last[1], kind)])
             if self._last_emitted_transition == last:
                 self._last_emitted_transition = self.transitions[-1]
         else:
             self.transitions.append((t, kind))
+        self._still_s = self._longest_still = 0.0
         self.posture = posture
         self._relabel(t, posture=posture)
         unconfirmed = kind == "sit_to_stand" and not walked
@@ -918,7 +965,7 @@ class ActivityMonitor:
         if self._level is None or self._level[0] != target:
             self._level = (target, t)
             return
-        steady = source != "pelvis" or self._theta_steady(t)
+        steady = source != "pelvis" or self._theta_range.spread < PELVIS_STEADY_RAD
         if not self.walking and (t - self._level[1] < hold or not steady):
             return
         since = self._level[1]
@@ -932,15 +979,6 @@ class ActivityMonitor:
         self._level = None
         self._level_value = math.nan
         self._middle_t = t
-
-    def _theta_steady(self, t: float) -> bool:
-        """θ's range over the last second of the delay line is below PELVIS_STEADY_RAD."""
-        low, high = math.inf, -math.inf
-        for rec in reversed(self._pending):
-            if rec[0] < t - 1.0:
-                break
-            low, high = min(low, rec[3]), max(high, rec[3])
-        return high - low < PELVIS_STEADY_RAD
 
     def _update_lean(self, t: float, theta: float) -> None:
         """A trunk lean held in [25°, 70°) for 30 s without walking ⇒ sitting (no event).
