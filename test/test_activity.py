@@ -227,12 +227,15 @@ def test_steps_need_an_upright_trunk(lean_deg: float, counted: bool) -> None:
     assert out["transitions"] == [] and set(out["posture"]) == {"standing"}
 
 
-@pytest.mark.parametrize(("seated_deg", "replaced"), [(10.0, False), (40.0, True)])
-def test_walking_replaces_a_quiet_reference_far_from_it(seated_deg: float, replaced: bool) -> None:
+@pytest.mark.parametrize(("placement", "seated_deg", "replaced"), [
+    ("chest", 5.0, False), ("chest", 11.0, True), ("chest", 40.0, True), ("pelvis", 11.0, False)])
+def test_walking_replaces_a_quiet_reference_far_from_it(placement: str, seated_deg: float, replaced: bool
+                                                         ) -> None:
     # the recording starts seated (the first quiet period, taken as "up"), then the wearer walks off:
-    # 10 steps of walking upright check that reference; 40° off (> 15°) it is replaced, 10° off kept
+    # 10 steps of walking upright check that reference; beyond 8° on the chest (walking leans it less),
+    # 15° on the pelvis, it is replaced
     tpl = Template(RATE).hold(8.0, seated_deg).hold(1.0, 0.0).walk(30).hold(6.0, 0.0)
-    monitor = ActivityMonitor(RATE)
+    monitor = ActivityMonitor(RATE, placement=placement)
     states = [monitor.update(ns, a) for ns, a in zip(sample_stamps(len(tpl.lean), RATE).tolist(),
                                                       tpl.acc().tolist(), strict=True)]
     states = [s for s in states if s is not None] + monitor.flush()
@@ -244,6 +247,21 @@ def test_walking_replaces_a_quiet_reference_far_from_it(seated_deg: float, repla
     assert theta_end == pytest.approx(0.0 if replaced else seated_deg, abs=1.0)
     assert abs(len(monitor.steps) - 30) <= 1  # the bout's first 10 steps, found by the finder, count
     assert states[0].calibrated is False and states[-1].calibrated
+
+
+@pytest.mark.parametrize(("steps", "posture"), [(0, "sitting"), (3, "sitting"), (10, "standing")])
+def test_an_upright_start_is_standing_only_if_a_walk_confirms_it(steps: int, posture: str) -> None:
+    # a chest sensor cannot tell still sitting from still standing: as after a sit→stand, the default
+    # "standing" must see a walk (8 steps or more, not a seated wearer's few peaks) within 60 s
+    tpl = Template(RATE).hold(20.0, 0.0)
+    if steps:
+        tpl.walk(steps)
+    tpl.hold(75.0 - tpl.t)
+    out = _run(tpl)
+    t = np.arange(len(out["posture"])) / RATE
+    assert set(out["posture"][t < 59.0]) == {"standing"}
+    assert set(out["posture"][t > 61.0]) == {posture}
+    assert out["transitions"] == []
 
 
 def test_handling_at_the_start_is_not_taken_as_upright() -> None:

@@ -52,7 +52,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gait_biofeedback.core.activity.reference import UprightFinder
+from gait_biofeedback.core.activity.reference import CHEST_REREFERENCE_RAD, REREFERENCE_RAD, UprightFinder
 from gait_biofeedback.core.activity.signal import (
     STANDARD_GRAVITY,
     Biquad,
@@ -352,12 +352,14 @@ class ActivityMonitor:
         self._overridden_onset = math.nan  # first step of a bout that overrode sitting without event
         self._handled_until = -math.inf  # sensor handling: detection paused until then
         self.handling_pauses = 0  # how often detection was paused for sensor handling
-        self._stand_deadline = math.inf  # standing from a sit→stand must see walking before this
+        self._stand_deadline = math.inf  # standing from a sit→stand must see walking before this, and
+        self._start_unconfirmed = initial_posture == "standing" and placement == "chest"  # at the start
         self._lean_hold = 0.0  # s of trunk lean accumulated (leaky) without walking
         self._lean_t = -math.inf
         self._prime = reference_acc is not None  # GA starts from the first sample, not the reference
         auto = reference == "auto" and reference_acc is None
-        self._finder = UprightFinder(rate_hz, reference_s) if auto else None
+        rereference = CHEST_REREFERENCE_RAD if placement == "chest" else REREFERENCE_RAD
+        self._finder = UprightFinder(rate_hz, reference_s, rereference_rad=rereference) if auto else None
         # (stamp s, source, rad from the reference it replaced or nan) of each reference taken
         self.reference_log: list[tuple[float, str, float]] = []
         if reference_acc is not None:
@@ -449,7 +451,8 @@ class ActivityMonitor:
         self._rot = list(previous._rot)
         finder = previous._finder
         if finder is not None:
-            finder = UprightFinder(self.rate_hz, finder.quiet_s, reference=finder.reference)
+            finder = UprightFinder(self.rate_hz, finder.quiet_s, reference=finder.reference,
+                                   rereference_rad=finder.rereference_rad)
         self._finder = finder
         self.forward_axis = previous.forward_axis
         self._forward_cos_sin = previous._forward_cos_sin
@@ -460,6 +463,8 @@ class ActivityMonitor:
         (a restart after a gap), so the wearer's stairs threshold does not start again."""
         self._wearer_history = deque(previous._wearer_history)
         self._wearer_sorted = list(previous._wearer_sorted)
+        self._start_unconfirmed = False
+        self._stand_deadline = previous._stand_deadline
 
     # ---------------------------------------------------------------- per sample
     def update(self, stamp_ns: int, acc, gyro=None) -> ActivityState | None:
@@ -474,6 +479,9 @@ class ActivityMonitor:
         spurious θ with /g while walking briskly).
         """
         t = stamp_ns / NS_PER_S
+        if self._start_unconfirmed:
+            self._start_unconfirmed = False
+            self._stand_deadline = t + STAND_CONFIRM_S
         ax, ay, az = float(acc[0]), float(acc[1]), float(acc[2])
         rot = self._rot
         if self._finder is not None and self._find_reference(t, ax, ay, az, gyro):
@@ -533,9 +541,9 @@ class ActivityMonitor:
             self._update_lean(t, theta)
         if self._pending_sit_stand is not None and t > self._pending_sit_stand[1]:
             self._pending_sit_stand = None  # no walking followed: the weak sit→stand is dropped
-        if t > self._stand_deadline:
+        if t > self._stand_deadline and not self.walking:
             self._stand_deadline = math.inf
-            if self.posture == "standing" and not self.walking:
+            if self.posture == "standing" and thigh is None:
                 self.posture = "sitting"  # stood up but never walked: taken as still seated
         if self.walking and t - self._wearer_t >= 1.0:
             self._remember_walking(t)
@@ -547,7 +555,7 @@ class ActivityMonitor:
         """Feed the :class:`UprightFinder`; True when the mounting changed at this sample.
 
         The first quiet period (or walking bout, if that comes first) calibrates; a walking bout then
-        checks a quiet reference and replaces it beyond ``REREFERENCE_RAD``, after which the finder
+        checks a quiet reference and replaces it beyond its ``rereference_rad``, after which the finder
         stops. A replacement restarts the detectors as after sensor handling (the θ they tracked was
         measured from the wrong "up") and takes the bout's steps as a walk in progress.
         """
@@ -1030,12 +1038,13 @@ class ActivityMonitor:
         elif len(self._run) >= MIN_SUCCESSIVE_PEAKS:
             self.walking = True
             self.steps.extend(self._run)
-            self._stand_deadline = math.inf
             pending = self._pending_sit_stand
             if pending is not None and self.posture == "sitting" and self._run[0] <= pending[1]:
                 self._add_transition(pending[0], "sit_to_stand", "standing", walked=True)
             self._pending_sit_stand = None
             self._relabel(self._run[0] - 0.5 * MIN_STEP_S, walking=True)
+        if self.walking and len(self._run) >= SIT_WALK_MIN_STEPS:
+            self._stand_deadline = math.inf  # a real walk (not a seated wearer's few peaks) confirms standing
         if self.walking and self.posture != "standing" and len(self._run) >= SIT_WALK_MIN_STEPS:
             if self._stand_up_before_walking(self._run[0]):
                 return
