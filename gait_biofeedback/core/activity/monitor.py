@@ -1,14 +1,17 @@
 """Trunk activity monitor: posture, transitions, walking modality and steps (thesis ch. 7).
 
-Spec: gait.md §3 (thesis §7.2.3–7.2.6, Fig 27). One trunk accelerometer only (chest or pelvis).
+Spec: gait.md §3 (thesis §7.2.3–7.2.6, Fig 27). One trunk accelerometer (chest or pelvis); the same
+sensor's gyro, if given, only helps find the upright reference (reference.py).
 
 Pipeline per sample (``ActivityMonitor.update``), all on Python floats:
   raw acc → ×scale, rotate into the body frame (x forward, y up, z right) → GA = 0.25 Hz elliptic
   low-pass per axis → trunk inclination θ = arccos(GA_v/g) (Eq 54) → three detectors:
   A) lying: θ crossing 70° confirmed by a static second lying (§7.2.4);
   B) sit/stand: a θ excursion peaking above 20°, bounded by θ minima, ΔY gate, ∫SVM sign (§7.2.5);
-  C) walking: ≥ 3 successive SVM peaks within a step duration, trunk upright; level vs stairs from
-     the variance of GA_v, up vs down from the mean forward lean (∫GA_f) (§7.2.6).
+  C) walking: ≥ 3 successive SVM peaks within a step duration, trunk upright (§7.2.6); level vs
+     stairs from the trunk's vertical displacement at step frequency, up vs down from the lean beyond
+     the wearer's level walking or, until that is known, along the forward axis (our replacement of
+     the thesis's variance of GA_v and ∫GA_f, see ``_modality``).
 
 Delay: every state describes the sample ``DELAY_S`` = 3 s before the newest input, and labels are
 final when emitted (walking needs 3 steps, ≤ 2.6 s, before it is confirmed; the level/stairs window
@@ -423,7 +426,8 @@ class ActivityMonitor:
         """The trunk's forward direction in sensor axes (e.g. from the chest's sensor-to-segment
         calibration).
 
-        It only decides upstairs vs downstairs (the sign of the forward lean): "up" stays the
+        It only decides upstairs vs downstairs (the sign of the forward lean), and only until the
+        wearer's level walking is known (``_modality``): "up" stays the
         reference period's, so θ, steps and transitions are unaffected and nothing restarts. The
         up/down label is formed when a state is emitted (DELAY_S after its sample, from the window
         centred on it), so states from DELAY_S before this call on use the new axis. Before the

@@ -74,10 +74,11 @@ class ActivityParams:
                                     "sitting from standing while they send (their inclination; empty: the "
                                     "trunk alone)", choices=SEGMENTS)
     thigh_length: float = same_as(BodyDimensions, "thigh_length")
-    initial_posture: str = param("standing", "posture until a transition says otherwise", choices=POSTURES)
+    initial_posture: str = param("standing", "posture until a transition says otherwise (chest: standing "
+                                 "needs a walk within 60 s, else it is taken as sitting)", choices=POSTURES)
     forward_axis: tuple[float, ...] = param(
         (1.0, 0.0, 0.0), "trunk forward in chest-sensor axes until a calibration gives it (decides upstairs "
-        "vs downstairs only)", "1", length=3)
+        "vs downstairs only, until 10 s of the wearer's level walking are known)", "1", length=3)
     max_gap: float = param(0.5, "longest stamp gap before the monitor restarts", "s", low=0.01, high=60.0)
     reorder_window: float = param(0.03, "samples out of order by less than this are re-sequenced (added "
                                   "latency)", "s", low=0.0, high=1.0)
