@@ -593,6 +593,22 @@ def test_vertical_displacement_filter_integrates_twice_without_drift() -> None:
         assert abs(z.mean()) < 1e-4
 
 
+def test_a_restart_after_a_gap_keeps_the_wearers_confirmed_standing() -> None:
+    # standing confirmed by a walk, then 1 s without data (the monitor restarts), then 70 s standing still:
+    # the restarted monitor does not ask for a walk again (its start rule), the posture stays standing
+    from gait_biofeedback.core.activity.stream import ActivityParams, ActivityStream
+
+    acc = Template(RATE).hold(4.0, 0.0).walk(20).hold(80.0).acc()
+    stamps = sample_stamps(len(acc), RATE)
+    gap = round(20.0 * RATE)
+    stamps[gap:] += s_to_ns(1.0)
+    stream = ActivityStream(ActivityParams(rate_hz=RATE))
+    states = [state for ns, a in zip(stamps.tolist(), acc.tolist(), strict=True)
+              if (state := stream.update(ns, a)[0]) is not None]
+    assert stream.counts["restarts"] == 1
+    assert {s.posture for s in states if s.t > 30.0} == {"standing"}
+
+
 def test_stream_takes_the_forward_axis_from_its_stamp() -> None:
     from gait_biofeedback.core.activity.stream import ActivityParams, ActivityStream
 

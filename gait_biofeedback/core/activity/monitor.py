@@ -463,10 +463,13 @@ class ActivityMonitor:
         self._prime = True
 
     def keep_wearer_history(self, previous: ActivityMonitor) -> None:
-        """Carry the wearer's walking-displacement history over from the monitor this one replaces
-        (a restart after a gap), so the wearer's stairs threshold does not start again."""
+        """Carry the wearer's walking history (displacement, level walking's lean, whether standing
+        was confirmed) over from the monitor this one replaces (a restart after a gap), so the
+        wearer's stairs threshold and up/down reference do not start again."""
         self._wearer_history = deque(previous._wearer_history)
         self._wearer_sorted = list(previous._wearer_sorted)
+        self._level_lean = deque(previous._level_lean)
+        self._level_lean_sum = list(previous._level_lean_sum)
         self._start_unconfirmed = False
         self._stand_deadline = previous._stand_deadline
 
@@ -668,8 +671,10 @@ class ActivityMonitor:
         displacement referred to STAIRS_REFERENCE_RAD_S above STAIRS_DISPLACEMENT_M and above
         STAIRS_WEARER_RATIO × the wearer's usual walking (see there).
 
-        READING: the thesis integrates GA_f over the bout and uses one threshold; the mean over the
-        centred window is that integral divided by the window length. With x forward, a forward
+        Up vs down: the window's trunk direction more than UPSTAIRS_LEVEL_LEAN_RAD from the wearer's
+        level walking once LEVEL_LEAN_MIN_N s of it are known; before, the thesis's lean along the
+        forward axis. READING: the thesis integrates GA_f over the bout and uses one threshold; the
+        mean over the centred window is that integral divided by the window length. With x forward, a forward
         lean gives GA_f = −g·sin(lean) (gait.md §3.2), so we test the lean −GA_f/g: upstairs = the
         trunk leans further forward than the upright reference.
         """
