@@ -51,6 +51,7 @@ CAL = "gait_biofeedback/core/calibration/sensor_to_segment.py"
 KERNEL = "gait_biofeedback/core/orientation/filters/_inertial_kernel.py"
 STARTUP = "gait_biofeedback/core/orientation/filters/startup.py"
 MONITOR = "gait_biofeedback/core/activity/monitor.py"
+UPRIGHT = "gait_biofeedback/core/activity/reference.py"
 EVAL = "gait_biofeedback/core/biofeedback/evaluator.py"
 GAIN = "gait_biofeedback/core/orientation/gain_regulation.py"
 
@@ -154,11 +155,23 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant("act-upright", MONITOR, "UPRIGHT_WALKING_RAD = math.radians(30.0)",
            "UPRIGHT_WALKING_RAD = math.radians(60.0)", (T_ACT,),
            "steps counted with the trunk leaning up to 60°"),
-    Mutant("act-sway-ratio", MONITOR, "STAIRS_SWAY_RATIO = 1.8  #", "STAIRS_SWAY_RATIO = 2.6  #", (T_ACT,),
-           "adaptive stairs threshold: sway ratio 1.8 → 2.6"),
-    Mutant("act-sway-median", MONITOR, "STAIRS_SWAY_RATIO * ordered[len(ordered) // 2]",
-           "STAIRS_SWAY_RATIO * ordered[-1]", (T_ACT,),
-           "adaptive stairs threshold from the maximum sway, not the median"),
+    Mutant("act-wearer-ratio", MONITOR, "STAIRS_WEARER_RATIO = 1.3  #", "STAIRS_WEARER_RATIO = 1.0  #",
+           (T_ACT,), "the wearer's stairs threshold: ratio 1.3 → 1.0"),
+    Mutant("act-wearer-quantile", MONITOR, "usual = ordered[int(DISPLACEMENT_QUANTILE * len(ordered))]",
+           "usual = ordered[-1]", (T_ACT,), "the wearer's usual walking from the maximum, not the 10th pct"),
+    Mutant("act-referred", MONITOR, "return sigma_d * min(1.0, STAIRS_REFERENCE_RAD_S / omega)",
+           "return sigma_d", (T_ACT,), "the displacement not referred to 1.6 Hz (brisk walking is stairs)"),
+    Mutant("act-worn", UPRIGHT, "return low / band >= WORN_RATIO * self._white",
+           "return low / band >= 0.3 * WORN_RATIO * self._white", (T_ACT,),
+           "the gyro's white noise passes for a wearer"),
+    Mutant("act-start-rule", MONITOR, "self._start_unconfirmed = initial_posture == \"standing\" and",
+           "self._start_unconfirmed = False and", (T_ACT,), "an upright start is standing without a walk"),
+    Mutant("act-merge-moving", MONITOR, "MERGE_MOVING_S = 10.0  #", "MERGE_MOVING_S = 5.0  #", (T_ACT,),
+           "getting up with a pause on the bed's edge is two events"),
+    Mutant("ev-late-tc-edge", EVENTS, "if best is None or best[0] == first or not",
+           "if best is None or not", (T_EVENTS,), "a foot that only rose gives a late toe-off"),
+    Mutant("act-up-lean", MONITOR, "if known >= LEVEL_LEAN_MIN_N:", "if known >= 10**6:", (T_ACT,),
+           "up vs down never from the lean beyond level walking"),
     Mutant("act-lying-hysteresis", MONITOR, "LYING_HYSTERESIS_RAD = math.radians(10.0)",
            "LYING_HYSTERESIS_RAD = math.radians(0.0)", (T_ACT,), "no lie-to-sit hysteresis"),
     Mutant("act-strong", MONITOR, "STRONG_THIGH_FRACTION = 0.7", "STRONG_THIGH_FRACTION = 0.5", (T_ACT,),

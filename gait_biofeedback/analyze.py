@@ -15,7 +15,7 @@ same message-conversion helpers, in the same order the nodes use them:
    ``/skeleton``;
 4. gait events and strides: :class:`~gait_biofeedback.core.gait.stream.GaitEventStream` →
    ``/gait/events``, ``/gait/cycles``;
-5. activity on the chest's raw accelerometer: :class:`~gait_biofeedback.core.activity.stream.ActivityStream`
+5. activity on the chest's raw IMU: :class:`~gait_biofeedback.core.activity.stream.ActivityStream`
    → ``/activity/state``.
 
 Each stage is set up from the same parameters dataclass its node declares
@@ -183,7 +183,7 @@ class _ActivityRun:
         self._newest_ns = 0
 
     def update(self, raw: Stamped) -> list[Any]:
-        stamp_ns, _, acc = raw_sample(raw)
+        stamp_ns, gyro, acc = raw_sample(raw)
         out = []
         if self._next_periodic is None:
             self._next_periodic = stamp_ns + self.period_ns
@@ -191,7 +191,7 @@ class _ActivityRun:
             self._next_periodic = stamp_ns + self.period_ns
             out.append(activity_msg(self.stream.latest, stamp_ns, self.segment))
         self._newest_ns = stamp_ns
-        state, changed = self.stream.update(stamp_ns, acc)
+        state, changed = self.stream.update(stamp_ns, acc, gyro)
         if changed:
             out.append(activity_msg(state, stamp_ns, self.segment))
         return out

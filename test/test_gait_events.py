@@ -64,12 +64,14 @@ def test_threshold_blocks_shallow_minimum():
 
 @pytest.mark.parametrize(("depth", "expected"), [
     (-0.15, [("tc", 49, LATE_TC_FLAG), ("ic", 69, "")]),
-    (-0.02, [("ic", 69, "no toe-off detected before this heel strike")])])
+    (-0.02, [("tc", 49, LATE_TC_FLAG), ("ic", 69, "")]),
+    (0.0, [("ic", 69, "no toe-off detected before this heel strike")])])
 def test_a_clear_heel_strike_counts_without_its_toe_off(depth: float, expected: list):
     # EXT (events.py): the first step from standing pushes off shallowly (above the -0.2 threshold: no
     # TC by Algorithm 1) but strikes clearly (+0.3): the IC is detected; the toe-off is looked for at
-    # it, found when deeper than -0.03 (emitted first, flagged, with its own stamp), else the IC is
-    # flagged; the next step is the thesis' again
+    # it, the deepest sample since the last IC if below +0.03 (emitted first, flagged, with its own
+    # stamp); a foot that only rose from standing (depth 0: the deepest is the window's first sample)
+    # shows none and the IC is flagged; the next step is the thesis' again
     s = np.zeros(260)
     s[30:50] = depth * np.arange(1, 21) / 20  # shallow toe-off, minimum at k=49
     s[50:70] = depth + (0.3 - depth) * np.arange(1, 21) / 20  # heel strike, maximum +0.3 at k=69

@@ -1,6 +1,7 @@
 """Node ``activity_monitor``: chest accelerometer → posture, transitions, walking modality, steps.
 
-Subscribes ``chest/imu/data_raw`` (sensor_msgs/Imu; only the accelerometer is used, thesis ch. 7), the
+Subscribes ``chest/imu/data_raw`` (sensor_msgs/Imu: the accelerometer, thesis ch. 7; the gyro only tells a
+sensor not yet worn from a still wearer when the upright reference is sought), the
 thighs' ``imu/data_raw`` (``thighs``: their inclination tells sitting from standing while they send) and
 ``calibration/sensor_to_segment`` (latched; the chest's rotation gives the trunk's forward axis, in
 force from the message's stamp), publishes ``activity/state`` (gait_biofeedback_msgs/ActivityState)
@@ -64,8 +65,8 @@ class ActivityMonitorNode(GuardedNode):
         log_notices(self.get_logger(), self.stream.notices.pop())
 
     def _on_imu(self, data: bytes) -> None:
-        stamp_ns, _, acc = raw_sample(decode_imu(data))
-        state, changed = self.stream.update(stamp_ns, acc)
+        stamp_ns, gyro, acc = raw_sample(decode_imu(data))
+        state, changed = self.stream.update(stamp_ns, acc, gyro)
         log_notices(self.get_logger(), self.stream.notices.pop())
         self._newest_ns = stamp_ns
         if changed:

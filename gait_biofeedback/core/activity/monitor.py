@@ -1,14 +1,17 @@
 """Trunk activity monitor: posture, transitions, walking modality and steps (thesis ch. 7).
 
-Spec: gait.md §3 (thesis §7.2.3–7.2.6, Fig 27). One trunk accelerometer only (chest or pelvis).
+Spec: gait.md §3 (thesis §7.2.3–7.2.6, Fig 27). One trunk accelerometer (chest or pelvis); the same
+sensor's gyro, if given, only helps find the upright reference (reference.py).
 
 Pipeline per sample (``ActivityMonitor.update``), all on Python floats:
   raw acc → ×scale, rotate into the body frame (x forward, y up, z right) → GA = 0.25 Hz elliptic
   low-pass per axis → trunk inclination θ = arccos(GA_v/g) (Eq 54) → three detectors:
   A) lying: θ crossing 70° confirmed by a static second lying (§7.2.4);
   B) sit/stand: a θ excursion peaking above 20°, bounded by θ minima, ΔY gate, ∫SVM sign (§7.2.5);
-  C) walking: ≥ 3 successive SVM peaks within a step duration, trunk upright; level vs stairs from
-     the variance of GA_v, up vs down from the mean forward lean (∫GA_f) (§7.2.6).
+  C) walking: ≥ 3 successive SVM peaks within a step duration, trunk upright (§7.2.6); level vs
+     stairs from the trunk's vertical displacement at step frequency, up vs down from the lean beyond
+     the wearer's level walking or, until that is known, along the forward axis (our replacement of
+     the thesis's variance of GA_v and ∫GA_f, see ``_modality``).
 
 Delay: every state describes the sample ``DELAY_S`` = 3 s before the newest input, and labels are
 final when emitted (walking needs 3 steps, ≤ 2.6 s, before it is confirmed; the level/stairs window
@@ -37,7 +40,7 @@ standing entered by a sit→stand without walking within 60 s reverts to sitting
 seated/lying posture after 8 steps, and a θ excursion ending from 5 s before to 2 s after the first
 step of such a walk (whatever its ΔY) names the sit→stand; a lean held (leaky) in [25°, 70°) for
 30 s without walking ⇒ sitting; lie-to-sit needs θ 10° below the lying threshold (hysteresis); while
-the sensor is handled (θ > 110° while moving) nothing is detected and the last posture is kept.
+the sensor is handled (θ > 110°, pelvis 120°, while moving) nothing is detected and the last posture is kept.
 
 Numbers the thesis does not give (gait.md §3.7) are chosen here; each constant says where from.
 """
@@ -52,7 +55,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gait_biofeedback.core.activity.reference import UprightFinder
+from gait_biofeedback.core.activity.reference import CHEST_REREFERENCE_RAD, REREFERENCE_RAD, UprightFinder
 from gait_biofeedback.core.activity.signal import (
     STANDARD_GRAVITY,
     Biquad,
@@ -63,6 +66,7 @@ from gait_biofeedback.core.activity.signal import (
     mounting_from_reference,
     scale_to_si,
     step_lowpass_ba,
+    vertical_displacement_sections,
 )
 from gait_biofeedback.core.activity.steps import (
     MAX_STEP_S,
@@ -117,16 +121,32 @@ LYING_STATIC_BEFORE_S = 10.0  # ... at most 10 s before a lie-to-sit crossing
 LYING_HYSTERESIS_RAD = math.radians(10.0)  # lie-to-sit confirmed below 60° (not tuned: a trunk resting
 # near 70° flickered lying/sitting every 1–2 s, UCI subject 8 at the end of its recording)
 STAIRS_WINDOW_S = 2 * DELAY_S  # level/stairs window, centred on the emitted sample
-STAIRS_GA_V_STD = 0.16  # m/s², std of g·GA_v/|GA| over 6 s → stairs, until the adaptive threshold
-# below has 30 s of walking. Chosen first on UCI dev 1–7 (mean per-subject plain accuracy of 0.08–0.30:
-# 0.12 86 %, 0.16 90 %, 0.20 90 %; pooled windows: 94.4 %, balanced 74.8 %)
-STAIRS_SWAY_RATIO = 1.8  # adaptive: stairs = sway std > 1.8 × the wearer's median walking sway. UCI
-# dev 1–7 (benchmark windows), plain / balanced level-vs-stairs accuracy: fixed 0.16 m/s² 94.4/74.8 %,
-# ratio 1.5 83.6/83.3, 1.8 90.0/80.7, 2.0 91.5/78.9, 2.2 92.7/77.8: the best balanced accuracy whose
-# plain accuracy reaches the issue's 90 % (the wearer's own level sway differs up to 3× between people)
-SWAY_MIN_N = 30  # seconds of walking before the adaptive threshold replaces the fixed one
-SWAY_HISTORY_N = 600  # the last 10 min of walking
-UPSTAIRS_LEAN_RAD = math.radians(8.0)  # mean forward lean above this → upstairs (not validated)
+STAIRS_DISPLACEMENT_M = 0.018  # the trunk's vertical displacement at step frequency (std σ_d over the
+# window, signal.vertical_displacement_sections) above this → stairs ...
+STAIRS_REFERENCE_RAD_S = 10.0  # ... the displacement of a faster vertical motion referred to 10 rad/s
+# (1.6 Hz, 95 steps/min): σ_d·min(1, 10/ω), ω = √(σ_a/σ_d) the motion's effective angular frequency (σ_a
+# the acceleration's std in the same band): a brisk walker bounces higher but faster, a step up or
+# down is high and slow (slower motion is taken as it is: a slow walker's bounce is not inflated) ...
+STAIRS_WEARER_RATIO = 1.3  # ... and above 1.3 × the wearer's own usual walking (the 10th percentile
+# of the per-second values while walking, last 10 min, once 30 s are known: DISPLACEMENT_MIN_N), which
+# is level walking even when stairs fill most of the history.
+# Each step on stairs lifts or drops the body by a riser (~17 cm). hapt_waist bouts, σ_d (5-95 %):
+# level 1.2-2.0 cm, upstairs 2.1-3.1, downstairs 2.4-3.5; but brisk or bouncy level walking reaches
+# 2-2.7 cm (UCI chest subjects 2, 4, 6; the qmt walk at 112 steps/min: 1.9-2.1 cm at σ_a 3.7 m/s²).
+# Chosen on hapt users 16-22 and UCI 1-7 (benchmark-like windows; level-vs-stairs accuracy among walking
+# samples, hapt dev / UCI dev / qmt level share): σ_d > 1.9 cm alone 92.6 / 44.5 / 19-38 %; & 1.3× the
+# wearer's 10th pct 90.0 / 66.7 / 46-52 %; referred to 10 rad/s, 1.8 cm & 1.3× 89.5 / 66.9 / 99-100 %
+# (1.9 cm 84.5 / 70.1 / 100; 11 rad/s 78.8 / 72.5 / 100). Confirmed on hapt 23-30 / UCI 8-15: 97.9 /
+# 85.3 % (UCI's "always level" reads 92 %: its stairs are 8 % of the walking)
+DISPLACEMENT_MIN_N = 30  # seconds of walking before the wearer's ratio applies
+DISPLACEMENT_HISTORY_N = 600  # the last 10 min of walking
+DISPLACEMENT_QUANTILE = 0.1
+UPSTAIRS_LEAN_RAD = math.radians(8.0)  # mean forward lean above this → upstairs (not validated), until ...
+UPSTAIRS_LEVEL_LEAN_RAD = math.radians(5.0)  # ... the wearer's level walking is known (LEVEL_LEAN_MIN_N s):
+# then upstairs = the trunk's direction over the window more than 5° from its mean over level walking, in
+# any direction (no forward axis needed). hapt_waist bouts, angle from the wearer's level walking: upstairs
+# 5.8-12.7° (10-90 %), downstairs 1.4-4.8°; per-sample UP/DOWN: see benchmarks/activity.py
+LEVEL_LEAN_MIN_N = 10
 HISTORY_S = 14.0
 # --- chosen on the UCI development subjects 1–7 (benchmarks/activity.py; 8–15 are held out) ---------
 # The thesis's gates (|ΔY| ≥ 50 % thigh, sign of ∫SVM) let 1–36 false transitions per UCI subject
@@ -157,9 +177,19 @@ SIT_LEAN_HOLD_S = 30.0  # ... for 30 s ⇒ sitting (standing is upright). Dev: f
 # (0/61 sit-stand transitions found). Posture is therefore a level with hysteresis on θ.
 PELVIS_SIT_RAD = math.radians(12.0)  # θ held above this ⇒ sitting (dev: 11-14° alike, 10° flickers)
 PELVIS_STAND_RAD = math.radians(8.0)  # θ held below this (or walking) ⇒ standing
-PELVIS_HOLD_S = 2.0  # the new level must hold this long (1 s: 1.7× the false transitions) ...
+PELVIS_HOLD_S = 3.0  # the new level must hold this long: a pause at a stair landing with the pelvis
+# tilted is no seat (hapt users 16-22, with the gyro: false transitions 32 at 2 s, 20 at 3 s and 4 s, the
+# same 77/85 found; 1 s gave 1.7× the false transitions of 2 s; confirmed on 23-30: 68 → 46, 78 → 79) ...
 PELVIS_STEADY_RAD = math.radians(2.0)  # ... and θ must be steady (range over the last 1 s) when confirmed
-MERGE_S = 5.0  # stand→sit then sit→lie (lie→sit then sit→stand) within 5 s is one stand→lie (lie→stand)
+PELVIS_HANDLING_RAD = math.radians(120.0)  # the pelvis lies back further than the chest: hapt lying θ up to
+# 102°, 113° passing through while lying down (user22_run2; at 110° detection paused: its stand→lie 6 s
+# late). Users 16-22: 77 → 79 of 85 found, 22 → 21 false; 23-30: 79 of 92 either way, 46 → 47 false
+MERGE_S = 5.0  # stand→sit then sit→lie (lie→sit then sit→stand) within 5 s is one stand→lie (lie→stand) ...
+MERGE_MOVING_S = 10.0  # ... and within 10 s if the wearer was never still (STATIC_*, θ steady) for 2 s in
+MERGE_STILL_S = 2.0  # between: getting up, people sit on the bed's edge a few seconds, moving, before they
+# stand. Chosen on hapt users 23-30, the only half whose lie→stand sat that long (7-8 s: 79/92 found at
+# 5 s, 81 at 10 s; false 46 → 42); 16-22 unchanged (77/85). The simulator's 5 s of sitting still between
+# lie→sit and sit→stand stay two events
 LEAN_RECOVERY = 4.0  # leaky hold: a second upright takes back 4 s (≥ 80 % of the time leaning)
 
 
@@ -188,6 +218,33 @@ class ActivityState:
     def t(self) -> float:
         """The described sample's stamp in seconds."""
         return self.stamp_ns / NS_PER_S
+
+
+class _RunningRange:
+    """Smallest and largest value over the last ``span_s`` seconds (monotonic queues, O(1) per sample)."""
+
+    def __init__(self, span_s: float) -> None:
+        self.span_s = span_s
+        self._low: deque[tuple[float, float]] = deque()
+        self._high: deque[tuple[float, float]] = deque()
+
+    def push(self, t: float, value: float) -> None:
+        low, high = self._low, self._high
+        while low and low[-1][1] >= value:
+            low.pop()
+        while high and high[-1][1] <= value:
+            high.pop()
+        low.append((t, value))
+        high.append((t, value))
+        while low[0][0] < t - self.span_s:
+            low.popleft()
+        while high[0][0] < t - self.span_s:
+            high.popleft()
+
+    @property
+    def spread(self) -> float:
+        """Largest minus smallest value (inf before any)."""
+        return self._high[0][1] - self._low[0][1] if self._low else math.inf
 
 
 class _Ring:
@@ -248,6 +305,7 @@ class ActivityMonitor:
         self.strong_height_change = STRONG_THIGH_FRACTION * thigh_length_m
         self.posture = initial_posture
         self.placement = placement
+        self._handling_rad = PELVIS_HANDLING_RAD if placement == "pelvis" else HANDLING_THETA_RAD
         self._level: tuple[str, float] | None = None  # pelvis/thighs: (posture the level points to, since)
         # the thighs' mean inclination (rad) at the next sample, set by the caller before each update
         # (ActivityStream, from ThighTilt); None: no thigh data, the trunk decides sitting vs standing
@@ -271,16 +329,24 @@ class ActivityMonitor:
         self._delay_n = round(DELAY_S * rate_hz)
         self._pending: deque[list] = deque()  # [t, posture, walking, theta, stamp_ns, calibrated]
         self._stairs_n = round(STAIRS_WINDOW_S * rate_hz)
-        self._stairs_ring: deque[tuple[float, float, float]] = deque()
-        self._stairs_sum = [0.0, 0.0, 0.0, 0.0]  # Σ(gv−g), Σ(gv−g)², Σ lean along body x, along z
+        self._stairs_ring: deque[tuple[float, float, float, float]] = deque()
+        # Σ displacement, Σ displacement², Σ acceleration, Σ acceleration² (the same band), Σ lean along
+        # body x, along z
+        self._stairs_sum = [0.0] * 6
+        self._displaced = [0.0, 0.0]  # the last two displacements (their second difference: the acceleration)
+        self._displacement = [Biquad(b, a) for b, a in vertical_displacement_sections(rate_hz)]
+        self._wearer_history: deque[float] = deque()  # per-second displacement std while walking
+        self._wearer_sorted: list[float] = []  # the same values, sorted (running quantile)
+        self._wearer_t = -math.inf
+        self._level_lean: deque[tuple[float, float]] = deque()  # per-second window lean while walking level
+        self._level_lean_sum = [0.0, 0.0]
         self._forward_cos_sin = (1.0, 0.0)  # trunk forward in the body frame's horizontal (x, z) plane
-        self._sway_history: deque[float] = deque()  # per-second sway std while walking (time order)
-        self._sway_sorted: list[float] = []  # the same values, sorted (running median)
-        self._sway_t = -math.inf
-        self._flushing = False  # flush() emits from a frozen window: keep it out of the history
         self._static_n = round(STATIC_WINDOW_S * rate_hz)
         self._static_ring: deque[float] = deque()
         self._static_sum = [0.0, 0.0]
+        self._still_s = 0.0  # how long the wearer has been still (STATIC_*, θ steady) up to now ...
+        self._longest_still = 0.0  # ... and the longest such moment since the last transition
+        self._theta_range = _RunningRange(1.0)  # θ over the last second (steady: PELVIS_STEADY_RAD)
         self.transitions: list[tuple[float, str]] = []
         # diagnostics (bounded): (t_peak, window or None, decision) of the latest stand/sit candidates
         self.candidate_log: deque[tuple[float, SitStandWindow | None, str]] = deque(maxlen=256)
@@ -289,12 +355,14 @@ class ActivityMonitor:
         self._overridden_onset = math.nan  # first step of a bout that overrode sitting without event
         self._handled_until = -math.inf  # sensor handling: detection paused until then
         self.handling_pauses = 0  # how often detection was paused for sensor handling
-        self._stand_deadline = math.inf  # standing from a sit→stand must see walking before this
+        self._stand_deadline = math.inf  # standing from a sit→stand must see walking before this, and
+        self._start_unconfirmed = initial_posture == "standing" and placement == "chest"  # at the start
         self._lean_hold = 0.0  # s of trunk lean accumulated (leaky) without walking
         self._lean_t = -math.inf
         self._prime = reference_acc is not None  # GA starts from the first sample, not the reference
         auto = reference == "auto" and reference_acc is None
-        self._finder = UprightFinder(rate_hz, reference_s) if auto else None
+        rereference = CHEST_REREFERENCE_RAD if placement == "chest" else REREFERENCE_RAD
+        self._finder = UprightFinder(rate_hz, reference_s, rereference_rad=rereference) if auto else None
         # (stamp s, source, rad from the reference it replaced or nan) of each reference taken
         self.reference_log: list[tuple[float, str, float]] = []
         if reference_acc is not None:
@@ -358,7 +426,8 @@ class ActivityMonitor:
         """The trunk's forward direction in sensor axes (e.g. from the chest's sensor-to-segment
         calibration).
 
-        It only decides upstairs vs downstairs (the sign of the forward lean): "up" stays the
+        It only decides upstairs vs downstairs (the sign of the forward lean), and only until the
+        wearer's level walking is known (``_modality``): "up" stays the
         reference period's, so θ, steps and transitions are unaffected and nothing restarts. The
         up/down label is formed when a state is emitted (DELAY_S after its sample, from the window
         centred on it), so states from DELAY_S before this call on use the new axis. Before the
@@ -386,21 +455,30 @@ class ActivityMonitor:
         self._rot = list(previous._rot)
         finder = previous._finder
         if finder is not None:
-            finder = UprightFinder(self.rate_hz, finder.quiet_s, reference=finder.reference)
+            finder = UprightFinder(self.rate_hz, finder.quiet_s, reference=finder.reference,
+                                   rereference_rad=finder.rereference_rad)
         self._finder = finder
         self.forward_axis = previous.forward_axis
         self._forward_cos_sin = previous._forward_cos_sin
         self._prime = True
 
     def keep_wearer_history(self, previous: ActivityMonitor) -> None:
-        """Carry the wearer's walking-sway history over from the monitor this one replaces (a
-        restart after a gap), so the adaptive stairs threshold does not start again."""
-        self._sway_history = deque(previous._sway_history)
-        self._sway_sorted = list(previous._sway_sorted)
+        """Carry the wearer's walking history (displacement, level walking's lean, whether standing
+        was confirmed) over from the monitor this one replaces (a restart after a gap), so the
+        wearer's stairs threshold and up/down reference do not start again."""
+        self._wearer_history = deque(previous._wearer_history)
+        self._wearer_sorted = list(previous._wearer_sorted)
+        self._level_lean = deque(previous._level_lean)
+        self._level_lean_sum = list(previous._level_lean_sum)
+        self._start_unconfirmed = False
+        self._stand_deadline = previous._stand_deadline
 
     # ---------------------------------------------------------------- per sample
-    def update(self, stamp_ns: int, acc) -> ActivityState | None:
-        """Feed one sample (its stamp, acceleration 3-vector); return the state of stamp − DELAY_S.
+    def update(self, stamp_ns: int, acc, gyro=None) -> ActivityState | None:
+        """Feed one sample (its stamp, acceleration 3-vector, angular velocity 3-vector or None);
+        return the state of stamp − DELAY_S. The gyro only helps find the upright reference
+        (:class:`~gait_biofeedback.core.activity.reference.GyroWindow`); the detectors are the thesis's,
+        on the accelerometer.
 
         READING of Eq 54: θ = arccos(GA_v/|GA|) rather than GA_v/g. Both are the angle between the
         trunk's vertical axis and gravity when still; dividing by |GA| removes the step-frequency
@@ -408,9 +486,12 @@ class ActivityMonitor:
         spurious θ with /g while walking briskly).
         """
         t = stamp_ns / NS_PER_S
+        if self._start_unconfirmed:
+            self._start_unconfirmed = False
+            self._stand_deadline = t + STAND_CONFIRM_S
         ax, ay, az = float(acc[0]), float(acc[1]), float(acc[2])
         rot = self._rot
-        if self._finder is not None and self._find_reference(t, ax, ay, az):
+        if self._finder is not None and self._find_reference(t, ax, ay, az, gyro):
             rot = self._rot
         if rot is None and self._finder is not None:
             self._pending.append([t, self.posture, False, self._theta_prev, stamp_ns, False])
@@ -441,9 +522,14 @@ class ActivityMonitor:
         self._history.push(t, f, v, lat)
         magnitude = math.sqrt(f * f + v * v + lat * lat)
         self._update_static(magnitude)
-        self._update_stairs_window(gv * inv_norm, gf * inv_norm, gl * inv_norm)
+        self._theta_range.push(t, theta)
+        still = self._is_static() and self._theta_range.spread < PELVIS_STEADY_RAD
+        self._still_s = self._still_s + 1.0 / self.rate_hz if still else 0.0
+        self._longest_still = max(self._longest_still, self._still_s)
+        self._update_stairs_window(
+            (f * gf + v * gv + lat * gl) * inv_norm - STANDARD_GRAVITY, gf * inv_norm, gl * inv_norm)
         svm = self._step_filter.step(magnitude - STANDARD_GRAVITY)
-        if theta > HANDLING_THETA_RAD and not self._is_static():
+        if theta > self._handling_rad and not self._is_static():
             self.handling_pauses += t >= self._handled_until
             self._handled_until = t + HANDLING_SETTLE_S
         if t < self._handled_until:
@@ -462,24 +548,26 @@ class ActivityMonitor:
             self._update_lean(t, theta)
         if self._pending_sit_stand is not None and t > self._pending_sit_stand[1]:
             self._pending_sit_stand = None  # no walking followed: the weak sit→stand is dropped
-        if t > self._stand_deadline:
+        if t > self._stand_deadline and not self.walking:
             self._stand_deadline = math.inf
-            if self.posture == "standing" and not self.walking:
+            if self.posture == "standing" and thigh is None:
                 self.posture = "sitting"  # stood up but never walked: taken as still seated
+        if self.walking and t - self._wearer_t >= 1.0:
+            self._remember_walking(t)
         self._theta_prev = theta
         self._pending.append([t, self.posture, self.walking, theta, stamp_ns, True])
         return self._emit()
 
-    def _find_reference(self, t: float, ax: float, ay: float, az: float) -> bool:
+    def _find_reference(self, t: float, ax: float, ay: float, az: float, gyro) -> bool:
         """Feed the :class:`UprightFinder`; True when the mounting changed at this sample.
 
         The first quiet period (or walking bout, if that comes first) calibrates; a walking bout then
-        checks a quiet reference and replaces it beyond ``REREFERENCE_RAD``, after which the finder
+        checks a quiet reference and replaces it beyond its ``rereference_rad``, after which the finder
         stops. A replacement restarts the detectors as after sensor handling (the θ they tracked was
         measured from the wrong "up") and takes the bout's steps as a walk in progress.
         """
         finder = self._finder
-        found = finder.update(t, ax, ay, az)
+        found = finder.update(t, ax, ay, az, gyro)
         if found is None:
             return False
         if finder.done:
@@ -539,10 +627,8 @@ class ActivityMonitor:
     def flush(self) -> list[ActivityState]:
         """States of the samples still in the delay line (end of a recording)."""
         out = []
-        self._flushing = True
         while self._pending:
             out.append(self._make_state(self._pending.popleft()))
-        self._flushing = False
         return out
 
     # ---------------------------------------------------------------- output
@@ -565,7 +651,7 @@ class ActivityMonitor:
         return ActivityState(
             stamp_ns=stamp_ns,
             posture=posture,
-            locomotion=self._modality(t) if walking else "none",
+            locomotion=self._modality() if walking else "none",
             trunk_inclination=theta,
             step_count=self._emitted_steps,
             last_transition=last[1] if last else None,
@@ -573,39 +659,76 @@ class ActivityMonitor:
             calibrated=calibrated,
         )
 
-    def _modality(self, t: float) -> str:
-        """Level vs stairs (variance of GA_v) and up vs down (mean forward lean) [T §7.2.6].
+    def _modality(self) -> str:
+        """Level vs stairs (the trunk's vertical displacement) and up vs down (mean forward lean).
 
-        The variance threshold adapts to the wearer (our choice): once 30 s of walking have been
-        seen, stairs = a sway std above STAIRS_SWAY_RATIO × the median of the wearer's own walking
-        (one value per second, last 10 min); before that, the fixed STAIRS_GA_V_STD.
+        Our replacement of the thesis's variance of GA_v [T §7.2.6], which read 61.8 % of the
+        walking samples of ``hapt_waist`` right (a waist sensor sways no more on stairs): every step
+        on stairs lifts or drops the whole body by a riser, so the trunk's vertical displacement at
+        step frequency (acceleration along GA, integrated twice, slow drift removed) has about
+        twice the amplitude of slow level walking's. The body rises and falls alike at the chest and
+        the pelvis, and the displacement needs no upright reference and no forward axis. Stairs: the
+        displacement referred to STAIRS_REFERENCE_RAD_S above STAIRS_DISPLACEMENT_M and above
+        STAIRS_WEARER_RATIO × the wearer's usual walking (see there).
 
-        READING: the thesis integrates GA_f over the bout and uses one threshold; the mean over the
-        centred window is that integral divided by the window length. With x forward, a forward
+        Up vs down: the window's trunk direction more than UPSTAIRS_LEVEL_LEAN_RAD from the wearer's
+        level walking once LEVEL_LEAN_MIN_N s of it are known; before, the thesis's lean along the
+        forward axis. READING: the thesis integrates GA_f over the bout and uses one threshold; the
+        mean over the centred window is that integral divided by the window length. With x forward, a forward
         lean gives GA_f = −g·sin(lean) (gait.md §3.2), so we test the lean −GA_f/g: upstairs = the
         trunk leans further forward than the upright reference.
         """
         n = len(self._stairs_ring)
-        if n == 0:
+        if n == 0 or self._referred_displacement() <= self._stairs_threshold:
             return "level"
-        s1, s2, lean_x, lean_z = self._stairs_sum
-        sway = math.sqrt(max(0.0, s2 / n - (s1 / n) ** 2))
-        history, ordered = self._sway_history, self._sway_sorted
-        if t - self._sway_t >= 1.0 and not self._flushing:
-            self._sway_t = t
-            history.append(sway)
-            bisect.insort(ordered, sway)
-            if len(history) > SWAY_HISTORY_N:
-                del ordered[bisect.bisect_left(ordered, history.popleft())]
-        if len(ordered) >= SWAY_MIN_N:
-            threshold = STAIRS_SWAY_RATIO * ordered[len(ordered) // 2]
+        lean_x, lean_z = self._stairs_sum[4] / n, self._stairs_sum[5] / n
+        known = len(self._level_lean)
+        if known >= LEVEL_LEAN_MIN_N:
+            level_x, level_z = (v / known for v in self._level_lean_sum)
+            steeper = math.hypot(lean_x - level_x, lean_z - level_z) > math.sin(UPSTAIRS_LEVEL_LEAN_RAD)
         else:
-            threshold = STAIRS_GA_V_STD
-        if sway <= threshold:
-            return "level"
-        c, s = self._forward_cos_sin
-        lean = (c * lean_x + s * lean_z) / n
-        return "upstairs" if lean > math.sin(UPSTAIRS_LEAN_RAD) else "downstairs"
+            c, s = self._forward_cos_sin
+            steeper = c * lean_x + s * lean_z > math.sin(UPSTAIRS_LEAN_RAD)
+        return "upstairs" if steeper else "downstairs"
+
+    def _referred_displacement(self) -> float:
+        """σ_d·min(1, ω_ref/ω) (m) over the stairs window, ω = √(σ_a/σ_d) (see STAIRS_REFERENCE_RAD_S)."""
+        n = len(self._stairs_ring)
+        d1, d2, a1, a2 = (v / n for v in self._stairs_sum[:4])
+        var_d, var_a = d2 - d1 * d1, a2 - a1 * a1
+        if var_d <= 0.0 or var_a <= 0.0:
+            return 0.0
+        sigma_d = math.sqrt(var_d)
+        omega = math.sqrt(math.sqrt(var_a) / sigma_d)
+        return sigma_d * min(1.0, STAIRS_REFERENCE_RAD_S / omega)
+
+    def _remember_walking(self, t: float) -> None:
+        """One value per second of walking into the wearer's history; the stairs threshold follows."""
+        self._wearer_t = t
+        history, ordered = self._wearer_history, self._wearer_sorted
+        value = self._referred_displacement()
+        history.append(value)
+        bisect.insort(ordered, value)
+        if len(history) > DISPLACEMENT_HISTORY_N:
+            del ordered[bisect.bisect_left(ordered, history.popleft())]
+        if value <= self._stairs_threshold:
+            n = len(self._stairs_ring)
+            lean = (self._stairs_sum[4] / n, self._stairs_sum[5] / n)
+            self._level_lean.append(lean)
+            self._level_lean_sum[0] += lean[0]
+            self._level_lean_sum[1] += lean[1]
+            if len(self._level_lean) > DISPLACEMENT_HISTORY_N:
+                old_x, old_z = self._level_lean.popleft()
+                self._level_lean_sum[0] -= old_x
+                self._level_lean_sum[1] -= old_z
+
+    @property
+    def _stairs_threshold(self) -> float:
+        ordered = self._wearer_sorted
+        if len(ordered) < DISPLACEMENT_MIN_N:
+            return STAIRS_DISPLACEMENT_M
+        usual = ordered[int(DISPLACEMENT_QUANTILE * len(ordered))]
+        return max(STAIRS_DISPLACEMENT_M, STAIRS_WEARER_RATIO * usual)
 
     def _relabel(self, t_from: float, *, posture: str | None = None, walking: bool | None = None) -> None:
         for rec in reversed(self._pending):
@@ -635,44 +758,54 @@ class ActivityMonitor:
         mean = self._static_sum[0] / n
         return self._static_sum[1] / n - mean * mean < STATIC_STD**2
 
-    def _update_stairs_window(self, up_v: float, up_f: float, up_l: float) -> None:
-        """Running sums of g·(GA_v/|GA|) − g and of the leans −GA_f/|GA|, −GA_l/|GA| (unit direction);
-        the lean along the trunk's forward axis is combined from the last two in ``_modality``.
-
-        READING: the thesis's variance of GA_v is meant to capture trunk-inclination changes; the
-        2nd-order GA filter lets the step bounce leak into GA_v, so we use the GA *direction*.
-        """
-        ring, sums = self._stairs_ring, self._stairs_sum
-        dv = STANDARD_GRAVITY * (up_v - 1.0)
-        ring.append((dv, -up_f, -up_l))
-        sums[0] += dv
-        sums[1] += dv * dv
-        sums[2] -= up_f
-        sums[3] -= up_l
+    def _update_stairs_window(self, vertical: float, up_f: float, up_l: float) -> None:
+        """Running sums of the vertical displacement and acceleration at step frequency (from
+        ``vertical``, the acceleration along GA less g) and of the leans −GA_f/|GA|, −GA_l/|GA| (unit
+        direction); the lean along the trunk's forward axis is combined from the last two in
+        ``_modality``."""
+        ring = self._stairs_ring
+        for section in self._displacement:
+            vertical = section.step(vertical)
+        before, last = self._displaced
+        acceleration = (vertical - 2.0 * last + before) * self.rate_hz**2  # the band-passed input
+        self._displaced = [last, vertical]
+        row = (vertical, acceleration, -up_f, -up_l)
+        ring.append(row)
+        self._add_to_stairs_sums(row, 1.0)
         if len(ring) > self._stairs_n:
-            old_v, old_x, old_z = ring.popleft()
-            sums[0] -= old_v
-            sums[1] -= old_v * old_v
-            sums[2] -= old_x
-            sums[3] -= old_z
+            self._add_to_stairs_sums(ring.popleft(), -1.0)
+
+    def _add_to_stairs_sums(self, row: tuple[float, float, float, float], sign: float) -> None:
+        d, a, x, z = row
+        sums = self._stairs_sum
+        sums[0] += sign * d
+        sums[1] += sign * d * d
+        sums[2] += sign * a
+        sums[3] += sign * a * a
+        sums[4] += sign * x
+        sums[5] += sign * z
 
     # ---------------------------------------------------------------- detectors
     def _add_transition(self, t: float, kind: str, posture: str, *, walked: bool = False) -> None:
         """Record an event; a sit→stand not yet followed by walking must see walking within 60 s.
 
-        Stand→sit then sit→lie within MERGE_S is one stand→lie at the first instant, lie→sit then
-        sit→stand one lie→stand (HAPT's six transitions; the thesis names four). The first event may
-        have been published already: the merged one replaces it, with its stamp.
+        Stand→sit then sit→lie within MERGE_S (MERGE_MOVING_S without a still moment between) is one
+        stand→lie at the first instant, lie→sit then sit→stand one lie→stand (HAPT's six transitions;
+        the thesis names four). The first event may have been published already: the merged one
+        replaces it, with its stamp.
         """
         merged = {("stand_to_sit", "sit_to_lie"): "stand_to_lie",
                   ("lie_to_sit", "sit_to_stand"): "lie_to_stand"}
         last = self.transitions[-1] if self.transitions else None
-        if last is not None and t - last[0] <= MERGE_S and (last[1], kind) in merged:
+        gap = math.inf if last is None else t - last[0]
+        moving = self._longest_still < MERGE_STILL_S
+        if (gap <= MERGE_S or (gap <= MERGE_MOVING_S and moving)) and (last[1], kind) in merged:
             self.transitions[-1] = (last[0], merged[(last[1], kind)])
             if self._last_emitted_transition == last:
                 self._last_emitted_transition = self.transitions[-1]
         else:
             self.transitions.append((t, kind))
+        self._still_s = self._longest_still = 0.0
         self.posture = posture
         self._relabel(t, posture=posture)
         unconfirmed = kind == "sit_to_stand" and not walked
@@ -849,7 +982,7 @@ class ActivityMonitor:
         if self._level is None or self._level[0] != target:
             self._level = (target, t)
             return
-        steady = source != "pelvis" or self._theta_steady(t)
+        steady = source != "pelvis" or self._theta_range.spread < PELVIS_STEADY_RAD
         if not self.walking and (t - self._level[1] < hold or not steady):
             return
         since = self._level[1]
@@ -863,15 +996,6 @@ class ActivityMonitor:
         self._level = None
         self._level_value = math.nan
         self._middle_t = t
-
-    def _theta_steady(self, t: float) -> bool:
-        """θ's range over the last second of the delay line is below PELVIS_STEADY_RAD."""
-        low, high = math.inf, -math.inf
-        for rec in reversed(self._pending):
-            if rec[0] < t - 1.0:
-                break
-            low, high = min(low, rec[3]), max(high, rec[3])
-        return high - low < PELVIS_STEADY_RAD
 
     def _update_lean(self, t: float, theta: float) -> None:
         """A trunk lean held in [25°, 70°) for 30 s without walking ⇒ sitting (no event).
@@ -923,12 +1047,13 @@ class ActivityMonitor:
         elif len(self._run) >= MIN_SUCCESSIVE_PEAKS:
             self.walking = True
             self.steps.extend(self._run)
-            self._stand_deadline = math.inf
             pending = self._pending_sit_stand
             if pending is not None and self.posture == "sitting" and self._run[0] <= pending[1]:
                 self._add_transition(pending[0], "sit_to_stand", "standing", walked=True)
             self._pending_sit_stand = None
             self._relabel(self._run[0] - 0.5 * MIN_STEP_S, walking=True)
+        if self.walking and len(self._run) >= SIT_WALK_MIN_STEPS:
+            self._stand_deadline = math.inf  # a real walk (not a seated wearer's few peaks) confirms standing
         if self.walking and self.posture != "standing" and len(self._run) >= SIT_WALK_MIN_STEPS:
             if self._stand_up_before_walking(self._run[0]):
                 return
@@ -951,6 +1076,7 @@ def classify_activity(
     initial_posture: str = "standing",
     placement: str = "chest",
     thighs: Mapping[str, np.ndarray] | None = None,
+    gyro: np.ndarray | None = None,
 ) -> dict:
     """Batch entry point: the streaming monitor run over ``acc`` (N×3), labels per sample.
 
@@ -960,7 +1086,8 @@ def classify_activity(
     "transitions": [(t, kind)], "steps": [t], "trunk_inclination": (N,) rad,
     "reference": [(t, source, rad from the one replaced)]}``, t from 0 at sample 0. ``thighs``: thigh
     accelerometers (N×3 each, the same samples' times) that tell sitting from standing, as
-    ``ActivityStream`` does with the ``thighs`` it hears.
+    ``ActivityStream`` does with the ``thighs`` it hears. ``gyro``: the trunk sensor's angular velocity
+    (N×3 rad/s), which tells a sensor not yet worn from a still wearer (the upright reference).
     """
     acc = np.asarray(acc, dtype=float)
     reference_acc, mode = None, "auto"
@@ -985,13 +1112,14 @@ def classify_activity(
     update = monitor.update
     thigh_rows = {seg: np.asarray(a, dtype=float).tolist() for seg, a in (thighs or {}).items()}
     inputs = ThighInputs(list(thigh_rows), rate_hz, reference_s)
-    for k, (stamp_ns, sample) in enumerate(zip(sample_stamps(len(acc), rate_hz).tolist(), acc.tolist(),
-                                               strict=True)):
+    rates = [None] * len(acc) if gyro is None else np.asarray(gyro, dtype=float).tolist()
+    for k, (stamp_ns, sample, rate) in enumerate(zip(sample_stamps(len(acc), rate_hz).tolist(), acc.tolist(),
+                                                     rates, strict=True)):
         if thigh_rows:
             for seg, rows in thigh_rows.items():
                 inputs.add(seg, stamp_ns, rows[k])
             monitor.thigh_inclination = inputs.inclination_at(stamp_ns, stamp_ns)
-        state = update(stamp_ns, sample)
+        state = update(stamp_ns, sample, rate)
         if state is not None:
             states.append(state)
     states.extend(monitor.flush())

@@ -65,6 +65,22 @@ def step_lowpass_ba(rate_hz: float, cutoff_hz: float) -> tuple[np.ndarray, np.nd
     return b, a
 
 
+DISPLACEMENT_HIGHPASS_HZ = 0.6  # below the slowest step frequency the monitor counts (1 / 1.3 s = 0.77 Hz)
+
+
+def vertical_displacement_sections(rate_hz: float) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Two biquads (b, a) turning vertical acceleration (m/s²) into displacement (m) at step frequency.
+
+    A 4th-order Butterworth high-pass at DISPLACEMENT_HIGHPASS_HZ followed by two integrations
+    (T²/(1 − z⁻¹)²): two of the high-pass's four zeros at z = 1 cancel the integrators' poles, so the
+    result is stable and has no drift (above the cut-off the gain is 1/ω², below it falls as ω²).
+    """
+    sos = signal.butter(4, DISPLACEMENT_HIGHPASS_HZ, btype="high", fs=rate_hz, output="sos")
+    first = (sos[0, :3] / rate_hz**2, sos[0, 3:])  # gain·(1 − z⁻¹)² · T²
+    second = (np.array([1.0, 0.0, 0.0]), sos[1, 3:])  # its (1 − z⁻¹)² cancelled by the integrators
+    return [first, second]
+
+
 def mounting_from_reference(mean_acc: np.ndarray, forward_hint: np.ndarray | None = None) -> np.ndarray:
     """Rotation body←sensor (rows: forward x, up y, right z) from an upright mean accelerometer.
 

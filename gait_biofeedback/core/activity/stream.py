@@ -12,7 +12,7 @@ trunk forward axis (from the chest's sensor-to-segment calibration) is handed to
 first sample at or after its "in force" stamp, or at once if that has passed, as the calibration is
 for the other consumers (the monitor applies it to the states it emits from then on, see
 ``ActivityMonitor.set_forward_axis``). A restart keeps the forward axis and the wearer's walking-
-sway history. The last ``reorder_window`` s of a stream stay held: the monitor labels a sample 3 s
+displacement history. The last ``reorder_window`` s of a stream stay held: the monitor labels a sample 3 s
 after it anyway. Warnings go to :attr:`ActivityStream.notices`.
 
 Samples are identified by their stamps (int ns); the stage's parameters are :class:`ActivityParams`.
@@ -74,10 +74,11 @@ class ActivityParams:
                                     "sitting from standing while they send (their inclination; empty: the "
                                     "trunk alone)", choices=SEGMENTS)
     thigh_length: float = same_as(BodyDimensions, "thigh_length")
-    initial_posture: str = param("standing", "posture until a transition says otherwise", choices=POSTURES)
+    initial_posture: str = param("standing", "posture until a transition says otherwise (chest: standing "
+                                 "needs a walk within 60 s, else it is taken as sitting)", choices=POSTURES)
     forward_axis: tuple[float, ...] = param(
         (1.0, 0.0, 0.0), "trunk forward in chest-sensor axes until a calibration gives it (decides upstairs "
-        "vs downstairs only)", "1", length=3)
+        "vs downstairs only, until 10 s of the wearer's level walking are known)", "1", length=3)
     max_gap: float = param(0.5, "longest stamp gap before the monitor restarts", "s", low=0.01, high=60.0)
     reorder_window: float = param(0.03, "samples out of order by less than this are re-sequenced (added "
                                   "latency)", "s", low=0.0, high=1.0)
@@ -157,13 +158,17 @@ class ActivityStream:
         self.options["forward_axis"] = forward  # kept across restarts
         return ""
 
-    def update(self, stamp_ns: int, acc: tuple[float, float, float]) -> tuple[ActivityState | None, bool]:
-        """One sample → (the newest state released or None, whether any state released changed)."""
+    def update(self, stamp_ns: int, acc: Sequence[float], gyro: Sequence[float] | None = None
+               ) -> tuple[ActivityState | None, bool]:
+        """One sample (acceleration, and the same sensor's angular velocity if it has a gyro) → (the
+        newest state released or None, whether any state released changed). A sample whose acceleration
+        is not finite is skipped; a gyro reading that is not is left out."""
         self.counts["samples"] += 1
         if not all(math.isfinite(v) for v in acc):
             self.counts["nan_skipped"] += 1
             return None, False
-        return self._released(self.sequencer.push(stamp_ns, tuple(acc)))
+        rate = tuple(gyro) if gyro is not None and all(math.isfinite(v) for v in gyro) else None
+        return self._released(self.sequencer.push(stamp_ns, (tuple(acc), rate)))
 
     def update_thigh(self, segment: str, stamp_ns: int, acc: Sequence[float]) -> tuple[ActivityState | None,
                                                                                         bool]:
@@ -185,7 +190,8 @@ class ActivityStream:
         return self._collect([out for r in released
                               for out in self._sample(r.stamp_ns, r.payload, r.restart_s)])
 
-    def _sample(self, stamp_ns: int, acc: tuple, restart_s: float) -> list[tuple[ActivityState, bool]]:
+    def _sample(self, stamp_ns: int, sample: tuple, restart_s: float) -> list[tuple[ActivityState, bool]]:
+        """One sample (``(acc, gyro or None)``) in stamp order, after the sequencer."""
         segment = self.params.segment
         out: list[tuple[ActivityState, bool]] = []
         dt = None if self._last_ns is None else (stamp_ns - self._last_ns) / NS_PER_S
@@ -210,25 +216,25 @@ class ActivityStream:
                 self.monitor.keep_mounting(previous)
         self._last_ns = stamp_ns
         if self.rate.measured_hz is None:  # the first samples wait until the rate is known
-            self._held.append((stamp_ns, acc))
+            self._held.append((stamp_ns, sample))
             rate_note = self.rate.update(stamp_ns)
             if self.rate.measured_hz is None:
                 return out
             if rate_note:
                 self._set_rate(rate_note)
             held, self._held = self._held, []
-            for held_ns, held_acc in held:
-                out += self._feed(held_ns, held_acc)
+            for held_ns, held_sample in held:
+                out += self._feed(held_ns, held_sample)
             return out
-        return out + self._feed(stamp_ns, acc)
+        return out + self._feed(stamp_ns, sample)
 
-    def _feed(self, stamp_ns: int, acc: tuple) -> list[tuple[ActivityState, bool]]:
+    def _feed(self, stamp_ns: int, sample: tuple) -> list[tuple[ActivityState, bool]]:
         """One sample towards the monitor (thinned above MAX_RATE_HZ), through the thighs' wait."""
         if self._every > 1:
             self._skip = (self._skip + 1) % self._every
             if self._skip:
                 return []
-        self._waiting.append((stamp_ns, acc))
+        self._waiting.append((stamp_ns, sample))
         return self._release()
 
     def _release(self, *, force: bool = False) -> list[tuple[ActivityState, bool]]:
@@ -237,13 +243,13 @@ class ActivityStream:
         out: list[tuple[ActivityState, bool]] = []
         newest = self._last_ns or 0
         while self._waiting and (force or self.thighs.ready(self._waiting[0][0], newest)):
-            stamp_ns, acc = self._waiting.popleft()
+            stamp_ns, (acc, gyro) = self._waiting.popleft()
             for forward in self._waiting_forward.due(stamp_ns):
                 problem = self._apply_forward(forward)
                 if problem:
                     self.notices.say("warn", f"{segment}: {problem}")
             self.monitor.thigh_inclination = self.thighs.inclination_at(stamp_ns, newest)
-            state = self.monitor.update(stamp_ns, acc)
+            state = self.monitor.update(stamp_ns, acc, gyro)
             if len(self.monitor.reference_log) > self._references_said:
                 self._say_reference()
             if state is not None:
