@@ -329,6 +329,11 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
     gait = GaitEventStream(stages.get("gait_events") or GaitEventsParams())
     a_params: ActivityParams = stages.get("activity_monitor") or ActivityParams()
     activity = _ActivityRun(a_params) if a_params.segment in raw_topics else None
+    if activity is None:
+        fix = ("; a lower-back or waist sensor: set activity_monitor segment: pelvis and placement: pelvis"
+               if "pelvis" in raw_topics else "")
+        result.warnings.append(f"no {a_params.segment} sensor in the recording: the activity monitor "
+                               f"(posture, transitions, walking bouts) did not run{fix}")
     streams = [*trackers.values(), gait, *([activity.stream] if activity is not None else [])]
 
     start_ns = reader.start_time_ns

@@ -774,3 +774,14 @@ def test_pelvis_level_already_seated_at_the_start_is_timed_where_it_was_left() -
     assert [k for _, k in out["transitions"]][:1] == ["stand_to_sit"]
     assert -0.5 < out["transitions"][0][0] < 0.0
     assert set(out["posture"][100:700]) == {"sitting"}
+
+
+def test_a_pelvis_segment_with_the_chest_placement_is_refused():
+    """The chest's posture rules read a pelvis sensor wrong (hapt user 16 lost its sit/stand
+    transitions so): the pair is refused naming the fix."""
+    from gait_biofeedback.core.activity.stream import ActivityParams
+    from gait_biofeedback.core.params import ParameterError
+
+    with pytest.raises(ParameterError, match="set placement: pelvis"):
+        ActivityParams(segment="pelvis")
+    assert ActivityParams(segment="pelvis", placement="pelvis").placement == "pelvis"

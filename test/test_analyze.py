@@ -206,6 +206,19 @@ def test_analyze_refuses_a_bag_without_imu_topics(tmp_path, capsys):
     assert "SECONDS:PROTOCOL" in capsys.readouterr().err
 
 
+def test_a_recording_without_the_activity_sensor_says_so(tmp_path):
+    """Feet and a lower-back sensor (ipol_gait): the monitor watches the chest, so it does not run, said
+    with the parameters that make it watch the lower back."""
+    from gait_biofeedback.analyze import analyze_recording
+    from gait_biofeedback.sim.simulator import SCENARIOS
+
+    session = simulate(SCENARIOS["walk"](duration=4.0, seed=1, segments=("pelvis", "left_foot")))
+    result = analyze_recording(write_simulated_bag(tmp_path / "walk", session), None)
+    said = [w for w in result.warnings if w.startswith("no chest sensor in the recording")]
+    assert said and "set activity_monitor segment: pelvis and placement: pelvis" in said[0]
+    assert "/activity/state" not in result.counts
+
+
 def test_a_sensor_named_after_no_segment_is_said_not_silently_skipped(tmp_path, capsys):
     """BROAD's importer names its sensor 'board': analyze says it was not analysed and why, and the CLI
     does not call a copy of the input 'orientations only'."""

@@ -42,7 +42,7 @@ from gait_biofeedback.core.body import BodyDimensions
 from gait_biofeedback.core.calibration.sensor_to_segment import SegmentEntry
 from gait_biofeedback.core.in_force import InForceQueue
 from gait_biofeedback.core.notices import Notices
-from gait_biofeedback.core.params import param, same_as
+from gait_biofeedback.core.params import param, require, same_as
 from gait_biofeedback.core.rate import RateCheck
 from gait_biofeedback.core.segments import SEGMENTS
 from gait_biofeedback.core.sequencer import StreamSequencer
@@ -84,6 +84,11 @@ class ActivityParams:
                                   "latency)", "s", low=0.0, high=1.0)
     publish_period: float = param(1.0, "the state is also published this often (besides every change)", "s",
                                   low=0.05, high=60.0)
+
+    def __post_init__(self) -> None:
+        require(not (self.segment == "pelvis" and self.placement == "chest"),
+                "parameter 'segment' is pelvis but 'placement' is chest: the chest's posture rules read a "
+                "pelvis sensor wrong; set placement: pelvis (also for a lower-back or waist sensor)")
 
 
 class ActivityStream:
