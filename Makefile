@@ -2,6 +2,10 @@
 PY := .venv/bin/python
 # every test process gets its own DDS domain so parallel runs do not see each other
 export ROS_DOMAIN_ID ?= 42
+# one BLAS thread per process: the core's small matrices gain nothing from more, and spinning threads on
+# two busy cores slowed a test 35x (gait_biofeedback/__init__.py)
+export OPENBLAS_NUM_THREADS ?= 1
+export OMP_NUM_THREADS ?= 1
 
 .PHONY: setup demo test lint bench clean
 

@@ -6,8 +6,11 @@ import os
 import shutil
 from pathlib import Path
 
-import numpy as np
-import pytest
+for _name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"):  # before numpy: see gait_biofeedback/__init__.py
+    os.environ.setdefault(_name, "1")
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 # One DDS domain per test process (1..100), inherited by the subprocesses the tests start: test runs
