@@ -114,8 +114,11 @@ def test_killed_recorder_leaves_a_readable_bag(tmp_path):
     bag = write_imu_bag(tmp_path / "in", synthetic_imu(["chest"], duration=8.0, with_mag=False))
     out = tmp_path / "out"
     env = dict(os.environ, ROS_DOMAIN_ID=os.environ.get("ROS_DOMAIN_ID", "42"))
+    # The recorder in a namespace of its own: a participant killed with -9 stays in DDS discovery until
+    # its lease ends (~20 s), and the next test's graph would refuse the domain ("already runs recorder").
+    namespace = ["-r", "__ns:=/killed_recorder_test"]
     recorder = subprocess.Popen(
-        [sys.executable, "-m", "gait_biofeedback.nodes.recorder", "--ros-args",
+        [sys.executable, "-m", "gait_biofeedback.nodes.recorder", "--ros-args", *namespace,
          "-p", f"output:={out}", "-p", "flush_period:=0.3", "-p", "topics:=[/chest/imu/data_raw]"],
         env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     replayer = subprocess.Popen(

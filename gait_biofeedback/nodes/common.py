@@ -259,7 +259,8 @@ def refuse_other_graph(context: Context, names: Iterable[str], settle: float = 0
             f"another gait_biofeedback graph already runs {', '.join(taken)} on {where}ROS_DOMAIN_ID="
             f"{domain}; two graphs on one domain process each other's data. Stop it, or start this one on "
             f"a domain of its own (e.g. ROS_DOMAIN_ID={(domain + 1) % 101} gait-biofeedback ...) or in a "
-            "namespace of its own (console scripts: --ros-args -r __ns:=/patient2)")
+            "namespace of its own (console scripts: --ros-args -r __ns:=/patient2). A graph killed with -9 "
+            "stays visible for up to 20 s (the DDS lease).")
 
 
 def run_nodes(node_factories: Sequence[Callable[[Context], Node]], args: list[str] | None = None) -> int:
