@@ -6,7 +6,8 @@ Live, per stride: the filter runs ``h`` samples (half the window: 25 ms) behind 
 look-ahead of the zero-velocity detector. A stride closes once the next stance has lasted
 ``close_after`` s. Its window, from the first stance's start to that sample, is then smoothed by
 RTS (:func:`.smoother.rts_smooth`) and its parameters computed (:mod:`.strides`). The latency is
-``h`` + ``close_after`` after foot flat: 75 ms by default.
+``h`` + ``close_after`` after foot flat: 75 ms by default. A stance found by the valley rule (running:
+:class:`~.zero_velocity.StanceDetector`) is decided ``valley_gap`` (0.45 s) after its sample instead.
 
 Start: the filter starts at the first stance. Its vertical is the mean acceleration of that stance's
 first ``bias_rest`` s, or of the whole stance when it is shorter. When the stance lasts that long, the
@@ -21,7 +22,7 @@ s, restarts the foot at its next stance (counted in :attr:`counts`, said in :att
 gap (lost samples: a radio, a loaded DDS queue) is filled by linear interpolation of gyro and
 acceleration at the sample rate, so that the filter and the detector windows keep their step, and
 counted (``interpolated``). Interpolation only halves the error: on the simulator's walk at 100 Hz one
-lost sample moves the stride length by up to 4.6 cm interpolated (8.2 cm held), two by 12 cm, worst
+lost sample moves the stride length by up to 4.2 cm interpolated (8.2 cm held), two by 12 cm, worst
 at heel strike and push-off; a 80 ms gap in a stance leaves an attitude error that costs the next
 stride up to 8 cm. Hence, per stride (``_judge_lost``):
 
@@ -31,7 +32,7 @@ stride up to 8 cm. Hence, per stride (``_judge_lost``):
 - fewer lost samples: the values, with the informational flag ``lost samples interpolated``.
 
 With 1 % of the samples lost at random (100 Hz), 27 % of the strides get no values and the others
-are within 3.8 cm of the lossless ones (0.7 cm p95); at 200 Hz 28 % and 0.7 cm
+are within 4.1 cm of the lossless ones (0.8 cm p95); at 200 Hz 28 % and 0.7 cm
 (``benchmarks/spatial.py --lost-samples``).
 
 A swing longer than ``max_swing`` s (no stance seen: running, a sensor off the foot, a shuffle) gives a
