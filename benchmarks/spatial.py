@@ -17,13 +17,23 @@ the batch entry point ``estimate_foot_trajectory``. It prints three tables.
      - ``suh``: the default, Suh's smoother over the whole trial;
      - ``rts``: the RTS smoother;
      - ``ekf``: the zero-velocity EKF without smoothing;
+     - ``no valley``: the default without the valley rule (``valley=False``: the fixed thresholds only);
+     - ``no shock``: the default without the accelerometer's shock noise (``acc_shock=1000``);
      - ``gaitmap``: gaitmap 2.6's ``RtsKalman``, default parameters;
      - ``oracle``: the file's ``best_error``, the best of five detectors each at its per-trial
        optimal threshold;
-     - ``suh@oracle-zv``: our filter and smoother given the oracle's zero-velocity labels.
+     - ``suh@oracle-zv``: our filter and smoother (default noise) given the oracle's zero-velocity
+       labels: the detector taken out.
+   - Means over the 9 running trials (2017-11-27-*, 2017-12-15-18-01/02) and the 19 others.
 2. ``gaitmap_example``: 57 strides with Vicon markers at 100 Hz.
-   - Stride length against the heel marker's horizontal displacement over the reference stride;
-     gaitmap's ``RtsKalman`` beside it (its positions at the reference stride's start and end).
+   - Stride length against the heel marker's horizontal displacement over the reference stride:
+     the default (Suh over the whole recording), ``no shock``, the live per-stride values (RTS),
+     gaitmap's ``RtsKalman`` (its positions at the reference stride's start and end), and the
+     provisional value at IC + 50 ms (a prototype, not in the graph): the forward filter's travel
+     from the last stance to 25 ms after the mocap IC (the detector's look-ahead), plus the foot's
+     mean remaining travel to its next stance over its last 5 strides (in the stride's own frame).
+   - The strides split by the heel → toe markers' heading change (straight: under 10°), and the
+     correlation of the ``no shock`` errors with gaitmap's: the spread both share is in the data.
    - The foot angles against the heel → toe marker pitch, by the definitions of
      ``core/spatial/strides.py`` applied to the markers.
 3. Simulator (``walk``, seed 2, 100 and 200 Hz): stride length, gait speed and the largest sensor
@@ -109,47 +119,62 @@ def _tracked(position: np.ndarray, reference: np.ndarray) -> float:
     return armse(position[ok], reference[ok])
 
 
+RUNNING = ("2017-11-27-", "2017-12-15-18-01", "2017-12-15-18-02")  # pyshoe_vicon's running trials
+
+
 def pyshoe(python: Path | None) -> None:
     files = sorted((DATA / "pyshoe_vicon").glob("*.mat"))
     if not files:
         print("pyshoe_vicon: not found, skipped")
         return
-    names = ["suh", "rts", "ekf", *(["gaitmap"] if python else []), "oracle", "suh@oracle-zv"]
+    names = ["suh", "rts", "ekf", "no valley", "no shock", *(["gaitmap"] if python else []), "oracle",
+             "suh@oracle-zv"]
+    options = {"suh": {}, "rts": {"smoother": "rts"}, "ekf": {"smoother": "none"},
+               "no valley": {"valley": False}, "no shock": {"acc_shock": 1000.0}}
     print(f"\n## pyshoe_vicon: ARMSE (m) of {len(files)} trials\n")
     print("| trial | " + " | ".join(names) + " | strides |")
     print("|---" * (len(names) + 2) + "|")
     scores: dict[str, list[float]] = {n: [] for n in names}
+    running = []
     for path in files:
         d = sio.loadmat(path, squeeze_me=True)
         imu, gt = d["imu"], d["gt"]
         rate = float(1.0 / np.median(np.diff(d["ts"])))
         gyr, acc = imu[:, 3:6], imu[:, 0:3]
         row = {}
-        result = estimate_foot_trajectory(gyr, acc, rate)
-        row["suh"] = _tracked(result["position"], gt)
-        row["rts"] = _tracked(estimate_foot_trajectory(gyr, acc, rate, smoother="rts")["position"], gt)
-        row["ekf"] = _tracked(estimate_foot_trajectory(gyr, acc, rate, smoother="none")["position"], gt)
+        for name, option in options.items():
+            result = estimate_foot_trajectory(gyr, acc, rate, **option)
+            row[name] = _tracked(result["position"], gt)
+            if name == "suh":
+                strides = len(result["strides"])
         if python:
             row["gaitmap"] = armse(gaitmap_rts(python, gyr, acc, rate), gt)
         row["oracle"] = float(d["best_error"])
         row["suh@oracle-zv"] = _oracle_zv(gyr, acc, rate, d[f"zv_{d['best_detector']}_opt"].astype(bool), gt)
         for n in names:
             scores[n].append(row[n])
+        running.append(path.stem.startswith(RUNNING))
         cells = " | ".join(f"{row[n]:.3f}" for n in names)
-        print(f"| {path.stem} | {cells} | {len(result['strides'])} |")
-    print("| **mean** | " + " | ".join(f"{np.mean(scores[n]):.3f}" for n in names) + " | |")
-    print("| **median** | " + " | ".join(f"{np.median(scores[n]):.3f}" for n in names) + " | |")
+        print(f"| {path.stem} | {cells} | {strides} |")
+    run = np.array(running)
+    for label, pick in (("mean", np.ones(len(run), bool)), ("median", None), ("mean, 9 running", run),
+                        ("mean, 19 others", ~run)):
+        values = [np.median(scores[n]) if pick is None else np.mean(np.array(scores[n])[pick]) for n in names]
+        cells = " | ".join(f"{v:.3f}" for v in values)
+        print(f"| **{label}** | {cells} | |")
     ours, oracle = np.array(scores["suh"]), np.array(scores["oracle"])
     print(f"\nsuh within 1.5x of the oracle on {(ours <= 1.5 * oracle).sum()}/{len(ours)} trials, "
           f"better on {(ours <= oracle).sum()}")
 
 
 def _oracle_zv(gyr, acc, rate, zero_velocity, gt) -> float:
-    """Our filter and Suh smoother with given zero-velocity labels (the detector taken out)."""
+    """Our filter and Suh smoother (default noise) with given zero-velocity labels (the detector out)."""
+    from gait_biofeedback.batch import FootTrajectoryParams
     from gait_biofeedback.core.spatial.kalman import filter_recording
     from gait_biofeedback.core.spatial.smoother import suh_smooth
 
-    kf = filter_recording(gyr, acc, rate, zero_velocity)
+    noise = FootTrajectoryParams().noise
+    kf = filter_recording(gyr, acc, rate, zero_velocity, noise)
     return armse(suh_smooth(kf.steps, kf.noise)["position"], gt[int(np.argmax(zero_velocity)):])
 
 
@@ -169,6 +194,21 @@ def _mocap(folder: Path) -> dict[str, np.ndarray]:
     return {n: np.array([float(r[i + 1]) for r in rows[2:]]) / 1000.0 for i, n in enumerate(names)}
 
 
+def _forward_positions(imu, rate: float) -> np.ndarray:
+    """The live stream's forward filter position at each sample (no smoothing; NaN before the start)."""
+    stream = FootTrajectoryStream(rate, keep_all=True)
+    for k in range(len(imu.gyr)):
+        stream.update(round(k * 1e9 / rate), imu.gyr[k], imu.acc[k])
+    stream.flush()
+    index = np.array(stream.index)
+    out = np.full((len(imu.gyr), 3), np.nan)
+    out[index[index >= 0]] = np.array([s.r for s in stream.kept])[index >= 0]
+    return out
+
+
+PROVISIONAL_LEARN = 5  # strides whose remaining travel (IC -> next stance) is averaged
+
+
 def gaitmap_example(python: Path | None) -> None:
     folder = DATA / "gaitmap_example"
     if not folder.exists():
@@ -181,45 +221,84 @@ def gaitmap_example(python: Path | None) -> None:
     mocap = _mocap(folder)
     with (folder / "stride_events_sample.csv").open() as handle:
         ref = list(csv.DictReader(handle))
-    err = {"length": [], "ic": [], "tc": [], "gaitmap": []}
+    keys = ("length", "no shock", "live", "gaitmap", "provisional", "ic", "tc")
+    err: dict[str, list[float]] = {k: [] for k in keys}
+    straight, matched = [], 0
     for side in ("left", "right"):
         imu = rec.imu[f"{side}_foot"]
-        strides = estimate_foot_trajectory(imu.gyr, imu.acc, rate)["strides"]
+        result = estimate_foot_trajectory(imu.gyr, imu.acc, rate)
+        strides, live = result["strides"], {s["foot_flat"]: s for s in result["live_strides"]}
+        no_shock = estimate_foot_trajectory(imu.gyr, imu.acc, rate, acc_shock=1000.0)["strides"]
+        forward = _forward_positions(imu, rate)
         theirs = gaitmap_rts(python, imu.gyr, imu.acc, rate) if python else None
         letter = side[0].upper()
         heel = np.stack([mocap[f"{letter}_FCC_{a}"] for a in "xyz"], axis=1)
         toe = np.stack([mocap[f"{letter}_TOE_{a}"] for a in "xyz"], axis=1)
         pitch = _marker_pitch(heel, toe)
+        remainders: list[np.ndarray] = []  # this foot's travel from IC + 25 ms to the next stance
         for r in (r for r in ref if r["foot"] == side):
             start, end, ic = (float(r[k]) for k in ("start", "end", "ic"))
-            ours = [s for s in strides if s["stance_start"] <= start + 20 and s["foot_off"] >= start - 20
-                    and ic - 40 <= s["foot_flat"] <= end + 40]
-            if len(ours) != 1:
+
+            def same(s, start=start, end=end, ic=ic):
+                return s["stance_start"] <= start + 20 and s["foot_off"] >= start - 20 and ic - 40 <= s[
+                    "foot_flat"] <= end + 40
+
+            ours = [s for s in strides if same(s)]
+            others = [s for s in no_shock if same(s)]
+            if len(ours) != 1 or len(others) != 1 or ours[0]["foot_flat"] not in live:
+                remainders = []
                 continue
             s = ours[0]
+            matched += 1
             m0, m1 = round(start * 100 / rate), round(end * 100 / rate)
             true_length = float(np.linalg.norm(heel[m1, :2] - heel[m0, :2]))
             err["length"].append(s["stride_length"] - true_length)
+            err["no shock"].append(others[0]["stride_length"] - true_length)
+            err["live"].append(live[s["foot_flat"]]["stride_length"] - true_length)
             if theirs is not None:
                 a, b = round(start), round(end)
                 err["gaitmap"].append(float(np.linalg.norm(theirs[b, :2] - theirs[a, :2])) - true_length)
+            # provisional at IC + 50 ms: the forward filter is 25 ms behind (the detector's look-ahead)
+            first = forward[s["stance_start"]:s["foot_off"] + 1].mean(axis=0)
+            now = forward[round(ic + 0.025 * rate)]
+            travel = (now - first)[:2]
+            ahead = travel / np.linalg.norm(travel)
+            left = np.array([-ahead[1], ahead[0]])
+            rest = (forward[s["foot_flat"]:s["end"] + 1].mean(axis=0) - now)[:2]
+            if len(remainders) >= 2:
+                mean_rest = np.mean(remainders[-PROVISIONAL_LEARN:], axis=0)
+                guess = travel + mean_rest[0] * ahead + mean_rest[1] * left
+                err["provisional"].append(float(np.linalg.norm(guess)) - true_length)
+            remainders.append(np.array([rest @ ahead, rest @ left]))
+            heading = [np.arctan2(*(toe[k, 1::-1] - heel[k, 1::-1])) for k in (m0, m1)]
+            straight.append(abs(np.angle(np.exp(1j * (heading[1] - heading[0])))) < np.radians(10.0))
             off, flat = round(s["foot_off"] * 100 / rate), round(s["foot_flat"] * 100 / rate)
             mid = (off + flat) // 2
             # the same definitions on the markers: extremes of the swing halves, relative to the stances
             err["tc"].append(s["foot_angle_tc"] - (pitch[off:mid + 1].min() - pitch[off]))
             err["ic"].append(s["foot_angle_ic"] - (pitch[mid:flat + 1].max() - pitch[flat]))
-    n = len(err["length"])
-    print(f"\n## gaitmap_example: {n} of {len(ref)} reference strides matched\n")
-    print("| quantity | mean error | SD | RMSE |")
-    print("|---|---|---|---|")
+    print(f"\n## gaitmap_example: {matched} of {len(ref)} reference strides matched\n")
+    print("| quantity | n | mean error | SD | mean abs error | RMSE |")
+    print("|---|---|---|---|---|---|")
     rows = (("length", "stride length", 100.0, "cm"),
+            ("no shock", "stride length, acc_shock off", 100.0, "cm"),
+            ("live", "stride length, live (RTS per stride)", 100.0, "cm"),
             ("gaitmap", "stride length, gaitmap RtsKalman", 100.0, "cm"),
+            ("provisional", "stride length, provisional at IC + 50 ms", 100.0, "cm"),
             ("ic", "foot angle at IC", 180 / np.pi, "°"), ("tc", "foot angle at TC", 180 / np.pi, "°"))
     for key, label, scale, unit in rows:
         if not err[key]:
             continue
         e = np.array(err[key]) * scale
-        print(f"| {label} | {e.mean():+.1f} {unit} | {e.std():.1f} | {np.sqrt(np.mean(e**2)):.1f} |")
+        print(f"| {label} | {len(e)} | {e.mean():+.1f} {unit} | {e.std():.1f} | {np.abs(e).mean():.1f} | "
+              f"{np.sqrt(np.mean(e**2)):.1f} |")
+    e, turns = np.array(err["length"]) * 100, ~np.array(straight)
+    print(f"\nstride length by the markers' heading change: {(~turns).sum()} straight "
+          f"{e[~turns].mean():+.1f} ± {e[~turns].std():.1f} cm, {turns.sum()} turning "
+          f"{e[turns].mean():+.1f} ± {e[turns].std():.1f} cm")
+    if err["gaitmap"]:
+        corr = np.corrcoef(err["no shock"], err["gaitmap"])[0, 1]
+        print(f"correlation of the stride-length errors, acc_shock off vs gaitmap's RtsKalman: {corr:.2f}")
 
 
 def simulator() -> None:
@@ -313,8 +392,14 @@ def through_the_command_line() -> None:
             _cli("analyze", str(tmp / "gm"), "-o", str(tmp / "gm_out"), "--params", str(tmp / "params.yaml"))
             mocap = _mocap(folder)
             t_mocap = np.arange(len(next(iter(mocap.values())))) / 100.0
-            errors, lags, flagged = [], [], 0
+            errors, speeds, lags, flagged = [], [], [], 0
             cycles = _cycles(tmp / "gm_out")
+            import csv
+
+            with (folder / "stride_events_sample.csv").open() as handle:
+                reference = list(csv.DictReader(handle))
+            mocap_ic = {side: np.array(sorted(float(r["ic"]) for r in reference if r["foot"] == side))
+                        / GAITMAP_RATE_HZ for side in ("left", "right")}
             for msg, log_ns in cycles:
                 if msg.spatial_flag:
                     flagged += 1
@@ -327,12 +412,20 @@ def through_the_command_line() -> None:
                     return heel[k[np.argmin(np.linalg.norm(np.diff(heel[k], axis=0), axis=1))]]
 
                 t0, t1 = _s(msg.start), _s(msg.header.stamp)
-                errors.append(msg.stride_length - float(np.linalg.norm(footprint(t1) - footprint(t0))))
+                true_length = float(np.linalg.norm(footprint(t1) - footprint(t0)))
+                errors.append(msg.stride_length - true_length)
                 lags.append(log_ns * 1e-9 - t1)
-            e = np.array(errors) * 100
+                ics = mocap_ic[("left", "right")[msg.side]]
+                near = [ics[np.argmin(np.abs(ics - t))] for t in (t0, t1)]
+                if all(abs(m - t) < 0.2 for m, t in zip(near, (t0, t1), strict=True)):
+                    speeds.append(msg.gait_speed / (true_length / (near[1] - near[0])) - 1.0)
+            e, v = np.array(errors) * 100, np.array(speeds) * 100
             print(f"gaitmap_example: {len(cycles)} strides, {flagged} without spatial values; stride length "
-                  f"{e.mean():+.1f} ± {e.std():.1f} cm against the heel marker's footprints; published "
-                  f"{np.median(lags):.2f} s (median, {min(lags):.2f}-{max(lags):.2f}) after the closing IC")
+                  f"{e.mean():+.1f} ± {e.std():.1f} cm (mean abs {np.abs(e).mean():.1f}) against the heel "
+                  f"marker's footprints; gait speed (over the IC→IC time) {v.mean():+.1f} ± {v.std():.1f} % "
+                  f"(mean abs {np.abs(v).mean():.1f} %, {len(v)} strides) against the footprints over the "
+                  f"mocap IC→IC time; published {np.median(lags):.2f} s (median, "
+                  f"{min(lags):.2f}-{max(lags):.2f}) after the closing IC")
         qmt = DATA / "qmt_fullbody" / "full_body_example_data.mat"
         if qmt.exists():
             (tmp / "qmt.yaml").write_text("/**/gait_events:\n  ros__parameters:\n    use_standing_reference: "

@@ -102,6 +102,7 @@ class GaitEventsParams:
     detector: str = same_as(FootTrajectoryParams, "detector")
     gyro_limit: float = same_as(FootTrajectoryParams, "gyro_limit")
     jerk_limit: float = same_as(FootTrajectoryParams, "jerk_limit")
+    valley: bool = same_as(FootTrajectoryParams, "valley")
     flat_floor: bool = same_as(FootTrajectoryParams, "flat_floor")
     bias_rest: float = same_as(FootTrajectoryParams, "bias_rest")
     close_after: float = same_as(FootTrajectoryParams, "close_after")
@@ -113,8 +114,8 @@ class GaitEventsParams:
     def foot_trajectory(self) -> FootTrajectoryParams:
         """The foot-trajectory stage's parameters (the rest at their defaults)."""
         return FootTrajectoryParams(**{f: getattr(self, f) for f in (
-            "detector", "gyro_limit", "jerk_limit", "flat_floor", "bias_rest", "close_after", "min_swing",
-            "max_swing", "toe_lever_arm")})
+            "detector", "gyro_limit", "jerk_limit", "valley", "flat_floor", "bias_rest", "close_after",
+            "min_swing", "max_swing", "toe_lever_arm")})
 
     def __post_init__(self) -> None:
         require(bool(self.sides) and len(set(self.sides)) == len(self.sides),

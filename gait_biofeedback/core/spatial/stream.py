@@ -6,7 +6,8 @@ Live, per stride: the filter runs ``h`` samples (half the window: 25 ms) behind 
 look-ahead of the zero-velocity detector. A stride closes once the next stance has lasted
 ``close_after`` s. Its window, from the first stance's start to that sample, is then smoothed by
 RTS (:func:`.smoother.rts_smooth`) and its parameters computed (:mod:`.strides`). The latency is
-``h`` + ``close_after`` after foot flat: 75 ms by default.
+``h`` + ``close_after`` after foot flat: 75 ms by default. A stance found by the valley rule (running:
+:class:`~.zero_velocity.StanceDetector`) is decided ``valley_gap`` (0.45 s) after its sample instead.
 
 Start: the filter starts at the first stance. Its vertical is the mean acceleration of that stance's
 first ``bias_rest`` s, or of the whole stance when it is shorter. When the stance lasts that long, the
@@ -21,7 +22,7 @@ s, restarts the foot at its next stance (counted in :attr:`counts`, said in :att
 gap (lost samples: a radio, a loaded DDS queue) is filled by linear interpolation of gyro and
 acceleration at the sample rate, so that the filter and the detector windows keep their step, and
 counted (``interpolated``). Interpolation only halves the error: on the simulator's walk at 100 Hz one
-lost sample moves the stride length by up to 4.6 cm interpolated (8.2 cm held), two by 12 cm, worst
+lost sample moves the stride length by up to 4.2 cm interpolated (8.2 cm held), two by 12 cm, worst
 at heel strike and push-off; a 80 ms gap in a stance leaves an attitude error that costs the next
 stride up to 8 cm. Hence, per stride (``_judge_lost``):
 
@@ -31,7 +32,7 @@ stride up to 8 cm. Hence, per stride (``_judge_lost``):
 - fewer lost samples: the values, with the informational flag ``lost samples interpolated``.
 
 With 1 % of the samples lost at random (100 Hz), 27 % of the strides get no values and the others
-are within 3.8 cm of the lossless ones (0.7 cm p95); at 200 Hz 28 % and 0.7 cm
+are within 4.1 cm of the lossless ones (0.8 cm p95); at 200 Hz 28 % and 0.7 cm
 (``benchmarks/spatial.py --lost-samples``).
 
 A swing longer than ``max_swing`` s (no stance seen: running, a sensor off the foot, a shuffle) gives a
@@ -62,7 +63,10 @@ from gait_biofeedback.core.spatial.zero_velocity import (
     DETECTORS,
     SHOE_ACC,
     SHOE_GYRO,
-    ZeroVelocityDetector,
+    VALLEY_GAP_S,
+    VALLEY_MAX,
+    VALLEY_SWING,
+    StanceDetector,
 )
 from gait_biofeedback.core.stamps import NS_PER_S, lost_between
 
@@ -84,12 +88,23 @@ class FootTrajectoryParams:
                           "of it is the look-ahead", "s", low=0.01, high=0.5)
     shoe_acc: float = param(SHOE_ACC, "shoe: scale of |a - g| in the statistic", "m/s^2", low=0.01, high=20.0)
     shoe_gyro: float = param(SHOE_GYRO, "shoe: scale of |ω| in the statistic", "rad/s", low=0.01, high=10.0)
+    valley: bool = param(True, "one stance per gait cycle where the thresholds find none: the foot's "
+                         "stillest moment after a swing (running; zero_velocity.py)")
+    valley_max: float = param(VALLEY_MAX, "valley: largest statistic (|ω| with |a - g| / 6 per rad/s) taken "
+                              "as a stance", "rad/s", low=0.1, high=5.0)
+    valley_swing: float = param(VALLEY_SWING, "valley: the statistic in the 0.3 s before it (a swing)",
+                                "rad/s", low=0.5, high=20.0)
+    valley_gap: float = param(VALLEY_GAP_S, "valley: no stance of the thresholds this close; an accepted "
+                              "valley is decided this late", "s", low=0.1, high=1.0)
     flat_floor: bool = param(True, "every stance at height 0 (Suh Eq 14): level ground only, turn off on "
                              "stairs and ramps")
-    gyro_noise: float = param(1e-3, "gyro white-noise density R_g (Suh Table 1)", "rad^2/s",
-                              low=1e-9, high=1.0)
+    gyro_noise: float = param(1e-5, "gyro white-noise density R_g (Suh Table 1: 1e-3, far above a MEMS "
+                              "gyro's; README)", "rad^2/s", low=1e-9, high=1.0)
     acc_noise: float = param(1e-2, "accelerometer white-noise density R_a (Suh Table 1)", "m^2/s^3",
                              low=1e-9, high=10.0)
+    acc_shock: float = param(30.0, "a specific force this far off gravity is a shock (heel strike): the "
+                             "accelerometer's noise density grows with the excess (kalman.py)", "m/s^2",
+                             low=1.0, high=1000.0)
     bias_rest: float = param(1.0, "a first stance at least this long gives the gyro bias prior", "s",
                              low=0.1, high=120.0)
     close_after: float = param(0.05, "a stride closes once the next stance has lasted this long", "s",
@@ -114,7 +129,7 @@ class FootTrajectoryParams:
 
     @property
     def noise(self) -> KalmanNoise:
-        return KalmanNoise(gyro=self.gyro_noise, acc=self.acc_noise)
+        return KalmanNoise(gyro=self.gyro_noise, acc=self.acc_noise, acc_shock=self.acc_shock)
 
 
 class FootTrajectoryStream:
@@ -136,8 +151,8 @@ class FootTrajectoryStream:
 
     def _restart(self) -> None:
         p = self.params
-        self._zv = ZeroVelocityDetector(self.rate_hz, p.gyro_limit, p.jerk_limit, p.window, p.detector,
-                                        p.shoe_acc, p.shoe_gyro)
+        self._zv = StanceDetector(self.rate_hz, p.gyro_limit, p.jerk_limit, p.window, p.detector, p.shoe_acc,
+                                  p.shoe_gyro, p.valley, p.valley_max, p.valley_swing, p.valley_gap)
         self._pending: list[tuple[int, int, np.ndarray, np.ndarray]] = []  # waiting for their decision
         self._rest: list[tuple[int, int, np.ndarray, np.ndarray]] = []  # the first stance, before start
         self._kf: FootKalman | None = None
@@ -189,10 +204,10 @@ class FootTrajectoryStream:
 
     def _feed(self, sample: tuple) -> list[SpatialStride]:
         self._pending.append(sample)
-        decision = self._zv.update(sample[2], sample[3])
-        if decision is None:
-            return []
-        return self._decided(self._pending.pop(0), decision)
+        out: list[SpatialStride] = []
+        for decision in self._zv.update(sample[2], sample[3]):
+            out += self._decided(self._pending.pop(0), decision)
+        return out
 
     def flush(self) -> list[SpatialStride]:
         """The last samples' decisions at the end of the data."""
