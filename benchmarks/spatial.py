@@ -54,6 +54,7 @@ the batch entry point ``estimate_foot_trajectory``. It prints three tables.
 from __future__ import annotations
 
 import argparse
+import copy
 import subprocess
 import tempfile
 import time
@@ -369,63 +370,80 @@ def _cli(*args: str) -> None:
                    stdout=subprocess.DEVNULL)
 
 
-def _cycles(bag: Path) -> list:
+def _cycles(bag: Path) -> tuple[list, list]:
+    """(the ``gait/cycles`` messages as published, with log times; the same revised by
+    ``gait/stride_space``, the values of record, with the revisions' log times)."""
     from gait_biofeedback.io.bag_reader import BagReader
+    from gait_biofeedback.wire.gait import revised_cycles
 
-    return [(msg, log_ns) for _, msg, log_ns in BagReader(bag).messages(["/gait/cycles"])]
+    records = list(BagReader(bag).messages(["/gait/cycles", "/gait/stride_space"]))
+    published = [(copy.deepcopy(msg), log_ns) for topic, msg, log_ns in records if topic == "/gait/cycles"]
+    last_log = {(msg.side, msg.stride_index): log_ns for _, msg, log_ns in records}
+    revised = revised_cycles((topic, msg) for topic, msg, _ in records)
+    return published, [(msg, last_log[(msg.side, msg.stride_index)]) for msg in revised]
 
 
 def _s(stamp) -> float:
     return stamp.sec + stamp.nanosec * 1e-9
 
 
-def through_the_command_line() -> None:
-    """The user's path: ``import`` → ``analyze`` → the ``gait/cycles`` messages' spatial values."""
-    print("\n## through the command line (import → analyze → /gait/cycles)\n")
+def _score_cli(label: str, cycles: list, folder: Path) -> None:
+    """One row: ``cycles`` ((message, log ns)) against the heel marker's footprints (where it is
+    slowest in the 0.4 s after each IC), gait speed over the mocap IC→IC time."""
+    import csv
+
+    mocap = _mocap(folder)
+    t_mocap = np.arange(len(next(iter(mocap.values())))) / 100.0
+    with (folder / "stride_events_sample.csv").open() as handle:
+        reference = list(csv.DictReader(handle))
+    mocap_ic = {side: np.array(sorted(float(r["ic"]) for r in reference if r["foot"] == side))
+                / GAITMAP_RATE_HZ for side in ("left", "right")}
+    errors, speeds, lags, flagged = [], [], [], 0
+    for msg, log_ns in cycles:
+        if msg.spatial_flag or not np.isfinite(msg.stride_length):
+            flagged += 1
+            continue
+        heel = np.stack([mocap[f"{'LR'[msg.side]}_FCC_{a}"] for a in "xy"], axis=1)
+
+        def footprint(t: float, heel=heel) -> np.ndarray:
+            k = np.flatnonzero((t_mocap >= t) & (t_mocap <= t + 0.4))
+            return heel[k[np.argmin(np.linalg.norm(np.diff(heel[k], axis=0), axis=1))]]
+
+        t0, t1 = _s(msg.start), _s(msg.header.stamp)
+        true_length = float(np.linalg.norm(footprint(t1) - footprint(t0)))
+        errors.append(msg.stride_length - true_length)
+        lags.append(log_ns * 1e-9 - t1)
+        ics = mocap_ic[("left", "right")[msg.side]]
+        near = [ics[np.argmin(np.abs(ics - t))] for t in (t0, t1)]
+        if all(abs(m - t) < 0.2 for m, t in zip(near, (t0, t1), strict=True)):
+            speeds.append(msg.gait_speed / (true_length / (near[1] - near[0])) - 1.0)
+    e, v, lag = np.array(errors) * 100, np.array(speeds) * 100, np.array(lags) * 1000
+    print(f"| {label} | {len(cycles)} | {flagged} | {e.mean():+.1f} ± {e.std():.1f} cm | "
+          f"{np.abs(e).mean():.1f} cm | {v.mean():+.1f} ± {v.std():.1f} % | {np.abs(v).mean():.1f} % | "
+          f"{np.median(lag):.0f} ms ({lag.min():.0f}-{lag.max():.0f}) |")
+
+
+def through_the_command_line(provisional_after: float | None = None) -> None:
+    """The user's path: ``import`` → ``analyze`` → the ``gait/cycles`` messages' spatial values, as
+    published (provisional ones included) and as of record (``gait/stride_space`` applied)."""
+    print("\n## through the command line (import → analyze → /gait/cycles, /gait/stride_space)\n")
     folder = DATA / "gaitmap_example"
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         if folder.exists():
             params = f"    use_standing_reference: true\n    rate_hz: {GAITMAP_RATE_HZ}\n"
+            if provisional_after is not None:
+                params += f"    provisional_after: {provisional_after}\n"
             (tmp / "params.yaml").write_text("/**/gait_events:\n  ros__parameters:\n" + params)
             _cli("import", "gaitmap", str(folder), "-o", str(tmp / "gm"))
             _cli("analyze", str(tmp / "gm"), "-o", str(tmp / "gm_out"), "--params", str(tmp / "params.yaml"))
-            mocap = _mocap(folder)
-            t_mocap = np.arange(len(next(iter(mocap.values())))) / 100.0
-            errors, speeds, lags, flagged = [], [], [], 0
-            cycles = _cycles(tmp / "gm_out")
-            import csv
-
-            with (folder / "stride_events_sample.csv").open() as handle:
-                reference = list(csv.DictReader(handle))
-            mocap_ic = {side: np.array(sorted(float(r["ic"]) for r in reference if r["foot"] == side))
-                        / GAITMAP_RATE_HZ for side in ("left", "right")}
-            for msg, log_ns in cycles:
-                if msg.spatial_flag:
-                    flagged += 1
-                    continue
-                heel = np.stack([mocap[f"{'LR'[msg.side]}_FCC_{a}"] for a in "xy"], axis=1)
-
-                def footprint(t: float, heel=heel) -> np.ndarray:
-                    """The heel marker where it is slowest within 0.4 s after the IC at ``t``."""
-                    k = np.flatnonzero((t_mocap >= t) & (t_mocap <= t + 0.4))
-                    return heel[k[np.argmin(np.linalg.norm(np.diff(heel[k], axis=0), axis=1))]]
-
-                t0, t1 = _s(msg.start), _s(msg.header.stamp)
-                true_length = float(np.linalg.norm(footprint(t1) - footprint(t0)))
-                errors.append(msg.stride_length - true_length)
-                lags.append(log_ns * 1e-9 - t1)
-                ics = mocap_ic[("left", "right")[msg.side]]
-                near = [ics[np.argmin(np.abs(ics - t))] for t in (t0, t1)]
-                if all(abs(m - t) < 0.2 for m, t in zip(near, (t0, t1), strict=True)):
-                    speeds.append(msg.gait_speed / (true_length / (near[1] - near[0])) - 1.0)
-            e, v = np.array(errors) * 100, np.array(speeds) * 100
-            print(f"gaitmap_example: {len(cycles)} strides, {flagged} without spatial values; stride length "
-                  f"{e.mean():+.1f} ± {e.std():.1f} cm (mean abs {np.abs(e).mean():.1f}) against the heel "
-                  f"marker's footprints; gait speed (over the IC→IC time) {v.mean():+.1f} ± {v.std():.1f} % "
-                  f"(mean abs {np.abs(v).mean():.1f} %, {len(v)} strides) against the footprints over the "
-                  f"mocap IC→IC time; published {np.median(lags):.2f} s (median, "
-                  f"{min(lags):.2f}-{max(lags):.2f}) after the closing IC")
+            published, of_record = _cycles(tmp / "gm_out")
+            print("| values | strides | without values | stride length: mean ± SD | mean abs | gait speed: "
+                  "mean ± SD | mean abs | published after the closing IC: median (range) |")
+            print("|---|---|---|---|---|---|---|---|")
+            _score_cli("as published", published, folder)
+            _score_cli("provisional only", [(m, t) for m, t in published if m.spatial_provisional], folder)
+            _score_cli("of record (smoothed)", of_record, folder)
         qmt = DATA / "qmt_fullbody" / "full_body_example_data.mat"
         if qmt.exists():
             (tmp / "qmt.yaml").write_text("/**/gait_events:\n  ros__parameters:\n    use_standing_reference: "
@@ -433,7 +451,7 @@ def through_the_command_line() -> None:
             _cli("import", "qmt_fullbody", str(qmt), "-o", str(tmp / "qmt"))
             _cli("analyze", str(tmp / "qmt"), "-o", str(tmp / "qmt_out"), "--params", str(tmp / "qmt.yaml"),
                  "--calibrate-at", "75:walking")
-            cycles = [m for m, _ in _cycles(tmp / "qmt_out")]
+            cycles = [m for m, _ in _cycles(tmp / "qmt_out")[1]]
             lengths = np.array([m.stride_length for m in cycles if not m.spatial_flag])
             print(f"qmt_fullbody (no truth): {len(cycles)} strides, {len(cycles) - len(lengths)} flagged "
                   f"without spatial values; stride length median {np.median(lengths):.2f} m, largest "
@@ -444,13 +462,19 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--no-gaitmap", action="store_true", help="leave gaitmap's RtsKalman out")
     parser.add_argument("--lost-samples", action="store_true", help="only the lost-samples table")
+    parser.add_argument("--cli-only", action="store_true", help="only the command-line table")
+    parser.add_argument("--provisional-after", type=float, help="gait_events provisional_after (s) for the "
+                        "command-line table (default: the parameter's)")
     args = parser.parse_args()
     t0 = time.monotonic()
     if args.lost_samples:
         lost_samples()
         return
+    if args.cli_only:
+        through_the_command_line(args.provisional_after)
+        return
     python = None if args.no_gaitmap else gaitmap_python()
-    through_the_command_line()
+    through_the_command_line(args.provisional_after)
     simulator()
     gaitmap_example(python)
     pyshoe(python)

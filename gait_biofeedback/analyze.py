@@ -14,7 +14,7 @@ same message-conversion helpers, in the same order the nodes use them:
 3. joint angles: :class:`~gait_biofeedback.core.joints.angles.JointAngleStream` → ``/joint_states``,
    ``/skeleton``;
 4. gait events and strides: :class:`~gait_biofeedback.core.gait.stream.GaitEventStream` →
-   ``/gait/events``, ``/gait/cycles``;
+   ``/gait/events``, ``/gait/cycles``, ``/gait/stride_space``;
 5. activity on the chest's raw IMU: :class:`~gait_biofeedback.core.activity.stream.ActivityStream`
    → ``/activity/state``.
 
@@ -72,7 +72,7 @@ from gait_biofeedback.wire import diagnostics, topics
 from gait_biofeedback.wire.activity import activity_msg
 from gait_biofeedback.wire.calibration import calibration_msg, entries, rotations
 from gait_biofeedback.wire.cdr import Stamped, decode_imu, decode_mag, serialize
-from gait_biofeedback.wire.gait import cycle_msg, event_msg, foot_frame
+from gait_biofeedback.wire.gait import event_msg, foot_frame, stride_output
 from gait_biofeedback.wire.imu import (
     has_heading,
     is_recovering,
@@ -410,7 +410,8 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
             for event in events:
                 emit(topics.GAIT_EVENTS.absolute(), event_msg(event), log_ns)
             for cycle in cycles:
-                emit(topics.GAIT_CYCLES.absolute(), cycle_msg(cycle), log_ns)
+                topic, msg = stride_output(cycle)
+                emit(topic.absolute(), msg, log_ns)
 
     if calibration is not None:
         source = f"from {Path(calibration_file).absolute()} (saved {saved_at or 'at an unknown time'})"

@@ -21,7 +21,7 @@ def _rosbags_decode_all(bag: Path) -> dict[str, int]:
 
     typestore = get_typestore(Stores.ROS2_JAZZY)
     for name in ("ActivityState", "BiofeedbackCue", "GaitCycle", "GaitEvent", "SegmentCalibration",
-                 "SegmentCalibrationArray"):
+                 "SegmentCalibrationArray", "StrideSpace"):
         typestore.register(get_types_from_msg(msg_text(MSG_PACKAGE, name), f"{MSG_PACKAGE}/msg/{name}"))
     counts: dict[str, int] = {}
     with AnyReader([bag], default_typestore=typestore) as reader:
@@ -65,8 +65,8 @@ def test_simulated_and_analyzed_bags_decode(simulated, tmp_path):
     assert counts["/ground_truth/joint_states"] == 3800
     out = tmp_path / "offline"
     assert main(["analyze", str(simulated), "-o", str(out), "--calibrate-at", "13:walking"]) == 0
-    outputs = {"/joint_states", "/skeleton", "/gait/events", "/gait/cycles", "/activity/state",
-               "/calibration/sensor_to_segment", "/pelvis/imu/data"}
+    outputs = {"/joint_states", "/skeleton", "/gait/events", "/gait/cycles", "/gait/stride_space",
+               "/activity/state", "/calibration/sensor_to_segment", "/pelvis/imu/data"}
     counts = _decodes_everywhere(out, outputs)
     assert counts["/joint_states"] > 0
 

@@ -40,8 +40,8 @@ def test_a_stride_gets_the_trajectory_stride_of_its_swing():
     pairing.add_cycle(_cycle(1, 10.0, 11.1))
     assert pairing.due(round(11.2 * S)) == []  # the next stance has not closed the trajectory yet
     pairing.add_stride(_stride(10.5, 11.18))
-    ((cycle, space),) = pairing.due(round(11.3 * S))
-    assert cycle.index == 1 and space.flag == ""
+    ((cycle, space, revision),) = pairing.due(round(11.3 * S))
+    assert cycle.index == 1 and space.flag == "" and not revision and not space.provisional
     assert space.stride_length == 1.3 and space.gait_speed == pytest.approx(1.3 / 1.1)
     assert space.foot_angle_tc == -1.1 and space.max_foot_height == 0.12
 
@@ -51,11 +51,11 @@ def test_a_missed_stance_gives_no_values_to_either_stride():
     pairing = SpatialPairing(wait_s=0.4)
     pairing.add_cycle(_cycle(1, 10.0, 11.0))
     assert pairing.due(round(11.39 * S)) == []
-    ((_, first),) = pairing.due(round(11.4 * S))
+    ((_, first, _),) = pairing.due(round(11.4 * S))
     assert math.isnan(first.stride_length) and first.flag.startswith("no stance of the foot within 0.4 s")
     pairing.add_cycle(_cycle(2, 11.0, 12.0))
     pairing.add_stride(_stride(10.5, 12.1, length=2.6))
-    ((_, second),) = pairing.due(round(12.2 * S))
+    ((_, second, _),) = pairing.due(round(12.2 * S))
     assert math.isnan(second.stride_length) and second.flag.startswith("a stance was missed")
 
 
@@ -65,9 +65,55 @@ def test_a_flagged_trajectory_stride_gives_no_values_an_informative_flag_keeps_t
     pairing.add_stride(_stride(10.5, 11.1, flags=("no stance for 2.7 s: spatial values unknown",)))
     pairing.add_cycle(_cycle(2, 11.0, 12.0))
     pairing.add_stride(_stride(11.5, 12.1, flags=("started from standing",)))
-    (_, bad), (_, good) = pairing.due(round(12.2 * S))
+    (_, bad, _), (_, good, _) = pairing.due(round(12.2 * S))
     assert math.isnan(bad.stride_length) and bad.flag == "no stance for 2.7 s: spatial values unknown"
     assert good.stride_length == 1.3 and good.flag == ""
+
+
+def test_a_stride_goes_out_at_ic_plus_50_ms_with_its_provisional_length_and_its_smoothed_values_follow():
+    """At the last sample at or before IC + 50 ms (100 Hz: 11.05 s) the trajectory is asked once; the stride
+    goes out with the provisional length and speed only, then its revision with the smoothed values."""
+    pairing = SpatialPairing(wait_s=0.4, provisional_after_s=0.05, period_s=0.01)
+    pairing.add_cycle(_cycle(1, 10.0, 11.0))
+    asked = []
+
+    def provisional():
+        asked.append(True)
+        return round(10.5 * S), 1.25
+
+    assert pairing.due(round(11.04 * S), provisional) == [] and not asked
+    ((cycle, space, revision),) = pairing.due(round(11.05 * S), provisional)
+    assert cycle.index == 1 and not revision and space.provisional and space.flag == ""
+    assert space.stride_length == 1.25 and space.gait_speed == pytest.approx(1.25)
+    assert math.isnan(space.max_foot_height) and math.isnan(space.foot_angle_tc)
+    assert pairing.due(round(11.2 * S), provisional) == [] and len(asked) == 1
+    pairing.add_stride(_stride(10.5, 11.18))
+    ((cycle, space, revision),) = pairing.due(round(11.3 * S), provisional)
+    assert cycle.index == 1 and revision and not space.provisional and space.stride_length == 1.3
+
+
+def test_without_a_provisional_value_of_its_own_swing_a_stride_waits_for_the_smoothed_one():
+    """None (the foot's first strides), or a swing that left before the opening IC (a missed stance):
+    the stride is held as without provisional values, and asked only once; a reset releases a
+    pending revision without values."""
+    pairing = SpatialPairing(wait_s=0.4, provisional_after_s=0.05, period_s=0.01)
+    pairing.add_cycle(_cycle(1, 10.0, 11.0))
+    answers = iter([None, (round(9.5 * S), 2.6)])
+    assert pairing.due(round(11.05 * S), lambda: next(answers)) == []
+    assert pairing.due(round(11.06 * S), lambda: next(answers)) == []  # asked once: no second answer used
+    pairing.add_stride(_stride(10.5, 11.18))
+    ((_, space, revision),) = pairing.due(round(11.3 * S), lambda: next(answers))
+    assert not revision and not space.provisional and space.stride_length == 1.3
+    pairing.add_cycle(_cycle(2, 11.0, 12.0))
+    assert pairing.due(round(12.05 * S), lambda: (round(10.9 * S), 1.3)) == []  # left before its IC
+    pairing.add_cycle(_cycle(3, 12.0, 13.0))
+    pairing.release("x")  # the held ones go out without values
+    pairing.add_cycle(_cycle(4, 13.0, 14.0))
+    ((_, space, _),) = pairing.due(round(14.05 * S), lambda: (round(13.5 * S), 1.2))
+    assert space.provisional
+    ((cycle, space, revision),) = pairing.release("state reset (gap): spatial values unknown")
+    assert cycle.index == 4 and revision and math.isnan(space.stride_length)
+    assert space.flag.startswith("state reset")
 
 
 def test_step_length_by_hand():

@@ -12,6 +12,7 @@ called. ``GAIT_EXECUTOR=single`` selects the fallback.
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
 import signal
 import sys
@@ -48,7 +49,28 @@ class GuardedNode(Node):
     answers with the default response (``success`` false where the service has it).
 
     Timers count wall seconds also under ``use_sim_time`` (a replay at 10x must not run the
-    dashboard or the diagnostics 10x as often); only stamps follow ``/clock``."""
+    dashboard or the diagnostics 10x as often); only stamps follow ``/clock``.
+
+    A node whose constructor raises (a refused parameter, an output that exists) is destroyed before
+    the error propagates: left to the garbage collector, its name stays on the ROS graph and the next
+    graph in the process is refused as a second one (:func:`refuse_other_graph`)."""
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        init = cls.__dict__.get("__init__")
+        if init is None:
+            return
+
+        @functools.wraps(init)
+        def init_or_destroy(self: GuardedNode, *args: Any, **kw: Any) -> None:
+            try:
+                init(self, *args, **kw)
+            except BaseException:
+                with contextlib.suppress(Exception):
+                    Node.destroy_node(self)  # rclpy's own: an override may expect a whole node
+                raise
+
+        cls.__init__ = init_or_destroy
 
     def __init__(self, node_name: str, **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)

@@ -6,8 +6,11 @@ sensor). Publishes ``gait/events`` (GaitEvent, one sample after the event: stamp
 stamp, ``detection_latency`` = to the confirming sample) and ``gait/cycles`` (GaitCycle of each stride,
 IC to IC; an implausible stride, < ``min_stride_s`` or > ``max_stride_s`` or without exactly one
 TC, is published with ``plausible = false`` and its ``flag``; its spatial values come from the foot's
-trajectory, :mod:`~gait_biofeedback.core.gait.spatial`, so it is published once the next stance has
-closed that, at most ``spatial_wait`` s after the closing IC), plus ``/diagnostics``. The detection is
+trajectory, :mod:`~gait_biofeedback.core.gait.spatial`: it is published ``provisional_after`` (15 ms)
+after the closing IC with a provisional stride length and speed, whose smoothed values follow on
+``gait/stride_space`` (StrideSpace) once the next stance closes the trajectory; without a provisional
+value it waits for the smoothed ones, at most ``spatial_wait`` s after the closing IC), plus
+``/diagnostics``. The detection is
 :class:`~gait_biofeedback.core.gait.events.GaitEventDetector` (thesis Algorithm 1), the strides
 :class:`~gait_biofeedback.core.gait.cycles.GaitCycleTracker`, the stream rules below
 :class:`~gait_biofeedback.core.gait.stream.GaitEventStream` (a calibration is in force from its header
@@ -36,7 +39,7 @@ from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
 from gait_biofeedback.wire import diagnostics, topics
 from gait_biofeedback.wire.calibration import entries
 from gait_biofeedback.wire.cdr import decode_imu
-from gait_biofeedback.wire.gait import cycle_msg, event_msg, foot_frame
+from gait_biofeedback.wire.gait import event_msg, foot_frame, stride_output
 from gait_biofeedback.wire.imu import is_recovering, orientation_sample
 from gait_biofeedback_msgs.msg import SegmentCalibrationArray
 
@@ -55,7 +58,7 @@ class GaitEventsNode(GuardedNode):
         self._last_arrival: dict[str, float] = {}
         self._stopped: dict[str, bool] = {s: False for s in self.sides}
         self._events = publisher(self, topics.GAIT_EVENTS)
-        self._cycles = publisher(self, topics.GAIT_CYCLES)
+        self._strides = {t.name: publisher(self, t) for t in (topics.GAIT_CYCLES, topics.STRIDE_SPACE)}
         for side in self.sides:
             subscribe(self, topics.orientation(foot_frame(side)), lambda data, s=side: self._on_imu(s, data),
                       raw=True)
@@ -89,7 +92,8 @@ class GaitEventsNode(GuardedNode):
         for event in events:
             self._events.publish(event_msg(event))
         for cycle in cycles:
-            self._cycles.publish(cycle_msg(cycle))
+            topic, msg = stride_output(cycle)
+            self._strides[topic.name].publish(msg)
         log_notices(self.get_logger(), self.stream.notices.pop())
 
     def _check_streams(self) -> None:

@@ -12,7 +12,7 @@ import numpy as np
 
 from gait_biofeedback.io.bag import BagReader
 from gait_biofeedback.wire import topics
-from gait_biofeedback.wire.gait import event_of, stride_of
+from gait_biofeedback.wire.gait import event_of, revised_cycles, stride_of
 from gait_biofeedback.wire.joints import angles_of, recovering_of
 from gait_biofeedback.wire.stamps import stamp_to_ns
 
@@ -39,8 +39,10 @@ GAIT_CYCLE_FIELDS = (
     "turning_angle",
     "lateral_excursion",
     "spatial_flag",
+    "spatial_provisional",
 )
-"""Every field of gait_biofeedback_msgs/GaitCycle besides the header, side and stamps (SI, as on the wire)."""
+"""Every field of gait_biofeedback_msgs/GaitCycle besides the header, side and stamps (SI, as on the wire;
+the spatial ones revised by gait/stride_space: :func:`~gait_biofeedback.wire.gait.revised_cycles`)."""
 
 COUNTERS = (
     "samples",
@@ -131,6 +133,7 @@ def read_session(path: str | Path) -> SessionData:
         t.absolute()
         for t in (
             topics.GAIT_CYCLES,
+            topics.STRIDE_SPACE,
             topics.GAIT_EVENTS,
             topics.JOINT_STATES,
             topics.ACTIVITY,
@@ -139,18 +142,10 @@ def read_session(path: str | Path) -> SessionData:
             topics.DIAGNOSTICS,
         )
     ]
+    cycle_messages = []
     for topic, msg, log_ns in reader.messages([t for t in wanted if t in counts]):
-        if topic == topics.GAIT_CYCLES.absolute():
-            stride = stride_of(msg)
-            row = {
-                "side": stride.side,
-                "start_s": (stride.start_ns - start_ns) / 1e9,
-                "terminal_contact_s": (math.nan if stride.tc_ns is None else (stride.tc_ns - start_ns) / 1e9),
-                "end_s": (stride.end_ns - start_ns) / 1e9,
-            }
-            row.update({name: getattr(msg, name) for name in GAIT_CYCLE_FIELDS})
-            strides.append(row)
-            stride_objects.append(stride)
+        if topic in (topics.GAIT_CYCLES.absolute(), topics.STRIDE_SPACE.absolute()):
+            cycle_messages.append((topic, msg))
         elif topic == topics.GAIT_EVENTS.absolute():
             side, kind, stamp_ns, _ = event_of(msg)
             events.append((side, kind, (stamp_ns - start_ns) / 1e9))
@@ -203,6 +198,17 @@ def read_session(path: str | Path) -> SessionData:
                     if kv.key in COUNTERS:
                         with contextlib.suppress(ValueError):
                             summary.counters[kv.key] = float(kv.value)
+    for msg in revised_cycles(cycle_messages):
+        stride = stride_of(msg)
+        row = {
+            "side": stride.side,
+            "start_s": (stride.start_ns - start_ns) / 1e9,
+            "terminal_contact_s": (math.nan if stride.tc_ns is None else (stride.tc_ns - start_ns) / 1e9),
+            "end_s": (stride.end_ns - start_ns) / 1e9,
+        }
+        row.update({name: getattr(msg, name) for name in GAIT_CYCLE_FIELDS})
+        strides.append(row)
+        stride_objects.append(stride)
     names = sorted({n for r in rows for n in r})
     joints = {n: np.array([r.get(n, math.nan) for r in rows], dtype=float) for n in names}
     return SessionData(

@@ -25,7 +25,7 @@ from gait_biofeedback.core.stamps import NS_PER_S
 from gait_biofeedback.io.bag import BagReader
 from gait_biofeedback.wire import topics
 from gait_biofeedback.wire.calibration import rotation
-from gait_biofeedback.wire.gait import event_of
+from gait_biofeedback.wire.gait import event_of, revised_cycles
 from gait_biofeedback.wire.joints import angles_of
 from gait_biofeedback.wire.stamps import stamp_to_ns
 
@@ -112,7 +112,8 @@ def _cycles(reader: BagReader, recorded: dict) -> dict[str, float]:
     if cycles not in recorded:
         return {}
     rows, spatial = [], []
-    for _, m, _ in reader.messages([cycles]):
+    revisions = [t for t in (topics.STRIDE_SPACE.absolute(),) if t in recorded]
+    for m in revised_cycles((t, m) for t, m, _ in reader.messages([cycles, *revisions])):
         rows.append((m.stride_time, m.stance_fraction, m.cadence, m.double_support_fraction, m.plausible))
         if m.plausible and not m.spatial_flag and m.stride_length > 0:
             spatial.append((m.stride_length, m.gait_speed))

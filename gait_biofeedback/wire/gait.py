@@ -1,4 +1,5 @@
-"""``gait/events`` (GaitEvent) and ``gait/cycles`` (GaitCycle) ↔ the core's events and strides.
+"""``gait/events`` (GaitEvent), ``gait/cycles`` (GaitCycle) and ``gait/stride_space`` (StrideSpace) ↔
+the core's events and strides.
 
 The enum tables of the messages live here and only here: side (SIDE_LEFT/SIDE_RIGHT) and event type
 (INITIAL_CONTACT/TERMINAL_CONTACT), both ways.
@@ -6,14 +7,19 @@ The enum tables of the messages live here and only here: side (SIDE_LEFT/SIDE_RI
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+from typing import Any
+
 from builtin_interfaces.msg import Time
 
 from gait_biofeedback.core.biofeedback.evaluator import Stride
 from gait_biofeedback.core.gait.cycles import GaitCycle
 from gait_biofeedback.core.gait.events import INITIAL_CONTACT, TERMINAL_CONTACT, GaitEvent
+from gait_biofeedback.wire import topics
 from gait_biofeedback.wire.stamps import ns_to_stamp, stamp_to_ns
 from gait_biofeedback_msgs.msg import GaitCycle as GaitCycleMsg
 from gait_biofeedback_msgs.msg import GaitEvent as GaitEventMsg
+from gait_biofeedback_msgs.msg import StrideSpace as StrideSpaceMsg
 
 SIDE_CODES = {"left": GaitEventMsg.SIDE_LEFT, "right": GaitEventMsg.SIDE_RIGHT}
 SIDE_NAMES = {code: side for side, code in SIDE_CODES.items()}
@@ -68,10 +74,48 @@ def cycle_msg(c: GaitCycle) -> GaitCycleMsg:
     out.terminal_contact = _stamp(c.terminal_contact_ns)
     for name in _CYCLE_FIELDS:
         setattr(out, name, float(getattr(c, name)))
+    _set_space(out, c)
+    out.spatial_provisional = bool(c.space.provisional)
+    return out
+
+
+def _set_space(out: GaitCycleMsg | StrideSpaceMsg, c: GaitCycle) -> None:
     for name in _SPACE_FIELDS:
         setattr(out, name, float(getattr(c.space, name)))
     out.spatial_flag = c.space.flag
+
+
+def stride_space_msg(c: GaitCycle) -> StrideSpaceMsg:
+    """``gait/stride_space`` message of a stride's revision: its smoothed spatial values (header.stamp =
+    its closing IC, as its ``gait/cycles`` message)."""
+    out = StrideSpaceMsg(side=SIDE_CODES[c.side], stride_index=c.index)
+    out.header.stamp = ns_to_stamp(c.end_ns)
+    out.header.frame_id = foot_frame(c.side)
+    _set_space(out, c)
     return out
+
+
+def stride_output(c: GaitCycle) -> tuple[topics.Topic, GaitCycleMsg | StrideSpaceMsg]:
+    """Where a stride from :class:`~gait_biofeedback.core.gait.stream.GaitEventStream` goes: a new
+    stride on ``gait/cycles``, a revision on ``gait/stride_space``."""
+    return (topics.STRIDE_SPACE, stride_space_msg(c)) if c.revision else (topics.GAIT_CYCLES, cycle_msg(c))
+
+
+def revised_cycles(messages: Iterable[tuple[str, Any]]) -> list[GaitCycleMsg]:
+    """The ``gait/cycles`` messages among ``(topic, message)`` pairs in log order, each with the
+    smoothed spatial values of its ``gait/stride_space`` revision (``spatial_provisional`` then
+    False): the values of record. A provisional value whose revision never came stays flagged."""
+    cycles, by_stride = [], {}
+    for topic, msg in messages:
+        if topic == topics.GAIT_CYCLES.absolute():
+            cycles.append(msg)
+            by_stride[(msg.side, msg.stride_index)] = msg
+        elif topic == topics.STRIDE_SPACE.absolute() and (msg.side, msg.stride_index) in by_stride:
+            cycle = by_stride[(msg.side, msg.stride_index)]
+            for name in (*_SPACE_FIELDS, "spatial_flag"):
+                setattr(cycle, name, getattr(msg, name))
+            cycle.spatial_provisional = False
+    return cycles
 
 
 def stride_of(msg: GaitCycleMsg) -> Stride:

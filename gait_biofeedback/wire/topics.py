@@ -19,6 +19,7 @@ from gait_biofeedback_msgs.msg import (
     GaitCycle,
     GaitEvent,
     SegmentCalibrationArray,
+    StrideSpace,
 )
 
 SENSOR_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100, reliability=ReliabilityPolicy.BEST_EFFORT,
@@ -91,6 +92,7 @@ JOINT_STATES = Topic("joint_states", JointState, RELIABLE_QOS)
 SKELETON = Topic("skeleton", MarkerArray, RELIABLE_QOS)
 GAIT_EVENTS = Topic("gait/events", GaitEvent, RELIABLE_QOS)
 GAIT_CYCLES = Topic("gait/cycles", GaitCycle, RELIABLE_QOS)
+STRIDE_SPACE = Topic("gait/stride_space", StrideSpace, RELIABLE_QOS)  # smoothed after provisional values
 ACTIVITY = Topic("activity/state", ActivityState, RELIABLE_QOS)
 CUES = Topic("biofeedback/cues", BiofeedbackCue, RELIABLE_QOS)
 DIAGNOSTICS = Topic("/diagnostics", DiagnosticArray, RELIABLE_QOS)

@@ -40,13 +40,15 @@ class StrideSpace:
     turning_angle: float = math.nan
     lateral_excursion: float = math.nan
     flag: str = ""
+    provisional: bool = False  # only stride_length and gait_speed, before the next stance (.spatial)
 
 
 @dataclass(frozen=True)
 class GaitCycle:
     """One stride of ``side``: the stamps (int ns) of its opening IC, closing IC and its TC (None when
     it has not exactly one), durations in s, fractions of the stride time, NaN where unknown;
-    ``space``: its spatial values (:mod:`.spatial`), all NaN until they are paired."""
+    ``space``: its spatial values (:mod:`.spatial`), all NaN until they are paired; ``revision``: this
+    is not a new stride but the smoothed ``space`` of one that went out with provisional values."""
 
     side: str
     index: int
@@ -66,6 +68,7 @@ class GaitCycle:
     plausible: bool
     flag: str = ""
     space: StrideSpace = field(default_factory=StrideSpace)
+    revision: bool = False
 
     @property
     def start(self) -> float:

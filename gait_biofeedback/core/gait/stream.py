@@ -26,9 +26,12 @@
   feed a :class:`~gait_biofeedback.core.spatial.stream.FootTrajectoryStream`, and a stride closed
   by an IC is held until the trajectory's stride of the same swing is in
   (:class:`~gait_biofeedback.core.gait.spatial.SpatialPairing`, at most ``spatial_wait`` s); its
-  values, or NaN and the reason, go with it. A reset of the foot for its stamps (a gap, time going
-  back, a stream that stopped) releases the held strides without spatial values; a new calibration
-  does not (the trajectory does not use it).
+  values, or NaN and the reason, go with it. With ``spatial_provisional`` it goes out
+  ``provisional_after`` s after the IC with a provisional length and speed when the trajectory has
+  one, and a *revision* (a GaitCycle with ``revision``, the smoothed values) follows. A reset of
+  the foot for its stamps (a gap, time going back, a stream that stopped) releases the held strides
+  and pending revisions without spatial values; a new calibration does not (the trajectory does
+  not use it).
 
 Samples are identified by their stamps (int ns); the stage's parameters are :class:`GaitEventsParams`.
 """
@@ -99,6 +102,12 @@ class GaitEventsParams:
     spatial_wait: float = param(0.7, "longest wait after a stride's closing IC for the next stance that "
                                 "closes its trajectory; then it is published without spatial values", "s",
                                 low=0.05, high=2.0)
+    spatial_provisional: bool = param(True, "publish a stride provisional_after its closing IC with a "
+                                      "provisional stride length and speed; the smoothed values follow on "
+                                      "gait/stride_space (core/gait/spatial.py)")
+    provisional_after: float = param(0.015, "how long after the closing IC (its stamp) the provisional "
+                                     "values are taken; the orientation filter's reorder_window comes on top "
+                                     "(core/gait/spatial.py)", "s", low=0.0, high=0.5)
     detector: str = same_as(FootTrajectoryParams, "detector")
     gyro_limit: float = same_as(FootTrajectoryParams, "gyro_limit")
     jerk_limit: float = same_as(FootTrajectoryParams, "jerk_limit")
@@ -155,7 +164,7 @@ class GaitEventStream:
         self.calibrated = {s: False for s in self.sides}
         self.counts = {s: {"samples": 0, "uncalibrated": 0, "resets": 0, "stream_stops": 0, "ic": 0, "tc": 0,
                            "strides": 0, "implausible_strides": 0, "spatial_strides": 0,
-                           "spatial_unknown": 0} for s in self.sides}
+                           "spatial_unknown": 0, "spatial_provisional": 0} for s in self.sides}
         self.notes: dict[str, str] = {s: "" for s in self.sides}
         self.notices = Notices()
         self._last_ns: dict[str, int | None] = {s: None for s in self.sides}
@@ -163,7 +172,8 @@ class GaitEventStream:
         self.rates = {s: RateCheck(p.rate_hz) for s in self.sides}
         self._waiting: dict[str, InForceQueue[np.ndarray]] = {s: InForceQueue() for s in self.sides}
         self.feet = {s: self._foot(p.rate_hz) for s in self.sides} if p.spatial else {}
-        self.pairing = {s: SpatialPairing(p.spatial_wait) for s in self.sides}
+        after = p.provisional_after if p.spatial_provisional else None
+        self.pairing = {s: SpatialPairing(p.spatial_wait, after, 1.0 / p.rate_hz) for s in self.sides}
         self._released: dict[str, list[GaitCycle]] = {s: [] for s in self.sides}
 
     def _foot(self, rate_hz: float) -> FootTrajectoryStream:
@@ -215,9 +225,10 @@ class GaitEventStream:
         self.notices.say("warn", f"{side} foot: no data for {seconds:.1f} s, state reset")
 
     def _release(self, side: str, decided: list) -> None:
-        for cycle, space in decided:
-            self.counts[side]["spatial_strides" if not space.flag else "spatial_unknown"] += 1
-            self._released[side].append(replace(cycle, space=space))
+        for cycle, space, revision in decided:
+            final = "spatial_unknown" if space.flag else "spatial_strides"
+            self.counts[side]["spatial_provisional" if space.provisional else final] += 1
+            self._released[side].append(replace(cycle, space=space, revision=revision))
 
     def update(self, side: str, stamp_ns: int, q: tuple[float, float, float, float],
                recovering: bool = False, gyr: tuple[float, float, float] | None = None,
@@ -274,7 +285,8 @@ class GaitEventStream:
         event = self.detectors[side].update(stamp_ns, q)
         events = [] if event is None else [self._event(side, event, recovering)]
         pairing = self.pairing[side]
-        self._release(side, pairing.due(stamp_ns) if self.feet else pairing.release("spatial values off"))
+        self._release(side, pairing.due(stamp_ns, self.feet[side].provisional) if self.feet
+                      else pairing.release("spatial values off"))
         return events
 
     def _event(self, side: str, event: GaitEvent, recovering: bool) -> GaitEvent:

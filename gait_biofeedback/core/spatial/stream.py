@@ -51,6 +51,7 @@ from gait_biofeedback.core.calibration.windows import runs
 from gait_biofeedback.core.notices import Notices
 from gait_biofeedback.core.params import as_mapping, from_mapping, param, require
 from gait_biofeedback.core.spatial.kalman import FootKalman, KalmanNoise
+from gait_biofeedback.core.spatial.provisional import RestOfSwing
 from gait_biofeedback.core.spatial.smoother import apply, rts_smooth, suh_smooth
 from gait_biofeedback.core.spatial.strides import (
     LOST_FLAG,
@@ -147,6 +148,7 @@ class FootTrajectoryStream:
         self._min_swing_ns = self.params.min_swing * NS_PER_S
         self._keep = round(KEEP_STANDING_S * self.rate_hz)
         self._margin = max(1, round(self.params.window * self.rate_hz / 2))  # the detector's look-ahead
+        self.rest_of_swing = RestOfSwing()
         self._restart()
 
     def _restart(self) -> None:
@@ -169,6 +171,7 @@ class FootTrajectoryStream:
         self._closed = False
         self._last_ns: int | None = None
         self._last: tuple[np.ndarray, np.ndarray] | None = None
+        self.rest_of_swing.forget_request()
 
     def update(self, stamp_ns: int, gyr: np.ndarray, acc: np.ndarray) -> list[SpatialStride]:
         number = self.counts["samples"]
@@ -283,9 +286,32 @@ class FootTrajectoryStream:
             self._trim()
         return out
 
+    def provisional(self) -> tuple[int, float] | None:
+        """(foot-off stamp, provisional stride length m) of the stride in progress (:mod:`.provisional`):
+        in its swing the forward filter's travel plus the foot's usual rest of the swing, in its next
+        stance before it closes the travel to that stance. None before the filter started, between
+        stances less than ``min_swing`` apart, once the stride has closed (its smoothed values are
+        out), after lost samples in the stride, or while the foot's rests are not learnt."""
+        if self._kf is None or self._previous is None or self._ended is not None:
+            return None
+        stopped = self._in_stance
+        if stopped and self._closed:
+            return None
+        (a0, a1), since = self._previous, self._stamps[self._previous[0]]
+        if any(self._filled[a0:]) or any(b > since for _, b in self._long_gaps):
+            return None
+        start = np.mean([step.r for step in self._steps[a0:a1 + 1]], axis=0)
+        if stopped:
+            now = np.mean([step.r for step in self._steps[self._stance_start:]], axis=0)
+            return self._stamps[a1], float(np.hypot(*(now - start)[:2]))
+        length = self.rest_of_swing.estimate(self._stamps[a1], start, self._steps[-1].r)
+        return None if length is None else (self._stamps[a1], length)
+
     def _close(self, last: int) -> SpatialStride:
         self._closed = True
         a0 = self._previous[0]
+        stance = self._steps[self._stance_start:last + 1]
+        self.rest_of_swing.learn(self._stamps[self._previous[1]], np.mean([s.r for s in stance], axis=0))
         window = self._steps[a0:last + 1]
         smooth = rts_smooth(window)
         t = np.array(self._stamps[a0:last + 1], dtype=float) / NS_PER_S
