@@ -13,15 +13,38 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
-# One DDS domain per test process (1..100), inherited by the subprocesses the tests start: test runs
-# side by side on one machine must not hear each other's topics.
-# Under pytest-xdist (`-n 2`) each worker takes its own domain of its run's pair, from the run's pid.
-_WORKER = os.environ.get("PYTEST_XDIST_WORKER", "")
-if _WORKER:
-    _DOMAIN = 1 + os.getppid() % 50 * 2 + int(_WORKER.removeprefix("gw")) % 2
+_HELD_DOMAIN: list = []
+
+
+def _claim_domain(first: int | None = None) -> int:
+    """A DDS domain (1..100) no other test process on this machine holds: an exclusive lock on a file
+    per domain, held until this process ends (released by the kernel also on a crash). Test runs side
+    by side (two checkouts, CI beside a developer) then never hear each other's nodes; picking by pid
+    alone collided (a graph refused as "already runs recorder"). ``first``: the domain to try first
+    (default from the pid)."""
+    import fcntl
+    import tempfile
+
+    start = os.getpid() % 100 if first is None else first - 1
+    for i in range(100):
+        domain = 1 + (start + i) % 100
+        handle = open(Path(tempfile.gettempdir()) / f"gait_biofeedback_test_domain_{domain}.lock", "w")  # noqa: SIM115
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            handle.close()
+            continue
+        _HELD_DOMAIN.append(handle)
+        return domain
+    return 1 + start
+
+
+# One DDS domain per test process (each pytest-xdist worker its own), inherited by the subprocesses the
+# tests start.
+if "GAIT_TEST_DOMAIN_ID" in os.environ:
+    os.environ["ROS_DOMAIN_ID"] = os.environ["GAIT_TEST_DOMAIN_ID"]
 else:
-    _DOMAIN = 1 + os.getpid() % 100
-os.environ["ROS_DOMAIN_ID"] = os.environ.get("GAIT_TEST_DOMAIN_ID", str(_DOMAIN))
+    os.environ["ROS_DOMAIN_ID"] = str(_claim_domain())
 SHARED_DATA = REPO.parent / "shared" / "data"
 
 

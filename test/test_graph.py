@@ -16,7 +16,7 @@ import warnings
 
 import numpy as np
 import pytest
-from conftest import synthetic_imu
+from conftest import REPO, synthetic_imu
 
 from gait_biofeedback.core.segments import SEGMENTS
 from gait_biofeedback.graph import replay_through_graph
@@ -288,6 +288,18 @@ def test_recorder_refuses_to_overwrite_a_recording(tmp_path, ros_context):
         Recorder(ros_context, output=str(earlier))
     assert threading.active_count() == threads
     assert BagReader(earlier).message_count == 20, "the earlier recording is untouched"
+
+
+def test_test_processes_side_by_side_take_domains_of_their_own():
+    """Another test process on this machine, asking first for the domain this one holds, gets another."""
+    held = int(os.environ["ROS_DOMAIN_ID"])
+    if "GAIT_TEST_DOMAIN_ID" in os.environ:
+        pytest.skip("GAIT_TEST_DOMAIN_ID fixes the domain")
+    code = f"import sys; sys.path.insert(0, 'test'); import conftest; print(conftest._claim_domain({held}))"
+    env = {k: v for k, v in os.environ.items() if k != "GAIT_TEST_DOMAIN_ID"}
+    other = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=60,
+                           cwd=REPO, check=True)
+    assert 1 <= int(other.stdout.split()[-1]) <= 100 and int(other.stdout.split()[-1]) != held
 
 
 def test_a_replay_recording_has_one_time_base(tmp_path):
