@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
 from gait_biofeedback.core.biofeedback.evaluator import (
@@ -144,3 +145,18 @@ def test_an_asymmetric_step_from_the_joint_angles():
     flagged = Stride("right", 4, 1 * S, round(1.6 * S), 2 * S, step_time=0.55, stride_length=1.3,
                      spatial_flag="a stance was missed")
     assert evaluator.spatial(flagged) == {}
+
+
+def test_the_rest_of_the_swing_by_hand():
+    """Two swings learn their rests (forward 0.3 m, left 0.1 m of the travel's direction); a third
+    travelling 1.0 m along y gets 1.3 m forward and 0.1 m to its left: |(−0.1, 1.3)|."""
+    from gait_biofeedback.core.spatial.provisional import RestOfSwing
+
+    rest = RestOfSwing()
+    assert rest.estimate(1, np.zeros(3), np.array([1.0, 0.0, 0.0])) is None  # nothing learnt yet
+    rest.learn(1, np.array([1.3, 0.1, 0.0]))
+    assert rest.estimate(2, np.array([1.3, 0.1, 0.0]), np.array([2.3, 0.1, 0.0])) is None  # one rest only
+    rest.learn(99, np.array([9.0, 9.0, 0.0]))  # another swing's stride: not learnt
+    rest.learn(2, np.array([2.6, 0.2, 0.0]))
+    assert rest.estimate(3, np.zeros(3), np.array([0.0, 1.0, 0.0])) == pytest.approx(math.hypot(0.1, 1.3))
+    assert rest.estimate(4, np.zeros(3), np.array([0.02, 0.0, 0.0])) is None  # 2 cm: no direction
