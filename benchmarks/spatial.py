@@ -2,7 +2,8 @@
 
 Run: ``.venv/bin/python benchmarks/spatial.py`` (about 15 min on this 2-core machine, 4 of it
 without gaitmap; the first run also makes gaitmap's venv in ``output/gaitmap-venv``, about 1 min;
-``--no-gaitmap`` leaves gaitmap out). Every estimate goes through
+``--no-gaitmap`` leaves gaitmap out; ``--pyshoe-only`` prints the first table alone). Every estimate
+goes through
 the batch entry point ``estimate_foot_trajectory``. It prints three tables.
 
 1. ``pyshoe_vicon``: 28 trials, a shoe IMU at 200 Hz, Vicon shoe positions (Wagstaff et al.).
@@ -19,12 +20,16 @@ the batch entry point ``estimate_foot_trajectory``. It prints three tables.
      - ``ekf``: the zero-velocity EKF without smoothing;
      - ``no valley``: the default without the valley rule (``valley=False``: the fixed thresholds only);
      - ``no shock``: the default without the accelerometer's shock noise (``acc_shock=1000``);
+     - ``shock always``: the shock noise in every swing, also after running's short stances
+       (``shock_stance=0``, the default before it);
      - ``gaitmap``: gaitmap 2.6's ``RtsKalman``, default parameters;
      - ``oracle``: the file's ``best_error``, the best of five detectors each at its per-trial
        optimal threshold;
      - ``suh@oracle-zv``: our filter and smoother (default noise) given the oracle's zero-velocity
        labels: the detector taken out.
-   - Means over the 9 running trials (2017-11-27-*, 2017-12-15-18-01/02) and the 19 others.
+   - Means over the 9 running trials (2017-11-27-*, 2017-12-15-18-01/02) and the 19 others, and over
+     the two halves in time order (A: the 1st, 3rd, ... trial; B: the 2nd, 4th, ...), on which
+     parameters are chosen (A) and confirmed (B).
 2. ``gaitmap_example``: 57 strides with Vicon markers at 100 Hz.
    - Stride length against the heel marker's horizontal displacement over the reference stride:
      the default (Suh over the whole recording), ``no shock``, the live per-stride values (RTS),
@@ -128,10 +133,11 @@ def pyshoe(python: Path | None) -> None:
     if not files:
         print("pyshoe_vicon: not found, skipped")
         return
-    names = ["suh", "rts", "ekf", "no valley", "no shock", *(["gaitmap"] if python else []), "oracle",
-             "suh@oracle-zv"]
+    names = ["suh", "rts", "ekf", "no valley", "no shock", "shock always", *(["gaitmap"] if python else []),
+             "oracle", "suh@oracle-zv"]
     options = {"suh": {}, "rts": {"smoother": "rts"}, "ekf": {"smoother": "none"},
-               "no valley": {"valley": False}, "no shock": {"acc_shock": 1000.0}}
+               "no valley": {"valley": False}, "no shock": {"acc_shock": 1000.0},
+               "shock always": {"shock_stance": 0.0}}
     print(f"\n## pyshoe_vicon: ARMSE (m) of {len(files)} trials\n")
     print("| trial | " + " | ".join(names) + " | strides |")
     print("|---" * (len(names) + 2) + "|")
@@ -158,8 +164,9 @@ def pyshoe(python: Path | None) -> None:
         cells = " | ".join(f"{row[n]:.3f}" for n in names)
         print(f"| {path.stem} | {cells} | {strides} |")
     run = np.array(running)
+    half_a = np.arange(len(run)) % 2 == 0
     for label, pick in (("mean", np.ones(len(run), bool)), ("median", None), ("mean, 9 running", run),
-                        ("mean, 19 others", ~run)):
+                        ("mean, 19 others", ~run), ("mean, half A", half_a), ("mean, half B", ~half_a)):
         values = [np.median(scores[n]) if pick is None else np.mean(np.array(scores[n])[pick]) for n in names]
         cells = " | ".join(f"{v:.3f}" for v in values)
         print(f"| **{label}** | {cells} | |")
@@ -463,6 +470,8 @@ def main() -> None:
     parser.add_argument("--no-gaitmap", action="store_true", help="leave gaitmap's RtsKalman out")
     parser.add_argument("--lost-samples", action="store_true", help="only the lost-samples table")
     parser.add_argument("--cli-only", action="store_true", help="only the command-line table")
+    parser.add_argument("--pyshoe-only", action="store_true", help="only the pyshoe_vicon table (with "
+                        "--no-gaitmap: about 3 min)")
     parser.add_argument("--provisional-after", type=float, help="gait_events provisional_after (s) for the "
                         "command-line table (default: the parameter's)")
     args = parser.parse_args()
@@ -474,6 +483,9 @@ def main() -> None:
         through_the_command_line(args.provisional_after)
         return
     python = None if args.no_gaitmap else gaitmap_python()
+    if args.pyshoe_only:
+        pyshoe(python)
+        return
     through_the_command_line(args.provisional_after)
     simulator()
     gaitmap_example(python)

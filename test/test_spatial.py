@@ -24,7 +24,13 @@ from gait_biofeedback.core.calibration.windows import runs
 from gait_biofeedback.core.gait.cycles import GaitCycle
 from gait_biofeedback.core.gait.spatial import stride_space
 from gait_biofeedback.core.params import ParameterError, from_mapping
-from gait_biofeedback.core.spatial.kalman import GRAVITY, KalmanNoise, filter_recording, shock_gain
+from gait_biofeedback.core.spatial.kalman import (
+    GRAVITY,
+    FootKalman,
+    KalmanNoise,
+    filter_recording,
+    shock_gain,
+)
 from gait_biofeedback.core.spatial.smoother import rts_smooth, suh_smooth
 from gait_biofeedback.core.spatial.strides import LOST_FLAG, SpatialStride, unknown
 from gait_biofeedback.core.spatial.zero_velocity import (
@@ -127,6 +133,32 @@ def test_a_shock_inflates_the_accelerometer_noise():
     assert shock_gain(np.array([0.0, GRAVITY + 34.0, 0.0]), noise) == pytest.approx(5.0)
     assert shock_gain(np.array([3.0, 0.0, 4.0]), noise) == pytest.approx(1.0)  # 4.8 below g: no shock
     assert shock_gain(np.array([0.0, 0.0, GRAVITY + 34.0]), KalmanNoise()) == 1.0  # off by default
+
+
+def _shock_after_stance(stance_samples: int, noise: KalmanNoise) -> float:
+    """Q_vv[0, 0] of the interval after a shock sample (34 m/s² over gravity, 100 Hz), in a swing
+    that follows a stance of ``stance_samples`` samples (after a first stance and a 0.3 s swing)."""
+    rest, shock = np.array([0.0, 0.0, GRAVITY]), np.array([0.0, 0.0, GRAVITY + 34.0])
+    kf = FootKalman(noise)
+    kf.start(rest, np.zeros(3), rest)
+    labels = [True] * 9 + [False] * 30 + [True] * stance_samples + [False]
+    for zero_velocity in labels:
+        kf.update(np.zeros(3), rest, 0.01, zero_velocity)
+    kf.update(np.zeros(3), shock, 0.01, False)  # the shock acts over the next interval
+    kf.update(np.zeros(3), rest, 0.01, False)
+    return float(kf.steps[-2].q_noise[6, 6])
+
+
+def test_the_shock_noise_needs_a_stance_long_enough():
+    """shock_stance (EXT, kalman.py): after a 30 ms stance (running) the shock leaves R_a as it is,
+    Q_vv = R_a T = 1e-4 m²/s² to first order (hand number); after 100 ms it is 5 R_a T (gain
+    1 + (4 / 2)²); with shock_stance 0 also after the short one."""
+    noise = KalmanNoise(gyro=1e-12, acc=1e-2, acc_shock=30.0, shock_stance=0.05)
+    short, long = _shock_after_stance(3, noise), _shock_after_stance(10, noise)
+    assert short == pytest.approx(1e-4, rel=0.01)
+    assert long == pytest.approx(5e-4, rel=0.01)
+    always = KalmanNoise(gyro=1e-12, acc=1e-2, acc_shock=30.0, shock_stance=0.0)
+    assert _shock_after_stance(3, always) == pytest.approx(5e-4, rel=0.01)
 
 
 def test_suh_quadratic_program_equals_the_rts_pass(walk):
@@ -354,6 +386,21 @@ def test_pyshoe_running_trial_needs_the_valley_rule():
         ok = np.isfinite(p[:, 0])
         scores[valley] = _pyshoe_score(p[ok], d["gt"][ok])
     assert scores[True] <= 0.2 and scores[False] >= 1.0, scores
+
+
+@pytest.mark.realdata
+def test_pyshoe_running_trial_without_shock_noise_after_short_stances():
+    """shock_stance: the running trial 2017-11-27-11-11-53 measured 0.033 m ARMSE with the default
+    (0.05 s), 0.118 m with the shock noise in every swing (shock_stance 0)."""
+    path = shared_data("pyshoe_vicon", "2017-11-27-11-11-53.mat")
+    d = sio.loadmat(path, squeeze_me=True)
+    scores = {}
+    for shock_stance in (0.05, 0.0):
+        p = estimate_foot_trajectory(d["imu"][:, 3:6], d["imu"][:, :3], 200.0,
+                                     shock_stance=shock_stance)["position"]
+        ok = np.isfinite(p[:, 0])
+        scores[shock_stance] = _pyshoe_score(p[ok], d["gt"][ok])
+    assert scores[0.05] <= 0.066 and scores[0.0] >= 0.08, scores
 
 
 @pytest.mark.realdata

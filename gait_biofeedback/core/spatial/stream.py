@@ -106,6 +106,8 @@ class FootTrajectoryParams:
     acc_shock: float = param(30.0, "a specific force this far off gravity is a shock (heel strike): the "
                              "accelerometer's noise density grows with the excess (kalman.py)", "m/s^2",
                              low=1.0, high=1000.0)
+    shock_stance: float = param(0.05, "EXT: the shock noise only in a swing after a stance at least this "
+                                "long (not in running; kalman.py)", "s", low=0.0, high=10.0)
     bias_rest: float = param(1.0, "a first stance at least this long gives the gyro bias prior", "s",
                              low=0.1, high=120.0)
     close_after: float = param(0.05, "a stride closes once the next stance has lasted this long", "s",
@@ -130,7 +132,8 @@ class FootTrajectoryParams:
 
     @property
     def noise(self) -> KalmanNoise:
-        return KalmanNoise(gyro=self.gyro_noise, acc=self.acc_noise, acc_shock=self.acc_shock)
+        return KalmanNoise(gyro=self.gyro_noise, acc=self.acc_noise, acc_shock=self.acc_shock,
+                           shock_stance=self.shock_stance)
 
 
 class FootTrajectoryStream:
