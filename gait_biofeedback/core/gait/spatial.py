@@ -33,9 +33,9 @@ for the smoothed values as before.
 The default 15 ms puts the message 45-50 ms after the IC's raw sample entered the graph: the
 orientation filter's ``reorder_window`` (30 ms) comes before this stage. The foot trajectory, 25 ms
 behind its newest sample, is then at IC - 10 ms. Through ``analyze`` on gaitmap_example
-(``benchmarks/spatial.py --cli-only``): provisional stride length −0.4 ± 3.5 cm (mean abs 2.3 cm),
-published 49 ms after the IC; with 50 ms (filter at IC + 25 ms) −0.5 ± 3.3 cm at 83 ms; the smoothed
-values of record −0.3 ± 2.8 cm at 278-459 ms.
+(``benchmarks/spatial.py --cli-only``): provisional stride length −0.2 ± 3.8 cm (mean abs 2.5 cm),
+published 49 ms after the IC; the smoothed values of record −0.2 ± 2.9 cm at 278-459 ms (README
+*Latency* for other ``provisional_after``).
 """
 
 from __future__ import annotations

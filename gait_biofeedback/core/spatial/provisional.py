@@ -14,7 +14,7 @@ remainders there is no provisional value.
 Measured on gaitmap_example (``benchmarks/spatial.py``), against the heel marker: with the mocap IC
 and the filter at IC + 25 ms, −0.1 ± 2.6 cm on 56 strides (the smoothed value +0.1 ± 1.7 cm), within
 3.6 cm SD for an IC found 50 ms early to 100 ms late; through ``analyze`` with the detected IC and the
-filter at IC − 10 ms (the default, :mod:`gait_biofeedback.core.gait.spatial`), −0.4 ± 3.5 cm on 57.
+filter at IC − 10 ms (the default, :mod:`gait_biofeedback.core.gait.spatial`), −0.2 ± 3.8 cm on 57.
 """
 
 from __future__ import annotations
