@@ -430,38 +430,56 @@ def _score_cli(label: str, cycles: list, folder: Path) -> None:
           f"{np.median(lag):.0f} ms ({lag.min():.0f}-{lag.max():.0f}) |")
 
 
+def _against_record(published: list, of_record: list) -> str:
+    """How the provisional values among ``published`` differ from their values of record."""
+    record = {(m.side, m.stride_index): m.stride_length for m, _ in of_record}
+    d = np.array([m.stride_length - record[(m.side, m.stride_index)] for m, _ in published
+                  if m.spatial_provisional and np.isfinite(record[(m.side, m.stride_index)])]) * 100
+    if not len(d):
+        return f"0 of {len(published)} strides provisional"
+    return (f"{len(d)} of {len(published)} strides provisional, {d.mean():+.1f} ± {d.std():.1f} cm from "
+            f"their values of record (95th percentile of |difference| {np.percentile(np.abs(d), 95):.1f} cm)")
+
+
 def through_the_command_line(provisional_after: float | None = None) -> None:
     """The user's path: ``import`` → ``analyze`` → the ``gait/cycles`` messages' spatial values, as
-    published (provisional ones included) and as of record (``gait/stride_space`` applied)."""
+    published (provisional ones included) and as of record (``gait/stride_space`` applied), with the
+    provisional values' trust check (``provisional_tolerance``), and with 1 m instead."""
     print("\n## through the command line (import → analyze → /gait/cycles, /gait/stride_space)\n")
     folder = DATA / "gaitmap_example"
+    untested = "    provisional_tolerance: 1.0\n"
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         if folder.exists():
             params = f"    use_standing_reference: true\n    rate_hz: {GAITMAP_RATE_HZ}\n"
             if provisional_after is not None:
                 params += f"    provisional_after: {provisional_after}\n"
-            (tmp / "params.yaml").write_text("/**/gait_events:\n  ros__parameters:\n" + params)
             _cli("import", "gaitmap", str(folder), "-o", str(tmp / "gm"))
-            _cli("analyze", str(tmp / "gm"), "-o", str(tmp / "gm_out"), "--params", str(tmp / "params.yaml"))
-            published, of_record = _cycles(tmp / "gm_out")
             print("| values | strides | without values | stride length: mean ± SD | mean abs | gait speed: "
                   "mean ± SD | mean abs | published after the closing IC: median (range) |")
             print("|---|---|---|---|---|---|---|---|")
-            _score_cli("as published", published, folder)
-            _score_cli("provisional only", [(m, t) for m, t in published if m.spatial_provisional], folder)
+            for label, extra in (("", ""), (", tolerance 1 m", untested)):
+                (tmp / "params.yaml").write_text("/**/gait_events:\n  ros__parameters:\n" + params + extra)
+                _cli("analyze", str(tmp / "gm"), "-o", str(tmp / "gm_out"), "--params",
+                     str(tmp / "params.yaml"), "--overwrite")
+                published, of_record = _cycles(tmp / "gm_out")
+                _score_cli("as published" + label, published, folder)
+                provisional = [(m, t) for m, t in published if m.spatial_provisional]
+                _score_cli("provisional only" + label, provisional, folder)
             _score_cli("of record (smoothed)", of_record, folder)
         qmt = DATA / "qmt_fullbody" / "full_body_example_data.mat"
         if qmt.exists():
-            (tmp / "qmt.yaml").write_text("/**/gait_events:\n  ros__parameters:\n    use_standing_reference: "
-                                          "true\n")
             _cli("import", "qmt_fullbody", str(qmt), "-o", str(tmp / "qmt"))
-            _cli("analyze", str(tmp / "qmt"), "-o", str(tmp / "qmt_out"), "--params", str(tmp / "qmt.yaml"),
-                 "--calibrate-at", "75:walking")
-            cycles = [m for m, _ in _cycles(tmp / "qmt_out")[1]]
-            lengths = np.array([m.stride_length for m in cycles if not m.spatial_flag])
-            print(f"qmt_fullbody (no truth): {len(cycles)} strides, {len(cycles) - len(lengths)} flagged "
-                  f"without spatial values; stride length median {np.median(lengths):.2f} m, largest "
+            for label, extra in (("", ""), (", tolerance 1 m", untested)):
+                (tmp / "qmt.yaml").write_text("/**/gait_events:\n  ros__parameters:\n"
+                                              "    use_standing_reference: true\n" + extra)
+                _cli("analyze", str(tmp / "qmt"), "-o", str(tmp / "qmt_out"), "--params",
+                     str(tmp / "qmt.yaml"), "--calibrate-at", "75:walking", "--overwrite")
+                published, of_record = _cycles(tmp / "qmt_out")
+                print(f"qmt_fullbody{label} (no truth): " + _against_record(published, of_record))
+            lengths = np.array([m.stride_length for m, _ in of_record if not m.spatial_flag])
+            print(f"qmt_fullbody (no truth): {len(of_record)} strides, {len(of_record) - len(lengths)} "
+                  f"flagged without spatial values; stride length median {np.median(lengths):.2f} m, largest "
                   f"{lengths.max():.2f} m")
 
 

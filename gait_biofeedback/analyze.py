@@ -488,6 +488,13 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
         for text in tracker.conditions({}):
             if text.startswith(SESSION_CONDITIONS):
                 result.warnings.append(f"{seg}: over the session: {text}")
+    for side, foot in gait.feet.items():
+        rest = foot.rest_of_swing
+        if rest.withheld:
+            result.warnings.append(
+                f"{side} foot: {rest.withheld} provisional stride lengths withheld (live, those strides wait "
+                f"for their smoothed values): they differed from the smoothed ones by more than provisional_"
+                f"tolerance, {100 * rest.tolerance:g} cm RMS ({100 * rest.spread:.1f} cm at the end)")
     for until_ns, protocol in buffer.scheduled:
         at = (until_ns - start_ns) / NS_PER_S
         result.warnings.append(f"calibration ({protocol}) at {at:.2f} s never ran: "

@@ -160,3 +160,47 @@ def test_the_rest_of_the_swing_by_hand():
     rest.learn(2, np.array([2.6, 0.2, 0.0]))
     assert rest.estimate(3, np.zeros(3), np.array([0.0, 1.0, 0.0])) == pytest.approx(math.hypot(0.1, 1.3))
     assert rest.estimate(4, np.zeros(3), np.array([0.02, 0.0, 0.0])) is None  # 2 cm: no direction
+
+
+def test_provisional_lengths_are_published_only_while_they_agree_with_the_smoothed_ones():
+    """Differences 2, −3, 4 cm: RMS 3.1 cm ≤ 5 cm, trusted after three. A 12 cm miss makes it
+    √(173/4) = 6.6 cm: withheld (counted), until five agreeing strides have pushed the miss out."""
+    from gait_biofeedback.core.spatial.provisional import RestOfSwing
+
+    rest = RestOfSwing(tolerance=0.05)
+    for k, difference in enumerate((0.02, -0.03, 0.04)):
+        assert rest.offer(k, 1.0 + difference) is None and rest.withheld == 0  # not yet checked
+        rest.check(k, 1.0)
+    assert rest.spread == pytest.approx(math.sqrt((4 + 9 + 16) / 3) / 100)
+    assert rest.offer(3, 1.12) == 1.12
+    rest.check(99, 1.0)  # another swing's stride: no check
+    rest.check(3, math.nan)  # no smoothed length: no check
+    assert rest.spread == pytest.approx(math.sqrt((4 + 9 + 16) / 3) / 100)
+    rest.offer(3, 1.12)
+    rest.check(3, 1.0)
+    assert rest.spread == pytest.approx(math.sqrt((4 + 9 + 16 + 144) / 4) / 100)
+    for k in range(4, 9):
+        assert rest.offer(k, 1.0) is None
+        rest.check(k, 1.0)
+    assert rest.withheld == 5 and rest.spread == 0.0 and rest.offer(9, 1.0) == 1.0
+
+
+def test_on_the_fast_real_walk_the_provisional_lengths_are_withheld(tmp_path):
+    """qmt's 1.55 m/s walk at 100 Hz: the provisional stride lengths differ from the smoothed ones by
+    about 10 cm RMS (``benchmarks/spatial.py --cli-only``), so almost none are published; ``analyze``
+    says so per foot."""
+    from conftest import shared_data
+
+    from gait_biofeedback.analyze import analyze_recording
+    from gait_biofeedback.io.importers import import_qmt_fullbody
+    from gait_biofeedback.io.imu_bag import write_imu_bag
+
+    recording = import_qmt_fullbody(shared_data("qmt_fullbody", "full_body_example_data.mat"))
+    write_imu_bag(tmp_path / "feet", {s: recording.imu[s] for s in ("left_foot", "right_foot")})
+    result = analyze_recording(tmp_path / "feet", calibrate_at=[(75.0, "walking")])
+    cycles = [m for topic, m, _ in result.messages if topic == "/gait/cycles"]
+    assert len(cycles) >= 40
+    assert sum(m.spatial_provisional for m in cycles) <= 2
+    for side in ("left", "right"):
+        assert any(w.startswith(f"{side} foot: ") and "provisional stride lengths withheld" in w
+                   for w in result.warnings), result.warnings

@@ -119,9 +119,16 @@ class GaitEventsNode(GuardedNode):
             elif note[side]:
                 level, message = DiagnosticStatus.WARN, note[side]
                 note[side] = ""
+            extra = {"waiting_for_ic": self.detectors[side].waiting_for_ic}
+            foot = self.stream.feet.get(side)
+            if foot is not None:
+                rest = foot.rest_of_swing
+                extra["provisional_spread_m"] = rest.spread
+                if not rest.trusted and rest.withheld and level == DiagnosticStatus.OK:
+                    message = (f"detecting; provisional stride lengths withheld ({100 * rest.spread:.1f} cm "
+                               "RMS from the smoothed ones): spatial values come with the next stance")
             statuses.append(diagnostics.status(f"gait_events: {side} foot", level, message, foot_frame(side),
-                                               {**self.counts[side],
-                                                "waiting_for_ic": self.detectors[side].waiting_for_ic}))
+                                               {**self.counts[side], **extra}))
         self.publish_diagnostics(statuses)
 
 

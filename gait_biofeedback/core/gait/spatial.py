@@ -27,15 +27,16 @@ stride length (:mod:`gait_biofeedback.core.spatial.provisional`) of the swing th
 inside the IC→IC stride. With one, the stride goes out then with ``stride_length`` and ``gait_speed``
 provisional (the other values NaN), and its smoothed values follow as a *revision* once its trajectory
 stride is in, by the rules above (NaN and the flag when there is none by the deadline). Without one
-(the foot's first strides, lost samples, a swing that left before the opening IC), the stride waits
-for the smoothed values as before.
+(the foot's first strides, lost samples, a swing that left before the opening IC, estimates that
+disagreed with their smoothed values: ``provisional_tolerance``), the stride waits for the smoothed
+values as before.
 
 The default 15 ms puts the message 45-50 ms after the IC's raw sample entered the graph: the
 orientation filter's ``reorder_window`` (30 ms) comes before this stage. The foot trajectory, 25 ms
 behind its newest sample, is then at IC - 10 ms. Through ``analyze`` on gaitmap_example
-(``benchmarks/spatial.py --cli-only``): provisional stride length −0.2 ± 3.8 cm (mean abs 2.5 cm),
-published 49 ms after the IC; the smoothed values of record −0.2 ± 2.9 cm at 278-459 ms (README
-*Latency* for other ``provisional_after``).
+(``benchmarks/spatial.py --cli-only``): provisional stride length +0.2 ± 3.7 cm (mean abs 2.4 cm)
+on 51 of 61 strides, published 49 ms after the IC; the smoothed values of record −0.2 ± 2.9 cm at
+278-459 ms (README *Latency* for other ``provisional_after``).
 """
 
 from __future__ import annotations

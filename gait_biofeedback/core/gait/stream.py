@@ -118,13 +118,14 @@ class GaitEventsParams:
     min_swing: float = same_as(FootTrajectoryParams, "min_swing")
     max_swing: float = same_as(FootTrajectoryParams, "max_swing")
     toe_lever_arm: tuple[float, ...] = same_as(FootTrajectoryParams, "toe_lever_arm")
+    provisional_tolerance: float = same_as(FootTrajectoryParams, "provisional_tolerance")
 
     @property
     def foot_trajectory(self) -> FootTrajectoryParams:
         """The foot-trajectory stage's parameters (the rest at their defaults)."""
         return FootTrajectoryParams(**{f: getattr(self, f) for f in (
             "detector", "gyro_limit", "jerk_limit", "valley", "flat_floor", "bias_rest", "close_after",
-            "min_swing", "max_swing", "toe_lever_arm")})
+            "min_swing", "max_swing", "toe_lever_arm", "provisional_tolerance")})
 
     def __post_init__(self) -> None:
         require(bool(self.sides) and len(set(self.sides)) == len(self.sides),

@@ -124,6 +124,10 @@ class FootTrajectoryParams:
                                   "and to the next", "s", low=0.0, high=0.2)
     toe_lever_arm: tuple[float, ...] = param((), "toe position in the sensor frame, for the toe clearance "
                                              "(empty: unknown)", "m")
+    provisional_tolerance: float = param(0.05, "EXT: provisional stride lengths are published only while "
+                                         "they differed from the smoothed ones by at most this (RMS of the "
+                                         "foot's last 5, at least 3; core/spatial/provisional.py)", "m",
+                                         low=0.0, high=1.0)
     smoother: str = param("suh", "offline smoother over the whole recording (live strides use rts)",
                           choices=SMOOTHERS)
 
@@ -151,7 +155,7 @@ class FootTrajectoryStream:
         self._min_swing_ns = self.params.min_swing * NS_PER_S
         self._keep = round(KEEP_STANDING_S * self.rate_hz)
         self._margin = max(1, round(self.params.window * self.rate_hz / 2))  # the detector's look-ahead
-        self.rest_of_swing = RestOfSwing()
+        self.rest_of_swing = RestOfSwing(self.params.provisional_tolerance)
         self._restart()
 
     def _restart(self) -> None:
@@ -294,7 +298,8 @@ class FootTrajectoryStream:
         in its swing the forward filter's travel plus the foot's usual rest of the swing, in its next
         stance before it closes the travel to that stance. None before the filter started, between
         stances less than ``min_swing`` apart, once the stride has closed (its smoothed values are
-        out), after lost samples in the stride, or while the foot's rests are not learnt."""
+        out), after lost samples in the stride, while the foot's rests are not learnt, or while its
+        estimates are not trusted (:class:`.provisional.RestOfSwing`, ``provisional_tolerance``)."""
         if self._kf is None or self._previous is None or self._ended is not None:
             return None
         stopped = self._in_stance
@@ -306,9 +311,12 @@ class FootTrajectoryStream:
         start = np.mean([step.r for step in self._steps[a0:a1 + 1]], axis=0)
         if stopped:
             now = np.mean([step.r for step in self._steps[self._stance_start:]], axis=0)
-            return self._stamps[a1], float(np.hypot(*(now - start)[:2]))
-        length = self.rest_of_swing.estimate(self._stamps[a1], start, self._steps[-1].r)
-        return None if length is None else (self._stamps[a1], length)
+            length = float(np.hypot(*(now - start)[:2]))
+        else:
+            length = self.rest_of_swing.estimate(self._stamps[a1], start, self._steps[-1].r)
+        if length is None or (length := self.rest_of_swing.offer(self._stamps[a1], length)) is None:
+            return None
+        return self._stamps[a1], length
 
     def _close(self, last: int) -> SpatialStride:
         self._closed = True
@@ -324,6 +332,7 @@ class FootTrajectoryStream:
                                    self._numbers[a0:last + 1], self.params.toe_lever_arm or None,
                                    self.params.max_swing)
         stride = self._judge_lost(stride, a0, last)
+        self.rest_of_swing.check(self._stamps[self._previous[1]], stride.stride_length)
         self.counts["strides"] += 1
         return replace(stride, foot_off_ns=self._stamps[self._previous[1]],
                        foot_flat_ns=self._stamps[self._stance_start])
