@@ -476,6 +476,9 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
     if last_raw:
         report_status(reader.end_time_ns)
     publish_joints(joints.flush(force=True), reader.end_time_ns)
+    for cycle in gait.finish():
+        topic, msg = stride_output(cycle)
+        emit(topic.absolute(), msg, reader.end_time_ns)
     result.warnings[:0] = reader.warnings  # a damaged file, a chunk skipped: the time range lost
     for joint, (first, last) in waiting.items():
         if last - first < WAITING_WARN_NS:

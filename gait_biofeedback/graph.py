@@ -250,6 +250,10 @@ def replay_through_graph(
             return now > limit or (now > settle and (not waiting or STOP.is_set()))
 
         spin_until(graph.executor, settled)
+        if "gait_events" in graph.nodes and not interrupted:  # the strides held at the end, as analyze's
+            graph.nodes["gait_events"].finish()
+            until = time.monotonic() + 0.3
+            spin_until(graph.executor, lambda: time.monotonic() > until)
         recorder = graph.recorder
     recorded = recorder.written if recorder is not None else 0
     calibration = graph.nodes.get("calibration")

@@ -91,10 +91,18 @@ class GaitEventsNode(GuardedNode):
         events, cycles = self.stream.update(side, imu.ns, q, is_recovering(imu), gyr, acc)
         for event in events:
             self._events.publish(event_msg(event))
+        self._publish_strides(cycles)
+        log_notices(self.get_logger(), self.stream.notices.pop())
+
+    def _publish_strides(self, cycles: list) -> None:
         for cycle in cycles:
             topic, msg = stride_output(cycle)
             self._strides[topic.name].publish(msg)
-        log_notices(self.get_logger(), self.stream.notices.pop())
+
+    def finish(self) -> None:
+        """The data ended (the end of a replay): the strides still held for their spatial values go
+        out (:meth:`GaitEventStream.finish`), as ``analyze`` publishes them at the end of a file."""
+        self._publish_strides(self.stream.finish())
 
     def _check_streams(self) -> None:
         now = time.monotonic()
@@ -109,6 +117,7 @@ class GaitEventsNode(GuardedNode):
                 if not self._stopped[side]:
                     self._stopped[side] = True
                     self.stream.stream_stopped(side, now - last)
+                    self._publish_strides(self.stream.take_released(side))
                     log_notices(self.get_logger(), self.stream.notices.pop())
                 level = DiagnosticStatus.ERROR
                 message = (f"no data for {now - last:.1f} s: {side} foot state reset; check the sensor "

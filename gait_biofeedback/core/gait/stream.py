@@ -66,6 +66,7 @@ from gait_biofeedback.core.stamps import NS_PER_S
 
 FOOT_SIDES = SIDES
 RECOVERING_FLAG = "sensor dropout: orientation recovering"
+ENDED_FLAG = "the data ended before the foot's next stance: spatial values unknown"
 
 
 @dataclass(frozen=True)
@@ -225,6 +226,27 @@ class GaitEventStream:
         self.reset(side, "stream stopped")
         self.notices.say("warn", f"{side} foot: no data for {seconds:.1f} s, state reset")
 
+    def finish(self) -> list[GaitCycle]:
+        """The end of the data (``analyze``, the end of a replay): each foot's trajectory decides its
+        last samples, the strides held for their spatial values go out with those that closed, the
+        others without values (flagged), and pending revisions likewise; nothing held is dropped."""
+        for side, foot in self.feet.items():
+            for stride in foot.flush():
+                self.pairing[side].add_stride(stride)
+        out = []
+        for side in self.sides:
+            last_ns = self._last_ns[side]
+            if last_ns is not None:
+                self._release(side, self.pairing[side].due(last_ns))
+            self._release(side, self.pairing[side].release(ENDED_FLAG))
+            out += self.take_released(side)
+        return out
+
+    def take_released(self, side: str) -> list[GaitCycle]:
+        """``side``'s strides released outside :meth:`update` (a reset), to be published now."""
+        out, self._released[side] = self._released[side], []
+        return out
+
     def _release(self, side: str, decided: list) -> None:
         for cycle, space, revision in decided:
             final = "spatial_unknown" if space.flag else "spatial_strides"
@@ -240,8 +262,7 @@ class GaitEventStream:
         confirmed, the strides now complete). With ``spatial`` a stride closed by an IC comes out
         once its trajectory stride is in (:mod:`.spatial`), at most ``spatial_wait`` s later."""
         events = self._events(side, stamp_ns, q, recovering, gyr, acc)
-        out, self._released[side] = self._released[side], []
-        return events, out
+        return events, self.take_released(side)
 
     def _events(self, side: str, stamp_ns: int, q: tuple[float, float, float, float], recovering: bool,
                 gyr: tuple[float, float, float] | None, acc: tuple[float, float, float] | None
