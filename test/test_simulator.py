@@ -340,3 +340,29 @@ def test_stairs_climb_one_riser_per_step_with_labels_and_trunk_lean():
     assert lean["stairs_up"] > level + 5.0
     assert abs(z[-1] - z[0]) < 0.02  # back on the ground floor
     assert {"level", "upstairs", "downstairs", "none"} == set(np.unique(tr.locomotion))
+
+
+def test_stairs_lift_the_trunk_step_by_step_as_real_trunks():
+    # the chest's height over a steady flight = a line + one sinusoid at the step frequency (1.8 steps/s)
+    # of _STAIRS_TRUNK_LIFT (3.1 cm up, 3.6 cm down: hapt_waist σ 2.2 / 2.6 cm × √2), without the legs'
+    # harmonics (before: fundamental 1.6 cm up at the chest, harmonics 2-4 as strong in acceleration)
+    s = simulate(SCENARIOS["stairs"]().without_errors())
+    tr, cfg = s.truth, s.config
+    z = tr.segment_position["chest"][:, 2]
+    for kind, amplitude in (("stairs_up", 0.031), ("stairs_down", 0.036)):
+        t0, t1 = next((a, b) for a, b, k in tr.phases if k == kind)
+        m = (tr.t > t0 + 1.0) & (tr.t < t1 - 1.0)
+        t = tr.t[m]
+        cols = [np.ones_like(t), t]
+        for n in (1, 2, 3):
+            cols += [np.cos(2 * np.pi * n * cfg.cadence * t), np.sin(2 * np.pi * n * cfg.cadence * t)]
+        coef, *_ = np.linalg.lstsq(np.column_stack(cols), z[m], rcond=None)
+        assert abs(coef[1]) == pytest.approx(cfg.stair_height * cfg.cadence, rel=0.02)  # 0.306 m/s
+        assert np.hypot(coef[2], coef[3]) == pytest.approx(amplitude, abs=0.002)
+        assert np.hypot(coef[4], coef[5]) < 0.001 and np.hypot(coef[6], coef[7]) < 0.001
+    # the thighs still hang from the legs' hip: the pelvis-to-hip height moves by the lift correction
+    # (2.3 cm at most, with the ±0.6 cm the pelvis obliquity gives on level ground too)
+    gap = tr.segment_position["pelvis"][:, 2] - tr.segment_position["left_thigh"][:, 2]
+    level = gap[(tr.t > 6.5) & (tr.t < 8.5)]
+    assert np.max(np.abs(level - level.mean())) < 0.01
+    assert np.max(np.abs(gap - level.mean())) < 0.035

@@ -24,9 +24,12 @@ and end).
 Stairs ("stairs_up"/"stairs_down" phases, part of a walking bout): the sagittal hip/knee/foot curves blend
 (C², 0.8 s around the phase bounds) to stair gait (gait_kinematics.stairs_angles) with more pelvis tilt and
 trunk lean going up, and every IC raises (lowers) the ground under the new contact by ``stair_height``
-times the stair blend at that IC, so the pelvis climbs (descends) one step per step. READING: the treads
-are heights only (no nosing, any depth); the first and last steps of a flight are partial while the blend
-ramps.
+times the stair blend at that IC, so the pelvis climbs (descends) one step per step. On a flight the trunk
+(pelvis and chest, not the legs) then gets a height correction so that its motion at step frequency is one
+sinusoid of the amplitude real trunks show (``_STAIRS_TRUNK_LIFT``, measured on hapt_waist and UCI chest
+data) instead of the legs' smoother rise with double-support kinks. READING: the treads are heights only
+(no nosing, any depth); the first and last steps of a flight are partial while the blend ramps; the hip
+joint parts from the thigh by that correction (up to ~2 cm) on stairs.
 
 IMU signals are analytic-consistent: every quantity is a smooth (C²) function of time, evaluated at
 ``t`` and ``t ± h`` (h = 0.5 ms); gyro = rotation vector of ``q(t-h)* ⊗ q(t+h)`` / 2h (sensor frame,
@@ -71,6 +74,16 @@ _STAIRS_RAMP = 1.6  # s, blend level ↔ stair gait, centred on the phase bound
 _GAIT_RAMP = 1.0  # s, angle blend standing ↔ walking pose (frozen mid double support) at the bout ends
 _CADENCE_RAMP = 0.8  # s, cadence 0 ↔ nominal once the walking pose is reached / before it is left
 _H = 5e-4  # s, half-step of the central differences
+# The trunk's vertical motion at step frequency on stairs (amplitude of its step-frequency sinusoid, m). The
+# legs of the model lift the pelvis smoothly (fundamental 2.1 cm up, 2.7 cm down at the pelvis, 1.6 / 3.2
+# cm at the chest) with kinks at double support whose harmonics carry as much acceleration as the
+# fundamental (effective ω = √(σ_a/σ_d) 16-18 rad/s at 11.3 rad/s steps). Real trunks rise step by step with
+# the step frequency dominant: hapt_waist users 16-22 (benchmarks/activity.py data, the monitor's band:
+# signal.vertical_displacement_sections over 6 s), σ_d median 2.2 cm upstairs and 2.6 cm downstairs at ω
+# 10.9 and 11.7 rad/s (level 1.4 cm at 12.9); UCI chest subjects 1-7 stairs 2.1 cm at 10.4 rad/s. A
+# sinusoid of amplitude σ·√2 gives these σ.
+_STAIRS_TRUNK_LIFT = {"up": 0.031, "down": 0.036}
+_STAIRS_LIFT_HARMONICS = 12  # the legs' harmonics 2..12 of the step frequency are removed from the trunk
 _CONTACTS = ("left", "right", "free")
 
 # Default sensor lever arms (m, in the segment frame): lateral on thigh/shank, dorsum of the foot,
@@ -303,6 +316,51 @@ class _Plan:
         up, down = self.stairs_blend(ic)
         levels = np.concatenate([[0.0], np.cumsum(self.cfg.stair_height * (up - down))])
         return levels[np.searchsorted(ic, t, side="right")]
+
+    def step_phase(self, t: np.ndarray) -> np.ndarray:
+        """Phase of the current step (0 at each IC of either foot, 1 at the next) inside the walking bouts;
+        0 outside them."""
+        t = np.asarray(t, dtype=float)
+        out = np.zeros_like(t)
+        for t0, t1, ts, tf in self.stepping:
+            sel = (t >= t0) & (t < t1)
+            out[sel] = np.mod(2.0 * self.gait_phase(t[sel], ts, tf), 1.0)
+        return out
+
+    def trunk_lift(self, t: np.ndarray, chest_z: np.ndarray) -> list[tuple[float, float, np.ndarray]]:
+        """Per stairs flight (start, end, coefficients): what to add to the trunk's height so that its
+        step-frequency motion is one sinusoid of ``_STAIRS_TRUNK_LIFT`` (phase of the legs' own
+        fundamental) instead of the legs' (see there). Fitted on the samples ``t`` (the chest heights
+        ``chest_z`` the legs give) where the flight's blend is full: height = a + b·t + Σₙ cₙ cos 2πnψ +
+        sₙ sin 2πnψ (ψ: step phase, n up to ``_STAIRS_LIFT_HARMONICS`` below 0.45 × the sample rate)."""
+        lifts = []
+        harmonics = min(_STAIRS_LIFT_HARMONICS, int(0.45 * self.cfg.rate_hz / self.cfg.cadence))
+        for a, b, direction in self.stairs:
+            sel = (t >= a + 0.5 * _STAIRS_RAMP) & (t <= b - 0.5 * _STAIRS_RAMP)
+            if harmonics < 1 or np.count_nonzero(sel) < 2 * harmonics + 3:
+                continue
+            basis = self._lift_basis(t[sel], harmonics)
+            design = np.column_stack([np.ones(np.count_nonzero(sel)), t[sel], basis])
+            coef = np.linalg.lstsq(design, chest_z[sel], rcond=None)[0][2:]
+            fundamental = np.hypot(coef[0], coef[1])
+            target = np.zeros_like(coef)
+            if fundamental > 0:
+                target[:2] = coef[:2] * _STAIRS_TRUNK_LIFT[direction] / fundamental
+            lifts.append((a, b, target - coef))
+        return lifts
+
+    def _lift_basis(self, t: np.ndarray, harmonics: int) -> np.ndarray:
+        psi = 2.0 * np.pi * self.step_phase(t)
+        return np.column_stack([f(n * psi) for n in range(1, harmonics + 1) for f in (np.cos, np.sin)])
+
+    def lift_height(self, t: np.ndarray, lifts: list[tuple[float, float, np.ndarray]]) -> np.ndarray:
+        """Height (m) added to the trunk at ``t``: each flight's correction times its stairs blend."""
+        t = np.asarray(t, dtype=float)
+        out = np.zeros_like(t)
+        for a, b, delta in lifts:
+            blend = smootherstep((t - a) / _STAIRS_RAMP + 0.5) * smootherstep((b - t) / _STAIRS_RAMP + 0.5)
+            out += blend * (self._lift_basis(t, len(delta) // 2) @ delta)
+        return out
 
     def gait_phase(self, t: np.ndarray, ts: float, tf: float) -> np.ndarray:
         """Left gait phase of a bout: frozen at mid double support, C² cadence ramps at ts and tf."""
@@ -656,6 +714,12 @@ def simulate(config: SimulationConfig) -> SimulatedSession:
     n = int(np.floor(sum(p.duration for p in cfg.phases) * cfg.rate_hz + 1e-9))
     t = np.arange(n) / cfg.rate_hz
     plan, (b0, bm, bp), (p0, pm, pp) = _kinematics(cfg, pattern, t, (0.0, -_H, _H))
+    # on stairs the trunk (pelvis, chest) rises step by step as real trunks do (_STAIRS_TRUNK_LIFT); the legs
+    # hang from the pelvis the legs' geometry gives, so the feet stay pinned
+    lifts = plan.trunk_lift(t, p0[:, 2] + b0.points["chest"][:, 2]) if plan.stairs else []
+    trunk = [p.copy() for p in (p0, pm, pp)]
+    for p, dt in zip(trunk, (0.0, -_H, _H), strict=True):
+        p[:, 2] += plan.lift_height(t + dt, lifts)
     mounting = _mountings(cfg, rng)
     levers = {s: np.asarray((cfg.lever_arms or {}).get(s, _LEVER_ARMS[s]), dtype=float) for s in SEGMENTS}
     mag_world = cfg.mag_field * np.array([0.0, np.cos(cfg.mag_inclination), -np.sin(cfg.mag_inclination)])
@@ -666,10 +730,11 @@ def simulate(config: SimulationConfig) -> SimulatedSession:
         seg_rng = np.random.default_rng([cfg.seed, SEGMENTS.index(seg), 1])
         r_conj = quat.conjugate(mounting[seg])
         qs = [quat.multiply(b.orientation[seg], r_conj) for b in (b0, bm, bp)]
+        pelvis = trunk if seg in ("pelvis", "chest") else (p0, pm, pp)
         ps = [pel + b.points[seg] + quat.rotate(b.orientation[seg], levers[seg])
-              for pel, b in ((p0, b0), (pm, bm), (pp, bp))]
+              for pel, b in zip(pelvis, (b0, bm, bp), strict=True)]
         seg_q[seg], sen_q[seg] = b0.orientation[seg], qs[0]
-        seg_p[seg], sen_p[seg] = p0 + b0.points[seg], ps[0]
+        seg_p[seg], sen_p[seg] = pelvis[0] + b0.points[seg], ps[0]
         gyr = quat.as_rotvec(quat.multiply(quat.conjugate(qs[1]), qs[2])) / (2 * _H)
         acc_world = (ps[2] - 2.0 * ps[0] + ps[1]) / _H**2 + np.array([0.0, 0.0, GRAVITY])
         acc = quat.rotate_inverse(qs[0], acc_world)
