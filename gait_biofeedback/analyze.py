@@ -269,7 +269,7 @@ def _calibrate_ahead(bag: str | Path, request: tuple[float, str], stages: dict[s
         raw_topics, mag_topics = _raw_topics(reader, bag)
         trackers = {seg: o_params.tracker(seg) for seg in o_params.segments if seg in raw_topics}
         until_ns = reader.start_time_ns + round(request[0] * NS_PER_S)
-        buffer.schedule(until_ns, request[1])
+        buffer.schedule(until_ns, request[1], shorter_standing=True)  # a recording of another lab
         segment_of = {topic: seg for seg, topic in raw_topics.items()}
         mag_of = {topic: seg for seg, topic in mag_topics.items()}
 

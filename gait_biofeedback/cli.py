@@ -205,8 +205,11 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
     params = _session_parameters(args.params)
     calibration = stage_parameters("calibration", params.get("calibration", {}))
-    requests, notes = resolve_calibrate_at(args.bag, _calibration_options(args, params),
-                                           calibration.default_standing_duration)
+    asked = _calibration_options(args, params)
+    requests, notes = resolve_calibrate_at(args.bag, asked, calibration.default_standing_duration)
+    # auto's requests may take a shorter standing (core/calibration/windows.py), as analyze's do
+    requests = [(t, protocol, {"shorter_standing": True}) if when is None else (t, protocol)
+                for (t, protocol), (when, _) in zip(requests, asked, strict=True)]
     for note in notes:
         print(note)
     with BagReader(args.bag) as reader:

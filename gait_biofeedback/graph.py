@@ -202,14 +202,14 @@ def replay_through_graph(
     progress: Callable[[int], None] | None = None,
     node_parameters: dict[str, dict] | None = None,
     actions: Sequence[Action] = (),
-    calibrate_at: Sequence[tuple[float, str]] = (),
+    calibrate_at: Sequence[tuple[float, str] | tuple[float, str, dict]] = (),
 ) -> ReplayResult:
     """Replay ``bag`` through the processing ``nodes`` (default: all that exist) and record every
     topic to ``output`` (None: no recording). ``actions`` run on the executor thread when the replay
     reaches their time (e.g. the clinician pressing "calibrate"). ``calibrate_at``: (s into the
-    recording, protocol) requests to the calibration node, on the window ending at that sample stamp
-    (the same samples as ``analyze --calibrate-at``, whatever the speed). Returns when
-    the replay has ended and the graph has settled; ``timeout`` (s) bounds the whole run
+    recording, protocol[, options of ``calibrate_at``]) requests to the calibration node, on the window
+    ending at that sample stamp (the same samples as ``analyze --calibrate-at``, whatever the speed).
+    Returns when the replay has ended and the graph has settled; ``timeout`` (s) bounds the whole run
     (TimeoutError).
 
     The replayer publishes ``/clock`` and every node runs with ``use_sim_time``: the recording's
@@ -217,8 +217,9 @@ def replay_through_graph(
     t0 = time.monotonic()
     with BagReader(bag) as reader:
         start_ns = reader.start_time_ns
-    for t, protocol in calibrate_at:
-        actions = [*actions, (t, _calibration_request(start_ns + round(t * 1e9), protocol))]
+    for t, protocol, *options in calibrate_at:
+        press = _calibration_request(start_ns + round(t * 1e9), protocol, **(options[0] if options else {}))
+        actions = [*actions, (t, press)]
     with running_graph(nodes, output, node_parameters, use_sim_time=True) as graph:
         replayer = graph.add(ImuReplayer(
             graph.context, bag=str(bag), speed=float(speed), start_offset=float(start_offset),
@@ -280,10 +281,11 @@ def _raw_lost(sent: dict[str, int], orientation: Node | None) -> dict[str, tuple
 SETTLE_MAX_S = 10.0
 
 
-def _calibration_request(stamp_ns: int, protocol: str) -> Callable[[dict[str, Node]], None]:
+def _calibration_request(stamp_ns: int, protocol: str, **options: object
+                         ) -> Callable[[dict[str, Node]], None]:
     def press(nodes: dict[str, Node]) -> None:
         if "calibration" in nodes:
-            nodes["calibration"].calibrate_at(stamp_ns, protocol)
+            nodes["calibration"].calibrate_at(stamp_ns, protocol, **options)
 
     return press
 

@@ -387,3 +387,47 @@ def test_calibration_file_is_written_atomically_and_checked_on_load(tmp_path):
     path.write_text(text.replace("- 1.0\n", "- .nan\n", 1))
     with pytest.raises(ValueError, match="no valid rotation for pelvis"):
         read_calibration_file(path, segments)
+
+
+@pytest.mark.parametrize(("kept_s", "shorter"), [(1.2, True), (0.4, None)])
+def test_a_short_standing_before_the_walk_is_taken_and_said(walking, kept_s, shorter):
+    """The recording cut to start ``kept_s`` s before the walk's onset: offline (``shorter_standing``)
+    1.2 s of standing is taken (less its 0.25 s onset), shorter than the 3 s asked, and 0.4 s is
+    refused; live both are refused."""
+    from gait_biofeedback.core.calibration.windows import ONSET_S
+
+    data, _ = _inputs(walking)
+    _, (walk_start, _) = find_standing_then_motion(data)
+    first = walk_start + ONSET_S - kept_s
+    cut = {k: ImuSeries(k, s.t[s.t >= first], s.acc[s.t >= first], s.gyr[s.t >= first])
+           for k, s in data.items()}
+    if shorter is None:
+        with pytest.raises(ValueError, match="no quiet standing of 3 s"):
+            find_standing_then_motion(cut, shorter_standing=True)
+        return
+    with pytest.raises(ValueError, match="no quiet standing of 3 s"):
+        find_standing_then_motion(cut)  # a live press: stand again
+    standing, motion = find_standing_then_motion(cut, shorter_standing=True)
+    assert standing[1] == pytest.approx(walk_start, abs=0.011) and motion[0] == standing[1]
+    assert 0.7 < standing[1] - standing[0] <= kept_s - ONSET_S + 0.011
+
+
+@pytest.mark.parametrize("trial", ["1-6", "7-6"])
+def test_ipol_standing_ends_before_the_walk_starts(trial):
+    """ipol_gait (Xsens MTw, real biases): the still run's end is the walk's onset (right foot, hand-
+    measured RMS about the mean over the run's last 3 s: 1-6 3.7 °/s, 7-6 7.3 °/s; without the last
+    0.2 s 0.3 and 0.35 °/s); the window found leaves it out, so both feet pass the 4.6 °/s standing
+    check and calibrate."""
+    from conftest import shared_data
+
+    from gait_biofeedback.core.calibration.sensor_to_segment import standing_check
+    from gait_biofeedback.io.importers import import_recording
+
+    rec = import_recording("ipol_gait", shared_data("ipol_gait", f"{trial}.json"))
+    standing, motion = find_standing_then_motion(rec.imu)
+    for segment in ("left_foot", "right_foot"):
+        s = rec.imu[segment]
+        window = (s.t >= standing[0]) & (s.t <= standing[1])
+        assert np.degrees(standing_check(segment, s.acc[window], s.gyr[window])[0]) < 0.8
+    cal = calibrate_session({k: rec.imu[k] for k in ("left_foot", "right_foot")}, standing, motion, "walking")
+    assert cal.segments["left_foot"].valid and cal.segments["right_foot"].valid, cal.message

@@ -33,7 +33,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from gait_biofeedback.core.calibration.windows import common_still, moving_mean, moving_std, runs
+from gait_biofeedback.core.calibration.windows import (
+    MIN_STANDING_S,
+    common_still,
+    moving_mean,
+    moving_std,
+    runs,
+    standing_runs,
+)
 from gait_biofeedback.core.segments import SIDES, ImuSeries
 
 ACTIVE_RATE = 0.5  # rad/s, 1 s mean angular rate of an active sensor
@@ -155,26 +162,30 @@ def find_calibration(data: dict[str, ImuSeries], standing_duration: float = 3.0,
                      max_motion: float = 60.0, end_still: float = 3.0, max_walk: float = 20.0
                      ) -> tuple[tuple[float, float], tuple[float, float], ProtocolCheck]:
     """(standing, motion, what the motion looks like) of the first calibration in a whole recording
-    (``analyze --calibrate-at auto``): a quiet standing of ``standing_duration`` s (the last seconds of
-    a still run that long), then at least ``min_motion`` s of movement up to the next still run of
-    ``end_still`` s (at most ``max_motion`` s), that :func:`check_protocol` recognises and during which
-    every segment stays within ``MAX_UPRIGHT_TILT`` of its standing attitude (:func:`upright_tilt`:
-    sitting is not standing). A walk is cut to its first ``max_walk`` s (ample for the protocol's 8
-    steps, and the calibration is then in force for the rest of it). ValueError saying what was looked
-    for when nothing qualifies."""
+    (``analyze --calibrate-at auto``): a quiet standing of ``standing_duration`` s (the last seconds of a
+    still run that long, without its onset; else the longest shorter one of at least 0.5 s, as
+    :func:`~.windows.find_standing_then_motion` does with ``shorter_standing``), then at least
+    ``min_motion`` s of movement up to the next still run of ``end_still`` s (at most ``max_motion`` s),
+    that :func:`check_protocol` recognises and during which every segment stays within
+    ``MAX_UPRIGHT_TILT`` of its standing attitude (:func:`upright_tilt`: sitting is not standing). A walk
+    is cut to its first ``max_walk`` s (ample for the protocol's 8 steps, and the calibration is then in
+    force for the rest of it). ValueError saying what was looked for when nothing qualifies."""
     t, still, ref = common_still(data)
     rate = ref.rate_hz
     still_runs = runs(still)
+    quiet = standing_runs(t, still)
     tried = []
-    for a, b in still_runs:
-        if t[b - 1] - t[a] < standing_duration - 1e-9 or b >= len(t):
+    long_enough = [(a, b) for a, b in quiet if b - a >= standing_duration - 1e-9]
+    shorter = sorted((r for r in quiet if MIN_STANDING_S <= r[1] - r[0] < standing_duration - 1e-9),
+                     key=lambda r: r[0] - r[1])  # the longest first (windows.py: the fallback)
+    for a, start in long_enough + shorter:
+        if start >= t[-1] - 1e-9:
             continue
-        start = float(t[b - 1])
-        later = [c for c, e in still_runs if c >= b and (e - c) / rate >= end_still]
+        later = [c for c, e in still_runs if t[c] > start and (e - c) / rate >= end_still]
         end = min(float(t[later[0]]) if later else float(t[-1]), start + max_motion)
         if end - start < min_motion:
             continue
-        standing, motion = (start - standing_duration, start), (start, end)
+        standing, motion = (max(a, start - standing_duration), start), (start, end)
         check = check_protocol(data, motion)
         tilt = upright_tilt(data, standing, motion)
         worst = max(tilt, key=tilt.get) if tilt else None

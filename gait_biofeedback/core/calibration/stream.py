@@ -87,8 +87,9 @@ class CalibrationParams:
                                      "(only when it is this patient's: that is not checked)")
     calibration_file: str = param("", "a calibration.yaml (e.g. this patient's earlier session) in force "
                                   "from the start ('' = none; overrides reload_calibration)")
-    default_standing_duration: float = param(3.0, "quiet standing a request needs when it names none", "s",
-                                             low=0.5, high=30.0)
+    default_standing_duration: float = param(3.0, "quiet standing a request needs when it names none "
+                                             "(offline auto: none that long, the longest of at least 0.5 s, "
+                                             "said in the result)", "s", low=0.2, high=30.0)
     apply_delay: float = param(0.5, "a result is in force from this long after the newest sample used "
                                "(time for every consumer to receive it)", "s", low=0.01, high=10.0)
 
@@ -192,7 +193,8 @@ class CalibrationBuffer:
         return data, ori
 
     def calibrate(self, protocol: str, standing_duration: float = 0.0, motion_duration: float = 0.0,
-                  segments: Sequence[str] | None = None, until_ns: int | None = None) -> CalibrationAttempt:
+                  segments: Sequence[str] | None = None, until_ns: int | None = None,
+                  shorter_standing: bool = False) -> CalibrationAttempt:
         """Run ``protocol`` (or ``"auto"``: the one the movement shows) on the window ending at
         ``until_ns`` (see class docstring); refusals carry a message saying what to do, and that the
         previous calibration stays in force. Without ``segments`` named, the segments that sent data
@@ -219,13 +221,18 @@ class CalibrationBuffer:
         end_ns = until_ns if until_ns is not None else max(self._newest_ns[s] for s in data)
         try:
             standing, motion = find_standing_then_motion(
-                data, standing_duration or self.default_standing, motion_duration)
+                data, standing_duration or self.default_standing, motion_duration,
+                shorter_standing=shorter_standing)
         except ValueError as exc:
             return CalibrationAttempt(protocol, False, f"{exc}; previous calibration stays in force",
                                       until_ns=end_ns)
         cal = calibrate_session(data, standing, motion, protocol, orientations=ori,
                                 common_heading=not self.six_d)
         message = cal.message + (f"; no data from {', '.join(silent)} (not calibrated)" if silent else "")
+        asked = standing_duration or self.default_standing
+        if standing[1] - standing[0] < asked - 1e-6:
+            message += (f"; the quiet standing lasted only {standing[1] - standing[0]:.1f} s (asked "
+                        f"{asked:g} s): for a surer calibration stand still longer")
         return CalibrationAttempt(cal.protocol, cal.success, message, cal, end_ns,
                                   end_ns + self.apply_delay_ns, cal.looks_like)
 

@@ -8,6 +8,18 @@ when, on every segment, the 0.5 s moving mean of the gyro norm is below ``gyro_t
 window is the last ``standing_duration`` s of the last still run of at least that length that is
 followed by at least ``min_motion`` s of movement; the motion window runs from the end of that run
 to the end of the recording (trailing standing adds near-zero rates, harmless to the PCA).
+
+Issue 15 (real sensors, through ``analyze --calibrate-at auto``): a still run ends while the
+centred 0.5 s statistics still average the first movement in, so its last part is the movement's
+onset, a weight shift before the first step (the standing check, RMS about the mean, refuses above
+4.6 °/s). On ipol_gait 1-6 the right foot's last 3 s of the run have 3.7 °/s, 0.3 °/s without the
+last 0.1 s; on 7-6 6.6 °/s without the last 0.1 s, 1.3 °/s without 0.15 s, 0.35 °/s without 0.2 s.
+The standing window therefore ends ``ONSET_S`` before the run does: half the statistics' window,
+0.25 s, the farthest they look ahead. When no run is long
+enough and the request allows it (``analyze`` / ``replay --calibrate-at auto`` on a recording of
+another lab), the longest run of at least ``MIN_STANDING_S`` (0.5 s) followed by movement is taken
+instead, shorter than asked (the result says so): a walk that starts after a short standing is
+calibrated, the quietness of that standing still checked (:func:`~.sensor_to_segment.standing_check`).
 """
 
 from __future__ import annotations
@@ -19,6 +31,8 @@ from gait_biofeedback.core.segments import ImuSeries
 GYRO_STILL = 0.2  # rad/s, moving mean of |ω|
 ACC_STILL = 0.3  # m/s², moving std of |a|
 STILL_WINDOW = 0.5  # s
+ONSET_S = STILL_WINDOW / 2  # s: the end of a still run left out of the standing (the movement's onset)
+MIN_STANDING_S = 0.5  # s: the shortest standing taken when none is as long as asked
 
 
 def moving_mean(x: np.ndarray, n: int) -> np.ndarray:
@@ -75,29 +89,49 @@ def find_standing_then_motion(
     standing_duration: float = 3.0,
     motion_duration: float = 0.0,
     min_motion: float = 2.0,
+    shorter_standing: bool = False,
 ) -> tuple[tuple[float, float], tuple[float, float]]:
     """((t0, t1) standing, (t0, t1) motion) of the protocol just performed (module docstring).
 
     Raises ValueError with a message a clinician can act on when the recording has no such pattern.
-    ``motion_duration`` > 0: at least that many seconds must follow the standing.
+    ``motion_duration`` > 0: at least that many seconds must follow the standing. ``shorter_standing``:
+    without a standing that long, the longest of at least ``MIN_STANDING_S`` (offline ``auto`` only:
+    live, the clinician can have the patient stand again, and a pause between hip flexions must not
+    pass for standing).
     """
     t, still, ref = common_still(data)
     need_motion = max(min_motion, motion_duration)
-    long_enough = [(a, b) for a, b in runs(still) if t[b - 1] - t[a] >= standing_duration - 1e-9]
-    if not long_enough:
-        longest = max((t[b - 1] - t[a] for a, b in runs(still)), default=0.0)
+    quiet = standing_runs(t, still)
+    long_enough = [(a, b) for a, b in quiet if b - a >= standing_duration - 1e-9]
+    moving_after = [(a, b) for a, b in long_enough if np.sum(~still[np.searchsorted(t, b):]) / ref.rate_hz
+                    >= min_motion]
+    if not moving_after and shorter_standing:  # the longest shorter one followed by movement
+        shorter = [(a, b) for a, b in quiet if b - a >= MIN_STANDING_S
+                   and np.sum(~still[np.searchsorted(t, b):]) / ref.rate_hz >= min_motion]
+        moving_after = [max(shorter, key=lambda r: r[1] - r[0])] if shorter else []
+    if not moving_after and not long_enough:
+        longest = max((b - a for a, b in quiet), default=0.0)
         raise ValueError(f"no quiet standing of {standing_duration:g} s found in the last "
                          f"{t[-1] - t[0]:.0f} s (the longest: {longest:.1f} s): "
                          "ask the subject to stand still, then repeat the movements and calibrate (a "
                          "recording with a shorter standing: lower the calibration parameter "
                          "default_standing_duration)")
-    moving_after = [(a, b) for a, b in long_enough if np.sum(~still[b:]) / ref.rate_hz >= min_motion]
     if not moving_after:
         raise ValueError("no movement after the quiet standing: do the calibration movements "
                          "(hip flexion/extension or straight walking) before pressing Calibrate")
-    _, b = moving_after[-1]
-    t_end_stand = float(t[b - 1])
+    a, t_end_stand = moving_after[-1]
     if t[-1] - t_end_stand < need_motion:
         raise ValueError(f"only {t[-1] - t_end_stand:.1f} s of movement after the quiet standing, "
                          f"need {need_motion:g} s")
-    return (t_end_stand - standing_duration, t_end_stand), (t_end_stand, float(t[-1]))
+    return (max(a, t_end_stand - standing_duration), t_end_stand), (t_end_stand, float(t[-1]))
+
+
+def standing_runs(t: np.ndarray, still: np.ndarray) -> list[tuple[float, float]]:
+    """(start, end) s of the still runs of ``still`` (on times ``t``) that can be standing: each
+    ends ``ONSET_S`` before its last still sample when movement follows (module docstring)."""
+    out = []
+    for a, b in runs(still):
+        end = float(t[b - 1]) - (ONSET_S if b < len(t) else 0.0)
+        if end > t[a]:
+            out.append((float(t[a]), end))
+    return out
