@@ -1,7 +1,8 @@
 """Chest activity monitor (gait_biofeedback.core.activity.monitor) against real and simulated data.
 
 Run: ``.venv/bin/python benchmarks/activity.py`` (about 25 s; ``--rates``: only the HAPT table, with
-the phone resampled to 20, 50, 100 and 200 Hz). Prints tables for
+the phone resampled to 20, 50, 100 and 200 Hz; ``--cli``: only the HAPT table, each recording through
+``import csv`` → ``analyze``, about 3 min). Prints tables for
 - UCI "Activity Recognition from a Single Chest-Mounted Accelerometer" (Casale, Pujol, Radeva 2011;
   CC BY 4.0): per-window posture / locomotion accuracy, confusion matrix, sit→stand detection, split
   into development subjects 1–7 (all thresholds chosen there) and held-out 8–15, next to the goals;
@@ -34,7 +35,8 @@ from gait_biofeedback.batch import (
     simulate,
 )
 
-DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+REPO = Path(__file__).resolve().parents[1]
+DATA = REPO.parent / "shared" / "data"
 UCI_RATE = 52.0
 WINDOW_S = 5.0
 # UCI raw counts: a 12-bit ADC (values 0…4095 seen); the zero-g offset is taken as mid-scale 2048.
@@ -210,10 +212,45 @@ HAPT_GOALS = {"lying vs upright": 0.97, "walking vs static": 0.97, "sitting vs s
               "transitions found": 0.90}  # issue 15
 
 
-def hapt(rate_hz: float = HAPT_RATE, no_gyro: bool = False) -> None:
+HAPT_MAPPING = ("units: {acc: g, gyr: rad/s}\n"
+                "pelvis: {acc: [acc-x, acc-y, acc-z], gyr: [gyro-x, gyro-y, gyro-z]}\n")
+HAPT_PARAMS = "activity_monitor:\n  ros__parameters:\n    segment: pelvis\n    placement: pelvis\n"
+
+
+def _hapt_cli(path: str, n: int, work: Path) -> dict:
+    """One HAPT recording the user's way: ``import csv`` (a mapping, ``--rate 50``) → ``analyze
+    --params`` (the monitor on the pelvis) → ``/activity/state`` as per-sample arrays (each state in
+    force from the sample it describes) and the transitions it reports."""
+    import subprocess
+
+    from gait_biofeedback.io.bag_reader import BagReader
+    from gait_biofeedback.wire.activity import TRANSITION_NAMES, add_transition, state_of
+
+    (work / "map.yaml").write_text(HAPT_MAPPING)
+    (work / "params.yaml").write_text(HAPT_PARAMS)
+    cli = [str(REPO / ".venv" / "bin" / "python"), "-m", "gait_biofeedback.cli"]
+    subprocess.run([*cli, "import", "csv", path, "--mapping", str(work / "map.yaml"), "--rate",
+                    str(HAPT_RATE), "-o", str(work / "in")], check=True, capture_output=True)
+    subprocess.run([*cli, "analyze", str(work / "in"), "-o", str(work / "out"), "--params",
+                    str(work / "params.yaml"), "--overwrite"], check=True, capture_output=True)
+    messages = [m for _, m, _ in BagReader(work / "out").messages(["/activity/state"])]
+    subprocess.run(["rm", "-rf", str(work / "in"), str(work / "out")], check=True)
+    states, marks = [state_of(m) for m in messages], []
+    for m in messages:
+        add_transition(marks, m)
+    stamps = np.array([s["stamp_ns"] for s in states], dtype=np.int64)
+    k = np.searchsorted(stamps, seconds_to_ns(np.arange(n) / HAPT_RATE), side="right") - 1
+    posture = np.array([s["posture"] for s in states] + ["unknown"])[k]
+    locomotion = np.array([s["locomotion"] for s in states] + ["none"])[k]
+    transitions = [(stamp_ns / 1e9, TRANSITION_NAMES[code]) for stamp_ns, code in marks]
+    return {"posture": posture, "locomotion": locomotion, "transitions": transitions, "reference": [(0, "")]}
+
+
+def hapt(rate_hz: float = HAPT_RATE, no_gyro: bool = False, cli: bool = False) -> None:
     """UCI HAPT waist phone (Reyes-Ortiz et al.; CC BY 4.0), users 16-30: per-sample scores, transitions.
     ``rate_hz`` other than the phone's 50 Hz: the IMU resampled (``_resample``), each label taken from
-    the original sample nearest in time (issue 15 item 5). ``no_gyro``: the accelerometer alone."""
+    the original sample nearest in time (issue 15 item 5). ``no_gyro``: the accelerometer alone.
+    ``cli``: through ``import`` → ``analyze`` (:func:`_hapt_cli`) instead of ``classify_activity``."""
     files = sorted(glob.glob(str(DATA / "hapt_waist" / "user*_run*.csv.gz")))
     if not files:
         print("[skip] hapt_waist missing")
@@ -221,7 +258,12 @@ def hapt(rate_hz: float = HAPT_RATE, no_gyro: bool = False) -> None:
     print(f"\n== HAPT waist phone (Reyes-Ortiz et al.), {len(files)} recordings of users 16-30, "
           f"{rate_hz:g} Hz{'' if rate_hz == HAPT_RATE else ' (resampled from 50 Hz)'}, "
           f"{'accelerometer only' if no_gyro else 'accelerometer and gyro'}, placement=pelvis, nothing "
-          "handed (automatic reference, initial posture standing) ==")
+          "handed (automatic reference, initial posture standing)"
+          + (", through import -> analyze" if cli else "") + " ==")
+    if cli:
+        import tempfile
+
+        work = Path(tempfile.mkdtemp())
     hits = {name: [0, 0] for name in HAPT_GOALS if name != "transitions found"}
     per_kind = {kind: [0, 0] for kind in HAPT_TRANSITIONS.values()}
     false, hours, replaced = 0, 0.0, 0
@@ -235,10 +277,13 @@ def hapt(rate_hz: float = HAPT_RATE, no_gyro: bool = False) -> None:
             t0 = np.arange(len(raw)) / HAPT_RATE
             t, imu = resample(t0, imu, HAPT_RATE, rate_hz)
             label = label[np.minimum(np.round(t * HAPT_RATE).astype(int), len(label) - 1)]
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", UnitMismatchWarning)
-            out = classify_activity(imu[:, :3], rate_hz, units="g", placement="pelvis",
-                                    gyro=None if no_gyro else imu[:, 3:])
+        if cli:
+            out = _hapt_cli(path, len(label), work)
+        else:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", UnitMismatchWarning)
+                out = classify_activity(imu[:, :3], rate_hz, units="g", placement="pelvis",
+                                        gyro=None if no_gyro else imu[:, 3:])
         posture, moving = out["posture"], out["locomotion"] != "none"
         stairs = np.isin(out["locomotion"], ["upstairs", "downstairs"])
         activity = np.isin(label, [1, 2, 3, 4, 5, 6])
@@ -428,6 +473,9 @@ def cost() -> None:
 def main() -> None:
     import sys
 
+    if "--cli" in sys.argv:  # the user's path on the waist phone
+        hapt(cli=True)
+        return
     if "--rates" in sys.argv:  # issue 15 item 5: the waist phone at other rates
         for rate in (20.0, 50.0, 100.0, 200.0):
             hapt(rate)

@@ -196,6 +196,10 @@ class _ActivityRun:
             out.append(activity_msg(state, stamp_ns, self.segment))
         return out
 
+    def finish(self) -> list[Any]:
+        """The end of the recording: the states the stream still held (:meth:`ActivityStream.finish`)."""
+        return [activity_msg(state, self._newest_ns, self.segment) for state in self.stream.finish()]
+
     def update_thigh(self, segment: str, raw: Stamped) -> list[Any]:
         """A thigh sample (``ActivityParams.thighs``): the trunk states it released."""
         stamp_ns, _, acc = raw_sample(raw)
@@ -479,6 +483,8 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
     for cycle in gait.finish():
         topic, msg = stride_output(cycle)
         emit(topic.absolute(), msg, reader.end_time_ns)
+    for state in activity.finish() if activity is not None else []:
+        emit(topics.ACTIVITY.absolute(), state, reader.end_time_ns)
     result.warnings[:0] = reader.warnings  # a damaged file, a chunk skipped: the time range lost
     for joint, (first, last) in waiting.items():
         if last - first < WAITING_WARN_NS:

@@ -251,8 +251,10 @@ def replay_through_graph(
             return now > limit or (now > settle and (not waiting or STOP.is_set()))
 
         spin_until(graph.executor, settled)
-        if "gait_events" in graph.nodes and not interrupted:  # the strides held at the end, as analyze's
-            graph.nodes["gait_events"].finish()
+        finishing = [graph.nodes[n] for n in ("gait_events", "activity_monitor") if n in graph.nodes]
+        if finishing and not interrupted:  # what the streams hold at the end goes out, as analyze's does
+            for node in finishing:
+                node.finish()
             until = time.monotonic() + 0.3
             spin_until(graph.executor, lambda: time.monotonic() > until)
         recorder = graph.recorder

@@ -800,3 +800,32 @@ def test_simulated_stairs_trunk_reads_downstairs_from_its_step_by_step_lift() ->
     assert np.mean(got[down] == "downstairs") > 0.6
     assert np.mean(got[truth.locomotion == "level"] == "level") > 0.7
     assert not np.any(got[down] == "upstairs")
+
+
+def test_the_states_held_at_the_end_of_the_data_go_out():
+    """The simulated activity session cut 3 s after its last transition (sit→stand at 67.75 s): the
+    monitor's 3 s delay line still holds it when the data ends; ``finish`` releases it."""
+    from gait_biofeedback.core.activity.stream import ActivityParams, ActivityStream
+    from gait_biofeedback.sim.simulator import SCENARIOS, simulate
+
+    session = simulate(SCENARIOS["activity"]())
+    chest = session.imu["chest"]
+    keep = chest.t <= session.truth.transitions[-1][0] + 3.0
+    stream = ActivityStream(ActivityParams(rate_hz=RATE))
+    seen: list[tuple[str, int]] = []
+
+    def note(state) -> None:
+        if state is None or not state.last_transition:
+            return
+        if not seen or seen[-1][1] != state.last_transition_ns:
+            seen.append((state.last_transition, state.last_transition_ns))
+
+    stamps = [s_to_ns(t) for t in chest.t[keep]]
+    for stamp, acc, gyr in zip(stamps, chest.acc[keep], chest.gyr[keep], strict=True):
+        note(stream.update(stamp, acc, gyr)[0])
+    truth = [kind for _, kind in session.truth.transitions]
+    assert [kind for kind, _ in seen] == truth[:-1]
+    for state in stream.finish():
+        note(state)
+    assert [kind for kind, _ in seen] == truth
+    assert abs(seen[-1][1] * 1e-9 - session.truth.transitions[-1][0]) < 0.5

@@ -352,3 +352,23 @@ def test_the_html_renders_in_headless_chromium(reported, tmp_path):
     image = np.asarray(Image.open(shot).convert("L"), dtype=float)
     assert image.shape == (2400, 1100)
     assert image.std() > 20, "the page shows text and plots, not a blank page"
+
+
+def test_a_merged_transition_replaces_the_one_it_merged():
+    """The monitor publishes stand→sit at 10 s, then merges it with a sit→lie into stand→lie at the
+    same 10 s stamp: one transition, stand→lie; a later sit→stand is a second."""
+    from gait_biofeedback.wire.activity import TRANSITION_CODES, add_transition
+    from gait_biofeedback.wire.stamps import ns_to_stamp
+    from gait_biofeedback_msgs.msg import ActivityState
+
+    def state(kind: str, at_s: float) -> ActivityState:
+        msg = ActivityState(last_transition=TRANSITION_CODES[kind])
+        msg.last_transition_stamp = ns_to_stamp(round(at_s * 1e9))
+        return msg
+
+    marks: list[tuple[int, int]] = []
+    for msg in (ActivityState(), state("stand_to_sit", 10.0), state("stand_to_sit", 10.0),
+                state("stand_to_lie", 10.0), state("lie_to_stand", 30.0)):
+        add_transition(marks, msg)
+    assert marks == [(10_000_000_000, TRANSITION_CODES["stand_to_lie"]),
+                     (30_000_000_000, TRANSITION_CODES["lie_to_stand"])]

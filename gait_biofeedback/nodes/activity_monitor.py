@@ -78,6 +78,12 @@ class ActivityMonitorNode(GuardedNode):
         if changed:
             self._publish(state)
 
+    def finish(self) -> None:
+        """The data ended (the end of a replay): the states still held go out, as ``analyze`` publishes
+        them at the end of a file (:meth:`ActivityStream.finish`)."""
+        for state in self.stream.finish():
+            self._publish(state)
+
     def _publish(self, state: ActivityState) -> None:
         self._pub.publish(activity_msg(state, self._newest_ns, self.segment))
         self.published += 1

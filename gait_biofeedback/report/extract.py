@@ -12,6 +12,7 @@ import numpy as np
 
 from gait_biofeedback.io.bag import BagReader
 from gait_biofeedback.wire import topics
+from gait_biofeedback.wire.activity import add_transition
 from gait_biofeedback.wire.gait import event_of, revised_cycles, stride_of
 from gait_biofeedback.wire.joints import angles_of, recovering_of
 from gait_biofeedback.wire.stamps import stamp_to_ns
@@ -161,9 +162,7 @@ def read_session(path: str | Path) -> SessionData:
             t = (stamp_to_ns(msg.header.stamp) - start_ns) / 1e9
             activity.append((t, msg.posture, msg.locomotion, msg.step_count, msg.trunk_inclination))
             steps = max(steps, msg.step_count)
-            mark = ((stamp_to_ns(msg.last_transition_stamp) - start_ns) / 1e9, msg.last_transition)
-            if msg.last_transition and (not transitions or transitions[-1] != mark):
-                transitions.append(mark)
+            add_transition(transitions, msg)
         elif topic == topics.CALIBRATION.absolute():
             for seg in msg.segments:
                 calibration[seg.segment] = {
@@ -221,7 +220,7 @@ def read_session(path: str | Path) -> SessionData:
         joints=joints,
         recovering=np.array(recovering, dtype=bool),
         activity=activity,
-        transitions=transitions,
+        transitions=[((stamp_ns - start_ns) / 1e9, kind) for stamp_ns, kind in transitions],
         steps=steps,
         calibration=calibration,
         diagnostics=diagnostics,

@@ -24,10 +24,10 @@ from gait_biofeedback.core.segments import SIDES
 from gait_biofeedback.core.stamps import NS_PER_S
 from gait_biofeedback.io.bag import BagReader
 from gait_biofeedback.wire import topics
+from gait_biofeedback.wire.activity import add_transition
 from gait_biofeedback.wire.calibration import rotation
 from gait_biofeedback.wire.gait import event_of, revised_cycles
 from gait_biofeedback.wire.joints import angles_of
-from gait_biofeedback.wire.stamps import stamp_to_ns
 
 CALIBRATION, TRUE_CALIBRATION = topics.CALIBRATION.absolute(), topics.truth(topics.CALIBRATION)
 JOINTS, TRUE_JOINTS = topics.JOINT_STATES.absolute(), topics.truth(topics.JOINT_STATES)
@@ -145,13 +145,11 @@ def session_report(path: str | Path) -> SessionReport:
     report.cycles = _cycles(reader, recorded)
     activity = topics.ACTIVITY.absolute()
     if activity in recorded:
-        seen: list[tuple[float, int]] = []
+        seen: list[tuple[int, int]] = []
         for _, msg, _ in reader.messages([activity]):
             report.steps = max(report.steps, msg.step_count)
-            mark = (stamp_to_ns(msg.last_transition_stamp) * 1e-9, msg.last_transition)
-            if msg.last_transition and (not seen or seen[-1] != mark):
-                seen.append(mark)
-        report.transitions = seen
+            add_transition(seen, msg)
+        report.transitions = [(stamp_ns * 1e-9, kind) for stamp_ns, kind in seen]
     if TRUE_EVENTS in recorded:
         report.true_steps = sum(1 for _, m, _ in reader.messages([TRUE_EVENTS])
                                 if event_of(m)[1] == INITIAL_CONTACT)

@@ -43,3 +43,17 @@ def state_of(msg: ActivityState) -> dict[str, object]:
             "last_transition": TRANSITION_NAMES.get(msg.last_transition),
             "last_transition_ns": stamp_to_ns(msg.last_transition_stamp), "step_count": int(msg.step_count),
             "trunk_inclination": float(msg.trunk_inclination), "stamp_ns": stamp_to_ns(msg.header.stamp)}
+
+
+def add_transition(transitions: list[tuple[int, int]], msg: ActivityState) -> None:
+    """Append ``msg``'s last transition (stamp ns, TRANSITION_* code) to ``transitions`` when it is new.
+    One with the stamp of the last one replaces it: the monitor merges stand→sit then sit→lie into
+    one stand→lie (lie→sit then sit→stand into lie→stand) at the first one's stamp, after that one
+    may have been published (core/activity/monitor.py ``_add_transition``)."""
+    if not msg.last_transition:
+        return
+    mark = (stamp_to_ns(msg.last_transition_stamp), int(msg.last_transition))
+    if transitions and transitions[-1][0] == mark[0]:
+        transitions[-1] = mark
+    elif not transitions or transitions[-1] != mark:
+        transitions.append(mark)

@@ -181,6 +181,19 @@ class ActivityStream:
         self.thighs.add(segment, stamp_ns, acc)
         return self._collect(self._release())
 
+    def finish(self) -> list[ActivityState]:
+        """The end of the data (``analyze``, the end of a replay): the samples the reorder window, the
+        thighs' wait and the monitor's delay line still hold, decided; the states among them that
+        changed (a posture, a transition or the walking of the last seconds), and the last one."""
+        states = [out for r in self.sequencer.flush()
+                  for out in self._sample(r.stamp_ns, r.payload, r.restart_s)]
+        states += self._release(force=True)
+        states += [self._state(state) for state in self.monitor.flush()]
+        out = [state for state, changed in states if changed]
+        if states and not states[-1][1]:
+            out.append(states[-1][0])
+        return out
+
     @staticmethod
     def _collect(states: list[tuple[ActivityState, bool]]) -> tuple[ActivityState | None, bool]:
         latest, changed = None, False
