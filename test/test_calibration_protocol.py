@@ -95,8 +95,8 @@ def test_no_calibration_found_says_what_was_looked_for():
 
 def test_analyze_auto_takes_a_short_standing_and_says_so(tmp_path, capsys):
     """A recording that starts walking after 1.2 s of standing (gaitmap's example has about 0.7 s): the
-    still run ends at 1.23 s, the standing 0.25 s before it (the onset, windows.ONSET_S). Auto takes
-    those 0.98 s with the default 3 s asked, and the calibration says the standing was short; with
+    still run ends at 1.23 s; its quietest end (windows.standing_window) is 1.03 s. Auto takes those
+    1.03 s with the default 3 s asked, and the calibration says the standing was short; with
     default_standing_duration 0.5 it takes the last half second, and says nothing."""
     from gait_biofeedback.cli import main
     from gait_biofeedback.sim.recording import write_simulated_bag
@@ -106,14 +106,14 @@ def test_analyze_auto_takes_a_short_standing_and_says_so(tmp_path, capsys):
     bag = write_simulated_bag(tmp_path / "walk", session)
     assert main(["analyze", str(bag), "-o", str(tmp_path / "a"), "--calibrate-at", "auto"]) == 0
     out = capsys.readouterr().out
-    assert "--calibrate-at auto: quiet standing 0.00-0.98 s, then walking 0.98-" in out
+    assert "--calibrate-at auto: quiet standing 0.00-1.03 s, then walking 1.03-" in out
     assert "the quiet standing lasted only 1.0 s (asked 3 s)" in out
     params = tmp_path / "short.yaml"
     params.write_text("calibration:\n  ros__parameters:\n    default_standing_duration: 0.5\n")
     assert main(["analyze", str(bag), "-o", str(tmp_path / "b"), "--calibrate-at", "auto", "--params",
                  str(params)]) == 0
     out = capsys.readouterr().out
-    assert "--calibrate-at auto: quiet standing 0.48-0.98 s, then walking 0.98-" in out
+    assert "--calibrate-at auto: quiet standing 0.53-1.03 s, then walking 1.03-" in out
     assert "lasted only" not in out
 
 
@@ -163,7 +163,7 @@ def test_qmt_real_calibration_is_found_after_the_sitting():
     # the recording: standing, 26 s sitting (refused: thighs 50-60° from their walking attitude),
     # standing 44.6-48.4 s, walking
     assert check.looks_like == "walking"
-    assert standing == pytest.approx((45.14, 48.14), abs=0.02)  # its still run ends at 48.39 s
+    assert standing == pytest.approx((45.34, 48.34), abs=0.02)  # the quietest end, its run's 48.39 s
     assert motion[1] - motion[0] == pytest.approx(20.0)
 
 

@@ -40,6 +40,7 @@ from gait_biofeedback.core.calibration.windows import (
     moving_std,
     runs,
     standing_runs,
+    standing_window,
 )
 from gait_biofeedback.core.segments import SIDES, ImuSeries
 
@@ -163,13 +164,14 @@ def find_calibration(data: dict[str, ImuSeries], standing_duration: float = 3.0,
                      ) -> tuple[tuple[float, float], tuple[float, float], ProtocolCheck]:
     """(standing, motion, what the motion looks like) of the first calibration in a whole recording
     (``analyze --calibrate-at auto``): a quiet standing of ``standing_duration`` s (the last seconds of a
-    still run that long, without its onset; else the longest shorter one of at least 0.5 s, as
-    :func:`~.windows.find_standing_then_motion` does with ``shorter_standing``), then at least
-    ``min_motion`` s of movement up to the next still run of ``end_still`` s (at most ``max_motion`` s),
-    that :func:`check_protocol` recognises and during which every segment stays within
-    ``MAX_UPRIGHT_TILT`` of its standing attitude (:func:`upright_tilt`: sitting is not standing). A walk
-    is cut to its first ``max_walk`` s (ample for the protocol's 8 steps, and the calibration is then in
-    force for the rest of it). ValueError saying what was looked for when nothing qualifies."""
+    still run that long, ending where the sensors are quietest, :func:`~.windows.standing_window`; else
+    the longest shorter one of at least 0.5 s, as :func:`~.windows.find_standing_then_motion` does with
+    ``shorter_standing``), then at least ``min_motion`` s of movement up to the next still run of
+    ``end_still`` s (at most ``max_motion`` s), that :func:`check_protocol` recognises and during which
+    every segment stays within ``MAX_UPRIGHT_TILT`` of its standing attitude (:func:`upright_tilt`:
+    sitting is not standing). A walk is cut to its first ``max_walk`` s (ample for the protocol's 8 steps,
+    and the calibration is then in force for the rest of it). ValueError saying what was looked for when
+    nothing qualifies."""
     t, still, ref = common_still(data)
     rate = ref.rate_hz
     still_runs = runs(still)
@@ -178,14 +180,16 @@ def find_calibration(data: dict[str, ImuSeries], standing_duration: float = 3.0,
     long_enough = [(a, b) for a, b in quiet if b - a >= standing_duration - 1e-9]
     shorter = sorted((r for r in quiet if MIN_STANDING_S <= r[1] - r[0] < standing_duration - 1e-9),
                      key=lambda r: r[0] - r[1])  # the longest first (windows.py: the fallback)
-    for a, start in long_enough + shorter:
-        if start >= t[-1] - 1e-9:
+    for a, run_end in long_enough + shorter:
+        if run_end >= t[-1] - 1e-9:
             continue
-        later = [c for c, e in still_runs if t[c] > start and (e - c) / rate >= end_still]
+        standing = standing_window(data, a, run_end, standing_duration)
+        start = standing[1]
+        later = [c for c, e in still_runs if t[c] > run_end and (e - c) / rate >= end_still]
         end = min(float(t[later[0]]) if later else float(t[-1]), start + max_motion)
         if end - start < min_motion:
             continue
-        standing, motion = (max(a, start - standing_duration), start), (start, end)
+        motion = (start, end)
         check = check_protocol(data, motion)
         tilt = upright_tilt(data, standing, motion)
         worst = max(tilt, key=tilt.get) if tilt else None

@@ -332,8 +332,11 @@ def calibrate_segment(
     standing_orientation: np.ndarray | None = None,
     reference_rate: np.ndarray | None = None,
     motion_acc: np.ndarray | None = None,
+    standing_limits: tuple[float, float] = (MAX_STANDING_GYRO_RMS, MAX_STANDING_ACC_RMS),
 ) -> SegmentCalibrationResult:
     """Calibrate one leg segment (thigh, shank, foot) with thesis Eq 14–16 (see module docstring).
+    ``standing_limits``: :func:`standing_check`'s (a foot's stance phases in place of a standing are
+    allowed more: :func:`~.foot.foot_calibration`).
 
     ``motion_acc``: the accelerometer at the motion samples; with it, the own rule of a thigh (hip
     flexion, or walking without its shank) is :func:`inclination_sign`, without it the integrated
@@ -352,7 +355,7 @@ def calibrate_segment(
     standing_acc = np.asarray(standing_acc, dtype=float).reshape(-1, 3)
     standing_gyr = np.asarray(standing_gyr, dtype=float).reshape(-1, 3)
     motion_gyr = np.asarray(motion_gyr, dtype=float).reshape(-1, 3)
-    stand_motion, problem = standing_check(segment, standing_acc, standing_gyr)
+    stand_motion, problem = standing_check(segment, standing_acc, standing_gyr, standing_limits)
     result = SegmentCalibrationResult(segment, quat.IDENTITY.copy(), False, 0.0, "explained_variance",
                                       stand_motion, problem or "")
     if problem:
@@ -405,20 +408,22 @@ def calibrate_segment(
     return result
 
 
-def standing_check(segment: str, acc: np.ndarray, gyr: np.ndarray) -> tuple[float, str | None]:
-    """(RMS angular rate about its mean in rad/s, problem message or None) of a quiet-standing window."""
+def standing_check(segment: str, acc: np.ndarray, gyr: np.ndarray,
+                   limits: tuple[float, float] = (MAX_STANDING_GYRO_RMS, MAX_STANDING_ACC_RMS)
+                   ) -> tuple[float, str | None]:
+    """(RMS angular rate about its mean in rad/s, problem message or None) of a quiet-standing window;
+    ``limits``: the largest RMS of the gyro (rad/s) and of the accelerometer (m/s²) about their means."""
     name = label(segment)
     if acc.shape[0] < 10:
         return float("nan"), f"{name}: no quiet standing recorded (need 3–5 s standing still)"
     gyro_rms = float(np.sqrt(np.mean(np.sum((gyr - gyr.mean(axis=0)) ** 2, axis=1))))
     acc_rms = float(np.sqrt(np.mean(np.sum((acc - acc.mean(axis=0)) ** 2, axis=1))))
-    if gyro_rms > MAX_STANDING_GYRO_RMS:
+    if gyro_rms > limits[0]:
         return gyro_rms, (f"subject moved during quiet standing ({name}: {np.degrees(gyro_rms):.1f} °/s, "
-                          f"limit {np.degrees(MAX_STANDING_GYRO_RMS):.1f} °/s); stand still 5 s and repeat")
-    if acc_rms > MAX_STANDING_ACC_RMS:
+                          f"limit {np.degrees(limits[0]):.1f} °/s); stand still 5 s and repeat")
+    if acc_rms > limits[1]:
         return gyro_rms, (f"subject moved during quiet standing ({name}: accelerometer varies by "
-                          f"{acc_rms:.2f} m/s², limit {MAX_STANDING_ACC_RMS:g} m/s²); stand still 5 s and "
-                          "repeat")
+                          f"{acc_rms:.2f} m/s², limit {limits[1]:g} m/s²); stand still 5 s and repeat")
     g = float(np.linalg.norm(acc.mean(axis=0)))
     if abs(g - GRAVITY) > 1.5:
         return gyro_rms, f"{name}: accelerometer reads {g:.1f} m/s² at rest, not ~9.8: check the sensor"

@@ -14,8 +14,11 @@ centred 0.5 s statistics still average the first movement in, so its last part i
 onset, a weight shift before the first step (the standing check, RMS about the mean, refuses above
 4.6 °/s). On ipol_gait 1-6 the right foot's last 3 s of the run have 3.7 °/s, 0.3 °/s without the
 last 0.1 s; on 7-6 6.6 °/s without the last 0.1 s, 1.3 °/s without 0.15 s, 0.35 °/s without 0.2 s.
-The standing window therefore ends ``ONSET_S`` before the run does: half the statistics' window,
-0.25 s, the farthest they look ahead. When no run is long
+But a fixed margin can bring in an earlier movement: qmt's right thigh settles at 2.2-2.7 s, and its
+window ending at the run's end passes (4.3 °/s) where one ending 0.25 s earlier does not (6.0 °/s).
+So the standing window ends where the sensors are quietest (:func:`standing_window`: the smallest
+largest-over-segments gyro RMS about the mean), at the run's end or up to ``ONSET_S`` before it (half
+the statistics' window, 0.25 s, the farthest they look ahead), in steps of 0.05 s. When no run is long
 enough and the request allows it (``analyze`` / ``replay --calibrate-at auto`` on a recording of
 another lab), the longest run of at least ``MIN_STANDING_S`` (0.5 s) followed by movement is taken
 instead, shorter than asked (the result says so): a walk that starts after a short standing is
@@ -31,7 +34,8 @@ from gait_biofeedback.core.segments import ImuSeries
 GYRO_STILL = 0.2  # rad/s, moving mean of |ω|
 ACC_STILL = 0.3  # m/s², moving std of |a|
 STILL_WINDOW = 0.5  # s
-ONSET_S = STILL_WINDOW / 2  # s: the end of a still run left out of the standing (the movement's onset)
+ONSET_S = STILL_WINDOW / 2  # s: how much of a still run's end may be the movement's onset
+ONSET_STEP_S = 0.05  # s: the ends of the standing tried
 MIN_STANDING_S = 0.5  # s: the shortest standing taken when none is as long as asked
 
 
@@ -119,19 +123,33 @@ def find_standing_then_motion(
     if not moving_after:
         raise ValueError("no movement after the quiet standing: do the calibration movements "
                          "(hip flexion/extension or straight walking) before pressing Calibrate")
-    a, t_end_stand = moving_after[-1]
-    if t[-1] - t_end_stand < need_motion:
-        raise ValueError(f"only {t[-1] - t_end_stand:.1f} s of movement after the quiet standing, "
+    standing = standing_window(data, *moving_after[-1], standing_duration)
+    if t[-1] - standing[1] < need_motion:
+        raise ValueError(f"only {t[-1] - standing[1]:.1f} s of movement after the quiet standing, "
                          f"need {need_motion:g} s")
-    return (max(a, t_end_stand - standing_duration), t_end_stand), (t_end_stand, float(t[-1]))
+    return standing, (standing[1], float(t[-1]))
 
 
 def standing_runs(t: np.ndarray, still: np.ndarray) -> list[tuple[float, float]]:
-    """(start, end) s of the still runs of ``still`` (on times ``t``) that can be standing: each
-    ends ``ONSET_S`` before its last still sample when movement follows (module docstring)."""
-    out = []
-    for a, b in runs(still):
-        end = float(t[b - 1]) - (ONSET_S if b < len(t) else 0.0)
-        if end > t[a]:
-            out.append((float(t[a]), end))
-    return out
+    """(first, last) still sample times, s, of the still runs of ``still`` (on times ``t``)."""
+    return [(float(t[a]), float(t[b - 1])) for a, b in runs(still) if b - a > 1]
+
+
+def standing_window(data: dict[str, ImuSeries], start: float, end: float, duration: float
+                    ) -> tuple[float, float]:
+    """The standing (s) in the still run ``start``-``end``: ``duration`` s (or the run) ending where
+    the segments are quietest, at ``end`` or up to ``ONSET_S`` before it (module docstring)."""
+    best, chosen = np.inf, (max(start, end - duration), end)
+    for k in range(round(ONSET_S / ONSET_STEP_S) + 1):
+        e = end - k * ONSET_STEP_S
+        a = max(start, e - duration)
+        if e - a < min(MIN_STANDING_S, duration) - 1e-9:
+            break
+        worst = 0.0
+        for series in data.values():
+            gyr = series.gyr[(series.t >= a) & (series.t <= e)]
+            if len(gyr) > 1:
+                worst = max(worst, float(np.sqrt(np.mean(np.sum((gyr - gyr.mean(axis=0)) ** 2, axis=1)))))
+        if worst < best - 1e-9:
+            best, chosen = worst, (a, e)
+    return chosen
