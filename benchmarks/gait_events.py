@@ -4,7 +4,8 @@ Run: ``.venv/bin/python benchmarks/gait_events.py`` (about 10 s). ``--rates``: t
 resampled to 20-400 Hz instead (about 2 min). ``--cli``: also ipol_gait and gaitmap_example through
 the user's path, ``import`` → ``analyze --calibrate-at auto`` → ``/gait/events`` (about 6 min; the
 streaming detector after the found calibration, not the batch entry point; gaitmap's with
-``default_standing_duration`` 0.4 s, as its refusal says). Prints one table:
+``default_standing_duration`` 0.4 s, as its refusal says). ``--walk-only``: only ipol_gait with the
+standing cut off (the foot calibration's stance-phase fallback; about 1 min). Prints one table:
 - gaitmap example (Küderle et al., gaitmap, MIT): 2 foot IMUs at 204.8 Hz, 57 strides with
   motion-capture IC/TC. Scored inside the reference strides (stride start → end per foot: the
   mocap stride list leaves out a few strides, e.g. at turns, and detections there are not errors);
@@ -136,6 +137,47 @@ def ipol_rows() -> tuple[list[tuple[str, str, dict]], list[str]]:
         rows.append((f"ipol_gait ({len(trials)} trials, {feet} feet)", method,
                      {k: score(per_kind[k], IPOL_MATCH_S) for k in KINDS}))
     return rows, refusals
+
+
+def walk_only() -> None:
+    """ipol_gait with each trial's standing cut off (0.5 s after it): the batch foot calibration's
+    fallback on the foot-flat moments (``core/calibration/foot.py``) against the standing calibration,
+    and Algorithm 1's Se/Pr from 0.5 s into the cut, per half (subjects 1-5 chosen on, 6-9 confirmed)."""
+    from gait_biofeedback.core.calibration.foot import standing_run
+
+    folder = DATA / "ipol_gait"
+    if not folder.is_dir():
+        print(f"(skipped: {folder} not found)")
+        return
+    print("ipol_gait, the walk only (standing cut off): feet refused, calibration vs the standing one, "
+          "events (±300 ms)")
+    for half in (("1", "2", "3", "4", "5"), ("6", "7", "8", "9")):
+        trials = sorted(p for p in folder.glob("*.json") if p.stem.split("-")[0] in half)
+        diffs, refused, feet = [], 0, 0
+        per_kind: dict[str, list] = {k: [] for k in KINDS}
+        for path in trials:
+            rec = import_recording("ipol_gait", path)
+            for side in ("left", "right"):
+                s = rec.imu[f"{side}_foot"]
+                feet += 1
+                standing = foot_calibration(s.gyr, s.acc, s.rate_hz, f"{side}_foot")
+                k = standing_run(s.gyr, s.acc, s.rate_hz)[1] + round(0.5 * s.rate_hz)
+                try:
+                    walk = foot_calibration(s.gyr[k:], s.acc[k:], s.rate_hz, f"{side}_foot")
+                    events = detect_gait_events(s.gyr[k:], s.acc[k:], IPOL_RATE_HZ, t=s.t[k:])
+                    diffs.append(np.degrees(2 * np.arccos(min(1.0, abs(float(standing @ walk))))))
+                except ValueError:
+                    refused += 1
+                    events = {kind: [] for kind in KINDS}
+                scored = [(max(rec.reference["trial"][0], s.t[k] + 0.5), rec.reference["trial"][1])]
+                for kind in KINDS:
+                    per_kind[kind].append((f"{path.stem} {side}", np.array(events[kind]),
+                                           rec.reference["events"][side][kind], scored))
+        d = np.array(diffs)
+        cells = " ".join(f"{kind.upper()} Se {r['se']:.1f} Pr {r['pr']:.1f}"
+                         for kind in KINDS for r in [score(per_kind[kind], IPOL_MATCH_S)])
+        print(f"  subjects {half[0]}-{half[-1]}: {refused} of {feet} feet refused; calibration vs standing "
+              f"median {np.median(d):.1f}°, max {d.max():.1f}°; {cells}")
 
 
 def cli_rows() -> list[tuple[str, str, dict]]:
@@ -369,6 +411,9 @@ def main() -> None:
 
     if "--rates" in sys.argv:
         rate_rows()
+        return
+    if "--walk-only" in sys.argv:
+        walk_only()
         return
     start = time.perf_counter()
     ipol, refusals = ipol_rows()
