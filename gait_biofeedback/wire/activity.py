@@ -55,5 +55,5 @@ def add_transition(transitions: list[tuple[int, int]], msg: ActivityState) -> No
     mark = (stamp_to_ns(msg.last_transition_stamp), int(msg.last_transition))
     if transitions and transitions[-1][0] == mark[0]:
         transitions[-1] = mark
-    elif not transitions or transitions[-1] != mark:
+    else:
         transitions.append(mark)

@@ -76,6 +76,7 @@ from scipy.signal import butter, filtfilt
 from gait_biofeedback.core import quaternion as quat
 from gait_biofeedback.core.calibration.protocol import MAX_UPRIGHT_TILT, WORDS, check_protocol, upright_tilt
 from gait_biofeedback.core.calibration.trunk import forward_in_proximal, walking_axis
+from gait_biofeedback.core.calibration.windows import rms_about_mean
 from gait_biofeedback.core.segments import GRAVITY, SIDES, ImuSeries
 
 PROTOCOLS: tuple[str, ...] = ("hip_flexion", "walking")
@@ -416,8 +417,7 @@ def standing_check(segment: str, acc: np.ndarray, gyr: np.ndarray,
     name = label(segment)
     if acc.shape[0] < 10:
         return float("nan"), f"{name}: no quiet standing recorded (need 3–5 s standing still)"
-    gyro_rms = float(np.sqrt(np.mean(np.sum((gyr - gyr.mean(axis=0)) ** 2, axis=1))))
-    acc_rms = float(np.sqrt(np.mean(np.sum((acc - acc.mean(axis=0)) ** 2, axis=1))))
+    gyro_rms, acc_rms = rms_about_mean(gyr), rms_about_mean(acc)
     if gyro_rms > limits[0]:
         return gyro_rms, (f"subject moved during quiet standing ({name}: {np.degrees(gyro_rms):.1f} °/s, "
                           f"limit {np.degrees(limits[0]):.1f} °/s); stand still 5 s and repeat")

@@ -50,6 +50,11 @@ def moving_mean(x: np.ndarray, n: int) -> np.ndarray:
     return np.convolve(pad, kernel, mode="valid")
 
 
+def rms_about_mean(x: np.ndarray) -> float:
+    """RMS of the (N, k) ``x`` about its mean (norm over the k axes): how much a still sensor moved."""
+    return float(np.sqrt(np.mean(np.sum((x - x.mean(axis=0)) ** 2, axis=1))))
+
+
 def moving_std(x: np.ndarray, n: int) -> np.ndarray:
     """Centred n-sample moving standard deviation of (N,) or (N, k) ``x`` (as :func:`moving_mean`)."""
     return np.sqrt(np.maximum(moving_mean(np.square(x), n) - moving_mean(x, n) ** 2, 0.0))
@@ -106,12 +111,12 @@ def find_standing_then_motion(
     t, still, ref = common_still(data)
     need_motion = max(min_motion, motion_duration)
     quiet = standing_runs(t, still)
-    long_enough = [(a, b) for a, b in quiet if b - a >= standing_duration - 1e-9]
-    moving_after = [(a, b) for a, b in long_enough if np.sum(~still[np.searchsorted(t, b):]) / ref.rate_hz
-                    >= min_motion]
+    long_enough = any(b - a >= standing_duration - 1e-9 for a, b in quiet)
+    followed = [(a, b) for a, b in quiet
+                if np.sum(~still[np.searchsorted(t, b):]) / ref.rate_hz >= min_motion]
+    moving_after = [(a, b) for a, b in followed if b - a >= standing_duration - 1e-9]
     if not moving_after and shorter_standing:  # the longest shorter one followed by movement
-        shorter = [(a, b) for a, b in quiet if b - a >= MIN_STANDING_S
-                   and np.sum(~still[np.searchsorted(t, b):]) / ref.rate_hz >= min_motion]
+        shorter = [(a, b) for a, b in followed if b - a >= MIN_STANDING_S]
         moving_after = [max(shorter, key=lambda r: r[1] - r[0])] if shorter else []
     if not moving_after and not long_enough:
         longest = max((b - a for a, b in quiet), default=0.0)
@@ -149,7 +154,7 @@ def standing_window(data: dict[str, ImuSeries], start: float, end: float, durati
         for series in data.values():
             gyr = series.gyr[(series.t >= a) & (series.t <= e)]
             if len(gyr) > 1:
-                worst = max(worst, float(np.sqrt(np.mean(np.sum((gyr - gyr.mean(axis=0)) ** 2, axis=1)))))
+                worst = max(worst, rms_about_mean(gyr))
         if worst < best - 1e-9:
             best, chosen = worst, (a, e)
     return chosen
