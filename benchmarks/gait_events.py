@@ -3,8 +3,8 @@
 Run: ``.venv/bin/python benchmarks/gait_events.py`` (about 10 s). ``--rates``: the real recordings
 resampled to 20-400 Hz instead (about 2 min). ``--cli``: also ipol_gait and gaitmap_example through
 the user's path, ``import`` → ``analyze --calibrate-at auto`` → ``/gait/events`` (about 6 min; the
-streaming detector after the found calibration, not the batch entry point; gaitmap's with
-``default_standing_duration`` 0.4 s, as its refusal says). ``--walk-only``: only ipol_gait with the
+streaming detector after the found calibration, not the batch entry point; gaitmap's 0.7 s of
+standing taken as a short one). ``--walk-only``: only ipol_gait with the
 standing cut off (the foot calibration's stance-phase fallback; about 1 min). Prints one table:
 - gaitmap example (Küderle et al., gaitmap, MIT): 2 foot IMUs at 204.8 Hz, 57 strides with
   motion-capture IC/TC. Scored inside the reference strides (stride start → end per foot: the
@@ -206,9 +206,6 @@ def cli_rows() -> list[tuple[str, str, dict]]:
         sets.append((f"ipol_gait CLI ({len(trials)} trials)", "ipol_gait", trials, IPOL_MATCH_S))
     if (DATA / "gaitmap_example").is_dir():
         sets.append(("gaitmap CLI", "gaitmap", [DATA / "gaitmap_example"], MATCH_S))
-    # gaitmap's example stands 0.7 s before it walks: auto refuses it with the default (the shortest
-    # standing taken is 0.5 s after its 0.25 s onset), naming this parameter
-    short = "calibration:\n  ros__parameters:\n    default_standing_duration: 0.4\n"
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for name, kind_of_file, paths, tolerance in sets:
@@ -218,12 +215,7 @@ def cli_rows() -> list[tuple[str, str, dict]]:
                 rec = import_recording(kind_of_file, path)
                 bag, out = Path(tmp) / "in", Path(tmp) / "out"
                 run("import", kind_of_file, str(path), "-o", str(bag))
-                options = []
-                if kind_of_file == "gaitmap":
-                    (Path(tmp) / "short.yaml").write_text(short)
-                    options = ["--params", str(Path(tmp) / "short.yaml")]
-                done = run("analyze", str(bag), "-o", str(out), "--calibrate-at", "auto", "--overwrite",
-                           *options)
+                done = run("analyze", str(bag), "-o", str(out), "--calibrate-at", "auto", "--overwrite")
                 if done.returncode:
                     failed.append(f"{path.name}: exit {done.returncode}: {done.stderr.strip()[-200:]}")
                 events = detected(out) if (out / "metadata.yaml").exists() else {
