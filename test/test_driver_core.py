@@ -239,7 +239,9 @@ def test_udp_arrival_times_are_the_kernels_not_when_python_reads():
 
     link = UdpLink("127.0.0.1", 0)
     try:
-        late_ms = _send_then_read_late(link)
+        # the best of three: on a loaded machine (a full parallel test run) loopback delivery, and so the
+        # kernel's own stamp, can come 35 ms late; a stamp taken when read is late every time
+        late_ms = min(_send_then_read_late(link) for _ in range(3))
         if link.arrival_clock != "kernel":
             pytest.skip("this kernel delivers no SO_TIMESTAMP(NS) (a sandbox); the fallback is tested below")
         assert 0 <= late_ms < 5.0  # not the 30 ms later when it was read
