@@ -5,7 +5,8 @@ resampled to 20-400 Hz instead (about 2 min). ``--cli``: also ipol_gait and gait
 the user's path, ``import`` → ``analyze --calibrate-at auto`` → ``/gait/events`` (about 6 min; the
 streaming detector after the found calibration, not the batch entry point; gaitmap's 0.7 s of
 standing taken as a short one). ``--walk-only``: only ipol_gait with the
-standing cut off (the foot calibration's stance-phase fallback; about 1 min). Prints one table:
+standing cut off (the foot calibration's stance-phase fallback; about 1 min); ``--walk-only --cli``: the
+same through ``import`` → ``analyze --calibrate-at auto`` (about 4 min). Prints one table:
 - gaitmap example (Küderle et al., gaitmap, MIT): 2 foot IMUs at 204.8 Hz, 57 strides with
   motion-capture IC/TC. Scored inside the reference strides (stride start → end per foot: the
   mocap stride list leaves out a few strides, e.g. at turns, and detections there are not errors);
@@ -24,6 +25,7 @@ An SVG of the qmt foot gyro with the detected events is written to ``output/gait
 from __future__ import annotations
 
 import time
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -139,20 +141,27 @@ def ipol_rows() -> tuple[list[tuple[str, str, dict]], list[str]]:
     return rows, refusals
 
 
-def walk_only() -> None:
-    """ipol_gait with each trial's standing cut off (0.5 s after it): the batch foot calibration's
-    fallback on the foot-flat moments (``core/calibration/foot.py``) against the standing calibration,
-    and Algorithm 1's Se/Pr from 0.5 s into the cut, per half (subjects 1-5 chosen on, 6-9 confirmed)."""
-    from gait_biofeedback.core.calibration.foot import standing_run
-
+def _ipol_halves(title: str) -> list[tuple[tuple[str, ...], list[Path]]]:
+    """The ipol_gait trials of subjects 1-5 (chosen on) and 6-9 (confirmed), after printing ``title``;
+    none, saying so, without the data."""
     folder = DATA / "ipol_gait"
     if not folder.is_dir():
         print(f"(skipped: {folder} not found)")
-        return
-    print("ipol_gait, the walk only (standing cut off): feet refused, calibration vs the standing one, "
-          "events (±300 ms)")
-    for half in (("1", "2", "3", "4", "5"), ("6", "7", "8", "9")):
-        trials = sorted(p for p in folder.glob("*.json") if p.stem.split("-")[0] in half)
+        return []
+    print(title)
+    halves = (("1", "2", "3", "4", "5"), ("6", "7", "8", "9"))
+    return [(half, sorted(p for p in folder.glob("*.json") if p.stem.split("-")[0] in half))
+            for half in halves]
+
+
+def walk_only() -> None:
+    """ipol_gait with each trial's standing cut off (0.5 s after it): the batch foot calibration's
+    fallback on the foot-flat moments (``core/calibration/walk.py``) against the standing calibration,
+    and Algorithm 1's Se/Pr from 0.5 s into the cut, per half (subjects 1-5 chosen on, 6-9 confirmed)."""
+    from gait_biofeedback.core.calibration.foot import standing_run
+
+    for half, trials in _ipol_halves("ipol_gait, the walk only (standing cut off): feet refused, calibration "
+                                     "vs the standing one, events (±300 ms)"):
         diffs, refused, feet = [], 0, 0
         per_kind: dict[str, list] = {k: [] for k in KINDS}
         for path in trials:
@@ -180,24 +189,30 @@ def walk_only() -> None:
               f"median {np.median(d):.1f}°, max {d.max():.1f}°; {cells}")
 
 
+def _cli(*args: str):
+    import subprocess
+
+    return subprocess.run([str(REPO / ".venv" / "bin" / "python"), "-m", "gait_biofeedback.cli", *args],
+                          capture_output=True, text=True, check=False)
+
+
+def _recorded_events(bag: Path) -> dict[str, dict[str, np.ndarray]]:
+    """side → kind → stamps (s) of the ``/gait/events`` of an ``analyze`` output (none when it has none)."""
+    from gait_biofeedback.io.bag_reader import BagReader
+
+    out = {side: {k: [] for k in KINDS} for side in ("left", "right")}
+    if (bag / "metadata.yaml").exists():
+        for _, m, _ in BagReader(bag).messages(["/gait/events"]):
+            kind = INITIAL_CONTACT if m.type == m.INITIAL_CONTACT else TERMINAL_CONTACT
+            out[("left", "right")[m.side]][kind].append(m.header.stamp.sec + m.header.stamp.nanosec * 1e-9)
+    return {side: {k: np.array(v) for k, v in kinds.items()} for side, kinds in out.items()}
+
+
 def cli_rows() -> list[tuple[str, str, dict]]:
     """The user's path (``import`` → ``analyze --calibrate-at auto`` → ``/gait/events``) on ipol_gait
     and gaitmap_example, scored as the batch rows (the live event is stamped at its sample)."""
     import subprocess
     import tempfile
-
-    from gait_biofeedback.io.bag_reader import BagReader
-
-    def run(*args: str) -> subprocess.CompletedProcess:
-        return subprocess.run([str(REPO / ".venv" / "bin" / "python"), "-m", "gait_biofeedback.cli", *args],
-                              capture_output=True, text=True, check=False)
-
-    def detected(bag: Path) -> dict[str, dict[str, np.ndarray]]:
-        out = {side: {k: [] for k in KINDS} for side in ("left", "right")}
-        for _, m, _ in BagReader(bag).messages(["/gait/events"]):
-            kind = INITIAL_CONTACT if m.type == m.INITIAL_CONTACT else TERMINAL_CONTACT
-            out[("left", "right")[m.side]][kind].append(m.header.stamp.sec + m.header.stamp.nanosec * 1e-9)
-        return {side: {k: np.array(v) for k, v in kinds.items()} for side, kinds in out.items()}
 
     sets = []
     folder = DATA / "ipol_gait"
@@ -214,12 +229,11 @@ def cli_rows() -> list[tuple[str, str, dict]]:
             for path in paths:
                 rec = import_recording(kind_of_file, path)
                 bag, out = Path(tmp) / "in", Path(tmp) / "out"
-                run("import", kind_of_file, str(path), "-o", str(bag))
-                done = run("analyze", str(bag), "-o", str(out), "--calibrate-at", "auto", "--overwrite")
+                _cli("import", kind_of_file, str(path), "-o", str(bag))
+                done = _cli("analyze", str(bag), "-o", str(out), "--calibrate-at", "auto", "--overwrite")
                 if done.returncode:
                     failed.append(f"{path.name}: exit {done.returncode}: {done.stderr.strip()[-200:]}")
-                events = detected(out) if (out / "metadata.yaml").exists() else {
-                    side: {k: np.array([]) for k in KINDS} for side in ("left", "right")}
+                events = _recorded_events(out)
                 ref = rec.reference["events"]
                 for side in ("left", "right"):
                     scored = ([rec.reference["trial"]] if "trial" in rec.reference
@@ -234,6 +248,70 @@ def cli_rows() -> list[tuple[str, str, dict]]:
             for line in failed:
                 print(f"  {name}: {line}")
     return rows
+
+
+def _cut_trial(path: Path, folder: Path, first_counter: int) -> None:
+    """A copy of the ipol trial ``path`` in ``folder`` without its packets before ``first_counter``
+    (the data set's own text format, so the user's ``import ipol_gait`` reads it)."""
+    import gzip
+    import shutil
+
+    shutil.copy(path, folder / path.name)
+    for suffix in ("lf", "rf", "lb"):
+        with gzip.open(path.with_name(f"{path.stem}_{suffix}.txt.gz"), "rt") as f:
+            lines = f.readlines()
+        counter = np.array([float(line.split("\t", 1)[0]) for line in lines[2:]])
+        unwrapped = np.concatenate([[0], np.cumsum(np.mod(np.diff(counter), 65536))])
+        with gzip.open(folder / f"{path.stem}_{suffix}.txt.gz", "wt") as f:
+            f.writelines(lines[:2] + [line for line, c in zip(lines[2:], unwrapped, strict=True)
+                                      if c >= first_counter])
+
+
+def walk_only_cli() -> None:
+    """ipol_gait with each trial's standing cut off, through the user's path: the trial's text files
+    without their packets before the cut (0.5 s after the longer of the feet's standings, at a packet
+    every sensor has), ``import ipol_gait`` → ``analyze --calibrate-at auto`` (no standing: the feet
+    calibrate from the walk, ``core/calibration/walk.py``) → ``/gait/events``, scored as
+    :func:`walk_only` (from 0.5 s into the cut)."""
+    import tempfile
+
+    from gait_biofeedback.core.calibration.foot import standing_run
+
+    for half, trials in _ipol_halves("ipol_gait, the walk only, through import → analyze --calibrate-at "
+                                     "auto: trials without foot events, events (±300 ms)"):
+        per_kind: dict[str, list] = {k: [] for k in KINDS}
+        failed = []
+        for path in trials:
+            rec = import_recording("ipol_gait", path)
+            cut = max(rec.imu[f"{side}_foot"].t[standing_run(rec.imu[f"{side}_foot"].gyr,
+                                                             rec.imu[f"{side}_foot"].acc, IPOL_RATE_HZ)[1]]
+                      for side in ("left", "right")) + 0.5
+            counters = [set(np.round(s.t * IPOL_RATE_HZ).astype(int)) for s in rec.imu.values()]
+            first = min(c for c in set.intersection(*counters) if c >= cut * IPOL_RATE_HZ)
+            with tempfile.TemporaryDirectory() as tmp:
+                _cut_trial(path, Path(tmp), first)
+                bag, out = Path(tmp) / "in", Path(tmp) / "out"
+                _cli("import", "ipol_gait", str(Path(tmp) / path.name), "-o", str(bag))
+                done = _cli("analyze", str(bag), "-o", str(out), "--calibrate-at", "auto")
+                events = _recorded_events(out)
+            shift = first / IPOL_RATE_HZ
+            if done.returncode or not any(len(v) for kinds in events.values() for v in kinds.values()):
+                failed.append(f"{path.stem}: exit {done.returncode}: {done.stderr.strip()[-300:]}")
+            for side in ("left", "right"):
+                ref = rec.reference["events"][side]
+                scored = [(max(rec.reference["trial"][0] - shift, 0.5), rec.reference["trial"][1] - shift)]
+                for kind in KINDS:
+                    per_kind[kind].append((f"{path.stem} {side}", events[side][kind], ref[kind] - shift,
+                                           scored))
+        cells = " ".join(f"{kind.upper()} Se {r['se']:.1f} Pr {r['pr']:.1f} error {r['mean']:+.1f} ± "
+                         f"{r['sd']:.1f} ms" for kind in KINDS for r in [score(per_kind[kind], IPOL_MATCH_S)])
+        print(f"  subjects {half[0]}-{half[-1]}: {len(failed)} of {len(trials)} trials without events; "
+              f"{cells}")
+        for line in failed:
+            print(f"    {line}")
+        notes = score(per_kind[INITIAL_CONTACT], IPOL_MATCH_S)["notes"]
+        missed = Counter(note.split(":")[0] for note in notes if "missed" in note)
+        print("    ICs missed per foot: " + ", ".join(f"{foot} {n}" for foot, n in missed.most_common()))
 
 
 def simulator_rows() -> list[tuple[str, str, dict]]:
@@ -405,7 +483,7 @@ def main() -> None:
         rate_rows()
         return
     if "--walk-only" in sys.argv:
-        walk_only()
+        walk_only_cli() if "--cli" in sys.argv else walk_only()
         return
     start = time.perf_counter()
     ipol, refusals = ipol_rows()

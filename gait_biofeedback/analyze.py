@@ -109,6 +109,8 @@ class AnalysisResult:
 
 
 AUTO_MARGIN_S = 0.5  # an auto calibration instant: this long after the motion it found (or the end)
+# another lab's recording: a shorter standing (core/calibration/windows.py) or none (calibration/walk.py)
+AUTO_OPTIONS = {"shorter_standing": True, "walk_only": True}
 WAITING_WARN_NS = 2 * NS_PER_S
 """A calibrated joint left without angles this long (no common heading yet) is named in the warnings."""
 SESSION_CONDITIONS = ("losing samples", "6D")
@@ -144,8 +146,9 @@ def resolve_calibrate_at(bag: str | Path, requests: Sequence[tuple[float | None,
     end (+ 0.5 s) of the first calibration in the recording's raw IMU data
     (:func:`~gait_biofeedback.core.calibration.protocol.find_calibration`: a quiet standing of
     ``standing_duration`` s, the calibration stage's ``default_standing_duration``, then movement that
-    looks like a protocol); with protocol ``auto`` the protocol it looks like. ValueError (saying what
-    was looked for) when there is none."""
+    looks like a protocol; without one, a walk); with protocol ``auto`` the protocol it looks like.
+    ValueError (saying what was looked for) when there is none. The calibration node runs an ``auto``
+    time with :data:`AUTO_OPTIONS`."""
     if all(t is not None for t, _ in requests):
         return [(float(t), p) for t, p in requests], []
     if sum(t is None for t, _ in requests) > 1:
@@ -154,7 +157,10 @@ def resolve_calibrate_at(bag: str | Path, requests: Sequence[tuple[float | None,
     with BagReader(bag) as reader:
         start_s = reader.start_time_ns / NS_PER_S
     standing, motion, check = find_calibration(data, standing_duration)
-    (s0, s1), (m0, m1) = ((a - start_s, b - start_s) for a, b in (standing, motion))
+    m0, m1 = (b - start_s for b in motion)
+    found = (f"quiet standing {standing[0] - start_s:.2f}-{standing[1] - start_s:.2f} s" if standing else
+             "no quiet standing before a protocol (the feet calibrate from the walk's stance phases, no "
+             "joint angles)")
     ends = min(d.t[-1] for d in data.values() if len(d))  # every sensor's data reaches the instant
     at = min(m1 + AUTO_MARGIN_S, ends - start_s)
     resolved, notes = [], []
@@ -162,7 +168,7 @@ def resolve_calibrate_at(bag: str | Path, requests: Sequence[tuple[float | None,
         if t is None:
             seen = check.looks_like or AUTO
             chosen = seen if protocol == AUTO else protocol
-            notes.append(f"--calibrate-at auto: quiet standing {s0:.2f}-{s1:.2f} s, then "
+            notes.append(f"--calibrate-at auto: {found}, then "
                          f"{WORDS.get(seen, seen)} {m0:.2f}-{m1:.2f} s ({check.evidence()}): "
                          f"calibrating at {at:.2f}:{chosen}")
             resolved.append((at, chosen))
@@ -273,7 +279,7 @@ def _calibrate_ahead(bag: str | Path, request: tuple[float, str], stages: dict[s
         raw_topics, mag_topics = _raw_topics(reader, bag)
         trackers = {seg: o_params.tracker(seg) for seg in o_params.segments if seg in raw_topics}
         until_ns = reader.start_time_ns + round(request[0] * NS_PER_S)
-        buffer.schedule(until_ns, request[1], shorter_standing=True)  # a recording of another lab
+        buffer.schedule(until_ns, request[1], **AUTO_OPTIONS)
         segment_of = {topic: seg for seg, topic in raw_topics.items()}
         mag_of = {topic: seg for seg, topic in mag_topics.items()}
 

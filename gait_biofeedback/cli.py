@@ -198,7 +198,7 @@ def _calibration_options(args: argparse.Namespace, params: dict[str, dict]) -> l
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
-    from gait_biofeedback.analyze import resolve_calibrate_at
+    from gait_biofeedback.analyze import AUTO_OPTIONS, resolve_calibrate_at
     from gait_biofeedback.graph import replay_through_graph
     from gait_biofeedback.io.bag import BagReader
     from gait_biofeedback.parameters import stage_parameters
@@ -207,8 +207,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
     calibration = stage_parameters("calibration", params.get("calibration", {}))
     asked = _calibration_options(args, params)
     requests, notes = resolve_calibrate_at(args.bag, asked, calibration.default_standing_duration)
-    # auto's requests may take a shorter standing (core/calibration/windows.py), as analyze's do
-    requests = [(t, protocol, {"shorter_standing": True}) if when is None else (t, protocol)
+    requests = [(t, protocol, AUTO_OPTIONS) if when is None else (t, protocol)
                 for (t, protocol), (when, _) in zip(requests, asked, strict=True)]
     for note in notes:
         print(note)

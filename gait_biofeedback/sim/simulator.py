@@ -553,7 +553,8 @@ def _pins(body: _Body, ground: np.ndarray | None = None) -> dict[str, np.ndarray
 def _pelvis_position(body: _Body, pins: dict[str, np.ndarray]) -> np.ndarray:
     total = sum(body.weights[c] for c in _CONTACTS)
     pos = sum(body.weights[c][..., None] * (pins[c] - body.contacts[c]) for c in _CONTACTS)
-    return pos / total[..., None]
+    with np.errstate(invalid="ignore"):  # no contact loaded: NaN (before a recording that starts walking)
+        return pos / total[..., None]
 
 
 # ----------------------------------------------------------------------------------------------------
@@ -714,6 +715,7 @@ def simulate(config: SimulationConfig) -> SimulatedSession:
     n = int(np.floor(sum(p.duration for p in cfg.phases) * cfg.rate_hz + 1e-9))
     t = np.arange(n) / cfg.rate_hz
     plan, (b0, bm, bp), (p0, pm, pp) = _kinematics(cfg, pattern, t, (0.0, -_H, _H))
+    pm = np.where(np.isfinite(pm), pm, 2 * p0 - pp)  # t - H before a walk's start: no acceleration there
     # on stairs the trunk (pelvis, chest) rises step by step as real trunks do (_STAIRS_TRUNK_LIFT); the legs
     # hang from the pelvis the legs' geometry gives, so the feet stay pinned
     lifts = plan.trunk_lift(t, p0[:, 2] + b0.points["chest"][:, 2]) if plan.stairs else []

@@ -71,9 +71,9 @@ from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
 import numpy as np
-from scipy.signal import butter, filtfilt
 
 from gait_biofeedback.core import quaternion as quat
+from gait_biofeedback.core.calibration.cycles import MIN_CYCLES, count_cycles, lowpass_motion
 from gait_biofeedback.core.calibration.protocol import MAX_UPRIGHT_TILT, WORDS, check_protocol, upright_tilt
 from gait_biofeedback.core.calibration.trunk import forward_in_proximal, walking_axis
 from gait_biofeedback.core.calibration.windows import rms_about_mean
@@ -84,16 +84,13 @@ AUTO = "auto"  # a request's protocol: the one the movement shows (:mod:`.protoc
 REQUESTS: tuple[str, ...] = (AUTO, *PROTOCOLS)
 LEG_PARTS: tuple[str, ...] = ("thigh", "shank", "foot")
 TRUNK_SEGMENTS: tuple[str, ...] = ("pelvis", "chest")
-# Minimum sagittal cycles per leg segment: thesis §3.6 (≥ 10 hip FE) and §3.3 PC8 (8 steps = 4 per leg).
-MIN_CYCLES: dict[str, int] = {"hip_flexion": 10, "walking": 4}
 CYCLE_WORD: dict[str, str] = {"hip_flexion": "flexion", "walking": "swing"}
 MIN_EXPLAINED_VARIANCE = 0.6
 MAX_STANDING_GYRO_RMS = 0.08  # rad/s (4.6 °/s): more is not quiet standing
+MIN_STANDING_SAMPLES = 10  # fewer is no standing recorded
 MAX_STANDING_ACC_RMS = 0.5  # m/s²
 MAX_THIGH_HEADING_DISAGREEMENT = np.radians(30.0)
 MAX_AXIS_DISAGREEMENT = np.radians(45.0)  # trunk walking axis vs the nearest joint direction
-CYCLE_THRESHOLD = 0.35  # rad/s, hysteresis of the cycle counter (20 °/s)
-MOTION_LOWPASS_HZ = 6.0  # READING: low-pass of the motion gyro before PCA and the sign rules
 DETREND_WINDOW_S = 2.0  # moving-mean window removed from integrated angles (about one stride)
 
 
@@ -227,35 +224,6 @@ def heading_calibration(motion_gyr: np.ndarray, vertical: np.ndarray) -> tuple[f
     gamma = float(np.arctan2(-u[0], u[1]))
     axis_sf = u[0] * vertical[0] + u[1] * vertical[2]
     return gamma, explained, axis_sf / np.linalg.norm(axis_sf)
-
-
-def count_cycles(rate: np.ndarray, threshold: float = CYCLE_THRESHOLD) -> int:
-    """Sagittal movement cycles in an angular-rate signal: each rise above +threshold after a fall
-    below -threshold (hysteresis), on a 50 ms moving average."""
-    rate = np.asarray(rate, dtype=float)
-    if rate.size == 0:
-        return 0
-    smooth = np.convolve(rate, np.ones(5) / 5.0, mode="same")
-    state, cycles = 0, 0
-    for v in smooth:
-        if v < -threshold:
-            state = -1
-        elif v > threshold and state == -1:
-            cycles += 1
-            state = 1
-    return cycles
-
-
-def lowpass_motion(gyr: np.ndarray, rate_hz: float, cutoff_hz: float = MOTION_LOWPASS_HZ) -> np.ndarray:
-    """Zero-phase 2nd-order Butterworth low-pass of (N, 3) angular rates (module docstring step 2).
-
-    Returned unchanged when too short to filter (< 15 samples) or when the cut-off is not below the
-    Nyquist frequency."""
-    gyr = np.asarray(gyr, dtype=float)
-    if gyr.shape[0] < 15 or cutoff_hz >= 0.5 * rate_hz:
-        return gyr
-    b, a = butter(2, cutoff_hz / (0.5 * rate_hz))
-    return filtfilt(b, a, gyr, axis=0)
 
 
 def sagittal_angle(rate: np.ndarray, rate_hz: float, window_s: float = DETREND_WINDOW_S) -> np.ndarray:
@@ -415,7 +383,7 @@ def standing_check(segment: str, acc: np.ndarray, gyr: np.ndarray,
     """(RMS angular rate about its mean in rad/s, problem message or None) of a quiet-standing window;
     ``limits``: the largest RMS of the gyro (rad/s) and of the accelerometer (m/s²) about their means."""
     name = label(segment)
-    if acc.shape[0] < 10:
+    if acc.shape[0] < MIN_STANDING_SAMPLES:
         return float("nan"), f"{name}: no quiet standing recorded (need 3–5 s standing still)"
     gyro_rms, acc_rms = rms_about_mean(gyr), rms_about_mean(acc)
     if gyro_rms > limits[0]:

@@ -25,6 +25,7 @@ from gait_biofeedback.core.calibration.sensor_to_segment import (
     SessionCalibration,
     calibrate_session,
 )
+from gait_biofeedback.core.calibration.walk import calibrate_feet_from_walk
 from gait_biofeedback.core.calibration.windows import find_standing_then_motion
 from gait_biofeedback.core.params import param, require
 from gait_biofeedback.core.segments import SEGMENTS, ImuSeries
@@ -194,12 +195,14 @@ class CalibrationBuffer:
 
     def calibrate(self, protocol: str, standing_duration: float = 0.0, motion_duration: float = 0.0,
                   segments: Sequence[str] | None = None, until_ns: int | None = None,
-                  shorter_standing: bool = False) -> CalibrationAttempt:
+                  shorter_standing: bool = False, walk_only: bool = False) -> CalibrationAttempt:
         """Run ``protocol`` (or ``"auto"``: the one the movement shows) on the window ending at
         ``until_ns`` (see class docstring); refusals carry a message saying what to do, and that the
         previous calibration stays in force. Without ``segments`` named, the segments that sent data
         are calibrated and the silent ones named (a feet-only sensor set calibrates its feet); named
-        ``segments`` must all have data."""
+        ``segments`` must all have data. ``shorter_standing``: see :func:`find_standing_then_motion`;
+        ``walk_only``: without a standing, the feet from the walk's stance phases
+        (:func:`~.walk.calibrate_feet_from_walk`; offline ``auto`` only, as ``shorter_standing``)."""
         if protocol not in REQUESTS:
             return CalibrationAttempt(protocol, False, f"unknown protocol {protocol!r}: use one of "
                                       f"{list(REQUESTS)}")
@@ -224,8 +227,13 @@ class CalibrationBuffer:
                 data, standing_duration or self.default_standing, motion_duration,
                 shorter_standing=shorter_standing)
         except ValueError as exc:
-            return CalibrationAttempt(protocol, False, f"{exc}; previous calibration stays in force",
-                                      until_ns=end_ns)
+            if not walk_only or protocol == "hip_flexion":
+                return CalibrationAttempt(protocol, False, f"{exc}; previous calibration stays in force",
+                                          until_ns=end_ns)
+            cal = calibrate_feet_from_walk(data, ori, protocol)
+            message = cal.message if cal.success else f"{exc}; {cal.message}"
+            return CalibrationAttempt(cal.protocol, cal.success, message, cal, end_ns,
+                                      end_ns + self.apply_delay_ns, cal.looks_like)
         cal = calibrate_session(data, standing, motion, protocol, orientations=ori,
                                 common_heading=not self.six_d)
         message = cal.message + (f"; no data from {', '.join(silent)} (not calibrated)" if silent else "")
