@@ -298,6 +298,32 @@ def test_implausible_stride_does_not_move_the_symmetry_index():
         (mean_left - mean_right) / (0.5 * (mean_left + mean_right)))
 
 
+def test_a_stride_without_a_step_of_the_other_foot_is_not_walking():
+    # the simulator's training scenario: hip flexion lifts of the left leg while the right stands
+    # still gave left "strides" of 2 s with cues; walking then gives the right foot's step back
+    tracker = GaitCycleTracker()
+    for side, kind, t in (("right", "ic", -1.0), ("left", "ic", 0.0), ("left", "tc", 1.0)):
+        tracker.add(_ev(side, kind, t))
+    lift = tracker.add(_ev("left", "ic", 2.0))
+    assert not lift.plausible
+    assert lift.flag == "no step of the right foot detected in this stride (not walking, or its step missed)"
+    for side, kind, t in (("right", "tc", 2.1), ("right", "ic", 2.5), ("left", "tc", 2.6)):
+        tracker.add(_ev(side, kind, t))
+    assert tracker.add(_ev("left", "ic", 3.0)).plausible
+    first = GaitCycleTracker()  # the right foot tracked, standing, before any event of it
+    first.tracking = {"left", "right"}
+    for kind, t in (("ic", 0.0), ("tc", 0.6)):
+        first.add(_ev("left", kind, t))
+    assert "no step of the right foot" in first.add(_ev("left", "ic", 2.0)).flag
+    first.reset("right")  # its stream stopped: no longer tracked
+    first.add(_ev("left", "tc", 2.6))
+    assert first.add(_ev("left", "ic", 4.0)).plausible
+    alone = GaitCycleTracker()  # one foot's sensor only: its strides are judged on their own
+    for kind, t in (("ic", 0.0), ("tc", 0.6)):
+        alone.add(_ev("left", kind, t))
+    assert alone.add(_ev("left", "ic", 1.0)).plausible
+
+
 def test_step_time_is_from_the_last_other_foot_ic():
     # the left stride 0 → 1.9 s holds two right ICs (0.5 and 1.4): its step starts at the later one
     tracker = GaitCycleTracker()

@@ -6,10 +6,13 @@ step time (last IC of the other foot → this IC), cadence (steps/s = 2 / stride
 (IC → other foot's TC, plus other foot's IC → this foot's TC, inside the stride), and the step-time
 symmetry index ``(left - right) / (0.5 (left + right))`` of the mean step times over the last
 ``symmetry_window`` steps of each side (a step "of the left side" ends with a left IC).
-Plausibility: a stride outside [0.4, 3] s, or one without exactly one TC of its own foot between the
-two ICs, is returned with ``plausible=False`` and a ``flag`` saying why; implausible strides do not
-enter the symmetry window. Events may arrive slightly out of order between feet (two topics); each
-foot's own events must be in order.
+Plausibility: a stride outside [0.4, 3] s, one without exactly one TC of its own foot between the
+two ICs, or, when the other foot is tracked (``tracking``: its detector runs), one without an IC of
+the other foot (a leg lifted and set down while the other stands: hip flexion, a shuffle; or the
+other's step missed) is returned with ``plausible=False`` and a ``flag`` saying why; implausible
+strides do not enter the symmetry window.
+Events may arrive slightly out of order between feet (two topics; the other foot's step lies half a
+stride before the closing IC); each foot's own events must be in order.
 """
 
 from __future__ import annotations
@@ -98,11 +101,13 @@ class GaitCycleTracker:
         self._steps = {s: deque(maxlen=max(1, int(symmetry_window))) for s in SIDES}
         self.counts = {s: 0 for s in SIDES}
         self.implausible = {s: 0 for s in SIDES}
+        self.tracking: set[str] = set()  # the feet whose events come in: a stride needs the other's step
 
     def reset(self, side: str) -> None:
         """Forget one foot's events (its stream stopped): its next IC opens a new stride."""
         self._ics[side].clear()
         self._tcs[side].clear()
+        self.tracking.discard(side)
 
     def add(self, event: GaitEvent, doubt: tuple[int, str] | None = None) -> GaitCycle | None:
         """One event; the stride it closes (an IC after an earlier IC of the same foot), else None.
@@ -134,6 +139,9 @@ class GaitCycleTracker:
             flags.append(f"{len(own_tcs)} terminal contacts between the initial contacts (expected 1)")
         tc = own_tcs[0].t if own_tcs else math.nan
         other_ics = [e.t for e in self._ics[other] if start < e.t < end]
+        if not other_ics and (other in self.tracking or self._ics[other] or self._tcs[other]):
+            flags.append(f"no step of the {other} foot detected in this stride (not walking, or its step "
+                         "missed)")
         step = end - other_ics[-1] if other_ics else math.nan
         other_tc_after_start = [e.t for e in self._tcs[other] if start < e.t < tc]
         other_ic_before_tc = [t for t in other_ics if t < tc]
@@ -174,6 +182,7 @@ def symmetry_index(left: Sequence[float], right: Sequence[float]) -> float:
 def cycles_from_events(events: list[GaitEvent], **options: float) -> list[GaitCycle]:
     """Batch: all strides of a list of both feet's events (sorted here by detection time)."""
     tracker = GaitCycleTracker(**options)
+    tracker.tracking = {e.side for e in events}
     out = []
     for event in sorted(events, key=lambda e: (e.detected_ns, e.stamp_ns)):
         cycle = tracker.add(event)

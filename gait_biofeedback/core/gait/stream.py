@@ -304,6 +304,7 @@ class GaitEventStream:
         if recovering:
             self._doubtful[side] = (stamp_ns, RECOVERING_FLAG)
         self._last_ns[side] = stamp_ns
+        self.tracker.tracking.add(side)
         event = self.detectors[side].update(stamp_ns, q)
         events = [] if event is None else [self._event(side, event, recovering)]
         pairing = self.pairing[side]
