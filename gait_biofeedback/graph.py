@@ -251,12 +251,7 @@ def replay_through_graph(
             return now > limit or (now > settle and (not waiting or STOP.is_set()))
 
         spin_until(graph.executor, settled)
-        finishing = [graph.nodes[n] for n in ("gait_events", "activity_monitor") if n in graph.nodes]
-        if finishing and not interrupted:  # what the streams hold at the end goes out, as analyze's does
-            for node in finishing:
-                node.finish()
-            until = time.monotonic() + 0.3
-            spin_until(graph.executor, lambda: time.monotonic() > until)
+        finish_streams(graph)
         recorder = graph.recorder
     recorded = recorder.written if recorder is not None else 0
     calibration = graph.nodes.get("calibration")
@@ -281,6 +276,22 @@ def _raw_lost(sent: dict[str, int], orientation: Node | None) -> dict[str, tuple
 
 
 SETTLE_MAX_S = 10.0
+FINISH_DRAIN_S = 0.3
+
+
+def finish_streams(graph: RunningGraph) -> None:
+    """The end of the data, of a replay or of a live session (also after Ctrl-C / SIGTERM): what the
+    streams hold goes out, as ``analyze`` publishes it at the end of a file (the strides waiting for
+    their spatial values, the activity states held), and the graph spins ``FINISH_DRAIN_S`` s whatever
+    :data:`STOP` says, so the recorder takes them."""
+    finishing = [graph.nodes[n] for n in ("gait_events", "activity_monitor") if n in graph.nodes]
+    if not finishing:
+        return
+    for node in finishing:
+        node.finish()
+    until = time.monotonic() + FINISH_DRAIN_S
+    while time.monotonic() < until and graph.executor.context.ok():
+        graph.executor.spin_once(timeout_sec=0.05)
 
 
 def _calibration_request(stamp_ns: int, protocol: str, **options: object
@@ -302,6 +313,7 @@ def run_live(nodes: Sequence[str] | None = None, output: str | Path | None = Non
         print(f"running {names}" + (f", recording to {output}" if output else "") + "; Ctrl-C stops")
         with suppress(KeyboardInterrupt):
             spin_until(graph.executor, until or (lambda: False))
+            finish_streams(graph)
         recorder = graph.recorder
     if recorder is not None:
         print("recorded to " + ", ".join(str(p) for p in recorder.sessions))

@@ -273,3 +273,41 @@ def test_a_recording_that_cannot_start_leaves_nothing_and_can_be_retried(tmp_pat
         replay_through_graph(bag, tmp_path / "out", nodes=["calibration"], timeout=30,
                              node_parameters=refused)
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.timeout(120)
+def test_run_stopped_by_sigterm_publishes_the_strides_it_held(tmp_path):
+    """A live session ended by SIGTERM: the strides the gait_events node held for their spatial values
+    (the last one of each foot, its next stance never came) go out and are recorded, as at the end of
+    a replay; before, they were lost. The feet of a simulated walk, calibrated from a saved file."""
+    from gait_biofeedback.core.calibration.sensor_to_segment import (
+        SegmentCalibrationResult,
+        SessionCalibration,
+    )
+    from gait_biofeedback.core.calibration.stream import write_calibration_file
+    from gait_biofeedback.sim.recording import write_simulated_bag
+    from gait_biofeedback.sim.simulator import Phase, SimulationConfig, simulate
+
+    feet = ("left_foot", "right_foot")
+    session = simulate(SimulationConfig(seed=4, segments=feet,
+                                        phases=[Phase("stand", 2.0), Phase("walk", 8.0)]))
+    bag = write_simulated_bag(tmp_path / "in", session)
+    results = {s: SegmentCalibrationResult(s, session.truth.mounting[s], True, 1.0, "x", 0.0) for s in feet}
+    write_calibration_file(tmp_path / "session" / "calibration.yaml",
+                           SessionCalibration("walking", results, True, ""), "2026-12-05T10:00:00")
+    params = tmp_path / "params.yaml"
+    params.write_text(f"orientation_filter:\n  ros__parameters:\n    segments: [{', '.join(feet)}]\n"
+                      f"calibration:\n  ros__parameters:\n    segments: [{', '.join(feet)}]\n"
+                      f"    session_dir: {tmp_path / 'session'}\n    reload_calibration: true\n")
+    out = tmp_path / "live"
+    command = ["run", "--nodes", "orientation_filter,calibration,gait_events", "--params", str(params),
+               "--record", str(out)]
+    code, _, stderr = _stopped_by(signal.SIGTERM, command, bag)
+    assert code == 0 and "Traceback" not in stderr, stderr
+    reader = BagReader(out)
+    last_ic = {}
+    for _, m, _ in reader.messages(["/gait/events"]):
+        if m.type == m.INITIAL_CONTACT:
+            last_ic[m.side] = m.header.stamp
+    closed = {m.side: m.header.stamp for _, m, _ in reader.messages(["/gait/cycles"])}
+    assert len(last_ic) == 2 and closed == last_ic  # each foot's last heel strike closed a recorded stride
