@@ -77,6 +77,11 @@ def agreeing_stances(acc: np.ndarray, flat: np.ndarray) -> np.ndarray:
     return kept
 
 
+def _refused(segment: str, message: str) -> SegmentCalibrationResult:
+    return SegmentCalibrationResult(segment, IDENTITY.copy(), False, 0.0, "explained_variance", float("nan"),
+                                    message)
+
+
 def stance_calibration(segment: str, gyr: np.ndarray, acc: np.ndarray, rate_hz: float,
                        orientations: np.ndarray | None = None) -> SegmentCalibrationResult:
     """One foot from its walk: the still stance phases as the standing, every finite sample as the
@@ -91,8 +96,8 @@ def stance_calibration(segment: str, gyr: np.ndarray, acc: np.ndarray, rate_hz: 
     flat = agreeing_stances(acc, stance_phases(gyr, acc, rate_hz) & finite)
     need = max(MIN_STANCE_S * rate_hz, MIN_STANDING_SAMPLES)
     if flat.sum() < need:
-        return SegmentCalibrationResult(
-            segment, IDENTITY.copy(), False, 0.0, "explained_variance", float("nan"),
+        return _refused(
+            segment,
             f"{label(segment)}: no quiet standing, and only {flat.sum() / rate_hz:.2f} s of still stance "
             f"phases in the walk (need {need / rate_hz:.2g} s): start the recording with the patient "
             "standing still")
@@ -125,9 +130,8 @@ def calibrate_feet_from_walk(data: dict[str, ImuSeries], orientations: dict[str,
                                        orientations.get(seg)) for seg in feet}
     for seg in data:
         if seg not in results:
-            results[seg] = SegmentCalibrationResult(
-                seg, IDENTITY.copy(), False, 0.0, "explained_variance", float("nan"),
-                f"{label(seg)}: needs a quiet standing (only the feet calibrate from a walk)")
+            results[seg] = _refused(seg, f"{label(seg)}: needs a quiet standing (only the feet calibrate "
+                                    "from a walk)")
     valid = [label(s) for s, r in results.items() if r.valid]
     problems = [r.message for r in results.values() if not r.valid]
     if not valid:
