@@ -280,7 +280,7 @@ def walk_only_cli() -> None:
     for half, trials in _ipol_halves("ipol_gait, the walk only, through import → analyze --calibrate-at "
                                      "auto: trials without foot events, events (±300 ms)"):
         per_kind: dict[str, list] = {k: [] for k in KINDS}
-        failed = []
+        failed, silent_feet = [], []
         for path in trials:
             rec = import_recording("ipol_gait", path)
             cut = max(rec.imu[f"{side}_foot"].t[standing_run(rec.imu[f"{side}_foot"].gyr,
@@ -298,6 +298,8 @@ def walk_only_cli() -> None:
             if done.returncode or not any(len(v) for kinds in events.values() for v in kinds.values()):
                 failed.append(f"{path.stem}: exit {done.returncode}: {done.stderr.strip()[-300:]}")
             for side in ("left", "right"):
+                if not any(len(v) for v in events[side].values()):
+                    silent_feet.append(f"{path.stem} {side}")
                 ref = rec.reference["events"][side]
                 scored = [(max(rec.reference["trial"][0] - shift, 0.5), rec.reference["trial"][1] - shift)]
                 for kind in KINDS:
@@ -305,8 +307,8 @@ def walk_only_cli() -> None:
                                            scored))
         cells = " ".join(f"{kind.upper()} Se {r['se']:.1f} Pr {r['pr']:.1f} error {r['mean']:+.1f} ± "
                          f"{r['sd']:.1f} ms" for kind in KINDS for r in [score(per_kind[kind], IPOL_MATCH_S)])
-        print(f"  subjects {half[0]}-{half[-1]}: {len(failed)} of {len(trials)} trials without events; "
-              f"{cells}")
+        print(f"  subjects {half[0]}-{half[-1]}: {len(failed)} of {len(trials)} trials without events, "
+              f"{len(silent_feet)} of {2 * len(trials)} feet ({', '.join(silent_feet) or 'none'}); {cells}")
         for line in failed:
             print(f"    {line}")
         notes = score(per_kind[INITIAL_CONTACT], IPOL_MATCH_S)["notes"]

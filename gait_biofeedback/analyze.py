@@ -48,7 +48,8 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import Imu
 
 from gait_biofeedback.core.activity.stream import ActivityParams, ActivityStream
-from gait_biofeedback.core.calibration.protocol import WORDS, find_calibration
+from gait_biofeedback.core.calibration.find import find_calibration
+from gait_biofeedback.core.calibration.protocol import WORDS
 from gait_biofeedback.core.calibration.sensor_to_segment import AUTO, REQUESTS, SessionCalibration
 from gait_biofeedback.core.calibration.stream import (
     CALIBRATION_FILE,
@@ -144,7 +145,7 @@ def resolve_calibrate_at(bag: str | Path, requests: Sequence[tuple[float | None,
                          ) -> tuple[list[tuple[float, str]], list[str]]:
     """(requests with every ``auto`` time found, what was found in words). An ``auto`` time is the
     end (+ 0.5 s) of the first calibration in the recording's raw IMU data
-    (:func:`~gait_biofeedback.core.calibration.protocol.find_calibration`: a quiet standing of
+    (:func:`~gait_biofeedback.core.calibration.find.find_calibration`: a quiet standing of
     ``standing_duration`` s, the calibration stage's ``default_standing_duration``, then movement that
     looks like a protocol; without one, a walk); with protocol ``auto`` the protocol it looks like.
     ValueError (saying what was looked for) when there is none. The calibration node runs an ``auto``

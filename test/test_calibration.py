@@ -436,13 +436,13 @@ def test_ipol_standing_ends_before_the_walk_starts(trial):
 
 def test_a_walk_without_standing_calibrates_the_foot_from_its_stance_phases():
     """The simulated walk cut 1 s after its standing: the batch foot calibration takes the vertical
-    from the foot-flat moments (measured, seed 2: left 0.32°, right 0.003° from the true mounting, 1.45°
+    from the foot-flat moments (measured, seed 2: left 0.55°, right 0.06° from the true mounting, 1.45°
     before ``agreeing_stances``; 0.0° with the standing); 0.3 s of it (one stance phase, no swing) is
     refused, naming the swings."""
     from gait_biofeedback.core.calibration.foot import foot_calibration, standing_run
 
     session = simulate(SCENARIOS["walk"](seed=2))
-    for side, limit in (("left", 0.64), ("right", 0.01)):
+    for side, limit in (("left", 1.1), ("right", 0.12)):
         foot = session.imu[f"{side}_foot"]
         k = standing_run(foot.gyr, foot.acc, foot.rate_hz)[1] + round(foot.rate_hz)
         r = foot_calibration(foot.gyr[k:], foot.acc[k:], foot.rate_hz, f"{side}_foot")

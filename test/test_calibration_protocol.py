@@ -9,7 +9,8 @@ import pytest
 from conftest import shared_data
 
 from gait_biofeedback.batch import track_orientation
-from gait_biofeedback.core.calibration.protocol import check_protocol, find_calibration, upright_tilt
+from gait_biofeedback.core.calibration.find import find_calibration
+from gait_biofeedback.core.calibration.protocol import check_protocol, upright_tilt
 from gait_biofeedback.core.calibration.sensor_to_segment import calibrate_session, helical_angle
 from gait_biofeedback.core.calibration.windows import find_standing_then_motion
 from gait_biofeedback.core.segments import ImuSeries

@@ -36,44 +36,53 @@ STANCE_GYRO_STD = 0.05  # rad/s
 STANCE_GYRO_NORM = 0.3  # rad/s: a few °/s of bias pass, the heel and forefoot rockers' rolling does not
 STANCE_ACC_STD = 0.3  # m/s²
 MIN_STANCE_S = 0.1  # s of stance phases needed in place of a standing (and MIN_STANDING_SAMPLES)
-MAX_STANCE_S = 1.0  # s: a still run this long is a standing, not a stance phase
+STILL_PERIOD_GAP_S = 0.2  # s: still runs this close are one still period (a swing lasts 0.3 s or more)
 STANCE_LIMITS = (0.2, 1.5)  # rad/s, m/s²: the standing check's RMS limits for stance phases
 
 
 def stance_phases(gyr: np.ndarray, acc: np.ndarray, rate_hz: float) -> np.ndarray:
     """(N,) bool: the foot is flat and still, over the ``STANCE_WINDOW_S`` around each sample: gyro
     spread (norm of its per-axis standard deviations) below ``STANCE_GYRO_STD``, mean ``‖ω‖`` below
-    ``STANCE_GYRO_NORM``, spread of ``‖a‖`` below ``STANCE_ACC_STD``; runs longer than
-    ``MAX_STANCE_S`` are standing, left out (ipol 7-5's final standing, 4 of its 4.2 still seconds,
-    put the vertical 24° from its first standing's). The window was chosen on ipol_gait subjects 1–5
-    with each trial's standing cut off (``benchmarks/gait_events.py --walk-only``): 0.1 s refused 6 of
-    56 feet (fast walkers' feet are not still that long), 0.08 s 3, 0.06 s 1."""
+    ``STANCE_GYRO_NORM``, spread of ``‖a‖`` below ``STANCE_ACC_STD``. The window was chosen on ipol_gait
+    subjects 1–5 with each trial's standing cut off (``benchmarks/gait_events.py --walk-only``): 0.1 s
+    refused 6 of 56 feet (fast walkers' feet are not still that long), 0.08 s 3, 0.06 s 1."""
     w = max(2, round(STANCE_WINDOW_S * rate_hz))
     gyr_spread = np.linalg.norm(moving_std(gyr, w), axis=1)
     turning = moving_mean(np.linalg.norm(gyr, axis=1), w) >= STANCE_GYRO_NORM  # a rocker, not a flat foot
     shaken = moving_std(np.linalg.norm(acc, axis=1), w) >= STANCE_ACC_STD
-    flat = (gyr_spread < STANCE_GYRO_STD) & ~turning & ~shaken
-    for a, b in runs(flat):
-        if b - a > MAX_STANCE_S * rate_hz:
-            flat[a:b] = False
-    return flat
+    return (gyr_spread < STANCE_GYRO_STD) & ~turning & ~shaken
 
 
-def agreeing_stances(acc: np.ndarray, flat: np.ndarray) -> np.ndarray:
-    """``flat`` without the stance phases whose mean acceleration is more than half the standing
-    check's accelerometer limit (``STANCE_LIMITS``) from the median of the stance phases' means: the
-    first and last steps of a walk (gait initiation and termination) or a stance on a slope disagree
-    with the walk's other steps (the simulator's walk from rest: left foot 2.9° → 0.7°, right foot
-    refused → 0.1°). The gyro's means too, at twice its limit, refused 1 more of the 104 ipol_gait
-    feet in their first 20 s of walking."""
-    phases = runs(flat)
-    if not phases:
+def still_periods(flat: np.ndarray, rate_hz: float) -> list[tuple[int, int]]:
+    """[start, stop) of the runs of ``flat`` joined across gaps shorter than ``STILL_PERIOD_GAP_S``:
+    one per stance of a walk, one per standing (which a foot's small shifts break into short runs)."""
+    joined = flat.copy()
+    for a, b in runs(~flat):
+        if a > 0 and b < len(flat) and b - a < STILL_PERIOD_GAP_S * rate_hz:
+            joined[a:b] = True
+    return runs(joined)
+
+
+def agreeing_stances(acc: np.ndarray, flat: np.ndarray, rate_hz: float) -> np.ndarray:
+    """``flat`` without the still periods (:func:`still_periods`) whose mean acceleration is more than
+    half the standing check's accelerometer limit (``STANCE_LIMITS``) from the median of the periods'
+    means: the first and last steps of a walk (gait initiation and termination), a stance on a slope or
+    a standing with the foot not flat disagree with the walk's other steps (the simulator's walk from
+    rest: left foot 2.9° → 0.7°, right foot refused → 0.1°). Each period is one vote, however long: ipol
+    7-5's final standing, its vertical 24° from its first standing's, broke into eight still runs 0.02–0.05
+    s apart in its first 20 s of walking; counted run by run they outnumbered the walk's stance phases
+    and the foot was refused; a standing agreeing with the stances is kept (ipol 1-2 left, 4-3 left, 4-4
+    right: under 0.1 s of flat stance without theirs). The gyro's means too, at twice its limit,
+    refused 1 more of the 104 ipol_gait feet in their first 20 s of walking."""
+    periods = [(a, b) for a, b in still_periods(flat, rate_hz) if flat[a:b].any()]
+    if not periods:
         return flat
-    means = np.array([acc[a:b].mean(axis=0) for a, b in phases])
+    means = np.array([acc[a:b][flat[a:b]].mean(axis=0) for a, b in periods])
     off = np.linalg.norm(means - np.median(means, axis=0), axis=1) > STANCE_LIMITS[1] / 2
     kept = flat.copy()
-    for (a, b), out in zip(phases, off, strict=True):
-        kept[a:b] = not out
+    for (a, b), out in zip(periods, off, strict=True):
+        if out:
+            kept[a:b] = False
     return kept
 
 
@@ -93,8 +102,8 @@ def stance_calibration(segment: str, gyr: np.ndarray, acc: np.ndarray, rate_hz: 
     stance phases (README *A walk without standing*: the figures on ipol_gait)."""
     gyr, acc = np.asarray(gyr, dtype=float), np.asarray(acc, dtype=float)
     finite = np.all(np.isfinite(gyr), axis=1) & np.all(np.isfinite(acc), axis=1)
-    flat = agreeing_stances(acc, stance_phases(gyr, acc, rate_hz) & finite)
-    need = max(MIN_STANCE_S * rate_hz, MIN_STANDING_SAMPLES)
+    flat = agreeing_stances(acc, stance_phases(gyr, acc, rate_hz) & finite, rate_hz)
+    need = max(round(MIN_STANCE_S * rate_hz), MIN_STANDING_SAMPLES)  # 100.000000000002 Hz: 10 samples
     if flat.sum() < need:
         return _refused(
             segment,
