@@ -441,6 +441,21 @@ def _against_record(published: list, of_record: list) -> str:
             f"their values of record (95th percentile of |difference| {np.percentile(np.abs(d), 95):.1f} cm)")
 
 
+def _swing_against_record(published: list, of_record: list) -> str:
+    """How the provisional foot height and angles among ``published`` differ from their values of record."""
+    record = {(m.side, m.stride_index): m for m, _ in of_record}
+    cells = []
+    for name, scale, unit in (("max_foot_height", 100, "cm"), ("foot_angle_ic", np.degrees(1), "°"),
+                              ("foot_angle_tc", np.degrees(1), "°")):
+        d = np.array([getattr(m, name) - getattr(record[(m.side, m.stride_index)], name) for m, _ in published
+                      if m.spatial_provisional]) * scale
+        d = d[np.isfinite(d)]
+        if len(d):
+            cells.append(f"{name} {d.mean():+.1f} ± {d.std():.1f} {unit} (95th percentile of |difference| "
+                         f"{np.percentile(np.abs(d), 95):.1f}, n {len(d)})")
+    return "; ".join(cells) or "no provisional foot height or angles"
+
+
 def through_the_command_line(provisional_after: float | None = None) -> None:
     """The user's path: ``import`` → ``analyze`` → the ``gait/cycles`` messages' spatial values, as
     published (provisional ones included) and as of record (``gait/stride_space`` applied), with the
@@ -466,7 +481,9 @@ def through_the_command_line(provisional_after: float | None = None) -> None:
                 _score_cli("as published" + label, published, folder)
                 provisional = [(m, t) for m, t in published if m.spatial_provisional]
                 _score_cli("provisional only" + label, provisional, folder)
+                swing = _swing_against_record(published, of_record)
             _score_cli("of record (smoothed)", of_record, folder)
+            print(f"\ngaitmap_example, provisional against the values of record: {swing}")
         qmt = DATA / "qmt_fullbody" / "full_body_example_data.mat"
         if qmt.exists():
             _cli("import", "qmt_fullbody", str(qmt), "-o", str(tmp / "qmt"))
@@ -477,6 +494,7 @@ def through_the_command_line(provisional_after: float | None = None) -> None:
                      str(tmp / "qmt.yaml"), "--calibrate-at", "75:walking", "--overwrite")
                 published, of_record = _cycles(tmp / "qmt_out")
                 print(f"qmt_fullbody{label} (no truth): " + _against_record(published, of_record))
+                print(f"  provisional foot height and angles: {_swing_against_record(published, of_record)}")
             lengths = np.array([m.stride_length for m, _ in of_record if not m.spatial_flag])
             print(f"qmt_fullbody (no truth): {len(of_record)} strides, {len(of_record) - len(lengths)} "
                   f"flagged without spatial values; stride length median {np.median(lengths):.2f} m, largest "

@@ -509,8 +509,9 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
         if rest.withheld:
             result.warnings.append(
                 f"{side} foot: {rest.withheld} provisional stride lengths withheld (live, those strides wait "
-                f"for their smoothed values): they differed from the smoothed ones by more than provisional_"
-                f"tolerance, {100 * rest.tolerance:g} cm RMS ({100 * rest.spread:.1f} cm at the end)")
+                f"for their smoothed values) while their last estimates differed from the smoothed ones by "
+                f"more than provisional_tolerance, {100 * rest.tolerance:g} cm RMS (at the end of the "
+                f"recording {100 * rest.spread:.1f} cm)")
     for until_ns, protocol in buffer.scheduled:
         at = (until_ns - start_ns) / NS_PER_S
         result.warnings.append(f"calibration ({protocol}) at {at:.2f} s never ran: "

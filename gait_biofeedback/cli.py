@@ -7,6 +7,7 @@ import os
 import sys
 import warnings
 from pathlib import Path
+from typing import Any
 
 from gait_biofeedback.core.words import plural
 
@@ -604,6 +605,12 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _show_warning(message: Warning | str, category: type[Warning], filename: str, lineno: int,
+                  file: Any = None, line: str | None = None) -> None:
+    """A Python warning as one line for the user, without the source line it came from."""
+    print(f"warning: {message}", file=sys.stderr)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``gait-biofeedback`` console script."""
     parser = build_parser()
@@ -612,7 +619,9 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 1
     try:
-        return int(args.func(args) or 0)
+        with warnings.catch_warnings():  # restores the default display when main returns (tests call it)
+            warnings.showwarning = _show_warning
+            return int(args.func(args) or 0)
     except FileExistsError as err:
         replaceable = hasattr(args, "overwrite") and "not empty" in str(err)
         hint = " (or pass --overwrite to replace it)" if replaceable else ""

@@ -372,3 +372,32 @@ def test_a_merged_transition_replaces_the_one_it_merged():
         add_transition(marks, msg)
     assert marks == [(10_000_000_000, TRANSITION_CODES["stand_to_lie"]),
                      (30_000_000_000, TRANSITION_CODES["lie_to_stand"])]
+
+
+def test_turning_strides_are_left_out_of_the_summaries(tmp_path):
+    """A walk, a 180° turn in 3 s, a walk back: the strides whose foot turned more than 20° are left out
+    of the report's table and curves and of analyze's medians, counted in both; the straight strides
+    keep the simulator's 1.333 m (1.2 m/s at 108 steps/min; its turn's four are 1.09-1.32 m)."""
+    from gait_biofeedback.core.biofeedback.evaluator import load_targets
+    from gait_biofeedback.core.gait.cycles import TURN_LIMIT
+    from gait_biofeedback.report.analysis import analyse_session
+    from gait_biofeedback.report.build import default_targets_path
+    from gait_biofeedback.report.session import session_report
+
+    session = simulate(SimulationConfig(seed=3, phases=[
+        Phase("stand", 5.0), Phase("walk", 8.0), Phase("turn", 3.0, {"angle": math.pi}), Phase("walk", 8.0),
+        Phase("stand", 3.0)]))
+    raw = write_simulated_bag(tmp_path / "turn", session)
+    rc, _, err = _cli("analyze", str(raw), "-o", str(tmp_path / "analyzed"), "--calibrate-at", "12:walking")
+    assert rc == 0, err
+    data = read_session(tmp_path / "analyzed")
+    analysis = analyse_session(data, load_targets(default_targets_path()))
+    turning = [r for r in data.strides if r["plausible"] and abs(r["turning_angle"]) > TURN_LIMIT]
+    assert len(turning) >= 2 and analysis.left_out_turning == len(turning)
+    assert not any(abs(r["turning_angle"]) > TURN_LIMIT for r in analysis.used)
+    for side in ("left", "right"):
+        mean, _, n = analysis.table["stride_length"][side]
+        assert n >= 4 and mean == pytest.approx(1.333, abs=0.02)  # measured 1.325, 1.336
+    cycles = session_report(tmp_path / "analyzed").cycles
+    assert cycles["turning"] == len(turning)
+    assert cycles["stride_length"] == pytest.approx(1.333, abs=0.02)

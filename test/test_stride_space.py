@@ -19,6 +19,7 @@ from gait_biofeedback.core.biofeedback.evaluator import (
 from gait_biofeedback.core.body import BodyDimensions
 from gait_biofeedback.core.gait.cycles import GaitCycle
 from gait_biofeedback.core.gait.spatial import SpatialPairing
+from gait_biofeedback.core.spatial.provisional import ProvisionalStride
 from gait_biofeedback.core.spatial.strides import SpatialStride
 
 S = 1_000_000_000
@@ -73,20 +74,22 @@ def test_a_flagged_trajectory_stride_gives_no_values_an_informative_flag_keeps_t
 
 def test_a_stride_goes_out_at_ic_plus_50_ms_with_its_provisional_length_and_its_smoothed_values_follow():
     """At the last sample at or before IC + 50 ms (100 Hz: 11.05 s) the trajectory is asked once; the stride
-    goes out with the provisional length and speed only, then its revision with the smoothed values."""
+    goes out with the provisional length, speed, foot height and angles, then its revision with the
+    smoothed values."""
     pairing = SpatialPairing(wait_s=0.4, provisional_after_s=0.05, period_s=0.01)
     pairing.add_cycle(_cycle(1, 10.0, 11.0))
     asked = []
 
     def provisional():
         asked.append(True)
-        return round(10.5 * S), 1.25
+        return ProvisionalStride(round(10.5 * S), 1.25, 0.12, 0.3, -0.9)
 
     assert pairing.due(round(11.04 * S), provisional) == [] and not asked
     ((cycle, space, revision),) = pairing.due(round(11.05 * S), provisional)
     assert cycle.index == 1 and not revision and space.provisional and space.flag == ""
     assert space.stride_length == 1.25 and space.gait_speed == pytest.approx(1.25)
-    assert math.isnan(space.max_foot_height) and math.isnan(space.foot_angle_tc)
+    assert (space.max_foot_height, space.foot_angle_ic, space.foot_angle_tc) == (0.12, 0.3, -0.9)
+    assert math.isnan(space.turning_angle) and math.isnan(space.min_toe_clearance)
     assert pairing.due(round(11.2 * S), provisional) == [] and len(asked) == 1
     pairing.add_stride(_stride(10.5, 11.18))
     ((cycle, space, revision),) = pairing.due(round(11.3 * S), provisional)
@@ -99,18 +102,20 @@ def test_without_a_provisional_value_of_its_own_swing_a_stride_waits_for_the_smo
     pending revision without values."""
     pairing = SpatialPairing(wait_s=0.4, provisional_after_s=0.05, period_s=0.01)
     pairing.add_cycle(_cycle(1, 10.0, 11.0))
-    answers = iter([None, (round(9.5 * S), 2.6)])
+    answers = iter([None, ProvisionalStride(round(9.5 * S), 2.6, 0.1, 0.2, -0.3)])
     assert pairing.due(round(11.05 * S), lambda: next(answers)) == []
     assert pairing.due(round(11.06 * S), lambda: next(answers)) == []  # asked once: no second answer used
     pairing.add_stride(_stride(10.5, 11.18))
     ((_, space, revision),) = pairing.due(round(11.3 * S), lambda: next(answers))
     assert not revision and not space.provisional and space.stride_length == 1.3
     pairing.add_cycle(_cycle(2, 11.0, 12.0))
-    assert pairing.due(round(12.05 * S), lambda: (round(10.9 * S), 1.3)) == []  # left before its IC
+    left_before = ProvisionalStride(round(10.9 * S), 1.3, 0.1, 0.2, -0.3)
+    assert pairing.due(round(12.05 * S), lambda: left_before) == []  # left before its IC
     pairing.add_cycle(_cycle(3, 12.0, 13.0))
     pairing.release("x")  # the held ones go out without values
     pairing.add_cycle(_cycle(4, 13.0, 14.0))
-    ((_, space, _),) = pairing.due(round(14.05 * S), lambda: (round(13.5 * S), 1.2))
+    fourth = ProvisionalStride(round(13.5 * S), 1.2, 0.1, 0.2, -0.3)
+    ((_, space, _),) = pairing.due(round(14.05 * S), lambda: fourth)
     assert space.provisional
     ((cycle, space, revision),) = pairing.release("state reset (gap): spatial values unknown")
     assert cycle.index == 4 and revision and math.isnan(space.stride_length)
@@ -183,6 +188,33 @@ def test_provisional_lengths_are_published_only_while_they_agree_with_the_smooth
         assert rest.offer(k, 1.0) is None
         rest.check(k, 1.0)
     assert rest.withheld == 5 and rest.spread == 0.0 and rest.offer(9, 1.0) == 1.0
+
+
+def test_provisional_foot_height_and_angles_are_published_value_by_value_while_they_agree():
+    """Heights 1, −1, 2 cm off their smoothed values (RMS 1.4 cm ≤ 2 cm): published from the fourth
+    stride; the foot-strike angles 6° off (RMS 6° > 5°) stay NaN, the push-off angles (0°) are
+    published. A 4 cm height miss: √((1 + 1 + 4 + 16) / 4) = 2.3 cm > 2 cm, withheld."""
+    from gait_biofeedback.core.spatial.provisional import SwingAgreement
+
+    agreement = SwingAgreement()
+    deg = math.radians(1.0)
+    smoothed = {"max_sensor_height": 0.10, "foot_angle_ic": 20 * deg, "foot_angle_tc": -60 * deg}
+
+    def estimate(k: int, height_cm: float) -> ProvisionalStride:
+        return ProvisionalStride(k, 1.3, 0.10 + height_cm / 100, 26 * deg, -60 * deg)
+
+    for k, off in enumerate((1.0, -1.0, 2.0)):
+        out = agreement.offer(estimate(k, off))
+        assert out.stride_length == 1.3
+        assert math.isnan(out.max_sensor_height) and math.isnan(out.foot_angle_tc)
+        agreement.check(k, smoothed)
+    out = agreement.offer(estimate(3, 4.0))
+    assert out.max_sensor_height == pytest.approx(0.14) and out.foot_angle_tc == pytest.approx(-60 * deg)
+    assert math.isnan(out.foot_angle_ic)
+    agreement.check(99, smoothed)  # another swing's stride: no check
+    agreement.offer(estimate(3, 4.0))
+    agreement.check(3, smoothed)
+    assert math.isnan(agreement.offer(estimate(4, 0.0)).max_sensor_height)
 
 
 def test_on_the_fast_real_walk_the_provisional_lengths_are_withheld(tmp_path):

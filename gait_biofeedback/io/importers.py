@@ -455,13 +455,14 @@ def _csv_time(
         found = [name for name in DEFAULT_TIME_COLUMNS if name in header]
         if not found:
             raise ValueError(f"{path}: no time column named {list(DEFAULT_TIME_COLUMNS)}; the file has "
-                             f"{header}. Name it with mapping['time'] or give rate_hz")
+                             f"{header}. Name it with mapping['time'], or give the rate (--rate HZ; "
+                             "rate_hz in Python)")
         time_column = found[0]
     t = column(time_column, "time") * time_factor
     if np.any(~np.isfinite(t)):
         row = int(np.flatnonzero(~np.isfinite(t))[0])
         raise ValueError(f"{path}: time column '{time_column}' is empty/NaN at data row {row}; fix the file "
-                         "or give rate_hz")
+                         "or give the rate (--rate HZ; rate_hz in Python)")
     steps = np.diff(t)
     if np.any(steps <= 0):
         row = int(np.flatnonzero(steps <= 0)[0]) + 1

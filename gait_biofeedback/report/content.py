@@ -9,6 +9,7 @@ from collections import Counter
 
 from gait_biofeedback.core.biofeedback import normative
 from gait_biofeedback.core.biofeedback.evaluator import Targets
+from gait_biofeedback.core.gait.cycles import TURN_LIMIT
 from gait_biofeedback.core.segments import SIDES
 from gait_biofeedback.core.words import plural
 from gait_biofeedback.report import figures
@@ -61,6 +62,12 @@ def spatiotemporal(analysis: SessionAnalysis, norms: dict[str, NormBand]) -> Sec
                 f"; {plural(analysis.left_out_outside_walking, 'plausible stride')} outside walking left out "
                 "(the summary above counts them)"
                 if analysis.left_out_outside_walking
+                else ""
+            )
+            + (
+                f"; {plural(analysis.left_out_turning, 'turning stride')} (heading change over "
+                f"{math.degrees(TURN_LIMIT):.0f}°) left out: steady straight walking"
+                if analysis.left_out_turning
                 else ""
             )
             + ". The summary gives medians, the table means.",
@@ -196,6 +203,9 @@ def strides_section(data: SessionData, analysis: SessionAnalysis) -> Section:
             f"walking bouts (activity monitor): {bouts}; {analysis.left_out_outside_walking} plausible "
             "strides outside them left out (e.g. events of calibration moves)"
         )
+    if analysis.left_out_turning:
+        items.append(f"{plural(analysis.left_out_turning, 'turning stride')} left out (the foot's heading "
+                     f"changed by more than {math.degrees(TURN_LIMIT):.0f}°)")
     flags = Counter(r["flag"].split(":")[0] for r in data.strides if not r["plausible"])
     items += [f"not plausible: {n} × {flag}" for flag, n in flags.most_common()]
     spatial = Counter(r["spatial_flag"].split(":")[0] for r in analysis.used if r["spatial_flag"])

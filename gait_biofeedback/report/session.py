@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from gait_biofeedback.core import quaternion as quat
+from gait_biofeedback.core.gait.cycles import TURN_LIMIT
 from gait_biofeedback.core.gait.events import INITIAL_CONTACT, TERMINAL_CONTACT
 from gait_biofeedback.core.gait.matching import EventScore, match_events
 from gait_biofeedback.core.segments import SIDES
@@ -108,24 +109,30 @@ def _events(reader: BagReader, recorded: dict) -> dict[str, EventScore]:
 
 
 def _cycles(reader: BagReader, recorded: dict) -> dict[str, float]:
+    """The strides' counts and the medians over the plausible straight ones (a turn, ``turning_angle``
+    over ``TURN_LIMIT``, is left out, as in the report)."""
     cycles = topics.GAIT_CYCLES.absolute()
     if cycles not in recorded:
         return {}
-    rows, spatial = [], []
+    total, plausible, rows, spatial = 0, 0, [], []
     revisions = [t for t in (topics.STRIDE_SPACE.absolute(),) if t in recorded]
     for m in revised_cycles((t, m) for t, m, _ in reader.messages([cycles, *revisions])):
-        rows.append((m.stride_time, m.stance_fraction, m.cadence, m.double_support_fraction, m.plausible))
-        if m.plausible and not m.spatial_flag and m.stride_length > 0:
+        total += 1
+        plausible += m.plausible
+        if not m.plausible or abs(m.turning_angle) > TURN_LIMIT:
+            continue
+        rows.append((m.stride_time, m.stance_fraction, m.cadence, m.double_support_fraction))
+        if not m.spatial_flag and m.stride_length > 0:
             spatial.append((m.stride_length, m.gait_speed))
-    good = np.array([r[:4] for r in rows if r[4]], dtype=float).reshape(-1, 4)
+    good = np.array(rows, dtype=float).reshape(-1, 4)
     if not len(good):
-        return {"strides": len(rows), "plausible": 0}
+        return {"strides": total, "plausible": plausible, "turning": plausible}
     space = np.array(spatial, dtype=float).reshape(-1, 2)
     return {
-        "spatial": len(space),
+        "spatial": len(space), "turning": plausible - len(good),
         "stride_length": float(np.median(space[:, 0])) if len(space) else math.nan,
         "gait_speed": float(np.nanmedian(space[:, 1])) if len(space) else math.nan,
-        "strides": len(rows), "plausible": len(good),
+        "strides": total, "plausible": plausible,
         "stride_time": float(np.median(good[:, 0])), "stance_percent": float(100 * np.median(good[:, 1])),
         "cadence_per_min": float(60 * np.median(good[:, 2])),
         # one foot only (a single shoe sensor): no double support
@@ -189,14 +196,16 @@ def format_report(report: SessionReport) -> list[str]:
                      f"{1000 * score.sd_error:4.1f} ms  ({len(score.errors)} matched, {len(score.missed)} "
                      f"missed, {len(score.extra)} extra)")
     c = report.cycles
-    if c.get("plausible"):
-        lines.append(f"strides: {c['plausible']} of {c['strides']} plausible; "
+    if c.get("plausible") and "stride_time" in c:
+        turns = f", {c['turning']} of them turning (left out)" if c["turning"] else ""
+        lines.append(f"strides: {c['plausible']} of {c['strides']} plausible{turns}; "
                      f"stride {c['stride_time']:.2f} s, cadence {c['cadence_per_min']:.0f} steps/min, "
                      f"stance {c['stance_percent']:.0f} %, " + (
                          f"double support {c['double_support_percent']:.0f} %"
                          if math.isfinite(c["double_support_percent"])
                          else "double support unknown (one foot)"))
-        lines.append(f"spatial: {c['spatial']} of {c['plausible']} plausible strides with spatial values"
+        lines.append(f"spatial: {c['spatial']} of {c['plausible'] - c['turning']} plausible straight strides "
+                     "with spatial values"
                      + (f"; stride length {c['stride_length']:.2f} m, gait speed {c['gait_speed']:.2f} m/s"
                         if c["spatial"] else " (the others are flagged in gait/cycles spatial_flag)"))
     if report.transitions or report.steps:

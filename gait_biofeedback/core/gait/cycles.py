@@ -28,6 +28,8 @@ from gait_biofeedback.core.stamps import NS_PER_S, s_to_ns
 
 MIN_STRIDE_S = 0.4
 MAX_STRIDE_S = 3.0
+TURN_LIMIT = math.radians(20.0)
+"""rad: a stride whose foot's heading changed more is a turn, left out of the summaries (EXT)."""
 
 
 @dataclass(frozen=True)
@@ -43,7 +45,7 @@ class StrideSpace:
     turning_angle: float = math.nan
     lateral_excursion: float = math.nan
     flag: str = ""
-    provisional: bool = False  # only stride_length and gait_speed, before the next stance (.spatial)
+    provisional: bool = False  # before the next stance: length, speed, foot height and angles (.spatial)
 
 
 @dataclass(frozen=True)

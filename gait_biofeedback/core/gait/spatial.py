@@ -23,9 +23,11 @@ interpolated``) keeps the values.
 Provisional values (``provisional_after``): waiting for the next stance delays the stride's message,
 temporal values included, by 0.28-0.46 s, longer than a cue may lag. So at the last sample at or
 before ``provisional_after`` past the closing IC, the foot trajectory is asked for a provisional
-stride length (:mod:`gait_biofeedback.core.spatial.provisional`) of the swing that left its stance
-inside the IC→IC stride. With one, the stride goes out then with ``stride_length`` and ``gait_speed``
-provisional (the other values NaN), and its smoothed values follow as a *revision* once its trajectory
+stride (:mod:`gait_biofeedback.core.spatial.provisional`) of the swing that left its stance inside the
+IC→IC stride. With one, the stride goes out then with ``stride_length``, ``gait_speed``,
+``max_foot_height``, ``foot_angle_ic`` and ``foot_angle_tc`` provisional (each NaN while the foot's
+estimates of it disagree with the smoothed values; the other values NaN), and its smoothed values
+follow as a *revision* once its trajectory
 stride is in, by the rules above (NaN and the flag when there is none by the deadline). Without one
 (the foot's first strides, lost samples, a swing that left before the opening IC, estimates that
 disagreed with their smoothed values: ``provisional_tolerance``), the stride waits for the smoothed
@@ -45,6 +47,7 @@ from collections import deque
 from collections.abc import Callable
 
 from gait_biofeedback.core.gait.cycles import GaitCycle, StrideSpace
+from gait_biofeedback.core.spatial.provisional import ProvisionalStride
 from gait_biofeedback.core.spatial.strides import LOST_FLAG, SpatialStride
 from gait_biofeedback.core.stamps import NS_PER_S
 
@@ -64,7 +67,7 @@ def stride_space(cycle: GaitCycle, stride: SpatialStride) -> StrideSpace:
                        turning_angle=stride.turning_angle, lateral_excursion=stride.lateral_excursion)
 
 
-Provisional = Callable[[], "tuple[int, float] | None"]  # (foot-off stamp ns, stride length m) or None
+Provisional = Callable[[], "ProvisionalStride | None"]
 Decided = tuple[GaitCycle, StrideSpace, bool]  # (stride, its spatial values, a revision)
 
 
@@ -114,10 +117,12 @@ class SpatialPairing:
             return None
         self._asked = cycle.end_ns
         value = provisional()
-        if value is None or not cycle.start_ns <= value[0] < cycle.end_ns:
+        if value is None or not cycle.start_ns <= value.foot_off_ns < cycle.end_ns:
             return None
-        length = value[1]
-        return StrideSpace(stride_length=length, gait_speed=length / cycle.stride_time, provisional=True)
+        length = value.stride_length
+        return StrideSpace(stride_length=length, gait_speed=length / cycle.stride_time,
+                           max_foot_height=value.max_sensor_height, foot_angle_ic=value.foot_angle_ic,
+                           foot_angle_tc=value.foot_angle_tc, provisional=True)
 
     def release(self, why: str) -> list[Decided]:
         """Every held stride and pending revision at once, without spatial values (``why``: the foot

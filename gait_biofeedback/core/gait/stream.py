@@ -27,11 +27,11 @@
   by an IC is held until the trajectory's stride of the same swing is in
   (:class:`~gait_biofeedback.core.gait.spatial.SpatialPairing`, at most ``spatial_wait`` s); its
   values, or NaN and the reason, go with it. With ``spatial_provisional`` it goes out
-  ``provisional_after`` s after the IC with a provisional length and speed when the trajectory has
-  one, and a *revision* (a GaitCycle with ``revision``, the smoothed values) follows. A reset of
-  the foot for its stamps (a gap, time going back, a stream that stopped) releases the held strides
-  and pending revisions without spatial values; a new calibration does not (the trajectory does
-  not use it).
+  ``provisional_after`` s after the IC with a provisional length, speed, foot height and angles when
+  the trajectory has one, and a *revision* (a GaitCycle with ``revision``, the smoothed values)
+  follows. A reset of the foot for its stamps (a gap, time going back, a stream that stopped)
+  releases the held strides and pending revisions without spatial values; a new calibration does not
+  (the trajectory does not use it).
 
 Samples are identified by their stamps (int ns); the stage's parameters are :class:`GaitEventsParams`.
 """
@@ -104,7 +104,8 @@ class GaitEventsParams:
                                 "closes its trajectory; then it is published without spatial values", "s",
                                 low=0.05, high=2.0)
     spatial_provisional: bool = param(True, "publish a stride provisional_after its closing IC with a "
-                                      "provisional stride length and speed; the smoothed values follow on "
+                                      "provisional stride length, speed, foot height and angles; the "
+                                      "smoothed values follow on "
                                       "gait/stride_space (core/gait/spatial.py)")
     provisional_after: float = param(0.015, "how long after the closing IC (its stamp) the provisional "
                                      "values are taken; the orientation filter's reorder_window comes on top "

@@ -317,7 +317,7 @@ class SegmentOrientationTracker:
         samples, self._startup = self._startup, None
         note, self._rate_note = self._rate_note or self.rate.decide(), None
         if note:
-            self._say("warn", note)
+            self.notices.say("warn", f"{self.segment} (orientation filter): {note}")
             self.rate_hz = self.rate.rate_hz
             self.filter = ALGORITHMS[self.algorithm](self.rate_hz, **self.params)
         gyr = np.array([s[1] for s in samples])

@@ -51,13 +51,19 @@ from gait_biofeedback.core.calibration.windows import runs
 from gait_biofeedback.core.notices import Notices
 from gait_biofeedback.core.params import as_mapping, from_mapping, param, require
 from gait_biofeedback.core.spatial.kalman import FootKalman, KalmanNoise
-from gait_biofeedback.core.spatial.provisional import RestOfSwing
+from gait_biofeedback.core.spatial.provisional import (
+    SWING_TOLERANCES,
+    ProvisionalStride,
+    RestOfSwing,
+    SwingAgreement,
+)
 from gait_biofeedback.core.spatial.smoother import apply, rts_smooth, suh_smooth
 from gait_biofeedback.core.spatial.strides import (
     LOST_FLAG,
     MAX_STANCE_S,
     SpatialStride,
     stride_parameters,
+    swing_so_far,
     unknown,
 )
 from gait_biofeedback.core.spatial.zero_velocity import (
@@ -156,6 +162,7 @@ class FootTrajectoryStream:
         self._keep = round(KEEP_STANDING_S * self.rate_hz)
         self._margin = max(1, round(self.params.window * self.rate_hz / 2))  # the detector's look-ahead
         self.rest_of_swing = RestOfSwing(self.params.provisional_tolerance)
+        self.swing_agreement = SwingAgreement()
         self._restart()
 
     def _restart(self) -> None:
@@ -293,13 +300,14 @@ class FootTrajectoryStream:
             self._trim()
         return out
 
-    def provisional(self) -> tuple[int, float] | None:
-        """(foot-off stamp, provisional stride length m) of the stride in progress (:mod:`.provisional`):
-        in its swing the forward filter's travel plus the foot's usual rest of the swing, in its next
-        stance before it closes the travel to that stance. None before the filter started, between
-        stances less than ``min_swing`` apart, once the stride has closed (its smoothed values are
-        out), after lost samples in the stride, while the foot's rests are not learnt, or while its
-        estimates are not trusted (:class:`.provisional.RestOfSwing`, ``provisional_tolerance``)."""
+    def provisional(self) -> ProvisionalStride | None:
+        """The stride in progress before it closes (:mod:`.provisional`): its stride length, in its
+        swing the forward filter's travel plus the foot's usual rest of the swing, in its next stance
+        the travel to that stance; its highest sensor position and foot angles from the forward filter
+        (:func:`~.strides.swing_so_far`). None before the filter started, between stances less than
+        ``min_swing`` apart, once the stride has closed (its smoothed values are out), after lost
+        samples in the stride, while the foot's rests are not learnt, or while its length estimates
+        are not trusted (:class:`.provisional.RestOfSwing`, ``provisional_tolerance``)."""
         if self._kf is None or self._previous is None or self._ended is not None:
             return None
         stopped = self._in_stance
@@ -316,7 +324,10 @@ class FootTrajectoryStream:
             length = self.rest_of_swing.estimate(self._stamps[a1], start, self._steps[-1].r)
         if length is None or (length := self.rest_of_swing.offer(self._stamps[a1], length)) is None:
             return None
-        return self._stamps[a1], length
+        end = self._stance_start + 1 if stopped else len(self._steps)
+        swing = swing_so_far(np.array([step.q for step in self._steps[a0:end]]),
+                             np.array([step.r for step in self._steps[a0:end]]), (0, a1 - a0))
+        return self.swing_agreement.offer(ProvisionalStride(self._stamps[a1], length, *swing))
 
     def _close(self, last: int) -> SpatialStride:
         self._closed = True
@@ -333,6 +344,8 @@ class FootTrajectoryStream:
                                    self.params.max_swing)
         stride = self._judge_lost(stride, a0, last)
         self.rest_of_swing.check(self._stamps[self._previous[1]], stride.stride_length)
+        self.swing_agreement.check(self._stamps[self._previous[1]],
+                                   {name: getattr(stride, name) for name in SWING_TOLERANCES})
         self.counts["strides"] += 1
         return replace(stride, foot_off_ns=self._stamps[self._previous[1]],
                        foot_flat_ns=self._stamps[self._stance_start])

@@ -96,6 +96,26 @@ def _min_between_maxima(height: np.ndarray) -> float:
     return float(height[peaks[0]:peaks[-1] + 1].min())
 
 
+def swing_so_far(orientation: np.ndarray, position: np.ndarray, first: tuple[int, int]
+                 ) -> tuple[float, float, float]:
+    """(``max_sensor_height``, ``foot_angle_ic``, ``foot_angle_tc``) of a swing still in progress, as
+    :func:`stride_parameters` defines them, from the samples ``first`` (the stance before it, indices
+    as there) to the last one: the direction of travel is the one so far and the strike's pitch is
+    taken relative to the first stance (the next one has not begun; on level ground the two stances'
+    pitches agree). Angles NaN under ``MIN_LENGTH_M`` of travel."""
+    a0, a1 = first
+    p_first = position[a0:a1 + 1].mean(axis=0)
+    height = float(position[a1:, 2].max() - p_first[2])
+    travel = (position[-1] - p_first)[:2]
+    length = float(np.linalg.norm(travel))
+    if length < MIN_LENGTH_M:
+        return height, math.nan, math.nan
+    forward = travel / length
+    pitch = _pitch(orientation[a1:], orientation[a1], np.array([-forward[1], forward[0]]))
+    mid = (len(pitch) - 1) // 2
+    return height, float(pitch[mid:].max()), float(pitch[:mid + 1].min())
+
+
 def stride_parameters(t: np.ndarray, orientation: np.ndarray, position: np.ndarray,
                       first: tuple[int, int], second: tuple[int, int], numbers: list[int],
                       toe_lever_arm: np.ndarray | None = None,
