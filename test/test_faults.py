@@ -221,6 +221,10 @@ def test_short_holes_in_the_stamps_are_counted_as_missing_samples():
     assert tracker.counts["gaps"] == 0
     assert "losing samples: 10.0 % missing from the stamps (the link, or a node falling behind)" in (
         tracker.conditions(before))
+    before = dict(tracker.counts)  # a short report (a recording's last): a count, not "25 %"
+    _stream(tracker, [t for k, t in enumerate(np.arange(200, 210) / 100) if k not in (2, 4)])
+    said = [c for c in tracker.conditions(before) if c.startswith("losing samples")]
+    assert said == ["losing samples: 2 of 10 missing from the stamps (the link, or a node falling behind)"]
 
 
 def test_stamp_holes_count_missing_samples_after_learning_the_period():

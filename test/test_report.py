@@ -401,3 +401,19 @@ def test_turning_strides_are_left_out_of_the_summaries(tmp_path):
     cycles = session_report(tmp_path / "analyzed").cycles
     assert cycles["turning"] == len(turning)
     assert cycles["stride_length"] == pytest.approx(1.333, abs=0.02)
+
+
+def test_a_condition_said_with_other_numbers_is_one_line_with_their_range():
+    """ipol_gait 1-1's data quality listed 18 lines, one per share of samples missing per second, the
+    last "100.0 % missing" for 3 samples at the end of a stream: one line per condition now."""
+    from gait_biofeedback.report.content import grouped_problems
+
+    said = {"WARN: losing samples: 2.0 % missing (the link); 6D (no magnetometer)": 26.0,
+            "WARN: losing samples: 16.2 % missing (the link); 6D (no magnetometer)": 27.0,
+            "WARN: 6D (no magnetometer)": 2.0,
+            "ERROR: losing samples: 3 of 3 missing (the link)": 30.4}
+    assert grouped_problems(said) == [
+        "WARN: 6D (no magnetometer) (said from 2.0 to 27.0 s)",
+        "WARN: losing samples: 2–16.2 % missing (the link) (said from 26.0 to 27.0 s)",
+        "ERROR: losing samples: 3 of 3 missing (the link) (first at 30.4 s)",
+    ]

@@ -64,6 +64,9 @@ class RateCheck:
 
 MISSING_WARN = 0.01
 """Share of a stream's samples missing from its stamps (per /diagnostics report) that is named."""
+MISSING_SHARE_MIN = 20
+"""Fewer samples expected in a report (the last, short one of a recording) are said as counts, not a
+share: 3 samples missing at the end of a stream read "100 % missing" (ipol_gait 1-1's left foot)."""
 
 HOLE = 1.75
 """An interval longer than this many sample periods is a hole."""

@@ -5,6 +5,7 @@ data quality, cues and time in band, sources. Degrees, % and steps/min only here
 from __future__ import annotations
 
 import math
+import re
 from collections import Counter
 
 from gait_biofeedback.core.biofeedback import normative
@@ -42,6 +43,34 @@ def shown(name: str, value: float, unit: bool = False) -> str:
     if not math.isfinite(value):
         return "–"
     return f"{factor * value:.{decimals}f}" + (f" {u}" if unit else "")
+
+
+_NUMBER = re.compile(r"\d+(?:\.\d+)?")
+
+
+def grouped_problems(problems: dict[str, float]) -> list[str]:
+    """Each condition of a status's WARN/ERROR messages (``"LEVEL: a; b"`` → first seen at ``t`` s) once,
+    in the order first seen: the same words with other numbers (a share missing per report) are one
+    line, each number as its range, with the time span they were said in."""
+    groups: dict[tuple[str, str], list] = {}
+    for text, t in problems.items():
+        level, _, message = text.partition(": ")
+        for condition in message.split("; "):
+            group = groups.setdefault((level, _NUMBER.sub("#", condition)), [t, t, [], condition])
+            group[0], group[1] = min(group[0], t), max(group[1], t)
+            group[2].append([float(v) for v in _NUMBER.findall(condition)])
+    lines = []
+    for (level, _), (first, last, numbers, example) in sorted(groups.items(), key=lambda kv: kv[1][0]):
+        ranges = iter(zip(*numbers, strict=True))
+
+        def span(match: re.Match, ranges=ranges) -> str:
+            low, high = (min(values := next(ranges)), max(values))
+            return match.group() if low == high else f"{low:g}–{high:g}"
+
+        text = _NUMBER.sub(span, example) if len(numbers) > 1 else example
+        when = f"first at {first:.1f} s" if first == last else f"said from {first:.1f} to {last:.1f} s"
+        lines.append(f"{level}: {text} ({when})")
+    return lines
 
 
 def _band_text(name: str, band: NormBand) -> str:
@@ -286,10 +315,9 @@ def quality_section(data: SessionData) -> Section:
         )
     section.add(Table(["status (/diagnostics)", "worst level", "samples", "problems counted"], rows))
     problems = [
-        f"{name}: {text} (first at {t:.1f} s)"
+        f"{name}: {line}"
         for name, s in sorted(data.diagnostics.items())
-        for text, t in s.problems.items()
-        if "start-up" not in text
+        for line in grouped_problems({t: v for t, v in s.problems.items() if "start-up" not in t})
     ]
     recovering = int(data.recovering.sum())
     if recovering:

@@ -64,7 +64,7 @@ from gait_biofeedback.core.orientation.filters.config import load_tuned, segment
 from gait_biofeedback.core.orientation.filters.guo_fkf import KF_SCHEMES
 from gait_biofeedback.core.orientation.reacquire import attitude_after_gap
 from gait_biofeedback.core.params import param, require
-from gait_biofeedback.core.rate import MISSING_WARN, RateCheck
+from gait_biofeedback.core.rate import MISSING_SHARE_MIN, MISSING_WARN, RateCheck
 from gait_biofeedback.core.segments import SEGMENTS, ImuSeries
 from gait_biofeedback.core.sequencer import DROPPED, StreamSequencer
 from gait_biofeedback.core.stamps import NS_PER_S, ns_to_seconds, seconds_to_ns
@@ -395,8 +395,10 @@ class SegmentOrientationTracker:
         lost = new["missing"] - sum(new[k] for k in ("nan_skipped", "out_of_range", "late", "bad_stamps"))
         expected = new["samples"] + lost
         if lost > MISSING_WARN * expected:
-            out.append(f"losing samples: {100 * lost / expected:.1f} % missing from the stamps (the link, "
-                       "or a node falling behind)")
+            share = (f"{100 * lost / expected:.1f} %" if expected >= MISSING_SHARE_MIN
+                     else f"{lost} of {expected}")
+            out.append(f"losing samples: {share} missing from the stamps (the link, or a node falling "
+                       "behind)")
         if self.rate.mismatch:
             out.append(f"rate {self.rate.measured_hz:.1f} Hz measured, {self.rate.configured_hz:g} "
                        "configured: using the measured rate")
