@@ -239,8 +239,12 @@ class CalibrationBuffer:
         message = cal.message + (f"; no data from {', '.join(silent)} (not calibrated)" if silent else "")
         asked = standing_duration or self.default_standing
         if standing[1] - standing[0] < asked - 1e-6:
-            message += (f"; the quiet standing lasted only {standing[1] - standing[0]:.1f} s (asked "
-                        f"{asked:g} s): for a surer calibration stand still longer")
+            short = (f"the quiet standing lasted only {standing[1] - standing[0]:.1f} s (asked {asked:g} s): "
+                     "for a surer calibration stand still longer")
+            message += f"; {short}"
+            for result in cal.segments.values():  # into the calibration message, its file and the report
+                if result.valid:
+                    result.message = f"{result.message}; {short}" if result.message else short
         return CalibrationAttempt(cal.protocol, cal.success, message, cal, end_ns,
                                   end_ns + self.apply_delay_ns, cal.looks_like)
 
