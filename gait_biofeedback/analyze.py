@@ -112,6 +112,8 @@ class AnalysisResult:
 AUTO_MARGIN_S = 0.5  # an auto calibration instant: this long after the motion it found (or the end)
 # another lab's recording: a shorter standing (core/calibration/windows.py) or none (calibration/walk.py)
 AUTO_OPTIONS = {"shorter_standing": True, "walk_only": True}
+NO_STANDING = "no quiet standing before a protocol"
+"""What an ``auto`` note says when the recording starts walking (the feet calibrate from the walk)."""
 WAITING_WARN_NS = 2 * NS_PER_S
 """A calibrated joint left without angles this long (no common heading yet) is named in the warnings."""
 SESSION_CONDITIONS = ("losing samples", "6D")
@@ -160,8 +162,7 @@ def resolve_calibrate_at(bag: str | Path, requests: Sequence[tuple[float | None,
     standing, motion, check = find_calibration(data, standing_duration)
     m0, m1 = (b - start_s for b in motion)
     found = (f"quiet standing {standing[0] - start_s:.2f}-{standing[1] - start_s:.2f} s" if standing else
-             "no quiet standing before a protocol (the feet calibrate from the walk's stance phases, no "
-             "joint angles)")
+             f"{NO_STANDING} (the feet calibrate from the walk's stance phases, no joint angles)")
     ends = min(d.t[-1] for d in data.values() if len(d))  # every sensor's data reaches the instant
     at = min(m1 + AUTO_MARGIN_S, ends - start_s)
     resolved, notes = [], []
@@ -267,6 +268,15 @@ def analyze_recording(
                      "(offline, as a calibration file would be; replay presses Calibrate at that instant)")
     result.notes = notes
     return result
+
+
+def calibration_ahead(bag: str | Path, request: tuple[float, str], params: dict[str, dict] | None = None
+                      ) -> CalibrationAttempt:
+    """What ``analyze`` puts in force from the start for an ``auto`` request (:func:`_calibrate_ahead`),
+    with ``params`` as :func:`analyze_recording` takes them (``replay`` of a recording that starts
+    walking uses it: live, Calibrate needs a standing)."""
+    stages = {node: stage_parameters(node, values) for node, values in (params or {}).items()}
+    return _calibrate_ahead(bag, request, stages)
 
 
 def _calibrate_ahead(bag: str | Path, request: tuple[float, str], stages: dict[str, Any]

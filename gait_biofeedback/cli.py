@@ -198,8 +198,33 @@ def _calibration_options(args: argparse.Namespace, params: dict[str, dict]) -> l
     return [parse_calibrate_at(text) for text in args.calibrate_at or []]
 
 
+def _walk_calibration(bag: str, request: tuple[float, str], params: dict[str, dict], folder: Path) -> bool:
+    """A recording that starts walking (``auto`` found no standing): the feet's calibration from the walk,
+    saved in ``folder`` and in force from the start of the replay, as ``analyze`` does (live, Calibrate
+    needs a standing; pressed at the end of the walk window, the replay would have no events before
+    it). False when it is refused (then Calibrate is pressed as usual, and says why)."""
+    from datetime import UTC, datetime
+
+    from gait_biofeedback.analyze import calibration_ahead
+    from gait_biofeedback.core.calibration.stream import write_calibration_file
+
+    attempt = calibration_ahead(bag, request, params)
+    if not attempt.success or attempt.calibration is None:
+        return False
+    path = folder / "calibration_from_the_walk.yaml"
+    write_calibration_file(path, attempt.calibration, datetime.now(UTC).isoformat())
+    stage = params.setdefault("calibration", {})
+    stage["calibration_file"] = str(path)
+    stage.setdefault("segments", list(attempt.calibration.segments))  # the recording's sensors
+    print(f"--calibrate-at auto: no standing to press Calibrate after: {attempt.message}; in force from the "
+          "start of the replay (as analyze does)")
+    return True
+
+
 def cmd_replay(args: argparse.Namespace) -> int:
-    from gait_biofeedback.analyze import AUTO_OPTIONS, resolve_calibrate_at
+    import tempfile
+
+    from gait_biofeedback.analyze import AUTO_OPTIONS, NO_STANDING, resolve_calibrate_at
     from gait_biofeedback.graph import replay_through_graph
     from gait_biofeedback.io.bag import BagReader
     from gait_biofeedback.parameters import stage_parameters
@@ -208,17 +233,22 @@ def cmd_replay(args: argparse.Namespace) -> int:
     calibration = stage_parameters("calibration", params.get("calibration", {}))
     asked = _calibration_options(args, params)
     requests, notes = resolve_calibrate_at(args.bag, asked, calibration.default_standing_duration)
-    requests = [(t, protocol, AUTO_OPTIONS) if when is None else (t, protocol)
-                for (t, protocol), (when, _) in zip(requests, asked, strict=True)]
     for note in notes:
         print(note)
-    with BagReader(args.bag) as reader:
-        total = reader.message_count
-    with _progress(total, "replay") as bar:
-        result = replay_through_graph(args.bag, args.record, speed=args.speed, start_offset=args.start,
-                                      stop_offset=args.stop, progress=bar.update,
-                                      nodes=_node_list(args.nodes), node_parameters=params,
-                                      calibrate_at=requests)
+    with tempfile.TemporaryDirectory() as folder:
+        pressed = []
+        for (t, protocol), (when, _) in zip(requests, asked, strict=True):
+            if when is None and any(NO_STANDING in n for n in notes) and _walk_calibration(
+                    args.bag, (t, protocol), params, Path(folder)):
+                continue
+            pressed.append((t, protocol, AUTO_OPTIONS) if when is None else (t, protocol))
+        with BagReader(args.bag) as reader:
+            total = reader.message_count
+        with _progress(total, "replay") as bar:
+            result = replay_through_graph(args.bag, args.record, speed=args.speed, start_offset=args.start,
+                                          stop_offset=args.stop, progress=bar.update,
+                                          nodes=_node_list(args.nodes), node_parameters=params,
+                                          calibrate_at=pressed)
     _print_calibrations(result.calibrations, result.start_ns)
     where = ", ".join(str(p) for p in result.outputs)
     print(f"replayed {result.published} messages in {result.wall_time:.1f} s"

@@ -198,3 +198,31 @@ def test_analyze_auto_gives_the_gait_events_of_a_walk_without_standing(walk_from
         found = np.array(sorted(t for s, t in events if s == index and t < truth[-1] + 0.5))
         assert len(found) == len(truth) > 4
         assert np.abs(found - truth).max() < 0.03
+
+
+@pytest.mark.ros
+@pytest.mark.timeout(180)
+def test_replay_auto_puts_the_walks_calibration_in_force_from_the_start(walk_from_rest, tmp_path, capsys):
+    """``replay --calibrate-at auto`` of a recording that starts walking: pressed at the end of the
+    walk window (11.5 s here) the replay had no events before it; the feet's calibration from the walk
+    is in force from the start, as in ``analyze``: every initial contact of the walk is found (within
+    30 ms, as analyze's)."""
+    from gait_biofeedback.cli import main
+    from gait_biofeedback.io.bag import BagReader
+    from gait_biofeedback.sim.recording import write_simulated_bag
+
+    bag = write_simulated_bag(tmp_path / "walk", walk_from_rest)
+    assert main(["replay", str(bag), "--record", str(tmp_path / "live"), "--speed", "2", "--calibrate-at",
+                 "auto", "--nodes", "orientation_filter,calibration,gait_events"]) == 0
+    out = capsys.readouterr().out
+    assert "--calibrate-at auto: no standing to press Calibrate after: calibrated left foot, right foot " \
+        "from the walk's stance phases" in out and "in force from the start of the replay" in out
+    with BagReader(tmp_path / "live") as reader:
+        start = reader.start_time_ns * 1e-9
+        events = [(m.side, m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 - start)
+                  for _, m, _ in reader.messages(["/gait/events"]) if m.type == m.INITIAL_CONTACT]
+    for index, side in enumerate(("left", "right")):
+        truth = walk_from_rest.truth.initial_contacts[side]
+        found = np.array(sorted(t for s, t in events if s == index and t < truth[-1] + 0.5))
+        assert len(found) == len(truth) > 4
+        assert np.abs(found - truth).max() < 0.03
