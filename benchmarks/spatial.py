@@ -478,6 +478,7 @@ def through_the_command_line(provisional_after: float | None = None) -> None:
             print("| values | strides | without values | stride length: mean ± SD | mean abs | gait speed: "
                   "mean ± SD | mean abs | published after the closing IC: median (range) |")
             print("|---|---|---|---|---|---|---|---|")
+            swing = []
             for label, extra in (("", ""), (", tolerance 1 m", untested)):
                 (tmp / "params.yaml").write_text("/**/gait_events:\n  ros__parameters:\n" + params + extra)
                 _cli("analyze", str(tmp / "gm"), "-o", str(tmp / "gm_out"), "--params",
@@ -486,9 +487,10 @@ def through_the_command_line(provisional_after: float | None = None) -> None:
                 _score_cli("as published" + label, published, folder)
                 provisional = [(m, t) for m, t in published if m.spatial_provisional]
                 _score_cli("provisional only" + label, provisional, folder)
-                swing = _swing_against_record(published, of_record)
+                swing.append(f"gaitmap_example{label}, provisional against the values of record: "
+                             + _swing_against_record(published, of_record))
             _score_cli("of record (smoothed)", of_record, folder)
-            print(f"\ngaitmap_example, provisional against the values of record: {swing}")
+            print("\n" + "\n".join(swing))
         qmt = DATA / "qmt_fullbody" / "full_body_example_data.mat"
         if qmt.exists():
             _cli("import", "qmt_fullbody", str(qmt), "-o", str(tmp / "qmt"))

@@ -265,7 +265,8 @@ def analyze_recording(
             result = _analyze(reader, bag, output, pressed, calibration_file, stages, overwrite, found)
     if found is not None and found.success:
         notes.append("--calibrate-at auto: that calibration is in force from the start of the recording "
-                     "(offline, as a calibration file would be; replay presses Calibrate at that instant)")
+                     "(offline, as a calibration file would be; replay presses Calibrate at that instant, "
+                     "or, for a walk without standing, puts it in force from the start too)")
     result.notes = notes
     return result
 
@@ -515,6 +516,15 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
             if text.startswith(SESSION_CONDITIONS):
                 result.warnings.append(f"{seg}: over the session: {text}")
     for side, foot in gait.feet.items():
+        words = {"max_sensor_height": "foot heights", "foot_angle_ic": "foot angles at IC",
+                 "foot_angle_tc": "foot angles at TC"}
+        swing = {words[k]: n for k, n in foot.swing_agreement.withheld.items() if n}
+        if swing:
+            result.warnings.append(
+                f"{side} foot: provisional "
+                + ", ".join(f"{name} withheld {n} times" for name, n in swing.items())
+                + " (their last estimates differed from the smoothed ones by more than 2 cm or 5° RMS; those "
+                "strides got theirs with the smoothed values)")
         rest = foot.rest_of_swing
         if rest.withheld:
             result.warnings.append(

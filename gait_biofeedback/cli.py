@@ -202,26 +202,32 @@ def _walk_calibration(bag: str, request: tuple[float, str], params: dict[str, di
     """A recording that starts walking (``auto`` found no standing): the feet's calibration from the walk,
     saved in ``folder`` and in force from the start of the replay, as ``analyze`` does (live, Calibrate
     needs a standing; pressed at the end of the walk window, the replay would have no events before
-    it). False when it is refused (then Calibrate is pressed as usual, and says why)."""
+    it); the calibration node handles the segments it has entries for. False when it is refused (then
+    Calibrate is pressed as usual, and says why) or when a calibration file was given (``--calibration``
+    stays in force, and Calibrate is pressed)."""
     from datetime import UTC, datetime
 
     from gait_biofeedback.analyze import calibration_ahead
     from gait_biofeedback.core.calibration.stream import write_calibration_file
+    from gait_biofeedback.core.segments import SEGMENTS
 
+    stage = params.setdefault("calibration", {})
+    if stage.get("calibration_file"):
+        return False
     attempt = calibration_ahead(bag, request, params)
     if not attempt.success or attempt.calibration is None:
         return False
     path = folder / "calibration_from_the_walk.yaml"
     write_calibration_file(path, attempt.calibration, datetime.now(UTC).isoformat())
-    stage = params.setdefault("calibration", {})
     stage["calibration_file"] = str(path)
-    stage.setdefault("segments", list(attempt.calibration.segments))  # the recording's sensors
+    stage["segments"] = [s for s in stage.get("segments", SEGMENTS) if s in attempt.calibration.segments]
     print(f"--calibrate-at auto: no standing to press Calibrate after: {attempt.message}; in force from the "
           "start of the replay (as analyze does)")
     return True
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
+    import shutil
     import tempfile
 
     from gait_biofeedback.analyze import AUTO_OPTIONS, NO_STANDING, resolve_calibrate_at
@@ -249,6 +255,10 @@ def cmd_replay(args: argparse.Namespace) -> int:
                                           stop_offset=args.stop, progress=bar.update,
                                           nodes=_node_list(args.nodes), node_parameters=params,
                                           calibrate_at=pressed)
+        walk_file = Path(folder) / "calibration_from_the_walk.yaml"
+        if walk_file.exists() and args.record and result.calibration_file is None:
+            result.calibration_file = Path(args.record) / "calibration.yaml"  # kept with the recording
+            shutil.copyfile(walk_file, result.calibration_file)
     _print_calibrations(result.calibrations, result.start_ns)
     where = ", ".join(str(p) for p in result.outputs)
     print(f"replayed {result.published} messages in {result.wall_time:.1f} s"

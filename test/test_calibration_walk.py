@@ -208,6 +208,7 @@ def test_replay_auto_puts_the_walks_calibration_in_force_from_the_start(walk_fro
     is in force from the start, as in ``analyze``: every initial contact of the walk is found (within
     30 ms, as analyze's)."""
     from gait_biofeedback.cli import main
+    from gait_biofeedback.core.calibration.stream import read_calibration_file
     from gait_biofeedback.io.bag import BagReader
     from gait_biofeedback.sim.recording import write_simulated_bag
 
@@ -217,8 +218,12 @@ def test_replay_auto_puts_the_walks_calibration_in_force_from_the_start(walk_fro
     out = capsys.readouterr().out
     assert "--calibrate-at auto: no standing to press Calibrate after: calibrated left foot, right foot " \
         "from the walk's stance phases" in out and "in force from the start of the replay" in out
-    with BagReader(tmp_path / "live") as reader:
+    assert f"calibration saved as {tmp_path / 'live' / 'calibration.yaml'}" in out  # kept with the recording
+    saved, _ = read_calibration_file(tmp_path / "live" / "calibration.yaml")
+    assert saved.segments["left_foot"].valid and not saved.segments["pelvis"].valid
+    with BagReader(bag) as reader:  # the events carry the recording's sample stamps
         start = reader.start_time_ns * 1e-9
+    with BagReader(tmp_path / "live") as reader:
         events = [(m.side, m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 - start)
                   for _, m, _ in reader.messages(["/gait/events"]) if m.type == m.INITIAL_CONTACT]
     for index, side in enumerate(("left", "right")):

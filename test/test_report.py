@@ -405,15 +405,23 @@ def test_turning_strides_are_left_out_of_the_summaries(tmp_path):
 
 def test_a_condition_said_with_other_numbers_is_one_line_with_their_range():
     """ipol_gait 1-1's data quality listed 18 lines, one per share of samples missing per second, the
-    last "100.0 % missing" for 3 samples at the end of a stream: one line per condition now."""
+    last "100.0 % missing" for 3 samples at the end of a stream: one line per condition now, with when
+    it was first and last said and in how many reports; counts ("k of n") are said as they were."""
     from gait_biofeedback.report.content import grouped_problems
 
-    said = {"WARN: losing samples: 2.0 % missing (the link); 6D (no magnetometer)": 26.0,
-            "WARN: losing samples: 16.2 % missing (the link); 6D (no magnetometer)": 27.0,
-            "WARN: 6D (no magnetometer)": 2.0,
-            "ERROR: losing samples: 3 of 3 missing (the link)": 30.4}
-    assert grouped_problems(said) == [
-        "WARN: 6D (no magnetometer) (said from 2.0 to 27.0 s)",
-        "WARN: losing samples: 2–16.2 % missing (the link) (said from 26.0 to 27.0 s)",
-        "ERROR: losing samples: 3 of 3 missing (the link) (first at 30.4 s)",
+    first = {"WARN: losing samples: 2.0 % missing (the link); 6D (no magnetometer)": 26.0,
+             "WARN: losing samples: 16.2 % missing (the link); 6D (no magnetometer)": 27.0,
+             "WARN: 6D (no magnetometer)": 2.0,
+             "ERROR: losing samples: 3 of 3 missing (the link)": 30.4,
+             "ERROR: losing samples: 2 of 10 missing (the link)": 31.0}
+    seen = {"WARN: losing samples: 2.0 % missing (the link); 6D (no magnetometer)": (26.0, 1),
+            "WARN: losing samples: 16.2 % missing (the link); 6D (no magnetometer)": (29.0, 3),
+            "WARN: 6D (no magnetometer)": (25.0, 24),
+            "ERROR: losing samples: 3 of 3 missing (the link)": (30.4, 1),
+            "ERROR: losing samples: 2 of 10 missing (the link)": (31.0, 1)}
+    assert grouped_problems(first, seen) == [
+        "WARN: 6D (no magnetometer) (28 reports, first at 2.0 s, last at 29.0 s)",
+        "WARN: losing samples: 2–16.2 % missing (the link) (4 reports, first at 26.0 s, last at 29.0 s)",
+        "ERROR: losing samples: 3 of 3 missing (the link) (at 30.4 s)",
+        "ERROR: losing samples: 2 of 10 missing (the link) (at 31.0 s)",
     ]

@@ -46,21 +46,28 @@ def shown(name: str, value: float, unit: bool = False) -> str:
 
 
 _NUMBER = re.compile(r"\d+(?:\.\d+)?")
+_COUNT = re.compile(r"\d+ of \d+")  # "2 of 10 missing": a count, each said as it was
 
 
-def grouped_problems(problems: dict[str, float]) -> list[str]:
-    """Each condition of a status's WARN/ERROR messages (``"LEVEL: a; b"`` → first seen at ``t`` s) once,
-    in the order first seen: the same words with other numbers (a share missing per report) are one
-    line, each number as its range, with the time span they were said in."""
+def grouped_problems(problems: dict[str, float], seen: dict[str, tuple[float, int]] | None = None
+                     ) -> list[str]:
+    """Each condition of a status's WARN/ERROR messages (``"LEVEL: a; b"`` → first seen at ``t`` s;
+    ``seen``: → (last seen, reports)) once, in the order first seen: the same words with other
+    numbers (a share missing per report) are one line, each number as its range, with when it was
+    first and last said and in how many reports."""
+    seen = seen or {}
     groups: dict[tuple[str, str], list] = {}
     for text, t in problems.items():
+        last, reports = seen.get(text, (t, 1))
         level, _, message = text.partition(": ")
         for condition in message.split("; "):
-            group = groups.setdefault((level, _NUMBER.sub("#", condition)), [t, t, [], condition])
-            group[0], group[1] = min(group[0], t), max(group[1], t)
-            group[2].append([float(v) for v in _NUMBER.findall(condition)])
+            key = condition if _COUNT.search(condition) else _NUMBER.sub("#", condition)
+            group = groups.setdefault((level, key), [t, last, 0, [], condition])
+            group[0], group[1], group[2] = min(group[0], t), max(group[1], last), group[2] + reports
+            group[3].append([float(v) for v in _NUMBER.findall(condition)])
     lines = []
-    for (level, _), (first, last, numbers, example) in sorted(groups.items(), key=lambda kv: kv[1][0]):
+    for (level, _), (first, last, reports, numbers, example) in sorted(groups.items(),
+                                                                       key=lambda kv: kv[1][0]):
         ranges = iter(zip(*numbers, strict=True))
 
         def span(match: re.Match, ranges=ranges) -> str:
@@ -68,7 +75,8 @@ def grouped_problems(problems: dict[str, float]) -> list[str]:
             return match.group() if low == high else f"{low:g}–{high:g}"
 
         text = _NUMBER.sub(span, example) if len(numbers) > 1 else example
-        when = f"first at {first:.1f} s" if first == last else f"said from {first:.1f} to {last:.1f} s"
+        when = (f"at {first:.1f} s" if reports == 1 else
+                f"{reports} reports, first at {first:.1f} s, last at {last:.1f} s")
         lines.append(f"{level}: {text} ({when})")
     return lines
 
@@ -317,7 +325,7 @@ def quality_section(data: SessionData) -> Section:
     problems = [
         f"{name}: {line}"
         for name, s in sorted(data.diagnostics.items())
-        for line in grouped_problems({t: v for t, v in s.problems.items() if "start-up" not in t})
+        for line in grouped_problems({t: v for t, v in s.problems.items() if "start-up" not in t}, s.seen)
     ]
     recovering = int(data.recovering.sum())
     if recovering:

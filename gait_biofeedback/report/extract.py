@@ -71,11 +71,13 @@ class NotASessionError(ValueError):
 @dataclass
 class StatusSummary:
     """One ``/diagnostics`` status name over the session: worst level, its last counters, and each
-    distinct WARN/ERROR/STALE message with the time (s into the session) it was first seen."""
+    distinct WARN/ERROR/STALE message with the time (s into the session) it was first seen, and (in
+    ``seen``) the last time and how many reports said it."""
 
     worst: int = 0
     counters: dict[str, float] = field(default_factory=dict)
     problems: dict[str, float] = field(default_factory=dict)
+    seen: dict[str, tuple[float, int]] = field(default_factory=dict)
 
 
 @dataclass
@@ -190,9 +192,9 @@ def read_session(path: str | Path) -> SessionData:
                 level = _level(status.level)
                 summary.worst = max(summary.worst, level)
                 if level:
-                    summary.problems.setdefault(
-                        f"{LEVELS.get(level, level)}: {status.message}", (log_ns - start_ns) / 1e9
-                    )
+                    text, t = f"{LEVELS.get(level, level)}: {status.message}", (log_ns - start_ns) / 1e9
+                    summary.problems.setdefault(text, t)
+                    summary.seen[text] = (t, summary.seen.get(text, (t, 0))[1] + 1)
                 for kv in status.values:
                     if kv.key in COUNTERS:
                         with contextlib.suppress(ValueError):

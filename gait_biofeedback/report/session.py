@@ -196,7 +196,10 @@ def format_report(report: SessionReport) -> list[str]:
                      f"{1000 * score.sd_error:4.1f} ms  ({len(score.errors)} matched, {len(score.missed)} "
                      f"missed, {len(score.extra)} extra)")
     c = report.cycles
-    if c.get("plausible") and "stride_time" in c:
+    if c.get("plausible") and "stride_time" not in c:
+        lines.append(f"strides: {c['plausible']} of {c['strides']} plausible, all turning (left out of "
+                     "the medians)")
+    elif c.get("plausible"):
         turns = f", {c['turning']} of them turning (left out)" if c["turning"] else ""
         lines.append(f"strides: {c['plausible']} of {c['strides']} plausible{turns}; "
                      f"stride {c['stride_time']:.2f} s, cadence {c['cadence_per_min']:.0f} steps/min, "

@@ -58,7 +58,7 @@ def still_periods(flat: np.ndarray, rate_hz: float) -> list[tuple[int, int]]:
     one per stance of a walk, one per standing (which a foot's small shifts break into short runs)."""
     joined = flat.copy()
     for a, b in runs(~flat):
-        if a > 0 and b < len(flat) and b - a < STILL_PERIOD_GAP_S * rate_hz:
+        if a > 0 and b < len(flat) and b - a < round(STILL_PERIOD_GAP_S * rate_hz):
             joined[a:b] = True
     return runs(joined)
 
@@ -74,7 +74,7 @@ def agreeing_stances(acc: np.ndarray, flat: np.ndarray, rate_hz: float) -> np.nd
     and the foot was refused; a standing agreeing with the stances is kept (ipol 1-2 left, 4-3 left, 4-4
     right: under 0.1 s of flat stance without theirs). The gyro's means too, at twice its limit,
     refused 1 more of the 104 ipol_gait feet in their first 20 s of walking."""
-    periods = [(a, b) for a, b in still_periods(flat, rate_hz) if flat[a:b].any()]
+    periods = still_periods(flat, rate_hz)
     if not periods:
         return flat
     means = np.array([acc[a:b][flat[a:b]].mean(axis=0) for a, b in periods])

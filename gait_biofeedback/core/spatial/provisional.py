@@ -72,6 +72,11 @@ class SwingAgreement:
     def __init__(self) -> None:
         self._differences = {name: deque(maxlen=LEARN) for name in SWING_TOLERANCES}
         self._offered: ProvisionalStride | None = None
+        self.withheld = {name: 0 for name in SWING_TOLERANCES}  # checked enough, but disagreeing
+
+    def forget(self) -> None:
+        """The current swing's estimate is void (the foot restarted)."""
+        self._offered = None
 
     def trusted(self, name: str) -> bool:
         d = self._differences[name]
@@ -80,7 +85,10 @@ class SwingAgreement:
     def offer(self, estimate: ProvisionalStride) -> ProvisionalStride:
         """``estimate`` with the values not trusted set to NaN; kept to be checked when its stride closes."""
         self._offered = estimate
-        return estimate._replace(**{name: math.nan for name in SWING_TOLERANCES if not self.trusted(name)})
+        untrusted = [name for name in SWING_TOLERANCES if not self.trusted(name)]
+        for name in untrusted:
+            self.withheld[name] += len(self._differences[name]) >= CHECKED
+        return estimate._replace(**dict.fromkeys(untrusted, math.nan))
 
     def check(self, foot_off_ns: int, smoothed: dict[str, float]) -> None:
         """The stride that left its stance at ``foot_off_ns`` has the smoothed values given (name → value)."""

@@ -186,6 +186,7 @@ class FootTrajectoryStream:
         self._last_ns: int | None = None
         self._last: tuple[np.ndarray, np.ndarray] | None = None
         self.rest_of_swing.forget_request()
+        self.swing_agreement.forget()
 
     def update(self, stamp_ns: int, gyr: np.ndarray, acc: np.ndarray) -> list[SpatialStride]:
         number = self.counts["samples"]
