@@ -133,7 +133,8 @@ def test_node_cues_frames_and_commands(ros_context, session):
                               swing_time=t1 - tc, stance_fraction=(tc - t0) / (t1 - t0),
                               cadence=2 / (t1 - t0),
                               step_time_symmetry_index=0.02, plausible=True, step_time=step_time,
-                              stride_length=travel, gait_speed=travel / (t1 - t0))
+                              stride_length=travel, gait_speed=travel / (t1 - t0),
+                              max_foot_height=0.1 + 0.001 * index, foot_angle_ic=0.3 + 0.01 * index)
                 c.header.stamp = s_to_stamp(t1)
                 cycles.publish(c)
                 k_stride += 1
@@ -188,6 +189,12 @@ def test_node_cues_frames_and_commands(ros_context, session):
         knees = {tuple(np.round(seg[3:], 3)) for fig in figures for seg in fig if seg[0] == "left_shank"}
         assert len(knees) > 5  # the figure moves
         assert len(reader.of("stride")) == len(strides) and len(reader.of("cue")) == len(cues)
+        # the page shows each stride's foot height and strike angle (no cue from them)
+        spatial = {(m["side"], m["stride"]): m for m in reader.of("spatial")}
+        assert len(spatial) == len(strides)
+        for (_, index), m in spatial.items():
+            assert m["max_foot_height"] == pytest.approx(0.1 + 0.001 * index)
+            assert m["foot_angle_ic"] == pytest.approx(0.3 + 0.01 * index)
         assert all(len(s["curves"]["knee_flexion"]) == 51 for s in reader.of("stride"))
 
         # page commands: calibrate through the (stub) service, recorder missing, feedback choice

@@ -189,6 +189,12 @@ def test_dashboard_in_headless_chromium(ros_context, walk_session, tmp_path):
         lengths = shown_text("stat-stride-length", lambda text: "–" not in text)
         assert speed.endswith(" m/s") and 1.15 < float(speed.split()[0]) < 1.25, (speed, lengths)
         assert all(1.28 < float(x.split()[0]) < 1.38 for x in lengths.split(" / ")), lengths
+        # each foot's height in swing and strike angle (the simulator's: 11.6-11.7 cm, 21°)
+        heights = shown_text("stat-foot-height", lambda text: "–" not in text)
+        angles = shown_text("stat-foot-angle", lambda text: "–" not in text)
+        assert all(x.endswith(" cm") and 10.0 < float(x.split()[0]) < 13.5
+                   for x in heights.split(" / ")), heights
+        assert all(x.endswith("°") and 17 <= float(x[:-1]) <= 25 for x in angles.split(" / ")), angles
         # the clinician calibrates (walking protocol: quiet standing, then >= 8 straight steps, i.e. at
         # least 4 swings per leg: the walk starts at 5 s, the 4th swing of each leg is done by ~12 s)
         browser.wait_for(lambda s: (s.get("lastAngleStamp") or 0.0) > 14.0, timeout=20)

@@ -420,6 +420,12 @@ function updateTables() {
   document.getElementById("stat-speed").textContent = newest && newest.gait_speed !== null ? newest.gait_speed.toFixed(2) + " m/s" : "–";
   document.getElementById("stat-stride-length").textContent = metres(sl, "stride_length") + " / " + metres(sr, "stride_length");
   document.getElementById("stat-step-length").textContent = metres(sl, "step_length") + " / " + metres(sr, "step_length");
+  const cm = (s) => (s && s.max_foot_height !== null && s.max_foot_height !== undefined ?
+    (s.max_foot_height * 100).toFixed(1) + " cm" : "–");
+  const deg = (s) => (s && s.foot_angle_ic !== null && s.foot_angle_ic !== undefined ?
+    (s.foot_angle_ic * DEG).toFixed(0) + "°" : "–");
+  document.getElementById("stat-foot-height").textContent = cm(sl) + " / " + cm(sr);
+  document.getElementById("stat-foot-angle").textContent = deg(sl) + " / " + deg(sr);
   document.getElementById("stat-step-symmetry").textContent = newest && newest.step_length_symmetry !== null ?
     (newest.step_length_symmetry * 100).toFixed(1) + " %" : "–";
   document.getElementById("stat-spatial-flag").textContent = !newest ? "–" : (newest.flag ? newest.side + ": " + newest.flag : "ok");

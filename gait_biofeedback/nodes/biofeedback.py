@@ -262,9 +262,12 @@ class BiofeedbackNode(GuardedNode):
         self.counts["strides"] += 1
         if not result.curves:
             self.counts["strides_without_angles"] += 1
+        doubtful = bool(stride.spatial_flag) or not stride.plausible
         self._outbox.append({"type": "spatial", "side": stride.side, "stride": stride.index,
                              "t": stride.t_end, "flag": stride.spatial_flag,
-                             **{k: _finite(result.spatial.get(k, math.nan)) for k in SPATIAL}})
+                             **{k: _finite(result.spatial.get(k, math.nan)) for k in SPATIAL},
+                             **{k: None if doubtful else _finite(getattr(stride, k))
+                                for k in ("max_foot_height", "foot_angle_ic")}})
         for c in result.cues:
             self._cues.publish(cue_msg(c, foot_frame(stride.side)))
             self.counts["cues"] += 1

@@ -258,6 +258,8 @@ class Stride:
     stride_length: float = math.nan
     gait_speed: float = math.nan
     spatial_flag: str = ""
+    max_foot_height: float = math.nan  # m, shown on the dashboard (no cue)
+    foot_angle_ic: float = math.nan  # rad, toes up at the strike, shown on the dashboard (no cue)
 
     @property
     def t_start(self) -> float:
