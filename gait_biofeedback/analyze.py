@@ -518,7 +518,7 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
     for side, foot in gait.feet.items():
         words = {"max_sensor_height": "foot heights", "foot_angle_ic": "foot angles at IC",
                  "foot_angle_tc": "foot angles at TC"}
-        swing = {words[k]: n for k, n in foot.swing_agreement.withheld.items() if n}
+        swing = {words[k]: a.withheld for k, a in foot.swing_agreement.values.items() if a.withheld}
         if swing:
             result.warnings.append(
                 f"{side} foot: provisional "

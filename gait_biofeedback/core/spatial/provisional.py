@@ -57,84 +57,109 @@ SWING_TOLERANCES = {"max_sensor_height": 0.02, "foot_angle_ic": math.radians(5.0
 foot angles (rad) are published (:class:`SwingAgreement`)."""
 
 
+class Agreement:
+    """How one provisional quantity of a foot agreed with its smoothed values: the last ``LEARN``
+    differences; trusted while there are at least ``CHECKED`` and their RMS is within ``tolerance``;
+    ``withheld`` counts the estimates refused once enough were checked."""
+
+    def __init__(self, tolerance: float) -> None:
+        self.tolerance = float(tolerance)
+        self._differences: deque[float] = deque(maxlen=LEARN)
+        self.withheld = 0
+
+    @property
+    def spread(self) -> float:
+        """RMS of the last differences; NaN before any."""
+        return math.sqrt(np.mean(np.square(self._differences))) if self._differences else math.nan
+
+    @property
+    def trusted(self) -> bool:
+        return len(self._differences) >= CHECKED and self.spread <= self.tolerance
+
+    def admit(self) -> bool:
+        """May an estimate be published now (counted as withheld when not, once enough were checked)."""
+        if self.trusted:
+            return True
+        self.withheld += len(self._differences) >= CHECKED
+        return False
+
+    def add(self, estimate: float, smoothed: float) -> None:
+        """An estimate and its smoothed value (either NaN: nothing learnt)."""
+        if math.isfinite(estimate) and math.isfinite(smoothed):
+            self._differences.append(estimate - smoothed)
+
+
 class SwingAgreement:
     """One foot's trust in its provisional foot height and angles (EXT), value by value as
-    :class:`RestOfSwing` trusts the lengths: each estimate is compared with the smoothed value once its
-    stride closes, and a value is published only while the RMS of its last ``LEARN`` differences (at
-    least ``CHECKED``) is within its ``SWING_TOLERANCES``; otherwise NaN, and the smoothed value follows
-    with the stride's revision. Through ``analyze`` (``benchmarks/spatial.py --cli-only``), against the
-    smoothed values: gaitmap_example +0.1 ± 0.7 cm (45 of its 51 provisional strides), strike −0.1 ±
-    1.9° (45), push-off +0.3 ± 2.2° (40); qmt_fullbody's fast walk with its lengths let through
-    (``provisional_tolerance`` 1 m), before this check +1.3 ± 4.6 cm and angles up to 68° off (95th
-    percentile; the direction of travel so far was off), with it 6 heights of 62, 40 and 28 angles
-    (−0.9 ± 1.9°, +0.3 ± 1.4°)."""
+    :class:`RestOfSwing` trusts the lengths (an :class:`Agreement` each, ``SWING_TOLERANCES``): a value
+    not trusted is NaN, and the smoothed value follows with the stride's revision. Through ``analyze``
+    (``benchmarks/spatial.py --cli-only``), against the smoothed values: gaitmap_example +0.1 ± 0.7 cm
+    (45 of its 51 provisional strides), strike −0.1 ± 1.9° (45), push-off +0.3 ± 2.2° (40);
+    qmt_fullbody's fast walk with its lengths let through (``provisional_tolerance`` 1 m), before this
+    check +1.3 ± 4.6 cm and angles up to 68° off (95th percentile; the direction of travel so far was
+    off), with it 6 heights of 62, 40 and 28 angles (−0.9 ± 1.9°, +0.3 ± 1.4°)."""
 
     def __init__(self) -> None:
-        self._differences = {name: deque(maxlen=LEARN) for name in SWING_TOLERANCES}
+        self.values = {name: Agreement(tolerance) for name, tolerance in SWING_TOLERANCES.items()}
         self._offered: ProvisionalStride | None = None
-        self.withheld = {name: 0 for name in SWING_TOLERANCES}  # checked enough, but disagreeing
 
     def forget(self) -> None:
         """The current swing's estimate is void (the foot restarted)."""
         self._offered = None
 
-    def trusted(self, name: str) -> bool:
-        d = self._differences[name]
-        return len(d) >= CHECKED and math.sqrt(np.mean(np.square(d))) <= SWING_TOLERANCES[name]
-
     def offer(self, estimate: ProvisionalStride) -> ProvisionalStride:
         """``estimate`` with the values not trusted set to NaN; kept to be checked when its stride closes."""
         self._offered = estimate
-        untrusted = [name for name in SWING_TOLERANCES if not self.trusted(name)]
-        for name in untrusted:
-            self.withheld[name] += len(self._differences[name]) >= CHECKED
-        return estimate._replace(**dict.fromkeys(untrusted, math.nan))
+        refused = [name for name, agreement in self.values.items() if not agreement.admit()]
+        return estimate._replace(**dict.fromkeys(refused, math.nan))
 
     def check(self, foot_off_ns: int, smoothed: dict[str, float]) -> None:
         """The stride that left its stance at ``foot_off_ns`` has the smoothed values given (name → value)."""
         if self._offered is not None and self._offered.foot_off_ns == foot_off_ns:
-            for name, d in self._differences.items():
-                offered = getattr(self._offered, name)
-                if math.isfinite(offered) and math.isfinite(smoothed[name]):
-                    d.append(offered - smoothed[name])
+            for name, agreement in self.values.items():
+                agreement.add(getattr(self._offered, name), smoothed[name])
         self._offered = None
 
 
 class RestOfSwing:
-    """One foot's remainders, the differences of its estimates from the smoothed lengths, and the
-    pending request and estimate of the current swing."""
+    """One foot's remainders, how its length estimates agreed with the smoothed lengths
+    (:class:`Agreement`), and the pending request and estimate of the current swing."""
 
     def __init__(self, tolerance: float = 0.05) -> None:
-        self.tolerance = float(tolerance)
+        self.agreement = Agreement(tolerance)
         self._rests: deque[np.ndarray] = deque(maxlen=LEARN)
         self._asked: tuple[int, np.ndarray, np.ndarray] | None = None  # (foot_off_ns, now, û)
-        self._differences: deque[float] = deque(maxlen=LEARN)
         self._offered: tuple[int, float] | None = None  # (foot_off_ns, estimate) awaiting its check
-        self.withheld = 0  # estimates not published because the foot's differences spread
+
+    @property
+    def tolerance(self) -> float:
+        return self.agreement.tolerance
+
+    @property
+    def withheld(self) -> int:
+        """Estimates not published because the foot's differences spread."""
+        return self.agreement.withheld
 
     @property
     def spread(self) -> float:
         """RMS (m) of the last estimates' differences from their smoothed lengths; NaN before any."""
-        return math.sqrt(np.mean(np.square(self._differences))) if self._differences else math.nan
+        return self.agreement.spread
 
     @property
     def trusted(self) -> bool:
         """The foot's estimates agreed with the smoothed lengths (module docstring)."""
-        return len(self._differences) >= CHECKED and self.spread <= self.tolerance
+        return self.agreement.trusted
 
     def offer(self, foot_off_ns: int, length: float) -> float | None:
         """``length``, the estimate for the swing that left its stance at ``foot_off_ns``, if the
         foot's estimates are trusted, else None; kept to be checked when its stride closes."""
         self._offered = (foot_off_ns, float(length))
-        if self.trusted:
-            return float(length)
-        self.withheld += len(self._differences) >= CHECKED
-        return None
+        return float(length) if self.agreement.admit() else None
 
     def check(self, foot_off_ns: int, smoothed_length: float) -> None:
         """The stride that left its stance at ``foot_off_ns`` has the smoothed length given."""
-        if self._offered is not None and self._offered[0] == foot_off_ns and math.isfinite(smoothed_length):
-            self._differences.append(self._offered[1] - smoothed_length)
+        if self._offered is not None and self._offered[0] == foot_off_ns:
+            self.agreement.add(self._offered[1], smoothed_length)
         self._offered = None
 
     def estimate(self, foot_off_ns: int, start: np.ndarray, now: np.ndarray) -> float | None:

@@ -96,6 +96,15 @@ def _min_between_maxima(height: np.ndarray) -> float:
     return float(height[peaks[0]:peaks[-1] + 1].min())
 
 
+def _foot_angles(swing: np.ndarray, q_strike_ref: np.ndarray, lateral: np.ndarray) -> tuple[float, float]:
+    """(``foot_angle_ic``, ``foot_angle_tc``) of the swing's orientations, foot-off first (module
+    docstring): the largest pitch of its second half relative to ``q_strike_ref``, the smallest of its
+    first half relative to its first sample."""
+    mid = (len(swing) - 1) // 2
+    return (float(_pitch(swing[mid:], q_strike_ref, lateral).max()),
+            float(_pitch(swing[:mid + 1], swing[0], lateral).min()))
+
+
 def swing_so_far(orientation: np.ndarray, position: np.ndarray, first: tuple[int, int]
                  ) -> tuple[float, float, float]:
     """(``max_sensor_height``, ``foot_angle_ic``, ``foot_angle_tc``) of a swing still in progress, as
@@ -111,9 +120,7 @@ def swing_so_far(orientation: np.ndarray, position: np.ndarray, first: tuple[int
     if length < MIN_LENGTH_M:
         return height, math.nan, math.nan
     forward = travel / length
-    pitch = _pitch(orientation[a1:], orientation[a1], np.array([-forward[1], forward[0]]))
-    mid = (len(pitch) - 1) // 2
-    return height, float(pitch[mid:].max()), float(pitch[:mid + 1].min())
+    return height, *_foot_angles(orientation[a1:], orientation[a1], np.array([-forward[1], forward[0]]))
 
 
 def stride_parameters(t: np.ndarray, orientation: np.ndarray, position: np.ndarray,
@@ -143,9 +150,7 @@ def stride_parameters(t: np.ndarray, orientation: np.ndarray, position: np.ndarr
     if length >= MIN_LENGTH_M:
         forward = travel / length
         lateral = np.array([-forward[1], forward[0]])
-        mid = (a1 + b0) // 2
-        angle_tc = float(_pitch(orientation[a1:mid + 1], orientation[a1], lateral).min())
-        angle_ic = float(_pitch(orientation[mid:b0 + 1], orientation[b0], lateral).max())
+        angle_ic, angle_tc = _foot_angles(orientation[a1:b0 + 1], orientation[b0], lateral)
         side = (position[swing, :2] - p_first[:2]) @ lateral
         lateral_excursion = float(side[np.argmax(np.abs(side))])
     else:
