@@ -80,6 +80,7 @@ from gait_biofeedback.batch import (
     import_gaitmap,
     simulate,
 )
+from gait_biofeedback.core.gait.cycles import TURN_LIMIT
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO.parent / "shared" / "data"
@@ -447,18 +448,27 @@ def _against_record(published: list, of_record: list) -> str:
 
 
 def _swing_against_record(published: list, of_record: list) -> str:
-    """How the provisional foot height and angles among ``published`` differ from their values of record."""
+    """How the provisional swing values among ``published`` differ from their values of record."""
     record = {(m.side, m.stride_index): m for m, _ in of_record}
     cells = []
     for name, scale, unit in (("max_foot_height", 100, "cm"), ("foot_angle_ic", np.degrees(1), "°"),
-                              ("foot_angle_tc", np.degrees(1), "°")):
+                              ("foot_angle_tc", np.degrees(1), "°"), ("turning_angle", np.degrees(1), "°"),
+                              ("lateral_excursion", 100, "cm"), ("min_toe_clearance", 100, "cm")):
         d = np.array([getattr(m, name) - getattr(record[(m.side, m.stride_index)], name) for m, _ in published
                       if m.spatial_provisional]) * scale
         d = d[np.isfinite(d)]
         if len(d):
             cells.append(f"{name} {d.mean():+.1f} ± {d.std():.1f} {unit} (95th percentile of |difference| "
                          f"{np.percentile(np.abs(d), 95):.1f}, n {len(d)})")
-    return "; ".join(cells) or "no provisional foot height or angles"
+    pairs = [(m.turning_angle, record[(m.side, m.stride_index)].turning_angle) for m, _ in published
+             if m.spatial_provisional and np.isfinite(m.turning_angle)]
+    pairs = [(a, b) for a, b in pairs if np.isfinite(b)]
+    if pairs:
+        same = sum((abs(a) > TURN_LIMIT) == (abs(b) > TURN_LIMIT) for a, b in pairs)
+        turns = sum(abs(b) > TURN_LIMIT for _, b in pairs)
+        cells.append(f"turn or straight (20°, no spatial cue in a turn) told as the record tells it: "
+                     f"{same} of {len(pairs)} ({turns} turns of record)")
+    return "; ".join(cells) or "no provisional swing values"
 
 
 def through_the_command_line(provisional_after: float | None = None) -> None:
@@ -501,7 +511,7 @@ def through_the_command_line(provisional_after: float | None = None) -> None:
                      str(tmp / "qmt.yaml"), "--calibrate-at", "75:walking", "--overwrite")
                 published, of_record = _cycles(tmp / "qmt_out")
                 print(f"qmt_fullbody{label} (no truth): " + _against_record(published, of_record))
-                print(f"  provisional foot height and angles: {_swing_against_record(published, of_record)}")
+                print(f"  provisional swing values: {_swing_against_record(published, of_record)}")
             lengths = np.array([m.stride_length for m, _ in of_record if not m.spatial_flag])
             print(f"qmt_fullbody (no truth): {len(of_record)} strides, {len(of_record) - len(lengths)} "
                   f"flagged without spatial values; stride length median {np.median(lengths):.2f} m, largest "

@@ -63,6 +63,7 @@ from gait_biofeedback.core.gait.stream import GaitEventsParams, GaitEventStream
 from gait_biofeedback.core.joints.angles import segment_pair
 from gait_biofeedback.core.joints.stream import STREAM_SEGMENTS, JointAnglesParams, JointAngleStream
 from gait_biofeedback.core.orientation.stream import OrientationParams, SegmentOrientationTracker
+from gait_biofeedback.core.spatial.provisional import SWING_TOLERANCES
 from gait_biofeedback.core.stamps import NS_PER_S, s_to_ns
 from gait_biofeedback.io.bag import BagReader, BagRecoveryWarning, BagWriter
 from gait_biofeedback.io.bag_writer import check_output
@@ -116,6 +117,11 @@ NO_STANDING = "no quiet standing before a protocol"
 """What an ``auto`` note says when the recording starts walking (the feet calibrate from the walk)."""
 WAITING_WARN_NS = 2 * NS_PER_S
 """A calibrated joint left without angles this long (no common heading yet) is named in the warnings."""
+SWING_WORDS = {"max_sensor_height": "foot heights", "min_toe_clearance": "toe clearances",
+               "foot_angle_ic": "foot angles at IC", "foot_angle_tc": "foot angles at TC",
+               "turning_angle": "turning angles", "lateral_excursion": "lateral excursions"}
+SWING_TOLERANCE_TEXT = {k: f"{math.degrees(v):.0f}°" if "angle" in k else
+                        f"{100 * v:.0f} cm" for k, v in SWING_TOLERANCES.items()}
 SESSION_CONDITIONS = ("losing samples", "6D")
 """Orientation conditions ``analyze`` also sums up in its warnings (the others are said as they happen)."""
 
@@ -516,15 +522,14 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
             if text.startswith(SESSION_CONDITIONS):
                 result.warnings.append(f"{seg}: over the session: {text}")
     for side, foot in gait.feet.items():
-        words = {"max_sensor_height": "foot heights", "foot_angle_ic": "foot angles at IC",
-                 "foot_angle_tc": "foot angles at TC"}
-        swing = {words[k]: a.withheld for k, a in foot.swing_agreement.values.items() if a.withheld}
+        swing = {k: a.withheld for k, a in foot.swing_agreement.values.items() if a.withheld}
         if swing:
             result.warnings.append(
                 f"{side} foot: provisional "
-                + ", ".join(f"{name} withheld {n} times" for name, n in swing.items())
-                + " (their last estimates differed from the smoothed ones by more than 2 cm or 5° RMS; those "
-                "strides got theirs with the smoothed values)")
+                + ", ".join(f"{SWING_WORDS[k]} withheld {n} times" for k, n in swing.items())
+                + " (their last estimates differed from the smoothed ones by more than "
+                + ", ".join(f"{SWING_TOLERANCE_TEXT[k]}" for k in swing)
+                + " RMS; those strides got theirs with the smoothed values)")
         rest = foot.rest_of_swing
         if rest.withheld:
             result.warnings.append(

@@ -186,9 +186,11 @@ def test_analyze_gives_the_numbers_of_the_live_graph(session_bag, tmp_path):
     # measured: provisional within 1.6 cm of the smoothed value on the steady strides
     assert all(abs(c.stride_length - revised[(c.side, c.stride_index)].stride_length) < 0.03
                for c in provisional[:-2]), [round(c.stride_length, 3) for c in provisional]
-    # provisional foot height and angles: NaN until three of the foot's estimates were checked, then
-    # (measured) within 2.9 mm, 1.1° (strike) and 0.0015° (push-off) of the smoothed ones
-    for name, measured in (("max_foot_height", 0.0029), ("foot_angle_ic", 0.0194), ("foot_angle_tc", 2.6e-5)):
+    # provisional swing values: NaN until three of the foot's estimates were checked, then (measured)
+    # within 2.9 mm (height), 1.1° (strike), 0.0015° (push-off), 0.03° (turning) and 0.5 mm (lateral
+    # excursion) of the smoothed ones
+    for name, measured in (("max_foot_height", 0.0029), ("foot_angle_ic", 0.0194), ("foot_angle_tc", 2.6e-5),
+                           ("turning_angle", 5.1e-4), ("lateral_excursion", 4.9e-4)):
         d = np.array([getattr(c, name) - getattr(revised[(c.side, c.stride_index)], name)
                       for c in provisional])
         assert np.isnan(d[:6]).all() and np.isfinite(d[6:]).sum() >= 4, (name, d)

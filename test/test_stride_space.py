@@ -140,7 +140,7 @@ def test_an_asymmetric_step_from_the_joint_angles():
             for side, hip in hips.items():
                 evaluator.add_angles(side, round((t + dt) * S), hip * DEG, 0.0, 0.0)
     stride = Stride("right", 3, 1 * S, round(1.6 * S), 2 * S, step_time=0.55, stride_length=1.3,
-                    gait_speed=1.3)
+                    gait_speed=1.3, turning_angle=19 * DEG)
     got = evaluator.spatial(stride)
     legs = 0.42 + 0.43  # the default thigh + shank
     own = legs * (math.sin(20 * DEG) + math.sin(10 * DEG))
@@ -150,6 +150,12 @@ def test_an_asymmetric_step_from_the_joint_angles():
     flagged = Stride("right", 4, 1 * S, round(1.6 * S), 2 * S, step_time=0.55, stride_length=1.3,
                      spatial_flag="a stance was missed")
     assert evaluator.spatial(flagged) == {}
+    # a turn (over 20°, or an angle not known: a provisional one not trusted) gives no spatial cue
+    for turning in (-21 * DEG, 40 * DEG, math.nan):
+        turn = Stride("right", 5, 3 * S, round(3.6 * S), 4 * S, step_time=0.55, stride_length=0.8,
+                      gait_speed=0.8, turning_angle=turning)
+        assert turn.turning and evaluator.spatial(turn) == {}
+    assert len(evaluator.steps["right"]) == 1  # the turns' steps are not in the symmetry
 
 
 def test_the_rest_of_the_swing_by_hand():
@@ -193,24 +199,30 @@ def test_provisional_lengths_are_published_only_while_they_agree_with_the_smooth
 def test_provisional_foot_height_and_angles_are_published_value_by_value_while_they_agree():
     """Heights 1, −1, 2 cm off their smoothed values (RMS 1.4 cm ≤ 2 cm): published from the fourth
     stride; the foot-strike angles 6° off (RMS 6° > 5°) stay NaN, the push-off angles (0°) are
-    published. A 4 cm height miss: √((1 + 1 + 4 + 16) / 4) = 2.3 cm > 2 cm, withheld."""
+    published, and so are the turning angles (3°, 4°, −3° off: RMS 3.4° ≤ 5°); the toe clearance, never
+    smoothed (no lever arm), stays NaN. A 4 cm height miss: √((1 + 1 + 4 + 16) / 4) = 2.3 cm > 2 cm,
+    withheld."""
     from gait_biofeedback.core.spatial.provisional import SwingAgreement
 
     agreement = SwingAgreement()
     deg = math.radians(1.0)
-    smoothed = {"max_sensor_height": 0.10, "foot_angle_ic": 20 * deg, "foot_angle_tc": -60 * deg}
+    smoothed = {"max_sensor_height": 0.10, "foot_angle_ic": 20 * deg, "foot_angle_tc": -60 * deg,
+                "turning_angle": 30 * deg}
 
-    def estimate(k: int, height_cm: float) -> ProvisionalStride:
-        return ProvisionalStride(k, 1.3, 0.10 + height_cm / 100, 26 * deg, -60 * deg)
+    def estimate(k: int, height_cm: float, turning_deg: float = 30.0) -> ProvisionalStride:
+        return ProvisionalStride(k, 1.3, 0.10 + height_cm / 100, 26 * deg, -60 * deg, min_toe_clearance=0.02,
+                                 turning_angle=turning_deg * deg)
 
-    for k, off in enumerate((1.0, -1.0, 2.0)):
-        out = agreement.offer(estimate(k, off))
+    for k, (off, turning) in enumerate(((1.0, 33.0), (-1.0, 34.0), (2.0, 27.0))):
+        out = agreement.offer(estimate(k, off, turning))
         assert out.stride_length == 1.3
         assert math.isnan(out.max_sensor_height) and math.isnan(out.foot_angle_tc)
+        assert math.isnan(out.turning_angle) and math.isnan(out.min_toe_clearance)
         agreement.check(k, smoothed)
     out = agreement.offer(estimate(3, 4.0))
     assert out.max_sensor_height == pytest.approx(0.14) and out.foot_angle_tc == pytest.approx(-60 * deg)
-    assert math.isnan(out.foot_angle_ic)
+    assert out.turning_angle == pytest.approx(30 * deg)
+    assert math.isnan(out.foot_angle_ic) and math.isnan(out.min_toe_clearance)
     agreement.check(99, smoothed)  # another swing's stride: no check
     agreement.offer(estimate(3, 4.0))
     agreement.check(3, smoothed)

@@ -428,7 +428,10 @@ function updateTables() {
   document.getElementById("stat-foot-angle").textContent = deg(sl) + " / " + deg(sr);
   document.getElementById("stat-step-symmetry").textContent = newest && newest.step_length_symmetry !== null ?
     (newest.step_length_symmetry * 100).toFixed(1) + " %" : "–";
-  document.getElementById("stat-spatial-flag").textContent = !newest ? "–" : (newest.flag ? newest.side + ": " + newest.flag : "ok");
+  const turn = (s) => (s.turning_angle !== null && s.turning_angle !== undefined ?
+    "turning " + Math.abs(s.turning_angle * DEG).toFixed(0) + "°" : "turn not known yet") + ": no spatial cue";
+  document.getElementById("stat-spatial-flag").textContent = !newest ? "–" :
+    (newest.flag ? newest.side + ": " + newest.flag : (newest.turning ? newest.side + ": " + turn(newest) : "ok"));
   const steps = data.activity ? data.activity.step_count : data.icCount;
   document.getElementById("stat-steps").textContent = String(steps);
   document.getElementById("stat-strides").textContent = data.strideCount.left + " / " + data.strideCount.right;

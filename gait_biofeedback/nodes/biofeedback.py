@@ -264,7 +264,8 @@ class BiofeedbackNode(GuardedNode):
             self.counts["strides_without_angles"] += 1
         doubtful = bool(stride.spatial_flag) or not stride.plausible
         self._outbox.append({"type": "spatial", "side": stride.side, "stride": stride.index,
-                             "t": stride.t_end, "flag": stride.spatial_flag,
+                             "t": stride.t_end, "flag": stride.spatial_flag, "turning": stride.turning,
+                             "turning_angle": _finite(stride.turning_angle),
                              **{k: _finite(result.spatial.get(k, math.nan)) for k in SPATIAL},
                              **{k: None if doubtful else _finite(getattr(stride, k))
                                 for k in ("max_foot_height", "foot_angle_ic")}})

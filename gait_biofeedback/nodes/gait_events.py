@@ -7,9 +7,10 @@ stamp, ``detection_latency`` = to the confirming sample) and ``gait/cycles`` (Ga
 IC to IC; an implausible stride, < ``min_stride_s`` or > ``max_stride_s`` or without exactly one
 TC, is published with ``plausible = false`` and its ``flag``; its spatial values come from the foot's
 trajectory, :mod:`~gait_biofeedback.core.gait.spatial`: it is published ``provisional_after`` (15 ms)
-after the closing IC with a provisional stride length, speed, foot height and angles, whose smoothed
-values follow on ``gait/stride_space`` (StrideSpace) once the next stance closes the trajectory;
-without a provisional value it waits for the smoothed ones, at most ``spatial_wait`` s after the
+after the closing IC with a provisional stride length, speed and swing values (foot height and
+clearance, foot and turning angles, lateral excursion), whose smoothed values follow on
+``gait/stride_space`` (StrideSpace) once the next stance closes the trajectory; without a provisional
+value it waits for the smoothed ones, at most ``spatial_wait`` s after the
 closing IC), plus ``/diagnostics``. The detection is
 :class:`~gait_biofeedback.core.gait.events.GaitEventDetector` (thesis Algorithm 1), the strides
 :class:`~gait_biofeedback.core.gait.cycles.GaitCycleTracker`, the stream rules below

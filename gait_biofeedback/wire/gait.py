@@ -128,4 +128,5 @@ def stride_of(msg: GaitCycleMsg) -> Stride:
                   plausible=bool(msg.plausible), step_time=float(msg.step_time),
                   stride_length=float(msg.stride_length),
                   gait_speed=float(msg.gait_speed), spatial_flag=msg.spatial_flag,
-                  max_foot_height=float(msg.max_foot_height), foot_angle_ic=float(msg.foot_angle_ic))
+                  max_foot_height=float(msg.max_foot_height), foot_angle_ic=float(msg.foot_angle_ic),
+                  turning_angle=float(msg.turning_angle))

@@ -15,7 +15,10 @@ EXT (gait.md §5.2 "DERIVED-possible"):
 * spatial (issue 16), from the GaitCycle's foot trajectory: ``stride_length`` (per side), ``gait_speed``
   (bilateral), and ``step_length`` (per side) with ``step_length_symmetry`` (bilateral, ``(L - R) /
   (0.5 (L + R))`` of the mean step lengths over the last ``symmetry_window`` steps of each side).
-  A stride whose ``spatial_flag`` is set gives no spatial cue.
+  A stride whose ``spatial_flag`` is set gives no spatial cue, nor does a turn (EXT): a stride whose
+  foot turned by more than ``TURN_LIMIT`` (20°, as the report leaves turns out) or by an unknown angle
+  (a provisional one not yet trusted) is short because it turns, and a cue to lengthen it would be
+  wrong; its step length does not enter the symmetry either.
 
 Step length (EXT, :func:`step_length`): two foot trajectories have no common frame (each filter's
 origin and heading drift on their own), so the distance between the feet is taken from the legs'
@@ -54,7 +57,7 @@ import yaml
 
 from gait_biofeedback.core.biofeedback import normative as normative_gait
 from gait_biofeedback.core.body import BodyDimensions, StickFigureDimensions
-from gait_biofeedback.core.gait.cycles import symmetry_index
+from gait_biofeedback.core.gait.cycles import TURN_LIMIT, symmetry_index
 from gait_biofeedback.core.joints.angles import joint_angle_names, relative_rotation_from_angles
 from gait_biofeedback.core.joints.skeleton import stick_figure
 from gait_biofeedback.core.params import param
@@ -260,6 +263,12 @@ class Stride:
     spatial_flag: str = ""
     max_foot_height: float = math.nan  # m, shown on the dashboard (no cue)
     foot_angle_ic: float = math.nan  # rad, toes up at the strike, shown on the dashboard (no cue)
+    turning_angle: float = math.nan  # rad, the foot's heading change (a turn gives no spatial cue)
+
+    @property
+    def turning(self) -> bool:
+        """Not known to be a straight stride: turned by more than ``TURN_LIMIT``, or by an unknown angle."""
+        return not abs(self.turning_angle) <= TURN_LIMIT
 
     @property
     def t_start(self) -> float:
@@ -402,9 +411,10 @@ class BiofeedbackEvaluator:
         return ahead[0] - ahead[1]
 
     def spatial(self, stride: Stride) -> dict[str, float]:
-        """The spatial quantities of ``stride`` (none when its spatial values are unknown or doubtful;
-        a stride length of 0, the value of a field nobody filled, is unknown too)."""
-        if stride.spatial_flag or not stride.stride_length > 0.0:
+        """The spatial quantities of ``stride`` (none when its spatial values are unknown or doubtful,
+        or it is not known to be straight: :attr:`Stride.turning`; a stride length of 0, the value of a
+        field nobody filled, is unknown too)."""
+        if stride.spatial_flag or not stride.stride_length > 0.0 or stride.turning:
             return {}
         other = SIDES[1 - SIDES.index(stride.side)]
         step = step_length(stride.stride_length, self._lead(stride.side, stride.t_end),

@@ -45,7 +45,7 @@ class StrideSpace:
     turning_angle: float = math.nan
     lateral_excursion: float = math.nan
     flag: str = ""
-    provisional: bool = False  # before the next stance: length, speed, foot height and angles (.spatial)
+    provisional: bool = False  # before the next stance: every value provisional (.spatial)
 
 
 @dataclass(frozen=True)

@@ -24,10 +24,10 @@ Provisional values (``provisional_after``): waiting for the next stance delays t
 temporal values included, by 0.28-0.46 s, longer than a cue may lag. So at the last sample at or
 before ``provisional_after`` past the closing IC, the foot trajectory is asked for a provisional
 stride (:mod:`gait_biofeedback.core.spatial.provisional`) of the swing that left its stance inside the
-IC→IC stride. With one, the stride goes out then with ``stride_length``, ``gait_speed``,
-``max_foot_height``, ``foot_angle_ic`` and ``foot_angle_tc`` provisional (each NaN while the foot's
-estimates of it disagree with the smoothed values; the other values NaN), and its smoothed values
-follow as a *revision* once its trajectory
+IC→IC stride. With one, the stride goes out then with all its spatial values provisional
+(``stride_length`` and ``gait_speed``; ``max_foot_height``, ``min_toe_clearance``, ``foot_angle_ic``,
+``foot_angle_tc``, ``turning_angle`` and ``lateral_excursion`` each NaN while the foot's estimates of it
+disagree with the smoothed values), and its smoothed values follow as a *revision* once its trajectory
 stride is in, by the rules above (NaN and the flag when there is none by the deadline). Without one
 (the foot's first strides, lost samples, a swing that left before the opening IC, estimates that
 disagreed with their smoothed values: ``provisional_tolerance``), the stride waits for the smoothed
@@ -121,8 +121,10 @@ class SpatialPairing:
             return None
         length = value.stride_length
         return StrideSpace(stride_length=length, gait_speed=length / cycle.stride_time,
-                           max_foot_height=value.max_sensor_height, foot_angle_ic=value.foot_angle_ic,
-                           foot_angle_tc=value.foot_angle_tc, provisional=True)
+                           max_foot_height=value.max_sensor_height, min_toe_clearance=value.min_toe_clearance,
+                           foot_angle_ic=value.foot_angle_ic, foot_angle_tc=value.foot_angle_tc,
+                           turning_angle=value.turning_angle, lateral_excursion=value.lateral_excursion,
+                           provisional=True)
 
     def release(self, why: str) -> list[Decided]:
         """Every held stride and pending revision at once, without spatial values (``why``: the foot

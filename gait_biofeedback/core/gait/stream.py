@@ -27,7 +27,7 @@
   by an IC is held until the trajectory's stride of the same swing is in
   (:class:`~gait_biofeedback.core.gait.spatial.SpatialPairing`, at most ``spatial_wait`` s); its
   values, or NaN and the reason, go with it. With ``spatial_provisional`` it goes out
-  ``provisional_after`` s after the IC with a provisional length, speed, foot height and angles when
+  ``provisional_after`` s after the IC with a provisional length, speed and swing values when
   the trajectory has one, and a *revision* (a GaitCycle with ``revision``, the smoothed values)
   follows. A reset of the foot for its stamps (a gap, time going back, a stream that stopped)
   releases the held strides and pending revisions without spatial values; a new calibration does not
@@ -104,7 +104,7 @@ class GaitEventsParams:
                                 "closes its trajectory; then it is published without spatial values", "s",
                                 low=0.05, high=2.0)
     spatial_provisional: bool = param(True, "publish a stride provisional_after its closing IC with a "
-                                      "provisional stride length, speed, foot height and angles; the "
+                                      "provisional stride length, speed and swing values; the "
                                       "smoothed values follow on "
                                       "gait/stride_space (core/gait/spatial.py)")
     provisional_after: float = param(0.015, "how long after the closing IC (its stamp) the provisional "

@@ -304,11 +304,12 @@ class FootTrajectoryStream:
     def provisional(self) -> ProvisionalStride | None:
         """The stride in progress before it closes (:mod:`.provisional`): its stride length, in its
         swing the forward filter's travel plus the foot's usual rest of the swing, in its next stance
-        the travel to that stance; its highest sensor position and foot angles from the forward filter
-        (:func:`~.strides.swing_so_far`). None before the filter started, between stances less than
-        ``min_swing`` apart, once the stride has closed (its smoothed values are out), after lost
-        samples in the stride, while the foot's rests are not learnt, or while its length estimates
-        are not trusted (:class:`.provisional.RestOfSwing`, ``provisional_tolerance``)."""
+        the travel to that stance; its swing values (foot height, toe clearance, foot and turning
+        angles, lateral excursion) from the forward filter (:func:`~.strides.swing_so_far`). None
+        before the filter started, between stances less than ``min_swing`` apart, once the stride has
+        closed (its smoothed values are out), after lost samples in the stride, while the foot's rests
+        are not learnt, or while its length estimates are not trusted
+        (:class:`.provisional.RestOfSwing`, ``provisional_tolerance``)."""
         if self._kf is None or self._previous is None or self._ended is not None:
             return None
         stopped = self._in_stance
@@ -327,8 +328,9 @@ class FootTrajectoryStream:
             return None
         end = self._stance_start + 1 if stopped else len(self._steps)
         swing = swing_so_far(np.array([step.q for step in self._steps[a0:end]]),
-                             np.array([step.r for step in self._steps[a0:end]]), (0, a1 - a0))
-        return self.swing_agreement.offer(ProvisionalStride(self._stamps[a1], length, *swing))
+                             np.array([step.r for step in self._steps[a0:end]]), (0, a1 - a0),
+                             self.params.toe_lever_arm or None)
+        return self.swing_agreement.offer(ProvisionalStride(self._stamps[a1], length, **swing))
 
     def _close(self, last: int) -> SpatialStride:
         self._closed = True

@@ -105,22 +105,50 @@ def _foot_angles(swing: np.ndarray, q_strike_ref: np.ndarray, lateral: np.ndarra
             float(_pitch(swing[:mid + 1], swing[0], lateral).min()))
 
 
-def swing_so_far(orientation: np.ndarray, position: np.ndarray, first: tuple[int, int]
-                 ) -> tuple[float, float, float]:
-    """(``max_sensor_height``, ``foot_angle_ic``, ``foot_angle_tc``) of a swing still in progress, as
-    :func:`stride_parameters` defines them, from the samples ``first`` (the stance before it, indices
-    as there) to the last one: the direction of travel is the one so far and the strike's pitch is
-    taken relative to the first stance (the next one has not begun; on level ground the two stances'
-    pitches agree). Angles NaN under ``MIN_LENGTH_M`` of travel."""
+SWING_VALUES = ("max_sensor_height", "min_toe_clearance", "foot_angle_ic", "foot_angle_tc", "turning_angle",
+                "lateral_excursion")
+"""The values :func:`swing_so_far` estimates before the stride closes."""
+
+
+def _toe_clearance(orientation: np.ndarray, position: np.ndarray, stance: slice, swing: slice,
+                   toe_lever_arm: np.ndarray | None) -> float:
+    """``min_toe_clearance`` (module docstring) of the ``swing`` samples above the ``stance``'s mean toe
+    height; NaN without a lever arm."""
+    if toe_lever_arm is None or len(toe_lever_arm) != 3:
+        return math.nan
+    toe = position[:, 2] + (quat.as_matrix(orientation) @ np.asarray(toe_lever_arm, float))[:, 2]
+    return _min_between_maxima(toe[swing] - float(toe[stance].mean()))
+
+
+def _lateral_excursion(position: np.ndarray, start: np.ndarray, lateral: np.ndarray) -> float:
+    side = (position[:, :2] - start[:2]) @ lateral
+    return float(side[np.argmax(np.abs(side))])
+
+
+def swing_so_far(orientation: np.ndarray, position: np.ndarray, first: tuple[int, int],
+                 toe_lever_arm: np.ndarray | None = None) -> dict[str, float]:
+    """``SWING_VALUES`` of a swing still in progress, as :func:`stride_parameters` defines them, from
+    the samples ``first`` (the stance before it, indices as there) to the last one. EXT, what is not
+    known yet is taken from what is: the direction of travel (for the angles and the lateral excursion)
+    is the one so far; the strike's pitch is relative to the first stance (the next one has not begun;
+    on level ground the two stances' pitches agree); the turning angle is the heading change from the
+    foot-off to the last sample (the foot hardly turns about the vertical from the IC to foot flat).
+    Angles and lateral excursion NaN under ``MIN_LENGTH_M`` of travel."""
     a0, a1 = first
     p_first = position[a0:a1 + 1].mean(axis=0)
-    height = float(position[a1:, 2].max() - p_first[2])
+    out = dict.fromkeys(SWING_VALUES, math.nan)
+    out["max_sensor_height"] = float(position[a1:, 2].max() - p_first[2])
+    out["min_toe_clearance"] = _toe_clearance(orientation, position, slice(a0, a1 + 1), slice(a1, None),
+                                              toe_lever_arm)
+    out["turning_angle"] = _heading_change(orientation[a1], orientation[-1])
     travel = (position[-1] - p_first)[:2]
     length = float(np.linalg.norm(travel))
-    if length < MIN_LENGTH_M:
-        return height, math.nan, math.nan
-    forward = travel / length
-    return height, *_foot_angles(orientation[a1:], orientation[a1], np.array([-forward[1], forward[0]]))
+    if length >= MIN_LENGTH_M:
+        forward = travel / length
+        lateral = np.array([-forward[1], forward[0]])
+        out["foot_angle_ic"], out["foot_angle_tc"] = _foot_angles(orientation[a1:], orientation[a1], lateral)
+        out["lateral_excursion"] = _lateral_excursion(position[a1:], p_first, lateral)
+    return out
 
 
 def stride_parameters(t: np.ndarray, orientation: np.ndarray, position: np.ndarray,
@@ -141,18 +169,14 @@ def stride_parameters(t: np.ndarray, orientation: np.ndarray, position: np.ndarr
     stride_time = math.nan if standing_before else float(t[b0] - t[a0])
     swing = slice(a1, b0 + 1)
     height = float(position[swing, 2].max() - p_first[2])
-    clearance = math.nan
-    if toe_lever_arm is not None and len(toe_lever_arm) == 3:
-        toe = position[:, 2] + (quat.as_matrix(orientation) @ np.asarray(toe_lever_arm, float))[:, 2]
-        clearance = _min_between_maxima(toe[swing] - float(toe[a0:a1 + 1].mean()))
+    clearance = _toe_clearance(orientation, position, slice(a0, a1 + 1), swing, toe_lever_arm)
     flags = ["started from standing"] if standing_before else []
     angle_ic = angle_tc = lateral_excursion = math.nan
     if length >= MIN_LENGTH_M:
         forward = travel / length
         lateral = np.array([-forward[1], forward[0]])
         angle_ic, angle_tc = _foot_angles(orientation[a1:b0 + 1], orientation[b0], lateral)
-        side = (position[swing, :2] - p_first[:2]) @ lateral
-        lateral_excursion = float(side[np.argmax(np.abs(side))])
+        lateral_excursion = _lateral_excursion(position[swing], p_first, lateral)
     else:
         flags.append("no direction of travel")
     turning = _heading_change(orientation[a1], orientation[b0])
