@@ -272,7 +272,7 @@ def analyze_recording(
     if found is not None and found.success:
         notes.append("--calibrate-at auto: that calibration is in force from the start of the recording "
                      "(offline, as a calibration file would be; replay presses Calibrate at that instant, "
-                     "or, for a walk without standing, puts it in force from the start too)")
+                     "or, for a calibration made of the walk itself, puts it in force from the start too)")
     result.notes = notes
     return result
 

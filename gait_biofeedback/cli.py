@@ -198,13 +198,16 @@ def _calibration_options(args: argparse.Namespace, params: dict[str, dict]) -> l
     return [parse_calibrate_at(text) for text in args.calibrate_at or []]
 
 
-def _walk_calibration(bag: str, request: tuple[float, str], params: dict[str, dict], folder: Path) -> bool:
-    """A recording that starts walking (``auto`` found no standing): the feet's calibration from the walk,
-    saved in ``folder`` and in force from the start of the replay, as ``analyze`` does (live, Calibrate
-    needs a standing; pressed at the end of the walk window, the replay would have no events before
-    it); the calibration node handles the segments it has entries for. False when it is refused (then
-    Calibrate is pressed as usual, and says why) or when a calibration file was given (``--calibration``
-    stays in force, and Calibrate is pressed)."""
+def _walk_calibration(bag: str, request: tuple[float, str], params: dict[str, dict], folder: Path,
+                      why: str) -> bool:
+    """An ``auto`` calibration made of the recording's walk: a recording that starts walking (no
+    standing: the feet's calibration from the walk's stance phases), or the walking protocol after a
+    standing (the calibration walk is the walk to analyse). Pressed at the end of that walk, as live,
+    the replay would have no events before it; so the calibration is saved in ``folder`` and in force
+    from the start of the replay, as ``analyze`` does (``why`` says which case). The calibration node
+    handles the segments it has entries for. False when it is refused (then Calibrate is pressed as
+    usual, and says why) or when a calibration file was given (``--calibration`` stays in force, and
+    Calibrate is pressed)."""
     from datetime import UTC, datetime
 
     from gait_biofeedback.analyze import calibration_ahead
@@ -221,8 +224,8 @@ def _walk_calibration(bag: str, request: tuple[float, str], params: dict[str, di
     write_calibration_file(path, attempt.calibration, datetime.now(UTC).isoformat())
     stage["calibration_file"] = str(path)
     stage["segments"] = [s for s in stage.get("segments", SEGMENTS) if s in attempt.calibration.segments]
-    print(f"--calibrate-at auto: no standing to press Calibrate after: {attempt.message}; in force from the "
-          "start of the replay (as analyze does)")
+    print(f"--calibrate-at auto: {why}: {attempt.message}; in force from the start of the replay (as analyze "
+          "does)")
     return True
 
 
@@ -244,8 +247,12 @@ def cmd_replay(args: argparse.Namespace) -> int:
     with tempfile.TemporaryDirectory() as folder:
         pressed = []
         for (t, protocol), (when, _) in zip(requests, asked, strict=True):
-            if when is None and any(NO_STANDING in n for n in notes) and _walk_calibration(
-                    args.bag, (t, protocol), params, Path(folder)):
+            no_standing = any(NO_STANDING in n for n in notes)
+            why = ("no standing to press Calibrate after" if no_standing else
+                   f"the walking calibration is the recording's walk (pressed at its end, {t:.2f} s, the "
+                   "replay would have no events before it)")
+            if when is None and (no_standing or protocol == "walking") and _walk_calibration(
+                    args.bag, (t, protocol), params, Path(folder), why):
                 continue
             pressed.append((t, protocol, AUTO_OPTIONS) if when is None else (t, protocol))
         with BagReader(args.bag) as reader:
@@ -320,6 +327,9 @@ def cmd_report(args: argparse.Namespace) -> int:
                          targets_file=args.targets, overwrite=args.overwrite)
     for note in files.analyses[-1].notes:
         print(note)
+    for text in files.damage:
+        print(f"warning: DAMAGED RECORDING: {text}; the report covers only what could be read",
+              file=sys.stderr)
     for path in (files.html, files.pdf, files.strides_csv, files.joints_csv):
         print(f"wrote {path}")
     return 0

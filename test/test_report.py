@@ -254,6 +254,25 @@ def test_a_raw_recording_is_refused_with_the_analyze_command(reported, tmp_path)
     assert not (tmp_path / "r").exists()
 
 
+def test_a_damaged_recording_is_reported_as_damaged(reported, tmp_path):
+    """An analysed bag cut at 60 %: the report covers what could be read and says so on the terminal,
+    in its header and in Data quality; a file with nothing readable is refused with what to run."""
+    (mcap,) = (reported["root"] / "analyzed").glob("*.mcap")
+    data = mcap.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: int(0.6 * len(data))])
+    rc, _, err = _cli("report", str(cut), "-o", str(tmp_path / "r"))
+    assert rc == 0, err
+    assert err.count("warning: DAMAGED RECORDING: ") == 1 and "recovered" in err, err
+    html = (tmp_path / "r" / "report.html").read_text()
+    assert "cut.mcap (DAMAGED: only what could be read, see Data quality)" in html
+    assert "DAMAGED RECORDING: " in html.split("Data quality", 1)[1]
+    empty = tmp_path / "empty.mcap"
+    empty.write_bytes(data[:40])
+    rc, _, err = _cli("report", str(empty), "-o", str(tmp_path / "e"))
+    assert rc == 2 and "no message could be read" in err and "gait-biofeedback info" in err, err
+
+
 def test_an_existing_report_is_replaced_only_when_asked(reported, tmp_path):
     """Like analyze and import: a folder holding a report is refused (nothing written) until
     --overwrite; a session given twice is refused."""

@@ -17,12 +17,14 @@ import csv
 import datetime as dt
 import math
 import re
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 import yaml
 
 from gait_biofeedback.core.biofeedback.evaluator import default_targets_path, load_targets
+from gait_biofeedback.io.bag import BagRecoveryWarning
 from gait_biofeedback.parameters import PATIENT_BLOCK, PATIENT_KEYS, patient_block
 from gait_biofeedback.report import content
 from gait_biofeedback.report.analysis import SessionAnalysis, analyse_session
@@ -80,6 +82,7 @@ class ReportFiles:
     strides_csv: Path
     joints_csv: Path
     analyses: list[SessionAnalysis]
+    damage: list[str]  # what the sessions' damaged files lost, in words (also in the report's Data quality)
 
 
 def _recorded(data: SessionData) -> str:
@@ -189,14 +192,17 @@ def write_report(
     datas = [read_session(s) for s in sessions]
     analyses = [analyse_session(d, targets) for d in datas]
     data, analysis = datas[-1], analyses[-1]
-    summary = session_report(data.path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", BagRecoveryWarning)  # read_session kept them, said above
+        summary = session_report(data.path)
     out.mkdir(parents=True, exist_ok=True)
     header = [
         ("patient", patient.id or "not given (--patient-id or a patient: block)"),
         ("session", labels[-1]),
         ("recorded", _recorded(data)),
         ("duration", f"{data.duration_s:.1f} s"),
-        ("recording", data.path.name),
+        ("recording", data.path.name + (" (DAMAGED: only what could be read, see Data quality)"
+                                        if data.damage else "")),
         ("report made", dt.datetime.now(dt.UTC).strftime("%Y-%m-%d %H:%M UTC")),
     ]
     if len(sessions) > 1:
@@ -220,4 +226,4 @@ def write_report(
     html.write_text(render_html(doc))
     pdf = render_pdf(doc, out / "report.pdf")
     strides, joints = _write_csvs(out, labels, analyses)
-    return ReportFiles(html, pdf, strides, joints, analyses)
+    return ReportFiles(html, pdf, strides, joints, analyses, [text for d in datas for text in d.damage])

@@ -300,6 +300,9 @@ def calibration_section(data: SessionData, report: SessionReport) -> Section:
 
 def quality_section(data: SessionData) -> Section:
     section = Section("Data quality")
+    for text in data.damage:
+        section.add(Paragraph(f"DAMAGED RECORDING: {text}. This report covers only what could be read.",
+                              "warning"))
     if not data.diagnostics:
         return section.add(Paragraph("No /diagnostics in the recording: data quality unknown.", "warning"))
     rows = []

@@ -5,12 +5,13 @@ from __future__ import annotations
 
 import contextlib
 import math
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from gait_biofeedback.io.bag import BagReader
+from gait_biofeedback.io.bag import BagReader, BagRecoveryWarning
 from gait_biofeedback.wire import topics
 from gait_biofeedback.wire.activity import add_transition
 from gait_biofeedback.wire.gait import event_of, revised_cycles, stride_of
@@ -100,6 +101,7 @@ class SessionData:
     cues: list[dict]
     counts: dict[str, int]
     stride_objects: list = field(default_factory=list)
+    damage: list[str] = field(default_factory=list)  # the file was damaged: what was lost, in words
 
     def seconds(self, ns: int) -> float:
         return (ns - self.start_ns) / 1e9
@@ -110,20 +112,38 @@ def _level(raw) -> int:
 
 
 def read_session(path: str | Path) -> SessionData:
-    """Read one session; :class:`NotASessionError` (naming what to run) when it holds no graph outputs."""
+    """Read one session; :class:`NotASessionError` (naming what to run) when it holds no graph outputs.
+    A damaged file is read as far as it can be, and what was lost is in :attr:`SessionData.damage`."""
     path = Path(path)
-    reader = BagReader(path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", BagRecoveryWarning)  # kept in reader.warnings, and in the report
+        return _read_session(path, BagReader(path))
+
+
+def _not_a_session(path: Path, counts: dict[str, int], reader: BagReader) -> NotASessionError:
+    why = f"{path} holds no gait/cycles, joint_states or activity/state: "
+    if not counts:
+        damage = "; ".join(reader.warnings) or "the file holds none"
+        return NotASessionError(why + f"no message could be read ({damage}); check it with `gait-biofeedback "
+                                f"info {path}` and `repair` it, or report the recording it was made from")
+    if not any(t.endswith("/imu/data") or t == "/diagnostics" for t in counts):
+        return NotASessionError(why + f"it is a raw recording. Run `gait-biofeedback analyze {path} -o OUT "
+                                "--calibrate-at auto` and report OUT")
+    if counts.get(topics.CALIBRATION.absolute()):
+        return NotASessionError(why + "a calibration was published, but no stride, joint angle or activity "
+                                "followed it (pressed at the end of the walk, or nothing moved after it): "
+                                "analyse the raw recording (`analyze --calibrate-at auto` puts the "
+                                "calibration in force from the start)")
+    return NotASessionError(why + "it was processed, but no calibration took effect and no trunk sensor gave "
+                            "activity: analyse the raw recording again with a --calibrate-at request that "
+                            "succeeds (or --calibration FILE)")
+
+
+def _read_session(path: Path, reader: BagReader) -> SessionData:
     counts = reader.message_counts()
     outputs = [t.absolute() for t in (topics.GAIT_CYCLES, topics.JOINT_STATES, topics.ACTIVITY)]
     if not any(t in counts for t in outputs):
-        analysed = any(t.endswith("/imu/data") or t == "/diagnostics" for t in counts)
-        raise NotASessionError(
-            f"{path} holds no gait/cycles, joint_states or activity/state: "
-            + ("it was analysed, but no calibration took effect and no trunk sensor gave activity: analyse "
-               "the raw recording again with a --calibrate-at request that succeeds (or --calibration FILE)"
-               if analysed else f"it is a raw recording. Run `gait-biofeedback analyze {path} -o OUT "
-               "--calibrate-at auto` and report OUT")
-        )
+        raise _not_a_session(path, counts, reader)
     start_ns = reader.start_time_ns
     strides, stride_objects, events, cues = [], [], [], []
     joint_t: list[int] = []
@@ -229,4 +249,5 @@ def read_session(path: str | Path) -> SessionData:
         cues=cues,
         counts=counts,
         stride_objects=stride_objects,
+        damage=list(dict.fromkeys(reader.warnings)),
     )
