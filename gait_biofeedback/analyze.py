@@ -63,6 +63,9 @@ from gait_biofeedback.core.gait.stream import GaitEventsParams, GaitEventStream
 from gait_biofeedback.core.joints.angles import segment_pair
 from gait_biofeedback.core.joints.stream import STREAM_SEGMENTS, JointAnglesParams, JointAngleStream
 from gait_biofeedback.core.orientation.stream import OrientationParams, SegmentOrientationTracker
+from gait_biofeedback.core.params import spec_by_name
+from gait_biofeedback.core.rate import TOLERANCE as RATE_TOLERANCE
+from gait_biofeedback.core.rate import RateCheck
 from gait_biofeedback.core.spatial.provisional import SWING_TOLERANCES
 from gait_biofeedback.core.stamps import NS_PER_S, s_to_ns
 from gait_biofeedback.io.bag import BagReader, BagRecoveryWarning, BagWriter
@@ -73,7 +76,7 @@ from gait_biofeedback.parameters import stage_parameters
 from gait_biofeedback.wire import diagnostics, topics
 from gait_biofeedback.wire.activity import activity_msg
 from gait_biofeedback.wire.calibration import calibration_msg, entries, rotations
-from gait_biofeedback.wire.cdr import Stamped, decode_imu, decode_mag, serialize
+from gait_biofeedback.wire.cdr import Stamped, decode_imu, decode_mag, header_stamp_ns, serialize
 from gait_biofeedback.wire.gait import event_msg, foot_frame, stride_output
 from gait_biofeedback.wire.imu import (
     has_heading,
@@ -98,7 +101,8 @@ class AnalysisResult:
     calibration in force at the end, saved as ``<output>/calibration.yaml`` (None: none in force or
     nothing written); ``warnings``: what the stages said (time going back, gaps, requests that never
     ran, chunks of the recording that could not be read); ``notes``: what ``auto`` calibration
-    instants found."""
+    instants found; ``requested``: the calibration requests looked for (an ``auto`` one is dropped from a
+    recording without leg or foot sensors: :func:`drop_needless_auto`)."""
 
     output: Path | None
     start_ns: int = 0
@@ -108,6 +112,7 @@ class AnalysisResult:
     warnings: list[str] = field(default_factory=list)
     messages: list[tuple[str, Any, int]] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    requested: int = 0
 
 
 AUTO_MARGIN_S = 0.5  # an auto calibration instant: this long after the motion it found (or the end)
@@ -123,16 +128,19 @@ SWING_WORDS = {"max_sensor_height": "foot heights", "min_toe_clearance": "toe cl
 SWING_TOLERANCE_TEXT = {k: f"{math.degrees(v):.0f}°" if "angle" in k else
                         f"{100 * v:.0f} cm" for k, v in SWING_TOLERANCES.items()}
 SESSION_CONDITIONS = ("losing samples", "6D")
+CALIBRATED_LIMBS = ("_thigh", "_shank", "_foot")
+"""Segments whose calibration the joint angles and gait events need (a recording without any: ``auto``
+is not looked for)."""
 """Orientation conditions ``analyze`` also sums up in its warnings (the others are said as they happen)."""
 
 
 def parse_calibrate_at(text: str) -> tuple[float | None, str]:
     """``"T:protocol"`` → (T, protocol): T in s into the recording or ``auto`` (None: found by
     :func:`resolve_calibrate_at`); protocol ``hip_flexion``, ``walking`` or ``auto`` (the one the
-    movement shows); ``"auto"`` alone = ``"auto:auto"``; a time alone keeps the former default,
-    hip_flexion."""
+    movement shows); ``"auto"`` alone = ``"auto:auto"``; a time alone = ``"T:auto"`` (it was hip_flexion:
+    a walk calibrated at T was then refused as not hip flexion)."""
     time_text, _, protocol = text.partition(":")
-    protocol = protocol or (AUTO if time_text == AUTO else "hip_flexion")
+    protocol = protocol or AUTO
     example = "expected SECONDS:PROTOCOL, e.g. 36:hip_flexion, 75:walking, 75:auto or auto"
     if time_text == AUTO:
         t = None
@@ -146,6 +154,72 @@ def parse_calibrate_at(text: str) -> tuple[float | None, str]:
     if protocol not in REQUESTS:
         raise ValueError(f"--calibrate-at {text!r}: the protocol must be one of {list(REQUESTS)}")
     return t, protocol
+
+
+def drop_needless_auto(bag: str | Path, requests: list[tuple[float | None, str]]
+                       ) -> tuple[list[tuple[float | None, str]], list[str]]:
+    """(``requests`` without the ``auto`` ones, what was done in words) for a recording with no leg or
+    foot sensor: nothing there needs a calibration (the activity monitor finds its own upright
+    reference), and a trunk's movements would be searched in vain for a protocol. Other recordings:
+    ``requests`` unchanged, no note."""
+    if all(t is not None for t, _ in requests):
+        return requests, []
+    with BagReader(bag) as reader:
+        segments = sorted(_raw_topics(reader, bag)[0])
+    if any(seg.endswith(CALIBRATED_LIMBS) for seg in segments):
+        return requests, []
+    return [r for r in requests if r[0] is not None], [
+        f"--calibrate-at auto: no thigh, shank or foot sensor in the recording ({', '.join(segments)}): "
+        "nothing to calibrate (the activity monitor finds its own upright reference); analysed without one"]
+
+
+RATE_STAGES = {"orientation_filter": None, "gait_events": ("left_foot", "right_foot"),
+               "activity_monitor": "segment"}
+"""The stages with a ``rate_hz`` and the segments whose rate it is (None: every sensor; "segment": the
+one the stage's ``segment`` parameter names)."""
+
+
+def recording_rates(bag: str | Path) -> dict[str, float]:
+    """Each raw IMU stream's rate as the stages decide it (:class:`~gait_biofeedback.core.rate.RateCheck`
+    over its first stamps), rounded as they round it; segment → Hz."""
+    with BagReader(bag) as reader:
+        segment_of = {topic: seg for seg, topic in _raw_topics(reader, bag)[0].items()}
+        checks = {seg: RateCheck(1.0) for seg in segment_of.values()}
+        for topic, _, data, _ in reader.raw_messages(list(segment_of)):
+            stamp_ns = header_stamp_ns(data)
+            check = checks[segment_of[topic]]
+            if stamp_ns is not None:
+                check.update(stamp_ns)
+            if all(c.measured_hz is not None for c in checks.values()):
+                break
+    for check in checks.values():
+        check.decide()
+    return {seg: round(c.measured_hz, 3) for seg, c in checks.items() if c.measured_hz}
+
+
+def with_recording_rate(bag: str | Path, params: dict[str, dict] | None) -> tuple[dict[str, dict], list[str]]:
+    """(``params`` with each stage's ``rate_hz`` set to the recording's, where the parameters do not give
+    one and the stage's sensors share a rate more than 10 % from the default; what was set, in words).
+    The stage would switch to that rate after its first stamps anyway, with a warning meant for a live
+    sensor set to the wrong rate; a recording states its rate. ``replay`` gives the graph the same."""
+    params = {node: dict(values) for node, values in (params or {}).items()}
+    rates = recording_rates(bag)
+    notes = []
+    for node, which in RATE_STAGES.items():
+        values = params.setdefault(node, {})
+        if "rate_hz" in values:
+            continue
+        stage = stage_parameters(node, values)
+        segments = ([stage.segment] if which == "segment" else list(rates) if which is None else which)
+        found = {rates[s] for s in segments if s in rates}
+        if len(found) != 1:
+            continue
+        (rate,) = found
+        default, spec = stage.rate_hz, spec_by_name(type(stage))["rate_hz"]
+        if abs(rate / default - 1.0) > RATE_TOLERANCE and spec.low <= rate <= spec.high:
+            values["rate_hz"] = rate
+            notes.append(f"{node}: rate_hz {rate:g} Hz, the recording's (the default is {default:g})")
+    return {node: values for node, values in params.items() if values}, notes
 
 
 def resolve_calibrate_at(bag: str | Path, requests: Sequence[tuple[float | None, str]],
@@ -253,7 +327,8 @@ def analyze_recording(
     (:class:`~gait_biofeedback.core.params.ParameterError` names it), FileNotFoundError for a
     missing bag or calibration file.
     """
-    stages = {node: stage_parameters(node, values) for node, values in (params or {}).items()}
+    params, rate_notes = with_recording_rate(bag, params)
+    stages = {node: stage_parameters(node, values) for node, values in params.items()}
     if output is not None:
         check_output(output, overwrite)  # before the analysis, not after it
     for _t, protocol in calibrate_at or []:
@@ -262,7 +337,9 @@ def analyze_recording(
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", BagRecoveryWarning)  # they go into result.warnings
         standing_s = (stages.get("calibration") or CalibrationParams()).default_standing_duration
-        requests, notes = resolve_calibrate_at(bag, list(calibrate_at or []), standing_s)
+        calibrate_at, notes = drop_needless_auto(bag, list(calibrate_at or []))
+        requests, found_notes = resolve_calibrate_at(bag, calibrate_at, standing_s)
+        notes += rate_notes + found_notes
         is_auto = [asked is None for asked, _ in calibrate_at or []]
         auto = [r for r, a in zip(requests, is_auto, strict=True) if a]
         found = _calibrate_ahead(bag, auto[0], stages) if auto else None
@@ -274,6 +351,7 @@ def analyze_recording(
                      "(offline, as a calibration file would be; replay presses Calibrate at that instant, "
                      "or, for a calibration made of the walk itself, puts it in force from the start too)")
     result.notes = notes
+    result.requested = len(calibrate_at)
     return result
 
 

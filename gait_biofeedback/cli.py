@@ -233,15 +233,23 @@ def cmd_replay(args: argparse.Namespace) -> int:
     import shutil
     import tempfile
 
-    from gait_biofeedback.analyze import AUTO_OPTIONS, NO_STANDING, resolve_calibrate_at
+    from gait_biofeedback.analyze import (
+        AUTO_OPTIONS,
+        NO_STANDING,
+        drop_needless_auto,
+        resolve_calibrate_at,
+        with_recording_rate,
+    )
     from gait_biofeedback.graph import replay_through_graph
     from gait_biofeedback.io.bag import BagReader
     from gait_biofeedback.parameters import stage_parameters
 
-    params = _session_parameters(args.params)
+    params, notes = with_recording_rate(args.bag, _session_parameters(args.params))
     calibration = stage_parameters("calibration", params.get("calibration", {}))
-    asked = _calibration_options(args, params)
-    requests, notes = resolve_calibrate_at(args.bag, asked, calibration.default_standing_duration)
+    asked, dropped = drop_needless_auto(args.bag, _calibration_options(args, params))
+    notes += dropped
+    requests, found = resolve_calibrate_at(args.bag, asked, calibration.default_standing_duration)
+    notes += found
     for note in notes:
         print(note)
     with tempfile.TemporaryDirectory() as folder:
@@ -310,7 +318,7 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     if result.calibration_file is not None:
         print(f"calibration in force saved as {result.calibration_file}")
     print("\n".join(format_report(session_report(result.output))))
-    if requests and not any(a.success for a in result.calibrations):
+    if result.requested and not any(a.success for a in result.calibrations):
         print("analyze: no calibration took effect (see the REFUSED or 'never ran' lines above), so there "
               "are no joint angles and no calibrated gait outputs; change the --calibrate-at request, or "
               "pass --calibration FILE", file=sys.stderr)
@@ -471,9 +479,9 @@ def cmd_demo(args: argparse.Namespace) -> int:
 def _calibration_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--calibrate-at", action="append", metavar="T:PROTOCOL",
                    help="press Calibrate T seconds into the recording with PROTOCOL (hip_flexion, walking "
-                   "or auto = the one the movement shows), e.g. 36:hip_flexion = 1 s after the demo's hip "
-                   "moves; 'auto' finds the first calibration (quiet standing, then a protocol) and prints "
-                   "the windows it used; repeat to recalibrate")
+                   "or auto = the one the movement shows; a time alone: auto), e.g. 36:hip_flexion = 1 s "
+                   "after the demo's hip moves; 'auto' finds the first calibration (quiet standing, then a "
+                   "protocol) and prints the windows it used; repeat to recalibrate")
     p.add_argument("--calibration", metavar="FILE",
                    help="calibration.yaml (as the calibration node saves it) in force from the start")
 

@@ -250,6 +250,26 @@ def test_a_recording_without_the_activity_sensor_says_so(tmp_path):
     assert "/activity/state" not in result.counts
 
 
+def test_a_trunk_recording_at_50_hz_needs_no_calibration_and_states_its_rate(tmp_path, capsys):
+    """A chest sensor alone at 50 Hz, `analyze --calibrate-at auto` (what `batch` does): nothing needs a
+    calibration, so none is looked for (it used to fail, searching the trunk's movements for a protocol);
+    the stages take the recording's rate without the warning meant for a live sensor set wrong; exit 0."""
+    from gait_biofeedback.cli import main
+
+    phases = [Phase("stand", 4.0), Phase("walk", 10.0), Phase("stand", 3.0)]
+    session = simulate(SimulationConfig(seed=3, rate_hz=50.0, segments=("chest",), phases=phases))
+    bag = write_simulated_bag(tmp_path / "chest", session)
+    assert main(["analyze", str(bag), "-o", str(tmp_path / "out"), "--calibrate-at", "auto"]) == 0
+    captured = capsys.readouterr()
+    assert "--calibrate-at auto: no thigh, shank or foot sensor in the recording (chest): nothing to " \
+        "calibrate" in captured.out
+    assert "orientation_filter: rate_hz 50 Hz, the recording's (the default is 100)" in captured.out
+    assert "activity_monitor: rate_hz 50 Hz, the recording's" in captured.out
+    assert "configured rate_hz" not in captured.err and "no calibration took effect" not in captured.err
+    with BagReader(tmp_path / "out") as reader:
+        assert reader.message_counts()["/activity/state"] > 0
+
+
 def test_a_sensor_named_after_no_segment_is_said_not_silently_skipped(tmp_path, capsys):
     """BROAD's importer names its sensor 'board': analyze says it was not analysed and why, and the CLI
     does not call a copy of the input 'orientations only'."""

@@ -176,7 +176,7 @@ def test_calibrate_at_auto_is_parsed_and_given_once():
     assert parse_calibrate_at("auto") == (None, "auto")
     assert parse_calibrate_at("auto:walking") == (None, "walking")
     assert parse_calibrate_at("75:auto") == (75.0, "auto")
-    assert parse_calibrate_at("36") == (36.0, "hip_flexion")
+    assert parse_calibrate_at("36") == (36.0, "auto")  # the protocol the movement shows
     for bad in ("x", "auto:jumping", "-3:walking", "nan:auto"):
         with pytest.raises(ValueError, match="--calibrate-at"):
             parse_calibrate_at(bad)

@@ -25,6 +25,8 @@ from gait_biofeedback.core.calibration.windows import (
 )
 from gait_biofeedback.core.segments import ImuSeries
 
+TRIED_SHOWN = 6  # candidates a refusal names (in time order); the others are counted
+
 
 def _feet_calibrate(data: dict[str, ImuSeries], until: float) -> bool:
     """Every foot of ``data`` calibrates from its stance phases up to ``until`` (s)."""
@@ -114,8 +116,10 @@ def find_calibration(data: dict[str, ImuSeries], standing_duration: float = 3.0,
     walk = _first_walk(data, t, still, rate, still_runs, min_motion, end_still, max_walk, max_motion)
     if walk is not None:
         return None, *walk
+    tried.sort(key=lambda text: float(text.split(" s: ", 1)[0]))
+    shown = tried[:TRIED_SHOWN] + ([f"{len(tried) - TRIED_SHOWN} more"] if len(tried) > TRIED_SHOWN else [])
     raise ValueError("no calibration found (quiet standing of "
                      f"{standing_duration:g} s, then hip flexion or walking for {min_motion:g} s or more)"
-                     + (": " + "; ".join(tried) if tried else "")
+                     + (": " + "; ".join(shown) if shown else "")
                      + "; give the instant with --calibrate-at SECONDS:PROTOCOL, or lower the calibration "
                        "parameter default_standing_duration for a recording with a shorter standing")

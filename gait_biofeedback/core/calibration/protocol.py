@@ -54,11 +54,12 @@ WORDS = {"hip_flexion": "hip flexion", "walking": "walking"}
 @dataclass(frozen=True)
 class ProtocolCheck:
     """``looks_like``: "hip_flexion", "walking" or None (cannot tell); ``observations``: name → value;
-    ``votes``: name → the protocol it voted for."""
+    ``votes``: name → the protocol it voted for; ``segments``: the sensors with data in the window."""
 
     looks_like: str | None
     observations: dict[str, float] = field(default_factory=dict)
     votes: dict[str, str] = field(default_factory=dict)
+    segments: tuple[str, ...] = ()
 
     def evidence(self) -> str:
         """The observations in words, e.g. 'both legs moving 92 % of the time, trunk bounce 1.4 m/s²'."""
@@ -70,7 +71,10 @@ class ProtocolCheck:
                 parts.append(f"trunk bounce {value:.2f} m/s²")
             else:
                 parts.append(f"{value:.0f} foot stances")
-        return ", ".join(parts) if parts else "no leg, trunk or foot sensor"
+        if parts:
+            return ", ".join(parts)
+        return ("nothing tells the protocol: that needs sensors on both legs, the pelvis or chest, or a foot"
+                + (f" (the recording has {', '.join(self.segments)})" if self.segments else ""))
 
 
 def _one_second_mean(series: ImuSeries, values: np.ndarray) -> np.ndarray:
@@ -104,7 +108,7 @@ def check_protocol(data: dict[str, ImuSeries], motion: tuple[float, float]) -> P
     active = np.max(np.vstack(list(rates.values())), axis=0) > ACTIVE_RATE
     observations: dict[str, float] = {}
     if active.sum() < 3:
-        return ProtocolCheck(None, observations)
+        return ProtocolCheck(None, observations, segments=tuple(cut))
     legs = {side: [rates[s] for s in cut if s.startswith(side)] for side in SIDES}
     if all(legs.values()):
         leg_active = {side: np.max(np.vstack(r), axis=0) > ACTIVE_RATE for side, r in legs.items()}
@@ -131,7 +135,7 @@ def check_protocol(data: dict[str, ImuSeries], motion: tuple[float, float]) -> P
         elif value >= high:
             votes[name] = "walking"
     said = set(votes.values())
-    return ProtocolCheck(said.pop() if len(said) == 1 else None, observations, votes)
+    return ProtocolCheck(said.pop() if len(said) == 1 else None, observations, votes, tuple(cut))
 
 
 def upright_tilt(data: dict[str, ImuSeries], standing: tuple[float, float], motion: tuple[float, float]
