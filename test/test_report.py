@@ -112,10 +112,13 @@ def test_strides_csv_holds_every_stride_message_field_and_the_count_analyze_wrot
     assert len(rows) == written
     used = sum(r["used"] == "True" for r in rows)
     # the detector's one extra IC (analyze: "1 extra") closes a plausible stride 1 s after the walk ended;
-    # it is outside the activity monitor's walking bout, so the report leaves it out and says so
-    assert used == plausible - 1
+    # it is outside the activity monitor's walking bout, so the report leaves it out and says so. Each
+    # foot's first stride of the walk and its last (the right foot's is that extra one) are left out
+    # too: 3 more
+    assert used == plausible - 1 - 3
     text = " ".join(_pdf_pages(reported["out"] / "report.pdf"))
     assert "1 plausible strides outside them left out" in text
+    assert "3 strides starting or ending a walk left out" in text
     assert {r["session"] for r in rows} == {"2026-12-03"}
 
 
@@ -148,15 +151,17 @@ def test_stride_time_and_cadence_per_side_match_the_simulator(reported):
     rows = [r for r in _rows(reported["out"] / "strides.csv") if r["used"] == "True"]
     for side in ("left", "right"):
         ics = truth.initial_contacts[side]
-        errors = []
+        errors, true_times = [], []
         for r in (r for r in rows if r["side"] == side):
             k = int(np.argmin(np.abs(ics - float(r["start_s"]))))
             assert abs(ics[k] - float(r["start_s"])) < 0.03, "each stride starts at a true IC"
-            errors.append(float(r["stride_time"]) - (ics[k + 1] - ics[k]))
+            true_times.append(ics[k + 1] - ics[k])
+            errors.append(float(r["stride_time"]) - true_times[-1])
         assert len(errors) >= 6
         # measured: at most 9 ms (one 10 ms sample of either IC)
         assert max(map(abs, errors)) <= 0.02, errors
-        true_cadence = 120.0 / np.mean(np.diff(ics))
+        # the steady strides (the walk's first and last left out): the simulator's 108 steps/min
+        true_cadence = 120.0 / np.mean(true_times)
         cadence = 60 * np.mean([float(r["cadence"]) for r in rows if r["side"] == side])
         assert cadence == pytest.approx(true_cadence, abs=0.5)  # measured 0.2 steps/min
 

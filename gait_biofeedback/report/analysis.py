@@ -8,7 +8,8 @@
   changed by more than ``TURN_LIMIT`` (``turning_angle``; a stride without one is kept). gaitmap_example
   through ``analyze``: its left stride length read 1.29 ± 0.22 m with its turning strides (0.56–0.82 m,
   68–114°) and a false left/right difference; 1.36 ± 0.07 m without, as its motion capture's straight
-  strides (1.30–1.45 m).
+  strides (1.30–1.45 m). So are a walk's first and last stride of each foot (gait initiation and the
+  stop: :func:`~gait_biofeedback.core.gait.cycles.steady_strides`).
 * **Per stride**: the biofeedback node's own evaluator
   (:class:`~gait_biofeedback.core.biofeedback.evaluator.BiofeedbackEvaluator`) fed with the recording's
   joint angles: time-normalised sagittal curves (every 2 %, 51 points, IC to next IC), the kinematic
@@ -42,7 +43,7 @@ from gait_biofeedback.core.biofeedback.evaluator import (
     Stride,
     Targets,
 )
-from gait_biofeedback.core.gait.cycles import TURN_LIMIT, symmetry_index
+from gait_biofeedback.core.gait.cycles import TURN_LIMIT, steady_strides, symmetry_index
 from gait_biofeedback.core.segments import SIDES
 from gait_biofeedback.report.extract import SessionData
 
@@ -80,6 +81,7 @@ class SessionAnalysis:
     used: list[dict]
     left_out_outside_walking: int
     left_out_turning: int
+    left_out_ends: int  # a walk's first and last stride of each foot (gait initiation, the stop)
     walking_bouts: list[tuple[float, float]] | None
     curves: dict[str, dict[str, np.ndarray]]
     percent: np.ndarray
@@ -229,7 +231,10 @@ def analyse_session(data: SessionData, targets: Targets) -> SessionAnalysis:
         (row, s) for row, s in zip(data.strides, data.stride_objects, strict=True) if row["plausible"]
     ]
     walking = [(row, s) for row, s in plausible if bouts is None or _inside(row, bouts)]
-    chosen = [(row, s) for row, s in walking if not abs(row["turning_angle"]) > TURN_LIMIT]
+    straight = [(row, s) for row, s in walking if not abs(row["turning_angle"]) > TURN_LIMIT]
+    steady = steady_strides([(s.side, s.start_ns, s.end_ns, s.plausible) for s in data.stride_objects])
+    kept = {id(s) for s, keep in zip(data.stride_objects, steady, strict=True) if keep}
+    chosen = [(row, s) for row, s in straight if id(s) in kept]
     notes = []
     if bouts is None:
         notes.append("no activity/state in the recording: every plausible stride is used")
@@ -309,7 +314,8 @@ def analyse_session(data: SessionData, targets: Targets) -> SessionAnalysis:
         strides=[dict(r) for r in data.strides],
         used=used,
         left_out_outside_walking=len(plausible) - len(walking),
-        left_out_turning=len(walking) - len(chosen),
+        left_out_turning=len(walking) - len(straight),
+        left_out_ends=len(straight) - len(chosen),
         walking_bouts=bouts,
         curves=stacked,
         percent=percent,

@@ -107,6 +107,11 @@ def spatiotemporal(analysis: SessionAnalysis, norms: dict[str, NormBand]) -> Sec
                 if analysis.left_out_turning
                 else ""
             )
+            + (
+                f"; {plural(analysis.left_out_ends, 'stride')} starting or ending a walk left out"
+                if analysis.left_out_ends
+                else ""
+            )
             + ". The summary gives medians, the table means.",
             "note",
         )
@@ -243,6 +248,9 @@ def strides_section(data: SessionData, analysis: SessionAnalysis) -> Section:
     if analysis.left_out_turning:
         items.append(f"{plural(analysis.left_out_turning, 'turning stride')} left out (the foot's heading "
                      f"changed by more than {math.degrees(TURN_LIMIT):.0f}°)")
+    if analysis.left_out_ends:
+        items.append(f"{plural(analysis.left_out_ends, 'stride')} starting or ending a walk left out (each "
+                     "foot's first stride after a standing and last before a stop)")
     flags = Counter(r["flag"].split(":")[0] for r in data.strides if not r["plausible"])
     items += [f"not plausible: {n} × {flag}" for flag, n in flags.most_common()]
     spatial = Counter(r["spatial_flag"].split(":")[0] for r in analysis.used if r["spatial_flag"])

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from gait_biofeedback.core import quaternion as quat
-from gait_biofeedback.core.gait.cycles import TURN_LIMIT
+from gait_biofeedback.core.gait.cycles import TURN_LIMIT, steady_strides
 from gait_biofeedback.core.gait.events import INITIAL_CONTACT, TERMINAL_CONTACT
 from gait_biofeedback.core.gait.matching import EventScore, match_events
 from gait_biofeedback.core.segments import SIDES
@@ -29,6 +29,7 @@ from gait_biofeedback.wire.activity import add_transition
 from gait_biofeedback.wire.calibration import rotation
 from gait_biofeedback.wire.gait import event_of, revised_cycles
 from gait_biofeedback.wire.joints import angles_of
+from gait_biofeedback.wire.stamps import stamp_to_ns
 
 CALIBRATION, TRUE_CALIBRATION = topics.CALIBRATION.absolute(), topics.truth(topics.CALIBRATION)
 JOINTS, TRUE_JOINTS = topics.JOINT_STATES.absolute(), topics.truth(topics.JOINT_STATES)
@@ -109,30 +110,35 @@ def _events(reader: BagReader, recorded: dict) -> dict[str, EventScore]:
 
 
 def _cycles(reader: BagReader, recorded: dict) -> dict[str, float]:
-    """The strides' counts and the medians over the plausible straight ones (a turn, ``turning_angle``
-    over ``TURN_LIMIT``, is left out, as in the report)."""
+    """The strides' counts and the medians over the plausible steady straight ones (as in the report: a
+    turn, ``turning_angle`` over ``TURN_LIMIT``, and a walk's first and last stride of each foot,
+    :func:`~gait_biofeedback.core.gait.cycles.steady_strides`, are left out)."""
     cycles = topics.GAIT_CYCLES.absolute()
     if cycles not in recorded:
         return {}
-    total, plausible, rows, spatial = 0, 0, [], []
+    rows, spatial = [], []
     revisions = [t for t in (topics.STRIDE_SPACE.absolute(),) if t in recorded]
-    for m in revised_cycles((t, m) for t, m, _ in reader.messages([cycles, *revisions])):
-        total += 1
-        plausible += m.plausible
-        if not m.plausible or abs(m.turning_angle) > TURN_LIMIT:
+    messages = list(revised_cycles((t, m) for t, m, _ in reader.messages([cycles, *revisions])))
+    steady = steady_strides([(m.side, stamp_to_ns(m.start), stamp_to_ns(m.header.stamp), m.plausible)
+                             for m in messages])
+    plausible = sum(m.plausible for m in messages)
+    turning = sum(m.plausible and abs(m.turning_angle) > TURN_LIMIT for m in messages)
+    for m, keep in zip(messages, steady, strict=True):
+        if not keep or not m.plausible or abs(m.turning_angle) > TURN_LIMIT:
             continue
         rows.append((m.stride_time, m.stance_fraction, m.cadence, m.double_support_fraction))
         if not m.spatial_flag and m.stride_length > 0:
             spatial.append((m.stride_length, m.gait_speed))
     good = np.array(rows, dtype=float).reshape(-1, 4)
+    counts = {"strides": len(messages), "plausible": plausible, "turning": turning,
+              "ends": plausible - turning - len(good)}
     if not len(good):
-        return {"strides": total, "plausible": plausible, "turning": plausible}
+        return counts
     space = np.array(spatial, dtype=float).reshape(-1, 2)
     return {
-        "spatial": len(space), "turning": plausible - len(good),
+        **counts, "spatial": len(space),
         "stride_length": float(np.median(space[:, 0])) if len(space) else math.nan,
         "gait_speed": float(np.nanmedian(space[:, 1])) if len(space) else math.nan,
-        "strides": total, "plausible": plausible,
         "stride_time": float(np.median(good[:, 0])), "stance_percent": float(100 * np.median(good[:, 1])),
         "cadence_per_min": float(60 * np.median(good[:, 2])),
         # one foot only (a single shoe sensor): no double support
@@ -196,19 +202,22 @@ def format_report(report: SessionReport) -> list[str]:
                      f"{1000 * score.sd_error:4.1f} ms  ({len(score.errors)} matched, {len(score.missed)} "
                      f"missed, {len(score.extra)} extra)")
     c = report.cycles
+    left_out = ", ".join(text for n, text in ((c.get("turning"), f"{c.get('turning')} turning"),
+                                                (c.get("ends"), f"{c.get('ends')} starting or ending a walk"))
+                         if n)
     if c.get("plausible") and "stride_time" not in c:
-        lines.append(f"strides: {c['plausible']} of {c['strides']} plausible, all turning (left out of "
-                     "the medians)")
+        lines.append(f"strides: {c['plausible']} of {c['strides']} plausible, none steady and straight "
+                     f"({left_out}: left out of the medians)")
     elif c.get("plausible"):
-        turns = f", {c['turning']} of them turning (left out)" if c["turning"] else ""
+        turns = f", {left_out} (left out)" if left_out else ""
         lines.append(f"strides: {c['plausible']} of {c['strides']} plausible{turns}; "
                      f"stride {c['stride_time']:.2f} s, cadence {c['cadence_per_min']:.0f} steps/min, "
                      f"stance {c['stance_percent']:.0f} %, " + (
                          f"double support {c['double_support_percent']:.0f} %"
                          if math.isfinite(c["double_support_percent"])
                          else "double support unknown (one foot)"))
-        lines.append(f"spatial: {c['spatial']} of {c['plausible'] - c['turning']} plausible straight strides "
-                     "with spatial values"
+        used = c["plausible"] - c["turning"] - c["ends"]
+        lines.append(f"spatial: {c['spatial']} of {used} plausible steady straight strides with values"
                      + (f"; stride length {c['stride_length']:.2f} m, gait speed {c['gait_speed']:.2f} m/s"
                         if c["spatial"] else " (the others are flagged in gait/cycles spatial_flag)"))
     if report.transitions or report.steps:

@@ -32,6 +32,24 @@ TURN_LIMIT = math.radians(20.0)
 """rad: a stride whose foot's heading changed more is a turn, left out of the summaries (EXT)."""
 
 
+def steady_strides(strides: Sequence[tuple[str, int, int, bool]]) -> list[bool]:
+    """Which strides ``(side, start_ns, end_ns, plausible)`` are steady walking, for the summaries (EXT):
+    plausible, and neither the first nor the last of their foot's bout. A bout is a run of the foot's
+    plausible strides each starting at the previous one's end (an implausible stride, e.g. the 4.3 s
+    "stride" from a stop to the next walk, ends one). The first after a standing is the gait
+    initiation, the last the stop (a foot brought alongside the other: half a stride or less;
+    ipol_gait 1-1's last right stride of 0.28 m made its right stride length 1.21 ± 0.26 against the
+    left's 1.29 ± 0.12 m). A bout of one or two strides keeps none."""
+    out = [False] * len(strides)
+    for side in {s[0] for s in strides}:
+        mine = sorted((start, end, k) for k, (s, start, end, ok) in enumerate(strides) if s == side and ok)
+        for i, (start, end, k) in enumerate(mine):
+            after = i > 0 and mine[i - 1][1] == start
+            before = i + 1 < len(mine) and mine[i + 1][0] == end
+            out[k] = after and before
+    return out
+
+
 @dataclass(frozen=True)
 class StrideSpace:
     """The spatial values of one IC→IC stride (SI, NaN when unknown) and why they are doubtful."""
