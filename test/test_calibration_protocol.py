@@ -108,9 +108,9 @@ def test_analyze_auto_takes_a_short_standing_and_says_so(tmp_path, capsys):
     assert main(["analyze", str(bag), "-o", str(tmp_path / "a"), "--calibrate-at", "auto"]) == 0
     out = capsys.readouterr().out
     assert "--calibrate-at auto: quiet standing 0.00-1.03 s, then walking 1.03-" in out
-    assert "the quiet standing lasted only 1.0 s (asked 3 s)" in out
+    assert "the quiet standing lasted only 1.03 s (asked 3 s)" in out
     saved = (tmp_path / "a" / "calibration.yaml").read_text()  # the file and the report say it too
-    assert saved.count("the quiet standing lasted only 1.0 s (asked 3 s)") == 8  # each segment's entry
+    assert saved.count("the quiet standing lasted only 1.03 s (asked 3 s)") == 8  # each segment's entry
     params = tmp_path / "short.yaml"
     params.write_text("calibration:\n  ros__parameters:\n    default_standing_duration: 0.5\n")
     assert main(["analyze", str(bag), "-o", str(tmp_path / "b"), "--calibrate-at", "auto", "--params",

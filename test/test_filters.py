@@ -177,6 +177,12 @@ def test_quiet_samples_finds_motion_onset():
     gyr[400:] += 1.0
     assert quiet_samples(gyr, acc, RATE, max_s=10.0) == 400
     assert quiet_samples(gyr, acc, RATE, max_s=2.0) == 200
+    # a real sensor's static bias (issue 15: 5 °/s) is not motion: judged about the window's median
+    biased = gyr + np.radians([3.0, -3.0, 2.0])  # 4.7 °/s
+    assert quiet_samples(biased, acc, RATE, max_s=10.0) == 400
+    # a rate over MAX_STARTUP_BIAS (8.6 °/s) is a sensor turning, not a bias
+    turning = gyr + np.radians([0.0, 0.0, 10.0])
+    assert quiet_samples(turning, acc, RATE, max_s=10.0) == 0
 
 
 def test_attitude_from_vectors_matches_truth_batch():

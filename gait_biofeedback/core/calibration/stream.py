@@ -239,7 +239,7 @@ class CalibrationBuffer:
         message = cal.message + (f"; no data from {', '.join(silent)} (not calibrated)" if silent else "")
         asked = standing_duration or self.default_standing
         if standing[1] - standing[0] < asked - 1e-6:
-            short = (f"the quiet standing lasted only {standing[1] - standing[0]:.1f} s (asked {asked:g} s): "
+            short = (f"the quiet standing lasted only {standing[1] - standing[0]:.2f} s (asked {asked:g} s): "
                      "for a surer calibration stand still longer")
             message += f"; {short}"
             for result in cal.segments.values():  # into the calibration message, its file and the report

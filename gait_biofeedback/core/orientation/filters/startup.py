@@ -39,17 +39,30 @@ def attitude_from_vectors(acc: np.ndarray, mag: np.ndarray | None = None) -> np.
     return quat.from_matrix(np.stack([east, north, up], axis=-2))
 
 
+MAX_STARTUP_BIAS = 0.15
+"""rad/s (8.6 °/s): the largest gyro bias :func:`quiet_samples` removes before judging rest; a window
+whose median rate is higher is a sensor turning, judged on its raw rate."""
+BIAS_S = 0.5
+"""s: the leading samples whose median rate :func:`quiet_samples` takes as the bias."""
+
+
 def quiet_samples(gyr: np.ndarray, acc: np.ndarray, rate_hz: float, max_s: float = 10.0,
                   gyr_tol: float = 0.05, acc_tol: float = 0.5) -> int:
     """Number of leading samples (up to ``max_s`` seconds) during which the sensor is at rest.
 
-    Rest = ‖ω‖ < ``gyr_tol`` rad/s and ‖a‖ within ``acc_tol`` m/s² of the median norm of the window
-    (thresholds loose enough to include the static gyro bias). Returns 0 if the first sample moves.
+    Rest = ‖ω − b‖ < ``gyr_tol`` rad/s, ``b`` the median rate of the first ``BIAS_S`` (the static gyro
+    bias: issue 15, a real sensor's reaches 5 °/s, which read as motion and left the bias out exactly
+    where it is largest; ``b`` = 0 when over ``MAX_STARTUP_BIAS``), and ‖a‖ within ``acc_tol`` m/s² of
+    the median norm of the window. Returns 0 if the first sample moves.
     """
     n = min(len(gyr), round(max_s * rate_hz))
     if n == 0:
         return 0
-    g = np.linalg.norm(np.asarray(gyr[:n], dtype=float), axis=1)
+    window = np.asarray(gyr[:n], dtype=float)
+    bias = np.median(window[:max(1, round(BIAS_S * rate_hz))], axis=0)
+    if not np.linalg.norm(bias) <= MAX_STARTUP_BIAS:
+        bias = np.zeros(3)
+    g = np.linalg.norm(window - bias, axis=1)
     a = np.linalg.norm(np.asarray(acc[:n], dtype=float), axis=1)
     moving = ~(g < gyr_tol) | ~(np.abs(a - np.nanmedian(a)) < acc_tol)
     return np.argmax(moving).item() if moving.any() else n
