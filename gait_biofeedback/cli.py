@@ -465,7 +465,13 @@ def cmd_repair(args: argparse.Namespace) -> int:
             line += f"; the original is kept as {entry['original']}"
         print(line)
     total = plural(report["message_count"], "message")
-    print(f"{report['path']}: {total}, metadata.yaml {report['metadata']}")
+    metadata = ("(a single .mcap file: no metadata.yaml)" if report["metadata"] == "not a folder"
+                else f"metadata.yaml {report['metadata']}")
+    print(f"{report['path']}: {total}, {metadata}")
+    if not report["message_count"]:
+        print(f"repair: {report['path']} holds no message that can be read: nothing to analyse or report; "
+              "record or import the session again", file=sys.stderr)
+        return 1
     return 0
 
 

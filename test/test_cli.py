@@ -90,6 +90,13 @@ def test_repair_makes_a_cut_recording_whole(tmp_path, capsys):
     reader = BagReader(cut)
     assert 0 < reader.message_count < BagReader(tmp_path / "full").message_count
     assert (cut / "metadata.yaml").exists()
+    # a file cut inside its first chunk holds nothing to recover: said, exit 1
+    head = tmp_path / "head.mcap"
+    head.write_bytes(data[:300])
+    assert main(["repair", str(head)]) == 1
+    captured = capsys.readouterr()
+    assert "0 messages, (a single .mcap file: no metadata.yaml)" in captured.out
+    assert "holds no message that can be read" in captured.err
     shutil.rmtree(tmp_path / "full")
 
 

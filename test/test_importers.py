@@ -244,6 +244,10 @@ def test_gaitmap_not_rotated_is_the_same_motion_in_other_axes(gaitmap_recording:
     np.testing.assert_allclose(np.linalg.norm(raw_foot.gyr, axis=1), np.linalg.norm(rotated_foot.gyr, axis=1),
                                rtol=1e-6, atol=1e-9)
     assert not np.allclose(raw_foot.acc, rotated_foot.acc)
+    # the not-rotated file given by name (as `import gaitmap FILE` does) is read in its own axes
+    by_name = import_gaitmap(_real_file("gaitmap_example", "imu_sample_not_rotated.csv"))
+    assert by_name.reference["frame"] == "sensor"
+    np.testing.assert_array_equal(by_name.imu["left_foot"].acc, raw_foot.acc)
 
 
 @pytest.mark.realdata
@@ -312,3 +316,14 @@ def test_ipol_gait_trial_on_the_packet_counter_time_base():
     assert 1.0 < np.median(np.diff(ic[:8])) < 1.25
     with pytest.raises(ValueError, match="not an IPOL gait trial file"):
         import_recording("ipol_gait", path.with_name("notes.txt"))
+
+
+def test_a_one_sensor_gaitmap_file_is_sent_to_the_csv_importer(tmp_path: Path) -> None:
+    """gaitmap's per-foot files (``imu_sample_ms_left.csv``) have one header row of axes: the gaitmap
+    importer says how to import it with ``import csv`` instead of listing data numbers as axes."""
+    path = tmp_path / "imu_sample_ms_left.csv"
+    path.write_text(",index,acc_x,acc_y,acc_z,gyr_x,gyr_y,gyr_z\n0,23000,0.1,0.2,9.8,1.0,2.0,3.0\n"
+                    "1,23001,0.1,0.2,9.8,1.0,2.0,3.0\n")
+    with pytest.raises(ValueError, match=r"one header row of axes .*import csv .*--units gyr=deg/s --rate "
+                       r"204\.8.*left_foot: \{acc: \[acc_x, acc_y, acc_z\]"):
+        import_gaitmap(path)

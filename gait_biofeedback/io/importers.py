@@ -134,12 +134,14 @@ _GAITMAP_AXES: tuple[str, ...] = ("acc_x", "acc_y", "acc_z", "gyr_x", "gyr_y", "
 _GAITMAP_EVENT_COLUMNS: tuple[str, ...] = ("start", "end", "ic", "tc", "min_vel", "pre_ic")
 
 
-def import_gaitmap(path_csv: str | Path, rotated: bool = True, rate_hz: float = GAITMAP_RATE_HZ) -> Recording:
+def import_gaitmap(path_csv: str | Path, rotated: bool | None = None, rate_hz: float = GAITMAP_RATE_HZ
+                   ) -> Recording:
     """Read a gaitmap foot-IMU CSV (two header rows: sensor, axis; acc m/s², gyr deg/s) -> left/right_foot.
 
     ``path_csv`` is the CSV or the ``gaitmap_example`` folder. ``rotated`` selects the frame: ``True``
     gaitmap's foot frame (``imu_sample.csv``), ``False`` the raw sensor axes
-    (``imu_sample_not_rotated.csv``). Given a folder, the file is chosen by ``rotated``; given
+    (``imu_sample_not_rotated.csv``), None (``import gaitmap FILE``) the file's own (a ``*not_rotated*``
+    file: raw axes, else the foot frame). Given a folder, the file is chosen by ``rotated``; given
     ``imu_sample.csv`` with ``rotated=False``, its sibling ``imu_sample_not_rotated.csv`` is read; a
     ``*not_rotated*`` file with ``rotated=True`` is an error (the data would not be in the asked frame).
 
@@ -148,6 +150,8 @@ def import_gaitmap(path_csv: str | Path, rotated: bool = True, rate_hz: float = 
     lies next to it, ``reference["events"]`` holds its mocap events (see :func:`load_gaitmap_events`).
     ``reference["frame"]`` is ``"gaitmap_foot"`` or ``"sensor"``.
     """
+    if rotated is None:
+        rotated = "not_rotated" not in Path(path_csv).name
     path = _resolve_gaitmap_path(Path(path_csv), rotated)
     with path.open(newline="") as handle:
         reader = csv.reader(handle)
@@ -157,6 +161,13 @@ def import_gaitmap(path_csv: str | Path, rotated: bool = True, rate_hz: float = 
         except StopIteration:
             raise ValueError(f"{path}: fewer than two header rows; a gaitmap IMU CSV has a sensor row "
                              "and an axis row") from None
+    if set(_GAITMAP_AXES) <= {name.strip() for name in sensor_row}:
+        side = "right" if "right" in path.name else "left"
+        raise ValueError(
+            f"{path}: one header row of axes (one sensor), not gaitmap's two (sensor, axis) of both feet: "
+            f"import it with `gait-biofeedback import csv {path} --mapping MAP.yaml --units gyr=deg/s "
+            f"--rate {rate_hz:g}`, MAP.yaml holding {side}_foot: {{acc: [acc_x, acc_y, acc_z], "
+            "gyr: [gyr_x, gyr_y, gyr_z]}")
     data = np.genfromtxt(path, delimiter=",", skip_header=2, dtype=float)
     data = np.atleast_2d(data)
     if data.shape[1] != len(sensor_row):
