@@ -327,10 +327,10 @@ def analyze_recording(
     (:class:`~gait_biofeedback.core.params.ParameterError` names it), FileNotFoundError for a
     missing bag or calibration file.
     """
-    params, rate_notes = with_recording_rate(bag, params)
-    stages = {node: stage_parameters(node, values) for node, values in params.items()}
     if output is not None:
         check_output(output, overwrite)  # before the analysis, not after it
+    params, rate_notes = with_recording_rate(bag, params)
+    stages = {node: stage_parameters(node, values) for node, values in params.items()}
     for _t, protocol in calibrate_at or []:
         if protocol not in REQUESTS:
             raise ValueError(f"unknown calibration protocol {protocol!r}; use one of {list(REQUESTS)}")
