@@ -141,6 +141,11 @@ def test_an_asymmetric_step_from_the_joint_angles():
                 evaluator.add_angles(side, round((t + dt) * S), hip * DEG, 0.0, 0.0)
     stride = Stride("right", 3, 1 * S, round(1.6 * S), 2 * S, step_time=0.55, stride_length=1.3,
                     gait_speed=1.3, turning_angle=19 * DEG)
+    # the foot's first stride of a walk (nothing evaluated before it ends at its start) gives none
+    assert evaluator.spatial(stride) == {}
+    before = Stride("right", 2, 0, round(0.6 * S), 1 * S, step_time=0.55, stride_length=1.3, gait_speed=1.3,
+                    turning_angle=0.0)
+    evaluator.spatial(before)
     got = evaluator.spatial(stride)
     legs = 0.42 + 0.43  # the default thigh + shank
     own = legs * (math.sin(20 * DEG) + math.sin(10 * DEG))

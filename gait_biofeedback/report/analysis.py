@@ -253,8 +253,11 @@ def analyse_session(data: SessionData, targets: Targets) -> SessionAnalysis:
     curves: dict[str, dict[str, list]] = {side: {n: [] for n in SAGITTAL} for side in SIDES}
     used, discrete, offline_cues = [], [], []
     without: dict[str, int] = {}
-    for row, stride in sorted(chosen, key=lambda rs: rs[1].end_ns):
-        result = evaluator.evaluate(stride)
+    chosen_ids = {id(s) for _, s in chosen}
+    for row, stride in sorted(plausible, key=lambda rs: rs[1].end_ns):
+        result = evaluator.evaluate(stride)  # every plausible stride, in order, as the node evaluates them
+        if id(stride) not in chosen_ids:
+            continue
         row = dict(
             row,
             step_length=result.spatial.get("step_length", math.nan),

@@ -18,7 +18,11 @@ EXT (gait.md §5.2 "DERIVED-possible"):
   A stride whose ``spatial_flag`` is set gives no spatial cue, nor does a turn (EXT): a stride whose
   foot turned by more than ``TURN_LIMIT`` (20°, as the report leaves turns out) or by an unknown angle
   (a provisional one not yet trusted) is short because it turns, and a cue to lengthen it would be
-  wrong; its step length does not enter the symmetry either.
+  wrong; its step length does not enter the symmetry either. Nor does a walk's first stride of each
+  foot (the first after a standing, or after a stride that was not plausible: its opening IC is not
+  the closing IC of the foot's last stride evaluated): gait initiation is short, as the report's
+  :func:`~gait_biofeedback.core.gait.cycles.steady_strides` leaves it out. (A walk's last stride, the
+  stop, is only known once no stride follows: live, it gets its cues.)
 
 Step length (EXT, :func:`step_length`): two foot trajectories have no common frame (each filter's
 origin and heading drift on their own), so the distance between the feet is taken from the legs'
@@ -397,6 +401,7 @@ class BiofeedbackEvaluator:
         self.percent = normative_gait.percent_grid(2.0)
         self.lengths = lengths or BodyDimensions()
         self.steps: dict[str, deque[float]] = {side: deque(maxlen=symmetry_window) for side in SIDES}
+        self._last_end_ns: dict[str, int] = {}  # closing IC of each foot's last stride evaluated
 
     def _lead(self, side: str, t: float) -> float:
         """How far ``side``'s ankle is ahead of the other's at ``t`` (m, leg chain; the angles within
@@ -412,9 +417,11 @@ class BiofeedbackEvaluator:
 
     def spatial(self, stride: Stride) -> dict[str, float]:
         """The spatial quantities of ``stride`` (none when its spatial values are unknown or doubtful,
-        or it is not known to be straight: :attr:`Stride.turning`; a stride length of 0, the value of a
-        field nobody filled, is unknown too)."""
-        if stride.spatial_flag or not stride.stride_length > 0.0 or stride.turning:
+        it is not known to be straight: :attr:`Stride.turning`, or it starts a walk (module docstring); a
+        stride length of 0, the value of a field nobody filled, is unknown too)."""
+        continuous = self._last_end_ns.get(stride.side) == stride.start_ns
+        self._last_end_ns[stride.side] = stride.end_ns
+        if stride.spatial_flag or not stride.stride_length > 0.0 or stride.turning or not continuous:
             return {}
         other = SIDES[1 - SIDES.index(stride.side)]
         step = step_length(stride.stride_length, self._lead(stride.side, stride.t_end),
