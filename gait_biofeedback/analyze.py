@@ -127,7 +127,7 @@ SWING_WORDS = {"max_sensor_height": "foot heights", "min_toe_clearance": "toe cl
                "turning_angle": "turning angles", "lateral_excursion": "lateral excursions"}
 SWING_TOLERANCE_TEXT = {k: f"{math.degrees(v):.0f}°" if "angle" in k else
                         f"{100 * v:.0f} cm" for k, v in SWING_TOLERANCES.items()}
-SESSION_CONDITIONS = ("losing samples", "6D")
+SESSION_CONDITIONS = ("losing samples", "6D", "no gyro")
 CALIBRATED_LIMBS = ("_thigh", "_shank", "_foot")
 """Segments whose calibration the joint angles and gait events need (a recording without any: ``auto``
 is not looked for)."""

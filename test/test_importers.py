@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gait_biofeedback.core.segments import GRAVITY, SEGMENTS
+from gait_biofeedback.core.segments import GRAVITY, SEGMENTS, ImuSeries
 from gait_biofeedback.io.importers import (
     IMPORTERS,
     Recording,
@@ -83,6 +83,37 @@ def test_generic_csv_missing_column_names_it_and_lists_the_file_columns(small_cs
     with pytest.raises(ValueError, match="lf_AZ") as error:
         import_generic_csv(small_csv, mapping, units=CSV_UNITS)
     assert "lf_az" in str(error.value)  # the columns the file does have
+
+
+def test_an_accelerometer_alone_is_imported_with_an_unknown_rate_and_said(small_csv: Path, tmp_path: Path,
+                                                                          capsys) -> None:
+    """A chest accelerometer without gyro (UCI's chest sets): imported with its angular rate NaN, said;
+    through analyze the orientation filter gives it no orientation and says why, while the activity
+    monitor runs on the accelerometer."""
+    from gait_biofeedback.cli import main
+    from gait_biofeedback.io.bag import BagReader
+    from gait_biofeedback.io.imu_bag import write_imu_bag
+
+    mapping = {"chest": {"acc": ["lf_ax", "lf_ay", "lf_az"]}}
+    recording = import_generic_csv(small_csv, mapping, units=CSV_UNITS)
+    chest = recording.imu["chest"]
+    assert np.isnan(chest.gyr).all() and np.isfinite(chest.acc).all()
+    assert recording.warnings == ["chest: no gyro columns: its angular rate is written as unknown (NaN), so "
+                                  "the orientation filter gives it no orientation (nor joint angles); the "
+                                  "activity monitor uses its accelerometer alone"]
+    with pytest.raises(ValueError, match="lacks 'acc'"):
+        import_generic_csv(small_csv, {"chest": {"gyr": ["lf_gx", "lf_gy", "lf_gz"]}}, units=CSV_UNITS)
+    t = np.arange(0, 20.0, 0.02)
+    still = ImuSeries("chest", t, np.tile([0.0, 0.0, 9.81], (len(t), 1)) + 0.01 * np.sin(t)[:, None],
+                      np.full((len(t), 3), np.nan))
+    bag = write_imu_bag(tmp_path / "chest", {"chest": still})
+    assert main(["analyze", str(bag), "-o", str(tmp_path / "out")]) == 0
+    captured = capsys.readouterr()
+    assert "chest: over the session: no gyro (angular rate not given): no orientation from this sensor" \
+        in captured.err
+    with BagReader(tmp_path / "out") as reader:
+        counts = reader.message_counts()
+    assert counts.get("/activity/state", 0) > 0 and "/chest/imu/data" not in counts
 
 
 @pytest.mark.parametrize(("quantity", "unit"), [("gyr", "rpm"), ("acc", "ft/s2"), ("time", "min")])

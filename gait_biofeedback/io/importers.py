@@ -388,8 +388,8 @@ def import_generic_csv(
         for quantity in _VECTOR_QUANTITIES:
             names = columns.get(quantity)
             if names is None:
-                if quantity != "mag":
-                    raise ValueError(f"mapping['{segment}'] lacks '{quantity}' (3 column names)")
+                if quantity == "acc":
+                    raise ValueError(f"mapping['{segment}'] lacks 'acc' (3 column names)")
                 vectors[quantity] = None
                 continue
             if isinstance(names, str) or len(names) != 3:
@@ -397,10 +397,17 @@ def import_generic_csv(
                                  f"got {names!r}")
             vectors[quantity] = np.column_stack(
                 [column(n, f"{segment} {quantity}") for n in names]) * factors[quantity]
-        series = ImuSeries(segment=segment, t=t, acc=vectors["acc"], gyr=vectors["gyr"], mag=vectors["mag"])
+        gyr = vectors["gyr"]
+        if gyr is None:  # an accelerometer alone: its rate is unknown (NaN), not zero
+            gyr = np.full_like(vectors["acc"], np.nan)
+            warnings.append(f"{segment}: no gyro columns: its angular rate is written as unknown (NaN), so "
+                            "the orientation filter gives it no orientation (nor joint angles); the activity "
+                            "monitor uses its accelerometer alone")
+        series = ImuSeries(segment=segment, t=t, acc=vectors["acc"], gyr=gyr, mag=vectors["mag"])
         imu[segment] = series
-        warnings += _nan_warnings(series)
-        warnings += _unit_plausibility_warnings(series, merged_units)
+        if vectors["gyr"] is not None:
+            warnings += _nan_warnings(series)
+            warnings += _unit_plausibility_warnings(series, merged_units)
     return Recording(imu=imu, source=f"csv:{path}", reference={}, warnings=warnings)
 
 

@@ -50,6 +50,7 @@ COUNTERS = (
     "samples",
     "published",
     "nan_skipped",
+    "no_gyro",
     "out_of_range",
     "duplicates",
     "late",

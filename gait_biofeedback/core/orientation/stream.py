@@ -182,8 +182,8 @@ class SegmentOrientationTracker:
         self.sequencer = StreamSequencer(window=reorder_window)
         self.rate = RateCheck(rate_hz)
         self._rate_note: str | None = None
-        self.counts = {"samples": 0, "published": 0, "nan_skipped": 0, "out_of_range": 0, "duplicates": 0,
-                       "late": 0, "bad_stamps": 0, "time_resets": 0, "gaps": 0, "missing": 0,
+        self.counts = {"samples": 0, "published": 0, "nan_skipped": 0, "no_gyro": 0, "out_of_range": 0,
+                       "duplicates": 0, "late": 0, "bad_stamps": 0, "time_resets": 0, "gaps": 0, "missing": 0,
                        "mag_samples": 0}
         self.startup_quiet: bool | None = None
         self.last_gap_s = 0.0
@@ -223,7 +223,8 @@ class SegmentOrientationTracker:
         g = tuple(float(v) for v in gyr)
         a = tuple(float(v) for v in acc)
         if not all(math.isfinite(v) for v in g + a):
-            self.counts["nan_skipped"] += 1
+            no_gyro = all(math.isfinite(v) for v in a) and not any(math.isfinite(v) for v in g)
+            self.counts["no_gyro" if no_gyro else "nan_skipped"] += 1
             return []
         acc_peak, gyr_peak = max(map(abs, a)), max(map(abs, g))
         if acc_peak > RANGE_MARGIN * self.acc_range or gyr_peak > RANGE_MARGIN * self.gyr_range:
@@ -391,8 +392,12 @@ class SegmentOrientationTracker:
             out.append("dropped " + ", ".join(dropped))
         if new["nan_skipped"]:
             out.append(f"{new['nan_skipped']} sample(s) with NaN skipped")
+        if new["no_gyro"]:
+            out.append("no gyro (angular rate not given): no orientation from this sensor (an accelerometer "
+                       "alone: the activity monitor uses it)")
         # the holes a rejected or dropped sample leaves are named above, not counted again
-        lost = new["missing"] - sum(new[k] for k in ("nan_skipped", "out_of_range", "late", "bad_stamps"))
+        lost = new["missing"] - sum(new[k] for k in ("nan_skipped", "no_gyro", "out_of_range", "late",
+                                                     "bad_stamps"))
         expected = new["samples"] + lost
         if lost > MISSING_WARN * expected:
             share = (f"{100 * lost / expected:.1f} %" if expected >= MISSING_SHARE_MIN
