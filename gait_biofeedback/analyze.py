@@ -128,10 +128,10 @@ SWING_WORDS = {"max_sensor_height": "foot heights", "min_toe_clearance": "toe cl
 SWING_TOLERANCE_TEXT = {k: f"{math.degrees(v):.0f}°" if "angle" in k else
                         f"{100 * v:.0f} cm" for k, v in SWING_TOLERANCES.items()}
 SESSION_CONDITIONS = ("losing samples", "6D", "no gyro")
+"""Orientation conditions ``analyze`` also sums up in its warnings (the others are said as they happen)."""
 CALIBRATED_LIMBS = ("_thigh", "_shank", "_foot")
 """Segments whose calibration the joint angles and gait events need (a recording without any: ``auto``
 is not looked for)."""
-"""Orientation conditions ``analyze`` also sums up in its warnings (the others are said as they happen)."""
 
 
 def parse_calibrate_at(text: str) -> tuple[float | None, str]:
@@ -318,12 +318,13 @@ def analyze_recording(
 
     ``calibrate_at``: ``[(seconds into the recording, protocol)]``, the instants a clinician pressed
     Calibrate (each calibrates on the window ending there; None = found, and protocol ``auto`` = the
-    one the movement shows: :func:`resolve_calibrate_at`); ``calibration_file``: a ``calibration.yaml``
-    in force from the start; ``params``: node name → parameters, as
-    :func:`~gait_biofeedback.parameters.load_params_file` gives them (orientation_filter,
-    calibration, joint_angles, gait_events, activity_monitor are used; the others are checked and
-    ignored). Writes the outputs to the bag folder ``output`` (``overwrite`` replaces an existing
-    one). Raises ValueError for a bag without raw IMU topics, a bad request or parameter
+    one the movement shows: :func:`resolve_calibrate_at`; not looked for without leg or foot sensors:
+    :func:`drop_needless_auto`); ``calibration_file``: a ``calibration.yaml`` in force from the start;
+    ``params``: node name → parameters, as :func:`~gait_biofeedback.parameters.load_params_file` gives
+    them (orientation_filter, calibration, joint_angles, gait_events, activity_monitor are used; the
+    others are checked and ignored; a ``rate_hz`` they do not give is the recording's:
+    :func:`with_recording_rate`). Writes the outputs to the bag folder ``output`` (``overwrite``
+    replaces an existing one). Raises ValueError for a bag without raw IMU topics, a bad request or parameter
     (:class:`~gait_biofeedback.core.params.ParameterError` names it), FileNotFoundError for a
     missing bag or calibration file.
     """
@@ -606,7 +607,7 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
                 f"{side} foot: provisional "
                 + ", ".join(f"{SWING_WORDS[k]} withheld {n} times" for k, n in swing.items())
                 + " (their last estimates differed from the smoothed ones by more than "
-                + ", ".join(f"{SWING_TOLERANCE_TEXT[k]}" for k in swing)
+                + ", ".join(SWING_TOLERANCE_TEXT[k] for k in swing)
                 + " RMS; those strides got theirs with the smoothed values)")
         rest = foot.rest_of_swing
         if rest.withheld:
