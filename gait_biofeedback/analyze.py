@@ -596,10 +596,14 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
             f"{joint.replace('_', ' ')}: no angles from {(first - start_ns) / NS_PER_S:.1f} to "
             f"{(last - start_ns) / NS_PER_S:.1f} s into the recording, though calibrated: its two sensors "
             "had no common heading yet (the kinematic heading needs about 15 s of walking)")
-    for seg, tracker in trackers.items():  # what only /diagnostics said along the way, over the session
+    said_by: dict[str, list[str]] = {}  # what only /diagnostics said along the way, over the session
+    for seg, tracker in trackers.items():
         for text in tracker.conditions({}):
             if text.startswith(SESSION_CONDITIONS):
-                result.warnings.append(f"{seg}: over the session: {text}")
+                said_by.setdefault(text, []).append(seg)
+    for text, segments in said_by.items():
+        who = segments[0] if len(segments) == 1 else f"{', '.join(segments)} ({len(segments)} sensors)"
+        result.warnings.append(f"{who}: over the session: {text}")
     for side, foot in gait.feet.items():
         swing = {k: a.withheld for k, a in foot.swing_agreement.values.items() if a.withheld}
         if swing:
