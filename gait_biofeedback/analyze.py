@@ -60,6 +60,7 @@ from gait_biofeedback.core.calibration.stream import (
     write_calibration_file,
 )
 from gait_biofeedback.core.gait.stream import GaitEventsParams, GaitEventStream
+from gait_biofeedback.core.joints.alignment import said as stamps_off
 from gait_biofeedback.core.joints.angles import segment_pair
 from gait_biofeedback.core.joints.stream import STREAM_SEGMENTS, JointAnglesParams, JointAngleStream
 from gait_biofeedback.core.orientation.stream import OrientationParams, SegmentOrientationTracker
@@ -509,7 +510,7 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
         if segment in STREAM_SEGMENTS:
             _, acc, gyr, q = orientation_sample(imu)
             publish_joints(joints.add(segment, imu.ns, q, gyr, acc, recovering=is_recovering(imu),
-                                      magnetic=has_heading(imu)), log_ns)
+                                      magnetic=has_heading(imu), received_ns=log_ns), log_ns)
         side = segment.removesuffix("_foot")
         if segment == foot_frame(side) and side in gait.detectors:
             _, acc, gyr, q = orientation_sample(imu)
@@ -545,9 +546,12 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
     period_ns = round(o_params.diagnostics_period * NS_PER_S)
     next_diagnostics = [start_ns + period_ns]
 
+    last_log: dict[str, int] = {}  # segment → log time of its newest raw sample
+
     def report_status(log_ns: int) -> None:
-        statuses = [diagnostics.orientation_status(seg, tracker) for seg, tracker in trackers.items()
-                    if seg in last_raw]
+        statuses = [diagnostics.orientation_status(seg, tracker, diagnostics.no_data(
+                        (log_ns - last_log[seg]) / NS_PER_S, o_params.stale_after))
+                    for seg, tracker in trackers.items() if seg in last_raw]
         emit(topics.DIAGNOSTICS.name, diagnostics.array(ns_to_stamp(log_ns), statuses), log_ns)
         next_diagnostics[0] = log_ns + period_ns
 
@@ -574,6 +578,7 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
         tracker = trackers.get(seg)
         if tracker is not None:
             last_raw[seg] = raw
+            last_log[seg] = log_ns
             orientations(seg, tracker.update(*raw_sample(raw)), log_ns)
         said()
     for seg, tracker in trackers.items():  # what the reorder windows still hold (the node: on silence)
@@ -589,6 +594,17 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
     for state in activity.finish() if activity is not None else []:
         emit(topics.ACTIVITY.absolute(), state, reader.end_time_ns)
     result.warnings[:0] = reader.warnings  # a damaged file, a chunk skipped: the time range lost
+    for seg, last_ns in last_log.items():
+        silent = (reader.end_time_ns - last_ns) / NS_PER_S
+        if silent > o_params.stale_after:
+            since = (last_ns - start_ns) / NS_PER_S
+            result.warnings.append(f"{seg}: no data from {since:.1f} s to the end of the recording "
+                                   f"({silent:.1f} s): check the sensor, its battery and the link; its "
+                                   "joints and events stop there")
+    for seg, (first_ns, off) in joints.alignment.first.items():
+        last_ns = joints.alignment.last[seg][0]
+        span = f"{(first_ns - start_ns) / NS_PER_S:.1f}-{(last_ns - start_ns) / NS_PER_S:.1f} s"
+        result.warnings.append(f"{span} into the recording: {stamps_off(seg, off)}")
     for joint, (first, last) in waiting.items():
         if last - first < WAITING_WARN_NS:
             continue  # a hip's axis heading: 1 s after the calibration

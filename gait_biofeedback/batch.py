@@ -92,7 +92,15 @@ from gait_biofeedback.report.analysis import (
 )
 from gait_biofeedback.report.extract import NotASessionError, SessionData, read_session
 from gait_biofeedback.report.session import SessionReport, format_report, session_report
-from gait_biofeedback.sim.faults import Dropout, Reorder, Spike, StampJump, inject, write_faulty_bag
+from gait_biofeedback.sim.faults import (
+    ClockStep,
+    Dropout,
+    Reorder,
+    Spike,
+    StampJump,
+    inject,
+    write_faulty_bag,
+)
 from gait_biofeedback.sim.recording import write_simulated_bag
 from gait_biofeedback.sim.simulator import SCENARIOS, Phase, SimulatedSession, SimulationConfig, simulate
 from gait_biofeedback.tuning.data import ReferenceRecording, broad_recordings, simulated_recordings
@@ -120,6 +128,7 @@ __all__ = [
     "BatchOptions",
     "BatchResult",
     "BodyDimensions",
+    "ClockStep",
     "DeviceClock",
     "DeviceSample",
     "DriverCore",

@@ -1,5 +1,6 @@
 """joint_angles node: silent (WARN) until calibrated; then joint_states equal to the batch path, a late
-segment's joints still published, the missing segment named on /diagnostics, a skeleton published."""
+segment's joints still published, the missing segment named on /diagnostics (once), a skeleton
+published."""
 
 from __future__ import annotations
 
@@ -69,6 +70,10 @@ def test_joint_angles_node(ros_context):
             assert spin_until(executor, lambda k=k: len(joints) >= k - 1, timeout=5)
         assert spin_until(executor, lambda: len(joints) == n - 1, timeout=5)
         spin_until(executor, lambda: any("left_shank" in d.message for d in diags), timeout=3)
+        said = len(diags)
+        # the missing sample is said once (since the last report), not on every status after it
+        assert spin_until(executor, lambda: len(diags) > said + 1, timeout=3)
+        assert "missing" not in diags[-1].message and diags[-1].level == b"\x00", diags[-1].message
     finally:
         node.destroy_node()
         source.destroy_node()

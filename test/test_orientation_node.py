@@ -79,7 +79,9 @@ def test_tracker_skips_nan_duplicates_and_bad_stamps_and_resets_only_on_a_real_r
     assert tracker.counts["time_resets"] == 1
     assert any("time went back 6.000 s and went on from there" in n.text for n in tracker.notices.pop())
     more += tracker.flush()
-    assert len(more) == 3 + 60, "the 3 held before the restart, then every sample of the new start-up"
+    assert len(more) == 3 + 60, "the 3 held before the restart, then every sample after it"
+    assert not any(s.recovering for s in more[:3]) and all(s.recovering for s in more[3:]), \
+        "after the restart the attitude is re-acquired, its samples marked"
     for k in range(4):
         more += tracker.update(8_000 * ms + k * 10 * ms, *still)
     assert tracker.counts["gaps"] == 1, "2.4 s without data, confirmed by the samples after it"

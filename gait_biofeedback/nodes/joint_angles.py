@@ -25,6 +25,7 @@ import time
 from diagnostic_msgs.msg import DiagnosticStatus
 from rclpy.context import Context
 
+from gait_biofeedback.core.joints.alignment import said as stamps_off
 from gait_biofeedback.core.joints.angles import JointAngleCalculator
 from gait_biofeedback.core.joints.stream import (
     STREAM_SEGMENTS,
@@ -53,6 +54,7 @@ class JointAnglesNode(GuardedNode):
         self.body = self.params.body
         self.stream = JointAngleStream(self.params)
         self.published = 0
+        self._reported_missing: dict[str, int] = {}  # missing_counts at the last /diagnostics
         for seg in STREAM_SEGMENTS:
             subscribe(self, topics.orientation(seg), lambda m, s=seg: self._on_imu(s, m), raw=True)
         subscribe(self, topics.CALIBRATION, self._on_calibration)
@@ -100,12 +102,18 @@ class JointAnglesNode(GuardedNode):
             status = diagnostics.status("joint_angles", DiagnosticStatus.WARN,
                                         "not calibrated: run calibration")
         else:
-            missing = {s: n for s, n in self.missing_counts.items() if n}
+            missing = [s for s, n in self.missing_counts.items() if n > self._reported_missing.get(s, 0)]
+            self._reported_missing = dict(self.missing_counts)
             waiting, heading_values = self.stream.heading_status()
             level, text = DiagnosticStatus.OK, "publishing"
-            if missing:
+            off = self.stream.alignment.misaligned
+            if off:
                 level = DiagnosticStatus.WARN
-                text = "missing samples from " + ", ".join(missing) + ": their joints were skipped"
+                text = "; ".join(stamps_off(s, o) for s, o in off.items())
+            elif missing:
+                level = DiagnosticStatus.WARN
+                text = ("missing samples from " + ", ".join(missing) + " since the last report: their joints "
+                        "were skipped")
             elif waiting:
                 level = DiagnosticStatus.WARN
                 text = (f"no angles yet for {', '.join(w.replace('_', ' ') for w in waiting)}: their two "

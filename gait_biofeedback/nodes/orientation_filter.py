@@ -123,12 +123,7 @@ class OrientationFilterNode(GuardedNode):
             elif lag > FALLING_BEHIND_S:
                 extra.insert(0, f"falling behind: samples processed up to {lag:.2f} s after their stamps")
         last = self._last_arrival.get(segment)
-        problem = None
-        if last is None:
-            problem = (diagnostics.WARN, "no data yet: is the sensor on and publishing?")
-        elif now - last > self.stale_after:
-            problem = (diagnostics.ERROR, f"no data for {now - last:.1f} s: check the sensor, its battery "
-                                          "and the link")
+        problem = diagnostics.no_data(None if last is None else now - last, self.stale_after)
         return diagnostics.orientation_status(segment, tracker, problem, extra, values)
 
     def _publish_diagnostics(self) -> None:

@@ -6,7 +6,9 @@ Each fault edits the raw IMU messages of a recording (``/<segment>/imu/data_raw`
 - :class:`Dropout`: the sensors send nothing for a while (radio loss, a sensor off and back on);
 - :class:`Reorder`: consecutive samples of one sensor arrive in reverse order (stamps unchanged);
 - :class:`Spike`: accelerometer samples of one sensor read an impossible value (a glitch);
-- :class:`StampJump`: one sample of one sensor carries a stamp off by ``offset`` (a clock glitch).
+- :class:`StampJump`: one sample of one sensor carries a stamp off by ``offset`` (a clock glitch);
+- :class:`ClockStep`: every sample of one sensor from a time on carries a stamp off by ``offset`` (its
+  clock stepped, or its driver restarted, while its samples kept arriving).
 
 :func:`inject` applies them to ``(topic, type, CDR bytes, log_ns)`` tuples; :func:`write_faulty_bag`
 copies a recording with faults. Ground truth topics are copied unchanged.
@@ -84,7 +86,16 @@ class StampJump(_AtOneInstant):
     offset: float = -0.5
 
 
-Fault = Dropout | Reorder | Spike | StampJump
+@dataclass(frozen=True)
+class ClockStep(_AtOneInstant):
+    """Every sample of ``segment`` from ``at`` s is stamped ``offset`` s off (arrival unchanged)."""
+
+    segment: str
+    at: float
+    offset: float = -1.0
+
+
+Fault = Dropout | Reorder | Spike | StampJump | ClockStep
 
 
 def _stamp_ns(data: bytes) -> int:
@@ -131,9 +142,9 @@ def inject(messages: Sequence[Message], faults: Iterable[Fault], start_ns: int) 
             for i in picks[: fault.samples]:
                 out[i] = (out[i][0], out[i][1], _restamped(out[i][2], acc=fault.value), out[i][3])
         else:
-            i = picks[0]
-            ns = _stamp_ns(out[i][2]) + round(fault.offset * NS_PER_S)
-            out[i] = (out[i][0], out[i][1], _restamped(out[i][2], ns=ns), out[i][3])
+            for i in picks if isinstance(fault, ClockStep) else picks[:1]:
+                ns = _stamp_ns(out[i][2]) + round(fault.offset * NS_PER_S)
+                out[i] = (out[i][0], out[i][1], _restamped(out[i][2], ns=ns), out[i][3])
     return sorted(out, key=lambda m: m[3])
 
 

@@ -18,6 +18,7 @@ import numpy as np
 from gait_biofeedback.core import quaternion as quat
 from gait_biofeedback.core.body import StickFigureDimensions
 from gait_biofeedback.core.in_force import InForceQueue
+from gait_biofeedback.core.joints.alignment import StampAlignment
 from gait_biofeedback.core.joints.angles import JOINTS, JointAngleCalculator, joint_angle_names, segment_pair
 from gait_biofeedback.core.joints.axis_heading import AxisHeadingEstimator
 from gait_biofeedback.core.joints.relative_heading import (
@@ -99,8 +100,9 @@ class JointAngleStream:
     Samples are ignored while no calibration is in force or waiting. Each calibration starts a new
     calculator and, with ``remove_standing_offset``, a new standing-offset collection of
     ``offset_window_s`` s of still samples (every segment present with |ω| < ``still_gyro`` rad/s).
-    A sample marked ``recovering`` (its orientation re-acquired after a dropout) names its segment in
-    the instant's :attr:`SyncedAngles.recovering` and never counts as still.
+    A sample marked ``recovering`` (its orientation re-acquired after a dropout, or its segment's stamps
+    off the others': :attr:`alignment`) names its segment in the instant's
+    :attr:`SyncedAngles.recovering` and never counts as still.
     Heading (``heading`` = 'kinematic'): every synchronised instant, calibrated or not, updates each
     joint's heading estimator (recovering samples are left out); the sensor orientations are then turned
     about the vertical down each leg's chain (pelvis, thigh, shank, foot) into the pelvis sensor's world
@@ -131,6 +133,7 @@ class JointAngleStream:
         self.first_arrival: dict[int, float] = {}
         self.missing_counts: dict[str, int] = {s: 0 for s in self.segments}
         self.recovering_count = 0  # emitted instants with a recovering segment
+        self.alignment = StampAlignment()
 
     def _heading_estimator(self, joint: str) -> RelativeHeadingEstimator:
         p = self.params
@@ -176,12 +179,18 @@ class JointAngleStream:
 
     def add(self, segment: str, ns: int, q: np.ndarray, gyr: tuple, acc: tuple,
             arrival: float | None = None, recovering: bool = False,
-            magnetic: bool = False) -> list[SyncedAngles]:
+            magnetic: bool = False, received_ns: int | None = None) -> list[SyncedAngles]:
         """One sample (sensor→world q, bias-corrected rate rad/s, specific force m/s²) of ``segment`` at
         stamp ``ns``; the instants ready now. ``magnetic``: its heading came from a magnetometer (the
-        joint headings then follow that filter's heading corrections at once)."""
+        joint headings then follow that filter's heading corrections at once). ``received_ns``: when it
+        was received (default: ``arrival``; offline, its log time): a segment whose stamps leave the
+        other segments' is marked as recovering (:mod:`.alignment`)."""
         if segment not in self.segments or not (self.active or self.headings):
             return []
+        if received_ns is None and arrival is not None:
+            received_ns = round(arrival * 1e9)
+        if received_ns is not None and self.alignment.add(segment, ns, received_ns):
+            recovering = True
         self._seen[segment] = max(ns, self._seen.get(segment, ns))
         self._magnetic[segment] = bool(magnetic)
         self.pending.setdefault(ns, {})[segment] = (np.asarray(q, dtype=float), tuple(gyr), tuple(acc),

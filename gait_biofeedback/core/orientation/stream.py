@@ -244,8 +244,14 @@ class SegmentOrientationTracker:
         return self._run(self.sequencer.push(stamp_ns, (g, a)))
 
     def flush(self) -> list[OrientationSample]:
-        """The samples the reorder window still holds (at the end of a recording)."""
-        return self._run(self.sequencer.flush())
+        """The samples the reorder window, and a start-up or re-acquisition window, still hold (at the end
+        of a recording)."""
+        out = self._run(self.sequencer.flush())
+        if self._recover:
+            out += self._finish_recovery()
+        elif self._startup:
+            out += self._finish_startup()
+        return out
 
     def _run(self, released: list) -> list[OrientationSample]:
         """The sequencer's released samples through the filter; its drops counted and said."""
@@ -263,11 +269,20 @@ class SegmentOrientationTracker:
         t = stamp_ns / NS_PER_S
         if restart_s:
             self.counts["time_resets"] += 1
-            self._say("warn", f"time went back {restart_s:.3f} s and went on from there (a recording "
-                              "replayed again, or the driver or sensor restarted): orientation filter "
-                              "reset, start-up step repeated")
-            self.filter.reset()
-            self._restart()
+            if self._last_q is None:  # still in its start-up: that starts again
+                self._say("warn", f"time went back {restart_s:.3f} s and went on from there (a recording "
+                                  "replayed again, or the driver or sensor restarted): orientation filter "
+                                  "reset, start-up step repeated")
+                self.filter.reset()
+                self._restart()
+            else:  # the sensor kept its attitude: re-acquired as after a gap (a start-up while moving is
+                # an attitude from one sample: a knee 100° off for seconds), its samples marked
+                self._say("warn", f"time went back {restart_s:.3f} s and went on from there (a recording "
+                                  "replayed again, or the driver or sensor restarted): attitude re-acquired "
+                                  f"from the next {self.recover_s:g} s (those samples are marked as "
+                                  "recovering)")
+                self._t_last = None
+                self._recover = []
         released: list[OrientationSample] = []
         if self._t_last is not None:
             dt = t - self._t_last

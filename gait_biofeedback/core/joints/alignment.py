@@ -1,0 +1,76 @@
+"""Whether each sensor's stamps still line up with the other sensors' (EXT; the issue's "time jumps").
+
+The joint-angle stream pairs the segments' samples by their stamps. A sensor whose clock steps (a driver
+or sensor restart, a glitch) while its samples keep arriving goes on with stamps that are off the
+others' by the step: every pairing of it is then with another instant of the other sensors. On the
+simulated demo with the left thigh's stamps 1 s behind from 65 s, the left knee read up to 117° off for
+the rest of the walk, unmarked, and was cued (a stamp 1 s ahead: 15-35° off after its re-acquisition).
+
+So each sample's stamp is compared with when it was received (``received_ns``: the node's clock live,
+the log time offline): ``stamp - received`` is the sensor's clock offset plus its delay. A delay only
+lowers it, so the largest over the last ``WINDOW_S`` of samples is the segment's clock offset. A
+segment whose offset differs from the median of the segments' by more than ``MISALIGNED_S`` for
+``HOLD_S`` is misaligned: its samples are treated as doubtful (their joints get no cues) until it lines
+up again. (Samples released together, the start-up's or those held across a dropout, look off for a
+moment, until the others' come; the jump that made the offset marks its own first seconds: the
+orientation filter re-acquires the attitude.)
+A whole recording replayed again, or a replay at another speed, moves every segment's offset alike
+and is not a misalignment.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from statistics import median
+
+from gait_biofeedback.core.stamps import NS_PER_S
+
+WINDOW_S = 0.3  # s of a segment's samples whose largest offset is its clock offset
+MISALIGNED_S = 0.1  # s off the other segments' median: 10 samples at 100 Hz, far above a link's jitter
+HOLD_S = 0.05  # s (received) that the offset must last: samples released together line up within 20 ms
+
+
+def said(segment: str, off_s: float) -> str:
+    """A misalignment in words, with what to do."""
+    return (f"{segment}'s stamps are {off_s:+.2f} s off the other sensors' (its clock jumped, or its driver "
+            "restarted): its joints are marked doubtful (shown, no cues) until they line up again; restart "
+            "that sensor's driver")
+
+
+class StampAlignment:
+    """Clock offset of each segment against the others (module docstring). :attr:`misaligned`: segment
+    → how far (s, + ahead) its stamps are off the others' now; :attr:`first` / :attr:`last`: segment →
+    (stamp ns, s off) of its first / latest misaligned sample, for the record."""
+
+    def __init__(self) -> None:
+        self._window: dict[str, deque[tuple[int, int]]] = {}  # (received, offset), offsets decreasing
+        self._clock: dict[str, int] = {}  # segment → its largest offset over the window, ns
+        self._since: dict[str, int] = {}  # segment → when (received) it was first seen off, ns
+        self.misaligned: dict[str, float] = {}
+        self.first: dict[str, tuple[int, float]] = {}
+        self.last: dict[str, tuple[int, float]] = {}
+
+    def add(self, segment: str, stamp_ns: int, received_ns: int) -> bool:
+        """One sample; whether its segment is misaligned now."""
+        window = self._window.setdefault(segment, deque())
+        offset = stamp_ns - received_ns
+        while window and window[-1][1] <= offset:  # a sliding maximum: the smaller ones never count again
+            window.pop()
+        window.append((received_ns, offset))
+        while window[0][0] < received_ns - WINDOW_S * NS_PER_S:
+            window.popleft()
+        self._clock[segment] = window[0][1]
+        if len(self._clock) < 3:  # two segments cannot say which one is off
+            return False
+        off = (self._clock[segment] - median(self._clock.values())) / NS_PER_S
+        if abs(off) > MISALIGNED_S:
+            since = self._since.setdefault(segment, received_ns)
+            if received_ns - since < HOLD_S * NS_PER_S:
+                return segment in self.misaligned
+            self.misaligned[segment] = off
+            self.first.setdefault(segment, (stamp_ns, off))
+            self.last[segment] = (stamp_ns, off)
+            return True
+        self.misaligned.pop(segment, None)
+        self._since.pop(segment, None)
+        return False
