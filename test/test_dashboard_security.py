@@ -25,7 +25,8 @@ pytestmark = [pytest.mark.ros, pytest.mark.timeout(60)]
     ({"action": "calibrate", "standing_duration": float("nan")}, "standing_duration=nan refused"),
     ({"action": "calibrate", "motion_duration": 1e9}, "motion_duration=1000000000.0 refused"),
     ({"action": "calibrate", "protocol": "jumping"}, "protocol='jumping' refused; expected one of"),
-    ({"action": "calibrate", "segments": ["pelvis"]}, "calibrate: unknown field(s) ['segments']"),
+    ({"action": "calibrate", "segments": ["pelvis"]}, "calibrate: unknown field(s) 'segments'"),
+    ({"action": "x" * 60_000}, "unknown action 'xxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxx…; actions:"),
     ({"action": "mute", "muted": "yes"}, "mute: muted='yes' refused; expected true or false"),
     ({"action": "feedback", "side": 3}, "feedback: side=3 refused"),
     ({"action": "shutdown"}, "unknown action 'shutdown'"),
@@ -92,7 +93,16 @@ def test_another_web_page_cannot_open_or_drive_the_dashboard(dashboard):
         response = conn.getresponse()
         assert response.status == 403 and b"Host" in response.read()
         conn.close()
-    assert node.server.refused >= 3 and node.counts["commands"] == 0
+    # two Host headers (one of them this server's): refused, not a server error
+    conn = http.client.HTTPConnection("127.0.0.1", port, timeout=5)
+    conn.putrequest("GET", "/", skip_host=True)
+    conn.putheader("Host", f"127.0.0.1:{port}")
+    conn.putheader("Host", f"evil.example:{port}")
+    conn.endheaders()
+    response = conn.getresponse()
+    assert response.status == 403 and b"more than one Host header" in response.read()
+    conn.close()
+    assert node.server.refused >= 4 and node.counts["commands"] == 0
     # the server's own sources are not served from its static folder
     conn = http.client.HTTPConnection("127.0.0.1", port, timeout=5)
     conn.request("GET", "/server.py")
@@ -120,6 +130,18 @@ def test_without_the_token_the_page_is_read_only(dashboard):
         ws.send(json.dumps({"action": "calibrate", "protocol": "hip_flexion", "standing_duration": "abc"}))
         reply = _reply(ws, executor, "calibrate")
         assert not reply["success"] and "standing_duration='abc' refused" in reply["message"]
+        # a binary frame is not a command, whatever it holds
+        ws.send(json.dumps({"action": "mute", "muted": False}).encode())
+        deadline = time.monotonic() + 5
+        error = None
+        while error is None and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.02)
+            try:
+                msg = json.loads(ws.recv(timeout=0.05))
+            except TimeoutError:
+                continue
+            error = msg if msg.get("type") == "error" else None
+        assert error and "binary frame" in error["message"] and node.muted is True
         ws.send(json.dumps({"action": "feedback", "side": "left"}))
         assert _reply(ws, executor, "feedback")["success"] and node.feedback["side"] == "left"
 

@@ -38,7 +38,7 @@ class Field:
         else:
             ok = isinstance(value, str) and (self.choices is None or value in self.choices)
         if not ok:
-            raise CommandError(f"{action}: {name}={value!r} refused; {self.allowed()}")
+            raise CommandError(f"{action}: {name}={shown(value)} refused; {self.allowed()}")
         return float(value) if self.kind == "number" else value
 
     def allowed(self) -> str:
@@ -60,14 +60,25 @@ COMMANDS: dict[str, dict[str, Field]] = {
 }
 
 
+SHOWN_CHARS = 40
+"""A page's value is echoed at most this long (a 60 kB action name was sent back whole)."""
+
+
+def shown(value: Any) -> str:
+    """``repr(value)`` cut to :data:`SHOWN_CHARS`."""
+    text = repr(value)
+    return text if len(text) <= SHOWN_CHARS else text[:SHOWN_CHARS] + "…"
+
+
 def parse_command(message: dict[str, Any]) -> tuple[str, dict[str, Any]]:
     """(action, checked fields) of a page message; CommandError for anything not allowed."""
     action = message.get("action")
     if not isinstance(action, str) or action not in COMMANDS:
-        raise CommandError(f"unknown action {action!r}; actions: {', '.join(COMMANDS)}")
+        raise CommandError(f"unknown action {shown(action)}; actions: {', '.join(COMMANDS)}")
     fields = COMMANDS[action]
-    unknown = sorted(str(k) for k in message if k != "action" and k not in fields)
+    unknown = sorted(shown(k) for k in message if k != "action" and k not in fields)
     if unknown:
-        raise CommandError(f"{action}: unknown field(s) {unknown}; fields: {list(fields) or 'none'}")
+        raise CommandError(f"{action}: unknown field(s) {', '.join(unknown[:5])}; fields: "
+                           f"{list(fields) or 'none'}")
     return action, {name: fields[name].check(action, name, value)
                     for name, value in message.items() if name != "action"}

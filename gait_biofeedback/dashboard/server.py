@@ -228,6 +228,8 @@ class DashboardServer:
             await ws.send(json.dumps(hello, separators=(",", ":"), allow_nan=False))
             async for raw in ws:
                 try:
+                    if not isinstance(raw, str):
+                        raise ValueError("a binary frame: commands are JSON text")
                     message = json.loads(raw)
                     if not isinstance(message, dict):
                         raise ValueError("expected a JSON object")
@@ -256,7 +258,10 @@ class DashboardServer:
         return connection.respond(HTTPStatus.FORBIDDEN, f"refused: {why}\n")
 
     def _http(self, connection: ServerConnection, request: Request) -> Response | None:
-        host = request.headers.get("Host", "")
+        hosts = request.headers.get_all("Host")
+        if len(hosts) > 1:
+            return self._refuse(connection, "more than one Host header")
+        host = hosts[0] if hosts else ""
         allowed = self._allowed_hosts()
         if host.lower() not in allowed:
             return self._refuse(connection, f"Host {host!r} is not this dashboard (a page rebinding its "
