@@ -400,7 +400,7 @@ def _calibrate_ahead(bag: str | Path, request: tuple[float, str], stages: dict[s
             if done := feed(seg, trackers[seg].update(*raw_sample(last_raw[seg])), last_raw[seg]):
                 return done[0]
         for seg, raw in last_raw.items():
-            if done := feed(seg, trackers[seg].flush(), raw):
+            if done := feed(seg, trackers[seg].flush(end=True), raw):
                 return done[0]
     return CalibrationAttempt(request[1], False, f"the recording ends before every sensor's data reaches "
                               f"the calibration instant ({request[0]:.2f} s): ask for an earlier one")
@@ -583,10 +583,10 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
         said()
     for seg, tracker in trackers.items():  # what the reorder windows still hold (the node: on silence)
         if seg in last_raw:
-            orientations(seg, tracker.flush(), reader.end_time_ns)
+            orientations(seg, tracker.flush(end=True), reader.end_time_ns)
     said()
     if last_raw:
-        report_status(reader.end_time_ns)
+        report_status(max(last_log.values()))
     publish_joints(joints.flush(force=True), reader.end_time_ns)
     for cycle in gait.finish():
         topic, msg = stride_output(cycle)
@@ -594,13 +594,14 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
     for state in activity.finish() if activity is not None else []:
         emit(topics.ACTIVITY.absolute(), state, reader.end_time_ns)
     result.warnings[:0] = reader.warnings  # a damaged file, a chunk skipped: the time range lost
+    imu_end_ns = max(last_log.values(), default=0)  # a recorder stopped after the sensors is no silence
     for seg, last_ns in last_log.items():
-        silent = (reader.end_time_ns - last_ns) / NS_PER_S
+        silent = (imu_end_ns - last_ns) / NS_PER_S
         if silent > o_params.stale_after:
             since = (last_ns - start_ns) / NS_PER_S
-            result.warnings.append(f"{seg}: no data from {since:.1f} s to the end of the recording "
-                                   f"({silent:.1f} s): check the sensor, its battery and the link; its "
-                                   "joints and events stop there")
+            result.warnings.append(f"{seg}: no data from {since:.1f} s on, {silent:.1f} s before the other "
+                                   "sensors' last: check the sensor, its battery and the link; its joints "
+                                   "and events stop there")
     for seg, (first_ns, off) in joints.alignment.first.items():
         last_ns = joints.alignment.last[seg][0]
         span = f"{(first_ns - start_ns) / NS_PER_S:.1f}-{(last_ns - start_ns) / NS_PER_S:.1f} s"

@@ -78,7 +78,7 @@ def test_tracker_skips_nan_duplicates_and_bad_stamps_and_resets_only_on_a_real_r
         more += tracker.update(5_000 * ms + k * 10 * ms, *still)
     assert tracker.counts["time_resets"] == 1
     assert any("time went back 6.000 s and went on from there" in n.text for n in tracker.notices.pop())
-    more += tracker.flush()
+    more += tracker.flush(end=True)
     assert len(more) == 3 + 60, "the 3 held before the restart, then every sample after it"
     assert not any(s.recovering for s in more[:3]) and all(s.recovering for s in more[3:]), \
         "after the restart the attitude is re-acquired, its samples marked"
@@ -96,7 +96,8 @@ def test_node_counts_bad_samples_and_reports_them(ros_context):
     from gait_biofeedback.wire.stamps import s_to_stamp
     from gait_biofeedback.wire.topics import SENSOR_QOS
 
-    node = OrientationFilterNode(ros_context, segments=["chest"], startup_s=0.2, diagnostics_period=0.2)
+    node = OrientationFilterNode(ros_context, segments=["chest"], startup_s=0.2, diagnostics_period=0.2,
+                                 recover_s=0.2)  # the 0.3 s after the restart re-acquire the attitude
     source = Node("source", context=ros_context)
     pub = source.create_publisher(Imu, "chest/imu/data_raw", SENSOR_QOS)
     outputs, diagnostics = [], []

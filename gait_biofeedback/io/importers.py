@@ -405,9 +405,8 @@ def import_generic_csv(
                             "monitor uses its accelerometer alone")
         series = ImuSeries(segment=segment, t=t, acc=vectors["acc"], gyr=gyr, mag=vectors["mag"])
         imu[segment] = series
-        if vectors["gyr"] is not None:
-            warnings += _nan_warnings(series)
-            warnings += _unit_plausibility_warnings(series, merged_units)
+        warnings += _nan_warnings(series, gyro=vectors["gyr"] is not None)
+        warnings += _unit_plausibility_warnings(series, merged_units)
     return Recording(imu=imu, source=f"csv:{path}", reference={}, warnings=warnings)
 
 
@@ -592,8 +591,9 @@ def _mat_keys(data: Mapping[str, Any]) -> list[str]:
     return [k for k in data if not k.startswith("__")]
 
 
-def _nan_warnings(series: ImuSeries) -> list[str]:
-    parts = [series.acc, series.gyr] + ([series.mag] if series.mag is not None else [])
+def _nan_warnings(series: ImuSeries, gyro: bool = True) -> list[str]:
+    """Samples with NaN, counted (``gyro`` False: an accelerometer alone, its unknown rate not counted)."""
+    parts = [series.acc] + ([series.gyr] if gyro else []) + ([series.mag] if series.mag is not None else [])
     bad = np.any(np.isnan(np.hstack(parts)), axis=1)
     count = int(bad.sum())
     if not count:

@@ -83,7 +83,7 @@ class JointAnglesNode(GuardedNode):
         imu = decode_imu(data)
         ns, acc, gyr, q = orientation_sample(imu)
         self._publish(self.stream.add(segment, ns, q, gyr, acc, time.monotonic(), is_recovering(imu),
-                                      has_heading(imu)))
+                                      has_heading(imu), self.get_clock().now().nanoseconds))
 
     def _flush(self) -> None:
         self._publish(self.stream.flush(time.monotonic()))
@@ -106,14 +106,13 @@ class JointAnglesNode(GuardedNode):
             self._reported_missing = dict(self.missing_counts)
             waiting, heading_values = self.stream.heading_status()
             level, text = DiagnosticStatus.OK, "publishing"
-            off = self.stream.alignment.misaligned
-            if off:
-                level = DiagnosticStatus.WARN
-                text = "; ".join(stamps_off(s, o) for s, o in off.items())
-            elif missing:
-                level = DiagnosticStatus.WARN
-                text = ("missing samples from " + ", ".join(missing) + " since the last report: their joints "
-                        "were skipped")
+            off = self.stream.alignment.misaligned_now(self.get_clock().now().nanoseconds)
+            said = [stamps_off(s, o) for s, o in off.items()]
+            if missing:
+                said.append("missing samples from " + ", ".join(missing) + " since the last report: their "
+                            "joints were skipped")
+            if said:
+                level, text = DiagnosticStatus.WARN, "; ".join(said)
             elif waiting:
                 level = DiagnosticStatus.WARN
                 text = (f"no angles yet for {', '.join(w.replace('_', ' ') for w in waiting)}: their two "

@@ -6,14 +6,17 @@ others' by the step: every pairing of it is then with another instant of the oth
 simulated demo with the left thigh's stamps 1 s behind from 65 s, the left knee read up to 117° off for
 the rest of the walk, unmarked, and was cued (a stamp 1 s ahead: 15-35° off after its re-acquisition).
 
-So each sample's stamp is compared with when it was received (``received_ns``: the node's clock live,
-the log time offline): ``stamp - received`` is the sensor's clock offset plus its delay. A delay only
+So each sample's stamp is compared with when it was received (``received_ns``: the node's ROS clock
+live, the recording's ``/clock`` in a replay at any speed, the log time offline): ``stamp - received``
+is the sensor's clock offset plus its delay. A delay only
 lowers it, so the largest over the last ``WINDOW_S`` of samples is the segment's clock offset. A
 segment whose offset differs from the median of the segments' by more than ``MISALIGNED_S`` for
 ``HOLD_S`` is misaligned: its samples are treated as doubtful (their joints get no cues) until it lines
 up again. (Samples released together, the start-up's or those held across a dropout, look off for a
 moment, until the others' come; the jump that made the offset marks its own first seconds: the
-orientation filter re-acquires the attitude.)
+orientation filter re-acquires the attitude, and samples marked so are not judged here.) A segment
+silent for ``STALE_S`` no longer counts. With an even number of segments half of which stepped, no
+side is the majority: both are marked.
 A whole recording replayed again, or a replay at another speed, moves every segment's offset alike
 and is not a misalignment.
 """
@@ -27,6 +30,7 @@ from gait_biofeedback.core.stamps import NS_PER_S
 
 WINDOW_S = 0.3  # s of a segment's samples whose largest offset is its clock offset
 MISALIGNED_S = 0.1  # s off the other segments' median: 10 samples at 100 Hz, far above a link's jitter
+STALE_S = 1.0  # s without a sample: the segment's offset no longer counts
 HOLD_S = 0.05  # s (received) that the offset must last: samples released together line up within 20 ms
 
 
@@ -46,6 +50,7 @@ class StampAlignment:
         self._window: dict[str, deque[tuple[int, int]]] = {}  # (received, offset), offsets decreasing
         self._clock: dict[str, int] = {}  # segment → its largest offset over the window, ns
         self._since: dict[str, int] = {}  # segment → when (received) it was first seen off, ns
+        self._received: dict[str, int] = {}  # segment → its newest sample's received time, ns
         self.misaligned: dict[str, float] = {}
         self.first: dict[str, tuple[int, float]] = {}
         self.last: dict[str, tuple[int, float]] = {}
@@ -60,9 +65,12 @@ class StampAlignment:
         while window[0][0] < received_ns - WINDOW_S * NS_PER_S:
             window.popleft()
         self._clock[segment] = window[0][1]
-        if len(self._clock) < 3:  # two segments cannot say which one is off
+        self._received[segment] = received_ns
+        recent = received_ns - STALE_S * NS_PER_S
+        live = [c for seg, c in self._clock.items() if self._received[seg] >= recent]
+        if len(live) < 3:  # two segments cannot say which one is off
             return False
-        off = (self._clock[segment] - median(self._clock.values())) / NS_PER_S
+        off = (self._clock[segment] - median(live)) / NS_PER_S
         if abs(off) > MISALIGNED_S:
             since = self._since.setdefault(segment, received_ns)
             if received_ns - since < HOLD_S * NS_PER_S:
@@ -74,3 +82,9 @@ class StampAlignment:
         self.misaligned.pop(segment, None)
         self._since.pop(segment, None)
         return False
+
+    def misaligned_now(self, now_ns: int) -> dict[str, float]:
+        """:attr:`misaligned` without the segments silent for ``STALE_S`` (a sensor that stopped is said
+        as missing, not as off)."""
+        return {seg: off for seg, off in self.misaligned.items()
+                if self._received.get(seg, now_ns) >= now_ns - STALE_S * NS_PER_S}

@@ -189,7 +189,7 @@ class JointAngleStream:
             return []
         if received_ns is None and arrival is not None:
             received_ns = round(arrival * 1e9)
-        if received_ns is not None and self.alignment.add(segment, ns, received_ns):
+        if received_ns is not None and not recovering and self.alignment.add(segment, ns, received_ns):
             recovering = True
         self._seen[segment] = max(ns, self._seen.get(segment, ns))
         self._magnetic[segment] = bool(magnetic)

@@ -243,13 +243,14 @@ class SegmentOrientationTracker:
             return []
         return self._run(self.sequencer.push(stamp_ns, (g, a)))
 
-    def flush(self) -> list[OrientationSample]:
-        """The samples the reorder window, and a start-up or re-acquisition window, still hold (at the end
-        of a recording)."""
+    def flush(self, end: bool = False) -> list[OrientationSample]:
+        """The samples the reorder window still holds (a stream that went silent); with ``end`` (the end
+        of a recording), a start-up or re-acquisition window in progress too (live, a silence is not its
+        end: the window goes on when the data come back)."""
         out = self._run(self.sequencer.flush())
-        if self._recover:
+        if end and self._recover:
             out += self._finish_recovery()
-        elif self._startup:
+        elif end and self._startup:
             out += self._finish_startup()
         return out
 
@@ -469,7 +470,7 @@ def track_orientation(series: ImuSeries, **options: Any) -> tuple[np.ndarray, np
         if mag is not None:
             tracker.add_mag(stamp_ns, mag[k])
         out.extend(tracker.update(stamp_ns, series.gyr[k], series.acc[k]))
-    out.extend(tracker.flush())
+    out.extend(tracker.flush(end=True))
     if not out:
         return np.zeros(0), np.zeros((0, 4)), np.zeros((0, 3))
     return (ns_to_seconds(np.array([s.stamp_ns for s in out])), np.array([s.q for s in out]),
