@@ -8,17 +8,15 @@ the rest of the walk, unmarked, and was cued (a stamp 1 s ahead: 15-35° off aft
 
 So each sample's stamp is compared with when it was received (``received_ns``: the node's ROS clock
 live, the recording's ``/clock`` in a replay at any speed, the log time offline): ``stamp - received``
-is the sensor's clock offset plus its delay. A delay only
-lowers it, so the largest over the last ``WINDOW_S`` of samples is the segment's clock offset. A
-segment whose offset differs from the median of the segments' by more than ``MISALIGNED_S`` for
-``HOLD_S`` is misaligned: its samples are treated as doubtful (their joints get no cues) until it lines
-up again. (Samples released together, the start-up's or those held across a dropout, look off for a
-moment, until the others' come; the jump that made the offset marks its own first seconds: the
-orientation filter re-acquires the attitude, and samples marked so are not judged here.) A segment
-silent for ``STALE_S`` no longer counts. With an even number of segments half of which stepped, no
-side is the majority: both are marked.
-A whole recording replayed again, or a replay at another speed, moves every segment's offset alike
-and is not a misalignment.
+is the sensor's clock offset plus its delay. A delay only lowers it, so the largest over the last
+``WINDOW_S`` of samples is the segment's clock offset. A segment whose offset differs from the median of
+the segments' by more than ``MISALIGNED_S`` for ``HOLD_S`` is misaligned: its samples are treated as
+doubtful (their joints get no cues) until it lines up again. (Samples released together, the start-up's
+or those held across a dropout, look off for a moment, until the others' come; the jump that made the
+offset marks its own first seconds: the orientation filter re-acquires the attitude, and samples marked
+so are not judged here.) A segment silent for ``STALE_S`` no longer counts. With an even number of
+segments half of which stepped, no side is the majority: both are marked. A whole recording replayed
+again, or a replay at another speed, moves every segment's offset alike and is not a misalignment.
 """
 
 from __future__ import annotations
