@@ -157,17 +157,14 @@ def parse_calibrate_at(text: str) -> tuple[float | None, str]:
     return t, protocol
 
 
-def drop_needless_auto(bag: str | Path, requests: list[tuple[float | None, str]]
+def drop_needless_auto(segments: Sequence[str], requests: list[tuple[float | None, str]]
                        ) -> tuple[list[tuple[float | None, str]], list[str]]:
-    """(``requests`` without the ``auto`` ones, what was done in words) for a recording with no leg or
-    foot sensor: nothing there needs a calibration (the activity monitor finds its own upright
-    reference), and a trunk's movements would be searched in vain for a protocol. Other recordings:
-    ``requests`` unchanged, no note."""
-    if all(t is not None for t, _ in requests):
-        return requests, []
-    with BagReader(bag) as reader:
-        segments = sorted(_raw_topics(reader, bag)[0])
-    if any(seg.endswith(CALIBRATED_LIMBS) for seg in segments):
+    """(``requests`` without the ``auto`` ones, what was done in words) for a recording whose raw IMU
+    ``segments`` hold no leg or foot sensor: nothing there needs a calibration (the activity monitor
+    finds its own upright reference), and a trunk's movements would be searched in vain for a protocol.
+    Other recordings: ``requests`` unchanged, no note."""
+    segments = sorted(segments)
+    if all(t is not None for t, _ in requests) or any(seg.endswith(CALIBRATED_LIMBS) for seg in segments):
         return requests, []
     return [r for r in requests if r[0] is not None], [
         f"--calibrate-at auto: no thigh, shank or foot sensor in the recording ({', '.join(segments)}): "
@@ -182,7 +179,8 @@ one the stage's ``segment`` parameter names)."""
 
 def recording_rates(bag: str | Path) -> dict[str, float]:
     """Each raw IMU stream's rate as the stages decide it (:class:`~gait_biofeedback.core.rate.RateCheck`
-    over its first stamps), rounded as they round it; segment → Hz."""
+    over its first stamps), rounded as they round it; segment → Hz (NaN: too few stamps), every segment
+    of the recording (:func:`drop_needless_auto` takes them from here, the bag read once)."""
     with BagReader(bag) as reader:
         segment_of = {topic: seg for seg, topic in _raw_topics(reader, bag)[0].items()}
         checks = {seg: RateCheck(1.0) for seg in segment_of.values()}
@@ -195,16 +193,17 @@ def recording_rates(bag: str | Path) -> dict[str, float]:
                 break
     for check in checks.values():
         check.decide()
-    return {seg: round(c.measured_hz, 3) for seg, c in checks.items() if c.measured_hz}
+    return {seg: round(c.measured_hz, 3) if c.measured_hz else math.nan for seg, c in checks.items()}
 
 
-def with_recording_rate(bag: str | Path, params: dict[str, dict] | None) -> tuple[dict[str, dict], list[str]]:
-    """(``params`` with each stage's ``rate_hz`` set to the recording's, where the parameters do not give
-    one and the stage's sensors share a rate more than 10 % from the default; what was set, in words).
-    The stage would switch to that rate after its first stamps anyway, with a warning meant for a live
-    sensor set to the wrong rate; a recording states its rate. ``replay`` gives the graph the same."""
+def with_recording_rate(rates: dict[str, float], params: dict[str, dict] | None
+                        ) -> tuple[dict[str, dict], list[str]]:
+    """(``params`` with each stage's ``rate_hz`` set to the recording's (``rates``:
+    :func:`recording_rates`), where the parameters do not give one and the stage's sensors share a rate
+    more than 10 % from the default; what was set, in words). The stage would switch to that rate after
+    its first stamps anyway, with a warning meant for a live sensor set to the wrong rate; a recording
+    states its rate. ``replay`` gives the graph the same."""
     params = {node: dict(values) for node, values in (params or {}).items()}
-    rates = recording_rates(bag)
     notes = []
     for node, which in RATE_STAGES.items():
         values = params.setdefault(node, {})
@@ -212,7 +211,7 @@ def with_recording_rate(bag: str | Path, params: dict[str, dict] | None) -> tupl
             continue
         stage = stage_parameters(node, values)
         segments = ([stage.segment] if which == "segment" else list(rates) if which is None else which)
-        found = {rates[s] for s in segments if s in rates}
+        found = {rates[s] for s in segments if math.isfinite(rates.get(s, math.nan))}
         if len(found) != 1:
             continue
         (rate,) = found
@@ -331,7 +330,8 @@ def analyze_recording(
     """
     if output is not None:
         check_output(output, overwrite)  # before the analysis, not after it
-    params, rate_notes = with_recording_rate(bag, params)
+    rates = recording_rates(bag)
+    params, rate_notes = with_recording_rate(rates, params)
     stages = {node: stage_parameters(node, values) for node, values in params.items()}
     for _t, protocol in calibrate_at or []:
         if protocol not in REQUESTS:
@@ -339,7 +339,7 @@ def analyze_recording(
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", BagRecoveryWarning)  # they go into result.warnings
         standing_s = (stages.get("calibration") or CalibrationParams()).default_standing_duration
-        calibrate_at, notes = drop_needless_auto(bag, list(calibrate_at or []))
+        calibrate_at, notes = drop_needless_auto(list(rates), list(calibrate_at or []))
         requests, found_notes = resolve_calibrate_at(bag, calibrate_at, standing_s)
         notes += rate_notes + found_notes
         is_auto = [asked is None for asked, _ in calibrate_at or []]

@@ -237,6 +237,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
         AUTO_OPTIONS,
         NO_STANDING,
         drop_needless_auto,
+        recording_rates,
         resolve_calibrate_at,
         with_recording_rate,
     )
@@ -244,18 +245,19 @@ def cmd_replay(args: argparse.Namespace) -> int:
     from gait_biofeedback.io.bag import BagReader
     from gait_biofeedback.parameters import stage_parameters
 
-    params, notes = with_recording_rate(args.bag, _session_parameters(args.params))
+    rates = recording_rates(args.bag)
+    params, notes = with_recording_rate(rates, _session_parameters(args.params))
     calibration = stage_parameters("calibration", params.get("calibration", {}))
-    asked, dropped = drop_needless_auto(args.bag, _calibration_options(args, params))
+    asked, dropped = drop_needless_auto(list(rates), _calibration_options(args, params))
     notes += dropped
     requests, found = resolve_calibrate_at(args.bag, asked, calibration.default_standing_duration)
     notes += found
     for note in notes:
         print(note)
+    no_standing = any(NO_STANDING in n for n in notes)
     with tempfile.TemporaryDirectory() as folder:
         pressed = []
         for (t, protocol), (when, _) in zip(requests, asked, strict=True):
-            no_standing = any(NO_STANDING in n for n in notes)
             why = ("no standing to press Calibrate after" if no_standing else
                    f"the walking calibration is the recording's walk (pressed at its end, {t:.2f} s, the "
                    "replay would have no events before it)")
