@@ -245,8 +245,9 @@ def cmd_replay(args: argparse.Namespace) -> int:
     from gait_biofeedback.io.bag import BagReader
     from gait_biofeedback.parameters import stage_parameters
 
+    params = _session_parameters(args.params)  # a parameter file's typo is refused before the bag is read
     rates = recording_rates(args.bag)
-    params, notes = with_recording_rate(rates, _session_parameters(args.params))
+    params, notes = with_recording_rate(rates, params)
     calibration = stage_parameters("calibration", params.get("calibration", {}))
     asked, dropped = drop_needless_auto(list(rates), _calibration_options(args, params))
     notes += dropped
