@@ -554,7 +554,7 @@ def _unit_plausibility_warnings(series: ImuSeries, units: Mapping[str, str]) -> 
                         f"if the file is in m/s², {unit_hint('acc', 'm/s2')}")
     gyr_norm = np.linalg.norm(series.gyr, axis=1)
     rest = _rest_blocks(series)
-    at_rest = float(np.nanmedian(gyr_norm[rest])) if len(rest) else math.nan
+    at_rest = float(np.nanmedian(gyr_norm[rest])) if np.isfinite(gyr_norm[rest]).any() else math.nan
     fastest = float(np.nanpercentile(gyr_norm, 99)) if np.isfinite(gyr_norm).any() else math.nan
     if fastest > GYRO_RANGE or at_rest > REST_GYRO:
         what = (f"99th percentile |gyr| {fastest:.3g} rad/s" if fastest > GYRO_RANGE

@@ -33,10 +33,11 @@ Placement: ``chest`` (the thesis) or ``pelvis`` (lower back, waist), where postu
 (the pelvis tilts back when seated) instead of the chest's excursion detector; see PELVIS_*.
 
 Posture consistency (our additions to §7.2.5, thresholds chosen on UCI dev subjects 1–7 only):
-a sit→stand needs the posture sitting, a stand→sit standing; stand→sit and an immediate sit→stand
-need strong evidence (|ΔY| ≥ 0.7 thigh and |∫SVM score| ≥ 0.4 m/s); a weaker sit→stand is reported
-only if a walking bout starts within 10 s (event keeps its instant, posture switches at confirmation);
-standing entered by a sit→stand without walking within 60 s reverts to sitting; walking overrides a
+a sit→stand needs the posture sitting, a stand→sit standing (unless the posture is only assumed, see
+``initial_posture_for``); stand→sit and an immediate sit→stand need strong evidence (|ΔY| ≥ 0.7 thigh
+and |∫SVM score| ≥ 0.4 m/s); a weaker sit→stand is reported only if a walking bout (3 peaks) starts
+within 10 s (event keeps its instant, posture switches at confirmation); standing entered by a
+sit→stand without a walk of SIT_WALK_MIN_STEPS within 60 s reverts to sitting; walking overrides a
 seated/lying posture after 8 steps, and a θ excursion ending from 5 s before to 2 s after the first
 step of such a walk (whatever its ΔY) names the sit→stand; a lean held (leaky) in [25°, 70°) for
 30 s without walking ⇒ sitting; lie-to-sit needs θ 10° below the lying threshold (hysteresis); while
@@ -81,6 +82,7 @@ from gait_biofeedback.core.activity.transition import SitStandWindow, analyse_si
 from gait_biofeedback.core.stamps import NS_PER_S, s_to_ns, sample_stamps
 
 __all__ = [
+    "INITIAL_POSTURES",
     "LOCOMOTIONS",
     "POSTURES",
     "TRANSITIONS",
@@ -92,6 +94,7 @@ __all__ = [
 ]
 
 POSTURES = ("standing", "sitting", "lying")
+INITIAL_POSTURES = ("auto", *POSTURES)  # auto: see initial_posture_for
 LOCOMOTIONS = ("none", "level", "upstairs", "downstairs")
 REFERENCES = ("auto", "start")  # upright reference found in the stream (reference.py), or the first seconds
 TRANSITIONS = ("sit_to_stand", "stand_to_sit", "sit_to_lie", "lie_to_sit", "stand_to_lie", "lie_to_stand")
@@ -193,6 +196,21 @@ MERGE_STILL_S = 2.0  # between: getting up, people sit on the bed's edge a few s
 LEAN_RECOVERY = 4.0  # leaky hold: a second upright takes back 4 s (≥ 80 % of the time leaning)
 
 
+def initial_posture_for(placement: str, reference_given: bool) -> str:
+    """The posture a monitor starts in when it is not told (``initial_posture="auto"``). Our choice.
+
+    A chest accelerometer alone cannot tell standing still from sitting upright: the monitor believes
+    standing only on evidence (a walk of SIT_WALK_MIN_STEPS steps, or a sit→stand that walking
+    confirms; standing without either reverts to sitting after STAND_CONFIRM_S). At the start there
+    is no such evidence, so a chest starts seated (a patient is also seated while seven sensors are
+    strapped on). A given reference is a standing period (the thesis's Eq 14), and at the pelvis a level
+    decides within seconds: those start standing. Thighs, when they send, find the posture by their
+    first level (no event; ~4 s: their own quiet reference, then THIGH_HOLD_S). UCI chest, nothing
+    handed (benchmarks/activity.py): the first minute of every subject, seated, read standing before.
+    """
+    return "sitting" if placement == "chest" and not reference_given else "standing"
+
+
 def check_forward_axis(axis: np.ndarray) -> np.ndarray:
     """The axis as a float array; ValueError unless it is a finite non-zero 3-vector."""
     vector = np.asarray(axis, dtype=float)
@@ -272,6 +290,9 @@ class ActivityMonitor:
     ``acc``: one 3-vector (sensor axes, any mounting). Returns the state of the sample ``DELAY_S``
     before (``None`` until the delay line is full); call ``flush()`` at the end for the remaining
     states. Internally the detectors work on the stamps in float seconds (``stamp_ns / 1e9``).
+    ``initial_posture`` "auto": :func:`initial_posture_for`; an assumed posture gives way to the first
+    strong transition of either kind and to the first level (pelvis, thighs), which sets it without an
+    event.
     """
 
     def __init__(
@@ -285,15 +306,19 @@ class ActivityMonitor:
         align: bool = True,
         forward_axis: np.ndarray | None = None,
         thigh_length_m: float = DEFAULT_THIGH_LENGTH_M,
-        initial_posture: str = "standing",
+        initial_posture: str = "auto",
         placement: str = "chest",
     ) -> None:
         if placement not in PLACEMENTS:
             raise ValueError(f"placement must be one of {PLACEMENTS}, got {placement!r}")
         if not 20.0 <= rate_hz <= 200.0:
             raise ValueError(f"rate_hz must be in [20, 200], got {rate_hz}")
-        if initial_posture not in POSTURES:
-            raise ValueError(f"initial_posture must be one of {POSTURES}")
+        if initial_posture not in INITIAL_POSTURES:
+            raise ValueError(f"initial_posture must be one of {INITIAL_POSTURES}")
+        # an assumed posture (auto) gives way to the first strong transition of either kind (see _judge)
+        self._posture_assumed = initial_posture == "auto"
+        if initial_posture == "auto":
+            initial_posture = initial_posture_for(placement, reference_acc is not None)
         if reference not in REFERENCES:
             raise ValueError(f"reference must be one of {REFERENCES}, got {reference!r}")
         self.rate_hz = float(rate_hz)
@@ -419,6 +444,11 @@ class ActivityMonitor:
         self._valley = (theta, t)
 
     @property
+    def posture_assumed(self) -> bool:
+        """The posture is the start's assumption (``initial_posture="auto"``), not yet evidenced."""
+        return self._posture_assumed
+
+    @property
     def calibrated(self) -> bool:
         return self._rot is not None
 
@@ -477,7 +507,7 @@ class ActivityMonitor:
     def update(self, stamp_ns: int, acc, gyro=None) -> ActivityState | None:
         """Feed one sample (its stamp, acceleration 3-vector, angular velocity 3-vector or None);
         return the state of stamp − DELAY_S. The gyro only helps find the upright reference
-        (:class:`~gait_biofeedback.core.activity.reference.GyroWindow`); the detectors are the thesis's,
+        (:class:`~gait_biofeedback.core.activity.reference.WearerWindow`); the detectors are the thesis's,
         on the accelerometer.
 
         READING of Eq 54: θ = arccos(GA_v/|GA|) rather than GA_v/g. Both are the angle between the
@@ -807,6 +837,7 @@ class ActivityMonitor:
             self.transitions.append((t, kind))
         self._still_s = self._longest_still = 0.0
         self.posture = posture
+        self._posture_assumed = False
         self._relabel(t, posture=posture)
         unconfirmed = kind == "sit_to_stand" and not walked
         self._stand_deadline = t + STAND_CONFIRM_S if unconfirmed else math.inf
@@ -945,10 +976,10 @@ class ActivityMonitor:
         if window.svm_score < 0.0:
             # consistency: one can only sit down from standing; a weak stand→sit has no later cue
             # that could confirm it (sitting still looks like standing still), so it is rejected
-            if self.posture != "standing":
+            if self.posture != "standing" and not (self._posture_assumed and strong):
                 return "not standing"
             return "stand_to_sit" if strong else "weak"
-        if self.posture != "sitting":
+        if self.posture != "sitting" and not (self._posture_assumed and strong):
             return "not sitting"
         return "sit_to_stand" if strong else "sit_to_stand?"
 
@@ -976,7 +1007,7 @@ class ActivityMonitor:
             target = "sitting"
         else:
             target = self._level[0] if self._level else self.posture
-        if target == self.posture:
+        if target == self.posture and not self._posture_assumed:
             self._level = None
             return
         if self._level is None or self._level[0] != target:
@@ -988,6 +1019,10 @@ class ActivityMonitor:
         since = self._level[1]
         instant = (self._middle_t if since - hold <= self._middle_t <= since else since) - self._ga_delay
         self._level = None
+        if self._posture_assumed:  # the first reading of the level: a posture found, not a transition
+            self.posture, self._posture_assumed = target, False
+            self._relabel(since - hold, posture=target)
+            return
         kind = "sit_to_stand" if target == "standing" else "stand_to_sit"
         self._add_transition(instant, kind, target, walked=True)  # the level is the evidence: no deadline
 
@@ -1013,6 +1048,7 @@ class ActivityMonitor:
             self._lean_hold += dt
             if self._lean_hold >= SIT_LEAN_HOLD_S and self.posture == "standing":
                 self.posture = "sitting"
+                self._posture_assumed = False
                 self._pending_sit_stand = None
                 self._relabel(t, posture="sitting")
         else:
@@ -1049,7 +1085,8 @@ class ActivityMonitor:
             self.steps.extend(self._run)
             pending = self._pending_sit_stand
             if pending is not None and self.posture == "sitting" and self._run[0] <= pending[1]:
-                self._add_transition(pending[0], "sit_to_stand", "standing", walked=True)
+                # the event stands; standing itself needs a walk of SIT_WALK_MIN_STEPS within a minute
+                self._add_transition(pending[0], "sit_to_stand", "standing")
             self._pending_sit_stand = None
             self._relabel(self._run[0] - 0.5 * MIN_STEP_S, walking=True)
         if self.walking and len(self._run) >= SIT_WALK_MIN_STEPS:
@@ -1060,6 +1097,7 @@ class ActivityMonitor:
             if self.posture == "sitting":
                 self._overridden_onset = self._run[0]  # a stand-up analysed later may still name it
             self.posture = "standing"  # walking implies upright (Fig 27); no event is invented
+            self._posture_assumed = False
             self._relabel(self._run[0] - 0.5 * MIN_STEP_S, posture="standing")
 
 
@@ -1073,7 +1111,7 @@ def classify_activity(
     align: bool = True,
     forward_axis: np.ndarray | None = None,
     thigh_length_m: float = DEFAULT_THIGH_LENGTH_M,
-    initial_posture: str = "standing",
+    initial_posture: str = "auto",
     placement: str = "chest",
     thighs: Mapping[str, np.ndarray] | None = None,
     gyro: np.ndarray | None = None,

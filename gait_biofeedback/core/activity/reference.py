@@ -8,9 +8,11 @@ for two things, sample by sample, with no orientation yet:
 - a **quiet** period: ``quiet_s`` seconds in which every axis varies by less than
   ``QUIET_RELATIVE_STD`` of the mean's norm (2 %, 0.2 m/s²: a worn sensor standing still; the
   strap being fastened moves it far more). Its mean is a provisional "up": it may be a seated or
-  lying rest, which nothing in the accelerometer alone can tell from standing. With a gyro the
-  period must also show a wearer (:class:`GyroWindow`): a sensor lying on a table before it is worn
-  is as quiet as a standing wearer to the accelerometer, but its gyro reads only its own noise;
+  lying rest, which nothing in the accelerometer alone can tell from standing. The period must also
+  show a wearer (:class:`WearerWindow`, on the gyro, or without one on the accelerometer): a sensor
+  lying on a table before it is worn is as quiet as a standing wearer, but it reads only its own
+  noise, where a worn trunk sways and breathes (UCI chest subjects 6, 8, 10: 14-30 s on a table, their
+  counts' low band 0.5-1.5× white noise; worn and seated mostly 2-30×);
 - a **walking bout**: ``WALK_REFERENCE_STEPS`` successive peaks of the acceleration magnitude (the
   monitor's step detector, which needs no orientation), step intervals within the monitor's step
   duration, regular (interval CV < 25 %) and of steady direction. People walk upright, so the
@@ -67,10 +69,10 @@ def angle_between(a: np.ndarray, b: np.ndarray) -> float:
     return math.acos(max(-1.0, min(1.0, cos)))
 
 
-class GyroWindow:
-    """Whether the last ``n`` gyro samples show a wearer, not just the sensor's noise.
+class WearerWindow:
+    """Whether the last ``n`` gyro (or accelerometer) samples show a wearer, not just the sensor's noise.
 
-    The gyro is low-passed at WORN_LOW_HZ and band-passed from there to WORN_NOISE_HZ (two
+    The signal is low-passed at WORN_LOW_HZ and band-passed from there to WORN_NOISE_HZ (two
     Butterworth low-passes, per axis); the window's variances (bias-free) are compared as power
     densities, each against what white noise gives through the same filter (their impulse responses'
     energy). The filters start from the first reading and settle for WORN_SETTLE_S before the window
@@ -136,7 +138,8 @@ class UprightFinder:
     if there was none), :attr:`walk_steps` the bout's step times (s, corrected by the step filter's
     group delay, as the monitor's steps). After a walking bout the finder is :attr:`done`. A
     ``reference`` given is taken as a quiet one already found (a monitor restarted after a gap).
-    ``gyro`` (rad/s, any bias) or None: with a gyro, a quiet period counts only if it shows a wearer.
+    ``gyro`` (rad/s, any bias) or None: a quiet period counts only if the gyro, or without one the
+    accelerometer, shows a wearer (a noiseless simulated sensor passes: nothing to judge).
     ``rereference_rad``: how far from the walking bout a quiet reference may be and be kept.
     """
 
@@ -159,7 +162,8 @@ class UprightFinder:
         self._g = math.nan
         self._run: list[float] = []
         self._run_sum = [0.0] * 5  # Σx, Σy, Σz, Σ|a|, n since the run's first step
-        self._gyro = GyroWindow(rate_hz, self._n_quiet)
+        self._gyro = WearerWindow(rate_hz, self._n_quiet)
+        self._acc = WearerWindow(rate_hz, self._n_quiet)
 
     def update(self, t: float, ax: float, ay: float, az: float,
                gyro: tuple[float, float, float] | None = None) -> str | None:
@@ -173,7 +177,10 @@ class UprightFinder:
         walking = self._walk(t, ax, ay, az, norm)
         if gyro is not None:
             self._gyro.update(gyro)
-        if self.reference is None and self._is_quiet(ax, ay, az) and self._gyro.shows_wearer() is not False:
+        else:
+            self._acc.update((ax, ay, az))
+        wearer = self._gyro if gyro is not None else self._acc
+        if self.reference is None and self._is_quiet(ax, ay, az) and wearer.shows_wearer() is not False:
             self.reference = np.array(self._sums[:3]) / len(self._window)
             return "quiet"
         if walking is None:

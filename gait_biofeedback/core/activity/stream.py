@@ -30,8 +30,8 @@ import numpy as np
 
 from gait_biofeedback.core import quaternion as quat
 from gait_biofeedback.core.activity.monitor import (
+    INITIAL_POSTURES,
     PLACEMENTS,
-    POSTURES,
     REFERENCES,
     ActivityMonitor,
     ActivityState,
@@ -74,8 +74,10 @@ class ActivityParams:
                                     "sitting from standing while they send (their inclination; empty: the "
                                     "trunk alone)", choices=SEGMENTS)
     thigh_length: float = same_as(BodyDimensions, "thigh_length")
-    initial_posture: str = param("standing", "posture until a transition says otherwise (chest: standing "
-                                 "needs a walk within 60 s, else it is taken as sitting)", choices=POSTURES)
+    initial_posture: str = param("auto", "posture until a transition says otherwise (auto: sitting at the "
+                                 "chest, which cannot tell a still stand from sitting until the wearer "
+                                 "walks; standing at the pelvis, whose tilt tells them)",
+                                 choices=INITIAL_POSTURES)
     forward_axis: tuple[float, ...] = param(
         (1.0, 0.0, 0.0), "trunk forward in chest-sensor axes until a calibration gives it (decides upstairs "
         "vs downstairs only, until 10 s of the wearer's level walking are known)", "1", length=3)
@@ -112,6 +114,7 @@ class ActivityStream:
         self.counts = {"samples": 0, "nan_skipped": 0, "duplicates": 0, "late": 0, "bad_stamps": 0,
                        "restarts": 0}
         self._steps_before = 0  # steps counted by the monitors a restart replaced
+        self._assumption_said = False
         self.notices = Notices()
         self.latest: ActivityState | None = None
         self._last_ns: int | None = None
@@ -270,6 +273,10 @@ class ActivityStream:
             state = self.monitor.update(stamp_ns, acc, gyro)
             if len(self.monitor.reference_log) > self._references_said:
                 self._say_reference()
+            if state is not None and not self._assumption_said and self.monitor.posture_assumed:
+                self._assumption_said = True
+                self.notices.say("info", f"{segment}: posture {state.posture} assumed until a walk, a "
+                                         "transition or the thighs tell it (initial_posture: auto)")
             if state is not None:
                 out.append(self._state(state))
         return out
