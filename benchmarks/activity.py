@@ -1,6 +1,6 @@
 """Chest activity monitor (gait_biofeedback.core.activity.monitor) against real and simulated data.
 
-Run: ``.venv/bin/python benchmarks/activity.py`` (about 25 s; ``--rates``: only the HAPT table, with
+Run: ``.venv/bin/python benchmarks/activity.py`` (about 1 min; ``--rates``: only the HAPT table, with
 the phone resampled to 20, 50, 100 and 200 Hz; ``--cli``: only the UCI table with nothing handed and
 the HAPT table, each recording through ``import csv`` → ``analyze``, about 5 min). Prints tables for
 - UCI "Activity Recognition from a Single Chest-Mounted Accelerometer" (Casale, Pujol, Radeva 2011;
@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import glob
 import itertools
+import shutil
 import time
 import warnings
 from pathlib import Path
@@ -137,6 +138,8 @@ def uci(handed: bool, cli: bool = False) -> None:
                 lo, hi = _stand_up_window(a / UCI_RATE, out["steps"])
                 found += any(k == "sit_to_stand" and lo <= t <= hi for t, k in out["transitions"])
         rows.append((subject, sub, found, total, len(out["transitions"]), out))
+    if work is not None:
+        shutil.rmtree(work)
     print(f"{'subj':>5} {'posture':>8} {'sit':>6} {'stand':>6} {'walk det':>8} {'lvl/stairs':>10} "
           f"{'SiSt@2':>6} {'#PT':>4} {'cadence':>8}")
     for subject, sub, found, total, n_pt, out in rows:
@@ -275,7 +278,9 @@ def _uci_cli(acc_counts: np.ndarray, work: Path) -> dict:
     the counts written in g about mid-scale (400 counts/g; the monitor rescales to its static norm)."""
     path = work / "chest.csv"
     np.savetxt(path, acc_counts / 400.0, delimiter=",", header="acc-x,acc-y,acc-z", comments="", fmt="%.5f")
-    return _through_cli(str(path), UCI_MAPPING, None, UCI_RATE, len(acc_counts), work)
+    out = _through_cli(str(path), UCI_MAPPING, None, UCI_RATE, len(acc_counts), work)
+    path.unlink()
+    return out
 
 
 def hapt(rate_hz: float = HAPT_RATE, no_gyro: bool = False, cli: bool = False) -> None:
@@ -345,6 +350,8 @@ def hapt(rate_hz: float = HAPT_RATE, no_gyro: bool = False, cli: bool = False) -
         false += len(out["transitions"]) - len(used)
         hours += len(label) / rate_hz / 3600.0
         replaced += out["reference"][-1][1] == "walking"
+    if cli:
+        shutil.rmtree(work)
     print(f"{'score (per labelled sample)':>28} {'value':>7} {'goal':>5}")
     for name, (right, total) in hits.items():
         goal = HAPT_GOALS[name]

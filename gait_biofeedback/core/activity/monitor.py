@@ -166,8 +166,8 @@ WALK_ONSET_GAP_S = 5.0  # any θ excursion (peak ≥ 20°, whatever its ΔY) end
 # |ΔY| was often below the thesis gate (0.05–0.3 m, some of the wrong sign: short windows, reclined
 # seats whose θ only falls)
 ONSET_OVERLAP_S = 2.0
-STAND_CONFIRM_S = 60.0  # standing entered by a sit→stand and never followed by a walking bout within
-# 60 s reverts to sitting (no event): on dev, every false strong sit→stand was followed by minutes of
+STAND_CONFIRM_S = 60.0  # standing entered by a sit→stand and never followed by a walk of SIT_WALK_MIN_STEPS
+# within 60 s reverts to sitting (no event): on dev, every false strong sit→stand was followed by minutes of
 # sitting still, every true one by walking within 20 s
 SIT_WALK_MIN_STEPS = 8  # a walking bout overrides sitting/lying to standing only after 8 steps (dev:
 # false "walking" while seated were bouts of 3–4 peaks, real walks after standing up ≥ 5–21 steps)
@@ -203,10 +203,12 @@ def initial_posture_for(placement: str, reference_given: bool) -> str:
     standing only on evidence (a walk of SIT_WALK_MIN_STEPS steps, or a sit→stand that walking
     confirms; standing without either reverts to sitting after STAND_CONFIRM_S). At the start there
     is no such evidence, so a chest starts seated (a patient is also seated while seven sensors are
-    strapped on). A given reference is a standing period (the thesis's Eq 14), and at the pelvis a level
-    decides within seconds: those start standing. Thighs, when they send, find the posture by their
-    first level (no event; ~4 s: their own quiet reference, then THIGH_HOLD_S). UCI chest, nothing
-    handed (benchmarks/activity.py): the first minute of every subject, seated, read standing before.
+    strapped on). A given reference (or ``reference="start"``) is a standing period (the thesis's Eq
+    14), and at the pelvis a level decides within seconds: those start standing. Thighs, when they
+    send, find the posture by their first level (no event; ~4 s: their own quiet reference, then
+    THIGH_HOLD_S). Either way the posture is only assumed until a walk of SIT_WALK_MIN_STEPS, a
+    strong transition of either kind or a level says it. UCI chest, nothing handed
+    (benchmarks/activity.py): the first minute of every subject, seated, read standing before.
     """
     return "sitting" if placement == "chest" and not reference_given else "standing"
 
@@ -318,7 +320,8 @@ class ActivityMonitor:
         # an assumed posture (auto) gives way to the first strong transition of either kind (see _judge)
         self._posture_assumed = initial_posture == "auto"
         if initial_posture == "auto":
-            initial_posture = initial_posture_for(placement, reference_acc is not None)
+            given = reference_acc is not None or reference == "start"  # the thesis's standing period
+            initial_posture = initial_posture_for(placement, given)
         if reference not in REFERENCES:
             raise ValueError(f"reference must be one of {REFERENCES}, got {reference!r}")
         self.rate_hz = float(rate_hz)
@@ -502,6 +505,7 @@ class ActivityMonitor:
         self._level_lean_sum = list(previous._level_lean_sum)
         self._start_unconfirmed = False
         self._stand_deadline = previous._stand_deadline
+        self._posture_assumed = previous._posture_assumed
 
     # ---------------------------------------------------------------- per sample
     def update(self, stamp_ns: int, acc, gyro=None) -> ActivityState | None:
@@ -635,7 +639,7 @@ class ActivityMonitor:
         θ = 110° while moving (lying still head-down is allowed); UCI subjects 2, 4, 6, 8, 10, 11,
         13, 14 do so in their first 45 s (strap being fastened), which produced false sit→stand,
         walking and lying. Detection restarts 5 s after the last such sample with the walking,
-        excursion, lying and lean detectors cleared; the posture and the 60 s walking deadline of
+        excursion, lying and lean detectors cleared; the posture and the 60 s walk deadline of
         a sit→stand are kept. (A criterion on |a| > 3.5 g was tried and dropped: the simulator's
         walking reaches it.)
         """
@@ -817,7 +821,7 @@ class ActivityMonitor:
 
     # ---------------------------------------------------------------- detectors
     def _add_transition(self, t: float, kind: str, posture: str, *, walked: bool = False) -> None:
-        """Record an event; a sit→stand not yet followed by walking must see walking within 60 s.
+        """Record an event; a sit→stand not yet followed by a walk must see one within 60 s.
 
         Stand→sit then sit→lie within MERGE_S (MERGE_MOVING_S without a still moment between) is one
         stand→lie at the first instant, lie→sit then sit→stand one lie→stand (HAPT's six transitions;
@@ -838,6 +842,8 @@ class ActivityMonitor:
         self._still_s = self._longest_still = 0.0
         self.posture = posture
         self._posture_assumed = False
+        self._pending_sit_stand = None  # older than this event: it cannot follow it
+        self._excursions.clear()
         self._relabel(t, posture=posture)
         unconfirmed = kind == "sit_to_stand" and not walked
         self._stand_deadline = t + STAND_CONFIRM_S if unconfirmed else math.inf
@@ -976,10 +982,10 @@ class ActivityMonitor:
         if window.svm_score < 0.0:
             # consistency: one can only sit down from standing; a weak stand→sit has no later cue
             # that could confirm it (sitting still looks like standing still), so it is rejected
-            if self.posture != "standing" and not (self._posture_assumed and strong):
+            if self.posture != "standing" and not self._posture_assumed:
                 return "not standing"
             return "stand_to_sit" if strong else "weak"
-        if self.posture != "sitting" and not (self._posture_assumed and strong):
+        if self.posture != "sitting" and not self._posture_assumed:
             return "not sitting"
         return "sit_to_stand" if strong else "sit_to_stand?"
 
@@ -1005,6 +1011,8 @@ class ActivityMonitor:
             target = "standing"
         elif value > sit:
             target = "sitting"
+        elif self._level is None and self._posture_assumed:
+            return  # between the two levels: no evidence for the assumed posture either way
         else:
             target = self._level[0] if self._level else self.posture
         if target == self.posture and not self._posture_assumed:
@@ -1021,7 +1029,7 @@ class ActivityMonitor:
         self._level = None
         if self._posture_assumed:  # the first reading of the level: a posture found, not a transition
             self.posture, self._posture_assumed = target, False
-            self._relabel(since - hold, posture=target)
+            self._relabel(since, posture=target)
             return
         kind = "sit_to_stand" if target == "standing" else "stand_to_sit"
         self._add_transition(instant, kind, target, walked=True)  # the level is the evidence: no deadline
@@ -1089,15 +1097,17 @@ class ActivityMonitor:
                 self._add_transition(pending[0], "sit_to_stand", "standing")
             self._pending_sit_stand = None
             self._relabel(self._run[0] - 0.5 * MIN_STEP_S, walking=True)
-        if self.walking and len(self._run) >= SIT_WALK_MIN_STEPS:
-            self._stand_deadline = math.inf  # a real walk (not a seated wearer's few peaks) confirms standing
-        if self.walking and self.posture != "standing" and len(self._run) >= SIT_WALK_MIN_STEPS:
-            if self._stand_up_before_walking(self._run[0]):
+        if not (self.walking and len(self._run) >= SIT_WALK_MIN_STEPS):
+            return
+        self._stand_deadline = math.inf  # a real walk (not a seated wearer's few peaks) confirms standing
+        assumed, self._posture_assumed = self._posture_assumed, False
+        if self.posture != "standing":
+            # an assumed seat may have been a standing wearer's bow before the walk: no event from it
+            if not assumed and self._stand_up_before_walking(self._run[0]):
                 return
-            if self.posture == "sitting":
+            if self.posture == "sitting" and not assumed:
                 self._overridden_onset = self._run[0]  # a stand-up analysed later may still name it
             self.posture = "standing"  # walking implies upright (Fig 27); no event is invented
-            self._posture_assumed = False
             self._relabel(self._run[0] - 0.5 * MIN_STEP_S, posture="standing")
 
 

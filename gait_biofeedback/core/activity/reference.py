@@ -77,8 +77,8 @@ class WearerWindow:
     densities, each against what white noise gives through the same filter (their impulse responses'
     energy). The filters start from the first reading and settle for WORN_SETTLE_S before the window
     takes their output (a start-up transient is low-frequency power the sensor never had).
-    :meth:`shows_wearer` is None before any reading and when the gyro is exactly constant (a driver
-    that sends no gyro: the accelerometer alone decides), False until the window is full.
+    :meth:`shows_wearer` is None before any reading and when the signal is exactly constant (a driver
+    that sends no gyro: the accelerometer's window decides instead), False until the window is full.
     """
 
     def __init__(self, rate_hz: float, n: int) -> None:
@@ -138,8 +138,9 @@ class UprightFinder:
     if there was none), :attr:`walk_steps` the bout's step times (s, corrected by the step filter's
     group delay, as the monitor's steps). After a walking bout the finder is :attr:`done`. A
     ``reference`` given is taken as a quiet one already found (a monitor restarted after a gap).
-    ``gyro`` (rad/s, any bias) or None: a quiet period counts only if the gyro, or without one the
-    accelerometer, shows a wearer (a noiseless simulated sensor passes: nothing to judge).
+    ``gyro`` (rad/s, any bias) or None: a quiet period counts only if the gyro, or without one (or with
+    one that sends a constant) the accelerometer, shows a wearer (a noiseless simulated sensor passes:
+    nothing to judge).
     ``rereference_rad``: how far from the walking bout a quiet reference may be and be kept.
     """
 
@@ -175,14 +176,16 @@ class UprightFinder:
             self._svm.reset_steady(0.0)
         self._g += self._alpha * (norm - self._g)
         walking = self._walk(t, ax, ay, az, norm)
-        if gyro is not None:
-            self._gyro.update(gyro)
-        else:
+        if self.reference is None:
+            if gyro is not None:
+                self._gyro.update(gyro)
             self._acc.update((ax, ay, az))
-        wearer = self._gyro if gyro is not None else self._acc
-        if self.reference is None and self._is_quiet(ax, ay, az) and wearer.shows_wearer() is not False:
-            self.reference = np.array(self._sums[:3]) / len(self._window)
-            return "quiet"
+            wearer = self._gyro.shows_wearer()  # None: no gyro, or one that sends a constant
+            if wearer is None:
+                wearer = self._acc.shows_wearer()
+            if self._is_quiet(ax, ay, az) and wearer is not False:
+                self.reference = np.array(self._sums[:3]) / len(self._window)
+                return "quiet"
         if walking is None:
             return None
         self.done = True

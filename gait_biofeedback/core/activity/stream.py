@@ -276,7 +276,8 @@ class ActivityStream:
             if state is not None and not self._assumption_said and self.monitor.posture_assumed:
                 self._assumption_said = True
                 self.notices.say("info", f"{segment}: posture {state.posture} assumed until a walk, a "
-                                         "transition or the thighs tell it (initial_posture: auto)")
+                                         "transition or a level (pelvis tilt, thighs) tells it "
+                                         "(initial_posture: auto)")
             if state is not None:
                 out.append(self._state(state))
         return out
