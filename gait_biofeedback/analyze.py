@@ -651,7 +651,7 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
 
 def _write(path: Path, records: list[tuple[int, str, str, bytes]], overwrite: bool) -> None:
     records.sort(key=lambda r: r[0])
-    with BagWriter(path, overwrite=overwrite) as writer:
+    with BagWriter(path, overwrite=overwrite, flush_period=None) as writer:
         for log_ns, topic, type_name, data in records:
             writer.write_serialized(topic, type_name, data, log_ns)
 

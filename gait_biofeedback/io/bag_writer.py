@@ -32,6 +32,7 @@ from gait_biofeedback.io.mcap_writer import McapWriter
 from gait_biofeedback.io.params import COMPRESSIONS as COMPRESSION_NAMES
 from gait_biofeedback.io.schemas import schema_text, type_description_hash, type_name_of
 from gait_biofeedback.wire.cdr import serialize
+from gait_biofeedback.wire.padding import zero_padding
 
 COMPRESSIONS = dict(zip(COMPRESSION_NAMES, ("zstd", "lz4", ""), strict=True))
 LIBRARY = "gait_biofeedback"
@@ -97,7 +98,9 @@ class BagWriter:
     ``path`` is the bag folder; files are ``<path>/<path.name>_0.mcap``, ``_1.mcap`` … (a new one
     when ``split_size`` bytes or ``split_duration`` seconds of log time are exceeded).
     ``flush_period`` (s, wall clock) bounds how much a crash can lose; call :meth:`maybe_flush` from
-    a timer when messages may stop arriving. Use as a context manager or call :meth:`close`.
+    a timer when messages may stop arriving. ``flush_period=None`` (offline writers: ``analyze``,
+    ``import``, ``simulate``) closes chunks by size only, so that the same messages give the same file
+    byte for byte. Use as a context manager or call :meth:`close`.
     Not thread-safe: call it from one thread.
     """
 
@@ -106,7 +109,7 @@ class BagWriter:
         path: str | Path,
         *,
         compression: str = "zstd",
-        flush_period: float = 1.0,
+        flush_period: float | None = 1.0,
         split_size: int | None = None,
         split_duration: float | None = None,
         overwrite: bool = False,
@@ -114,7 +117,7 @@ class BagWriter:
     ) -> None:
         if compression not in COMPRESSIONS:
             raise ValueError(f"compression {compression!r} unknown; use one of {sorted(COMPRESSIONS)}")
-        if flush_period <= 0:
+        if flush_period is not None and flush_period <= 0:
             raise ValueError(f"flush_period must be > 0 s, got {flush_period}")
         self.path = Path(path)
         self._compression = COMPRESSIONS[compression]
@@ -193,7 +196,8 @@ class BagWriter:
     def write_serialized(
         self, topic: str, type_name: str, data: bytes, log_time_ns: int, publish_time_ns: int | None = None
     ) -> None:
-        """Write a CDR-serialised message of ``type_name`` (``pkg/msg/Type``)."""
+        """Write a CDR-serialised message of ``type_name`` (``pkg/msg/Type``), its padding bytes zeroed
+        (:func:`~gait_biofeedback.io.padding.zero_padding`)."""
         if self._closed:
             raise ValueError(f"bag {self.path} is closed; open a new BagWriter to write more")
         record = self._topics.get(topic) or self.add_topic(topic, type_name)
@@ -204,7 +208,7 @@ class BagWriter:
         part = self._part
         channel_id = part.channel_ids.get(topic) or self._register(part, record)
         self._sequence[topic] += 1
-        part.writer.add_message(channel_id, log_time_ns, data,
+        part.writer.add_message(channel_id, log_time_ns, zero_padding(data, type_name),
                                 log_time_ns if publish_time_ns is None else int(publish_time_ns),
                                 self._sequence[topic] & 0xFFFFFFFF)
         file_record = part.record
@@ -262,7 +266,7 @@ class BagWriter:
 
     def maybe_flush(self) -> None:
         """:meth:`flush` if ``flush_period`` seconds have passed since the last flush."""
-        if time.monotonic() - self._last_flush >= self._flush_period:
+        if self._flush_period is not None and time.monotonic() - self._last_flush >= self._flush_period:
             self.flush()
 
     @property

@@ -64,7 +64,7 @@ def write_imu_bag(
     stream_of = np.concatenate([np.full(len(s[2]), k) for k, s in enumerate(streams)]) if streams else all_ns
     sample_of = np.concatenate([np.arange(len(s[2])) for s in streams]) if streams else all_ns
     order = np.argsort(all_ns, kind="stable")
-    with BagWriter(path, **writer_options) as writer:
+    with BagWriter(path, **{"flush_period": None, **writer_options}) as writer:
         write = writer.write_serialized
         for t, k, i in zip(
             all_ns[order].tolist(), stream_of[order].tolist(), sample_of[order].tolist(), strict=True

@@ -16,7 +16,8 @@ import re
 import sys
 from functools import cache
 from pathlib import Path
-from typing import Any
+
+from gait_biofeedback.wire.padding import type_name_of  # noqa: F401 - re-exported: io's users import it here
 
 SEPARATOR = "=" * 80
 PRIMITIVE_TYPES = frozenset(
@@ -27,13 +28,6 @@ PRIMITIVE_TYPES = frozenset(
 )  # fmt: skip
 _FIELD_TYPE = re.compile(r"^\s*([A-Za-z][\w/]*)")
 _CONSTANT = re.compile(r"\s*\w+\s*=")
-
-
-def type_name_of(msg_or_class: Any) -> str:
-    """ROS 2 type name (``pkg/msg/Type``) of an rclpy message instance or class."""
-    cls = msg_or_class if isinstance(msg_or_class, type) else type(msg_or_class)
-    package = cls.__module__.split(".")[0]
-    return f"{package}/msg/{cls.__name__}"
 
 
 def split_type_name(type_name: str) -> tuple[str, str]:

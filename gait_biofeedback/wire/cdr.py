@@ -23,8 +23,8 @@ from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import Imu, MagneticField
 
 from gait_biofeedback.core.stamps import NS_PER_S
+from gait_biofeedback.wire.padding import CDR_LE, type_name_of, zero_padding
 
-CDR_LE = b"\x00\x01\x00\x00"
 IMU_DOUBLES, MAG_DOUBLES = 37, 12
 _NS = NS_PER_S
 _HEADER = 16  # encapsulation, sec, nanosec, string length
@@ -245,69 +245,11 @@ def decode_mag(data: bytes) -> Stamped:
 
 # -- any rclpy message ------------------------------------------------------------------------------
 
-_PRIMITIVE_SIZES = {"boolean": 1, "octet": 1, "byte": 1, "char": 1, "uint8": 1, "int8": 1, "uint16": 2,
-                    "int16": 2, "uint32": 4, "int32": 4, "float": 4, "uint64": 8, "int64": 8, "double": 8}
-
-
-def _encoded_end(value: Any, type_name: str, pos: int) -> int:
-    """Offset (after the encapsulation) just past ``value`` of ROS type ``type_name`` encoded at ``pos``
-    in XCDR1: primitives aligned to their size; strings and sequences a 4-aligned uint32 length first;
-    an empty sequence has no element alignment."""
-    size = _PRIMITIVE_SIZES.get(type_name)
-    if size is not None:
-        return pos + (-pos) % size + size
-    if type_name.startswith(("string", "wstring")):
-        pos += (-pos) % 4
-        return pos + 4 + len(value.encode("utf-8")) + 1
-    if type_name.startswith("sequence<"):
-        pos += (-pos) % 4 + 4
-        return _elements_end(value, type_name[len("sequence<"):-1].split(",")[0].strip(), pos)
-    if type_name.endswith("]"):
-        return _elements_end(value, type_name[: type_name.index("[")], pos)
-    return _message_end(value, pos)
-
-
-def _message_end(msg: Any, pos: int) -> int:
-    for name, field_type in msg.get_fields_and_field_types().items():
-        pos = _encoded_end(getattr(msg, name), field_type, pos)
-    return pos
-
-
-def _elements_end(values: Any, element_type: str, pos: int) -> int:
-    size = _PRIMITIVE_SIZES.get(element_type)
-    n = len(values)
-    if size is not None:
-        return pos + ((-pos) % size + size * n if n else 0)
-    for v in values:
-        pos = _encoded_end(v, element_type, pos)
-    return pos
-
-
-def _has_sequence(msg: Any) -> bool:
-    """True when ``msg``'s type (or a message inside it) has a sequence field."""
-    for name, field_type in msg.get_fields_and_field_types().items():
-        if field_type.startswith("sequence<"):
-            return True
-        if "/" in field_type and not field_type.endswith("]") and _has_sequence(getattr(msg, name)):
-            return True
-    return False
-
-
-_MAY_OVERRUN: dict[type, bool] = {}
-
-
 def serialize(msg: Any) -> bytes:
-    """``serialize_message`` of any rclpy message, cut to its exact XCDR1 size.
+    """``serialize_message`` of any rclpy message, cut to its exact XCDR1 size, its padding zeroed.
 
     rclpy's buffer can run past the encoding (a sensor_msgs/JointState with empty ``velocity`` and
     ``effort`` gets 8 trailing bytes); DDS sends the exact size, and strict readers (the PyPI
-    ``rosbags``) refuse the longer form, so every message the project writes goes through here. Only
-    an empty sequence makes that padding: types without sequences (Imu, MagneticField) are not
-    measured."""
-    data = serialize_message(msg)
-    overrun = _MAY_OVERRUN.get(type(msg))
-    if overrun is None:
-        overrun = _MAY_OVERRUN[type(msg)] = _has_sequence(msg)
-    if not overrun:
-        return data
-    return data[: len(CDR_LE) + _message_end(msg, 0)] if data[:4] == CDR_LE else data
+    ``rosbags``) refuse the longer form, so every message the project writes goes through here. The
+    padding rclpy leaves unwritten is zeroed (:mod:`.padding`)."""
+    return zero_padding(serialize_message(msg), type_name_of(msg), cut=True)
