@@ -8,6 +8,7 @@ import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import Imu, JointState
+from std_msgs.msg import Empty
 from visualization_msgs.msg import Marker, MarkerArray
 
 import gait_biofeedback_msgs.msg as project_msgs
@@ -52,7 +53,8 @@ def test_imu_padding_is_zeroed() -> None:
     assert padding.zero_padding(clean, "sensor_msgs/msg/Imu") is clean  # nothing to do: not copied
 
 
-@pytest.mark.parametrize("damage", ["truncated", "big endian", "unknown type"])
+@pytest.mark.parametrize("damage", ["truncated", "big endian", "unknown type", "no package", "far too long",
+                                    "huge count"])
 def test_bytes_it_cannot_walk_come_back_unchanged(damage: str) -> None:
     dirty, _ = joint_state_by_hand(0xAA)
     type_name = JOINT_STATES
@@ -60,9 +62,27 @@ def test_bytes_it_cannot_walk_come_back_unchanged(damage: str) -> None:
         dirty = dirty[:30]
     elif damage == "big endian":
         dirty = b"\x00\x00\x00\x00" + dirty[4:]
-    else:
+    elif damage == "unknown type":
         type_name = "no_such_pkg/msg/Thing"
+    elif damage == "no package":
+        type_name = "JointState"
+    elif damage == "far too long":  # as another version of the type, with more fields, would be
+        dirty += b"\xaa" * 16
+    else:  # the name sequence's count
+        dirty = dirty[:20] + struct.pack("<I", 0xFFFFFFFF) + dirty[24:]
     assert padding.zero_padding(dirty, type_name) == dirty
+
+
+def test_the_encapsulation_options_are_kept_and_a_short_overrun_zeroed() -> None:
+    """XTypes 1.3 writers may set the options bytes (2-3) of the header; rclpy's buffer runs up to
+    8 bytes past the message: zeroed (``cut``: dropped)."""
+    dirty, _ = joint_state_by_hand(0xAA)
+    clean, _ = joint_state_by_hand(0)
+    with_options = dirty[:3] + b"\x03" + dirty[4:]
+    assert padding.zero_padding(with_options, JOINT_STATES) == clean[:3] + b"\x03" + clean[4:]
+    overrun = dirty + b"\xee" * 8
+    assert padding.zero_padding(overrun, JOINT_STATES) == clean + bytes(8)
+    assert padding.zero_padding(overrun, JOINT_STATES, cut=True) == clean
 
 
 def _filled(msg_class: type, depth: int = 0):
@@ -90,7 +110,8 @@ def _filled(msg_class: type, depth: int = 0):
 
 def _message_types() -> list[type]:
     project = [getattr(project_msgs, n) for n in dir(project_msgs) if n[0].isupper()]
-    return [*project, Imu, JointState, DiagnosticArray, DiagnosticStatus, KeyValue, Marker, MarkerArray]
+    return [*project, Imu, JointState, DiagnosticArray, DiagnosticStatus, KeyValue, Marker, MarkerArray,
+            Empty]
 
 
 @pytest.fixture(scope="module")
@@ -113,7 +134,7 @@ def test_every_recorded_type_comes_out_as_rosbags_encodes_it(msg_class: type, ro
     ours = serialize(msg)
     canonical = rosbags_store.serialize_cdr(rosbags_store.deserialize_cdr(ours, type_name), type_name)
     assert ours == canonical
-    longer = serialize_message(msg) + b"\xee" * 8  # as if rclpy's buffer ran past the message
+    longer = serialize_message(msg)[:len(canonical)] + b"\xee" * 8  # rclpy's buffer ran past the message
     assert padding.zero_padding(longer, type_name, cut=True) == canonical
 
 

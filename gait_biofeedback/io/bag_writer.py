@@ -99,8 +99,8 @@ class BagWriter:
     when ``split_size`` bytes or ``split_duration`` seconds of log time are exceeded).
     ``flush_period`` (s, wall clock) bounds how much a crash can lose; call :meth:`maybe_flush` from
     a timer when messages may stop arriving. ``flush_period=None`` (offline writers: ``analyze``,
-    ``import``, ``simulate``) closes chunks by size only, so that the same messages give the same file
-    byte for byte. Use as a context manager or call :meth:`close`.
+    ``import``, ``simulate``, fault injection) closes chunks by size only, so that the same messages
+    give the same file byte for byte. Use as a context manager or call :meth:`close`.
     Not thread-safe: call it from one thread.
     """
 
@@ -197,7 +197,7 @@ class BagWriter:
         self, topic: str, type_name: str, data: bytes, log_time_ns: int, publish_time_ns: int | None = None
     ) -> None:
         """Write a CDR-serialised message of ``type_name`` (``pkg/msg/Type``), its padding bytes zeroed
-        (:func:`~gait_biofeedback.io.padding.zero_padding`)."""
+        (:func:`~gait_biofeedback.wire.padding.zero_padding`)."""
         if self._closed:
             raise ValueError(f"bag {self.path} is closed; open a new BagWriter to write more")
         record = self._topics.get(topic) or self.add_topic(topic, type_name)

@@ -25,7 +25,8 @@ CDR_LE = b"\x00\x01\x00\x00"
 _SIZES = {"boolean": 1, "octet": 1, "byte": 1, "char": 1, "uint8": 1, "int8": 1, "uint16": 2, "int16": 2,
           "uint32": 4, "int32": 4, "float": 4, "uint64": 8, "int64": 8, "double": 8}
 _U32 = struct.Struct("<I")
-_STAMPED = {"sensor_msgs/msg/Imu": 37, "sensor_msgs/msg/MagneticField": 12}  # header, then float64 only
+# header, then float64 only (cdr.IMU_DOUBLES, MAG_DOUBLES; cdr imports this module)
+_STAMPED = {"sensor_msgs/msg/Imu": 37, "sensor_msgs/msg/MagneticField": 12}
 
 # A plan is a tuple of steps: ("p", size) a primitive, ("s",) a string, ("q", element plan or size) a
 # sequence, ("a", n, element plan or size) a fixed array; a message's steps are inlined.
@@ -38,7 +39,7 @@ def _plan(type_name: str) -> tuple:
     steps: list = []
     for field_type in message.get_fields_and_field_types().values():
         steps.extend(_field_steps(field_type))
-    return tuple(steps)
+    return tuple(steps) or (("p", 1),)  # a message without fields is encoded as one uint8
 
 
 def _element(type_name: str) -> int | tuple:
@@ -48,14 +49,14 @@ def _element(type_name: str) -> int | tuple:
 def _field_steps(field_type: str) -> tuple:
     if field_type in _SIZES:
         return (("p", _SIZES[field_type]),)
-    if "wstring" in field_type:
+    if field_type == "wstring" or field_type.startswith("wstring<"):
         raise ValueError("wstring: the width of its characters is not fixed by XCDR1")
     if field_type.startswith("sequence<"):
         return (("q", _element(field_type[len("sequence<"):-1].split(",")[0].strip())),)
     if field_type.endswith("]"):  # a fixed array: double[9], string[3], geometry_msgs/Point[2]
         base, n = field_type[:-1].rsplit("[", 1)
         return (("a", int(n), _element(base)),)
-    if field_type.startswith("string"):
+    if field_type == "string" or field_type.startswith("string<"):
         return (("s",),)
     return _plan(field_type)
 
@@ -102,12 +103,13 @@ def type_name_of(msg_or_class: object) -> str:
 
 
 def zero_padding(data: bytes, type_name: str, cut: bool = False) -> bytes:
-    """``data`` (XCDR1 little endian of ``type_name``, ``pkg/msg/Type``) with every padding byte 0;
-    ``cut``: also without the bytes past the message's end (rclpy's buffer can run past it: a
-    JointState with empty ``velocity`` and ``effort`` gets 8 more). Bytes this cannot walk (another
-    encoding, an unknown type, a wstring, bytes that end inside the message) come back unchanged: a
-    message is never lost for its padding."""
-    if data[:4] != CDR_LE:
+    """``data`` (XCDR1 little endian of ``type_name``, ``pkg/msg/Type``) with every padding byte 0,
+    and the bytes past the message's end (rclpy's buffer can run up to 8 past it: a JointState with
+    empty ``velocity`` and ``effort``) zeroed, or dropped with ``cut``. Bytes this cannot walk
+    (another encoding, an unknown type, a wstring, bytes that end inside the message or more than 8
+    bytes after it, as another version of the type would) come back unchanged: a message is never
+    lost for its padding. The encapsulation's options (bytes 2-3) are kept."""
+    if data[:2] != CDR_LE[:2]:
         return data
     doubles = _STAMPED.get(type_name)
     if doubles is not None and len(data) >= 16:  # the hot path: header, then float64 only
@@ -119,6 +121,11 @@ def zero_padding(data: bytes, type_name: str, cut: bool = False) -> bytes:
     buf = bytearray(data)
     try:
         end = 4 + _walk(buf, _plan(type_name), 0)
-    except (ValueError, IndexError, struct.error, ImportError, AttributeError):
+    except Exception:  # whatever the walk meets, the message is kept as it came
         return data
-    return bytes(buf[:end] if cut else buf)
+    if len(data) - end > 8:
+        return data
+    if cut:
+        return bytes(buf[:end])
+    buf[end:] = bytes(len(data) - end)
+    return bytes(buf)
