@@ -48,6 +48,20 @@ else:
 SHARED_DATA = REPO.parent / "shared" / "data"
 
 
+def rosbags_typestore():
+    """The PyPI ``rosbags`` typestore of ROS 2 Jazzy with the project's messages registered."""
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+    import gait_biofeedback_msgs.msg as project_msgs
+    from gait_biofeedback.io.schemas import msg_text
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    for name in (n for n in dir(project_msgs) if n[0].isupper()):
+        store.register(get_types_from_msg(msg_text("gait_biofeedback_msgs", name),
+                                          f"gait_biofeedback_msgs/msg/{name}"))
+    return store
+
+
 def shared_data(*parts: str) -> Path:
     """Path under ../shared/data, or skip the test with the reason when it is not there."""
     path = SHARED_DATA.joinpath(*parts)

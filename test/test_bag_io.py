@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import rosbags_typestore
 from mcap.reader import make_reader
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import Imu, MagneticField
@@ -23,12 +24,10 @@ from gait_biofeedback.io.bag import (
     write_imu_bag,
 )
 from gait_biofeedback.io.mcap_file import McapFile
-from gait_biofeedback.io.schemas import SEPARATOR, msg_text, schema_text
+from gait_biofeedback.io.schemas import SEPARATOR, schema_text
 from gait_biofeedback.wire.cdr import IMU_DOUBLES, decode_stamped
 from gait_biofeedback.wire.imu import encode_series, series_messages
 from gait_biofeedback_msgs.msg import GaitEvent, SegmentCalibration, SegmentCalibrationArray
-
-MSG_PACKAGE = "gait_biofeedback_msgs"
 
 
 def synthetic_imu(with_mag: bool, n: int = 150, seed: int = 1) -> dict[str, ImuSeries]:
@@ -147,13 +146,10 @@ def test_custom_messages_round_trip_in_log_time_order(tmp_path: Path) -> None:
 
 def test_rosbags_reads_imu_and_custom_messages(tmp_path: Path) -> None:
     from rosbags.highlevel import AnyReader
-    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
     imu = {s: v for s, v in synthetic_imu(with_mag=True, n=20).items() if s in ("pelvis", "chest")}
     bag = write_imu_bag(tmp_path / "interop", imu, extra=[("/gait/events", gait_event(7), 3_100_000_000)])
-    typestore = get_typestore(Stores.ROS2_JAZZY)
-    for name in ("GaitEvent", "SegmentCalibration", "SegmentCalibrationArray"):
-        typestore.register(get_types_from_msg(msg_text(MSG_PACKAGE, name), f"{MSG_PACKAGE}/msg/{name}"))
+    typestore = rosbags_typestore()
     with AnyReader([bag], default_typestore=typestore) as reader:
         assert reader.message_count == 2 * 2 * 20 + 1
         by_topic = {c.topic: c for c in reader.connections}

@@ -7,22 +7,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import rosbags_typestore
 
 from gait_biofeedback.cli import main
 from gait_biofeedback.io.bag import bag_files
-from gait_biofeedback.io.schemas import msg_text
-
-MSG_PACKAGE = "gait_biofeedback_msgs"
 
 
 def _rosbags_decode_all(bag: Path) -> dict[str, int]:
     from rosbags.highlevel import AnyReader
-    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-    typestore = get_typestore(Stores.ROS2_JAZZY)
-    for name in ("ActivityState", "BiofeedbackCue", "GaitCycle", "GaitEvent", "SegmentCalibration",
-                 "SegmentCalibrationArray", "StrideSpace"):
-        typestore.register(get_types_from_msg(msg_text(MSG_PACKAGE, name), f"{MSG_PACKAGE}/msg/{name}"))
+    typestore = rosbags_typestore()
     counts: dict[str, int] = {}
     with AnyReader([bag], default_typestore=typestore) as reader:
         for conn, _, raw in reader.messages():

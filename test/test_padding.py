@@ -5,6 +5,7 @@ from __future__ import annotations
 import struct
 
 import pytest
+from conftest import rosbags_typestore
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import Imu, JointState
@@ -12,9 +13,10 @@ from std_msgs.msg import Empty
 from visualization_msgs.msg import Marker, MarkerArray
 
 import gait_biofeedback_msgs.msg as project_msgs
+from gait_biofeedback.io import bag_writer
 from gait_biofeedback.io.bag_reader import BagReader
 from gait_biofeedback.io.bag_writer import BagWriter
-from gait_biofeedback.io.schemas import msg_text, type_name_of
+from gait_biofeedback.io.schemas import type_name_of
 from gait_biofeedback.wire import padding
 from gait_biofeedback.wire.cdr import pack_imu, serialize
 
@@ -116,13 +118,7 @@ def _message_types() -> list[type]:
 
 @pytest.fixture(scope="module")
 def rosbags_store():
-    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
-
-    store = get_typestore(Stores.ROS2_JAZZY)
-    for name in (n for n in dir(project_msgs) if n[0].isupper()):
-        store.register(get_types_from_msg(msg_text("gait_biofeedback_msgs", name),
-                                          f"gait_biofeedback_msgs/msg/{name}"))
-    return store
+    return rosbags_typestore()
 
 
 @pytest.mark.parametrize("msg_class", _message_types(), ids=lambda c: c.__name__)
@@ -148,35 +144,24 @@ def test_the_bag_writer_records_zeroed_padding(tmp_path) -> None:
     assert bytes(data) == clean
 
 
-def _write_joint_states(path, clock=None, **options) -> bytes:
+def _write_joint_states(path, **options) -> bytes:
     clean, _ = joint_state_by_hand(0)
-    import gait_biofeedback.io.bag_writer as bag_writer
-
-    real = bag_writer.time.monotonic
-    if clock is not None:
-        bag_writer.time.monotonic = clock
-    try:
-        with BagWriter(path, **options) as writer:
-            for k in range(300):
-                writer.write_serialized("/joint_states", JOINT_STATES, clean, 1_000 + k)
-    finally:
-        bag_writer.time.monotonic = real
+    with BagWriter(path, **options) as writer:
+        for k in range(300):
+            writer.write_serialized("/joint_states", JOINT_STATES, clean, 1_000 + k)
     return (path / f"{path.name}_0.mcap").read_bytes()
 
 
-def test_an_offline_writer_gives_the_same_file_whatever_the_wall_clock(tmp_path) -> None:
+def test_an_offline_writer_gives_the_same_file_whatever_the_wall_clock(tmp_path, monkeypatch) -> None:
     """``flush_period=None`` closes chunks by size only; the live default closes one each wall-clock
     second, so a slow run (here a clock that jumps 0.5 s per reading) splits the same messages
     differently."""
-    ticks = iter(range(10**6))
-
-    def slow_clock() -> float:
-        return 0.5 * next(ticks)
-
     quick = _write_joint_states(tmp_path / "quick", flush_period=None)
-    assert _write_joint_states(tmp_path / "slow", slow_clock, flush_period=None) == quick
     live_quick = _write_joint_states(tmp_path / "live_quick")
-    assert _write_joint_states(tmp_path / "live_slow", slow_clock) != live_quick
+    ticks = iter(range(10**6))
+    monkeypatch.setattr(bag_writer.time, "monotonic", lambda: 0.5 * next(ticks))
+    assert _write_joint_states(tmp_path / "slow", flush_period=None) == quick
+    assert _write_joint_states(tmp_path / "live_slow") != live_quick
 
 
 def test_field_types_read_as_xcdr1_lays_them_out() -> None:

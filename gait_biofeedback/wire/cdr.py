@@ -23,9 +23,8 @@ from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import Imu, MagneticField
 
 from gait_biofeedback.core.stamps import NS_PER_S
-from gait_biofeedback.wire.padding import CDR_LE, type_name_of, zero_padding
+from gait_biofeedback.wire.padding import CDR_LE, IMU_DOUBLES, MAG_DOUBLES, type_name_of, zero_padding
 
-IMU_DOUBLES, MAG_DOUBLES = 37, 12
 _NS = NS_PER_S
 _HEADER = 16  # encapsulation, sec, nanosec, string length
 

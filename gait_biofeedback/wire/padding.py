@@ -21,12 +21,12 @@ import struct
 from functools import cache
 
 CDR_LE = b"\x00\x01\x00\x00"
+IMU_DOUBLES, MAG_DOUBLES = 37, 12  # sensor_msgs/Imu, MagneticField: header, then float64 only
 
 _SIZES = {"boolean": 1, "octet": 1, "byte": 1, "char": 1, "uint8": 1, "int8": 1, "uint16": 2, "int16": 2,
           "uint32": 4, "int32": 4, "float": 4, "uint64": 8, "int64": 8, "double": 8}
 _U32 = struct.Struct("<I")
-# header, then float64 only (cdr.IMU_DOUBLES, MAG_DOUBLES; cdr imports this module)
-_STAMPED = {"sensor_msgs/msg/Imu": 37, "sensor_msgs/msg/MagneticField": 12}
+_STAMPED = {"sensor_msgs/msg/Imu": IMU_DOUBLES, "sensor_msgs/msg/MagneticField": MAG_DOUBLES}
 
 # A plan is a tuple of steps: ("p", size) a primitive, ("s",) a string, ("q", element plan or size) a
 # sequence, ("a", n, element plan or size) a fixed array; a message's steps are inlined.
