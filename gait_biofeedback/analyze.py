@@ -63,7 +63,7 @@ from gait_biofeedback.core.gait.stream import GaitEventsParams, GaitEventStream
 from gait_biofeedback.core.joints.alignment import said as stamps_off
 from gait_biofeedback.core.joints.angles import segment_pair
 from gait_biofeedback.core.joints.stream import STREAM_SEGMENTS, JointAnglesParams, JointAngleStream
-from gait_biofeedback.core.orientation.stream import OrientationParams, SegmentOrientationTracker
+from gait_biofeedback.core.orientation.stream import OrientationParams
 from gait_biofeedback.core.params import spec_by_name
 from gait_biofeedback.core.rate import TOLERANCE as RATE_TOLERANCE
 from gait_biofeedback.core.rate import RateCheck
@@ -73,22 +73,20 @@ from gait_biofeedback.io.bag import BagReader, BagRecoveryWarning, BagWriter
 from gait_biofeedback.io.bag_writer import check_output
 from gait_biofeedback.io.imu_bag import read_imu_bag
 from gait_biofeedback.io.schemas import type_name_of
+from gait_biofeedback.orientation_pass import Filtered, OrientationPass, PassItem, truth_topics
 from gait_biofeedback.parameters import stage_parameters
-from gait_biofeedback.wire import diagnostics, topics
+from gait_biofeedback.wire import topics
 from gait_biofeedback.wire.activity import activity_msg
 from gait_biofeedback.wire.calibration import calibration_msg, entries, rotations
-from gait_biofeedback.wire.cdr import Stamped, decode_imu, decode_mag, header_stamp_ns, serialize
+from gait_biofeedback.wire.cdr import Stamped, header_stamp_ns, serialize
 from gait_biofeedback.wire.gait import event_msg, foot_frame, stride_output
 from gait_biofeedback.wire.imu import (
     has_heading,
     is_recovering,
-    mag_sample,
-    orientation_payload,
     orientation_sample,
     raw_sample,
 )
 from gait_biofeedback.wire.joints import joint_state_msg, skeleton_msg
-from gait_biofeedback.wire.stamps import ns_to_stamp
 
 
 @dataclass
@@ -344,10 +342,19 @@ def analyze_recording(
         notes += rate_notes + found_notes
         is_auto = [asked is None for asked, _ in calibrate_at or []]
         auto = [r for r, a in zip(requests, is_auto, strict=True) if a]
-        found = _calibrate_ahead(bag, auto[0], stages) if auto else None
+        pressed = [r for r, a in zip(requests, is_auto, strict=True) if not a]
+        found = None
         with BagReader(bag) as reader:
-            pressed = [r for r, a in zip(requests, is_auto, strict=True) if not a]
-            result = _analyze(reader, bag, output, pressed, calibration_file, stages, overwrite, found)
+            run = _orientation_pass(reader, bag, stages)
+            if auto:
+                found, kept = _calibrate_ahead(run, auto[0], stages)
+                run.put_back(kept or [])
+            if not auto or kept is not None:
+                result = _analyze(reader, run, output, pressed, calibration_file, stages, overwrite, found)
+        if auto and kept is None:  # too long to keep: read again
+            with BagReader(bag) as reader:
+                run = _orientation_pass(reader, bag, stages)
+                result = _analyze(reader, run, output, pressed, calibration_file, stages, overwrite, found)
     if found is not None and found.success:
         notes.append("--calibrate-at auto: that calibration is in force from the start of the recording "
                      "(offline, as a calibration file would be; replay presses Calibrate at that instant, "
@@ -363,54 +370,57 @@ def calibration_ahead(bag: str | Path, request: tuple[float, str], params: dict[
     with ``params`` as :func:`analyze_recording` takes them (``replay`` of a recording that starts
     walking uses it: live, Calibrate needs a standing)."""
     stages = {node: stage_parameters(node, values) for node, values in (params or {}).items()}
-    return _calibrate_ahead(bag, request, stages)
-
-
-def _calibrate_ahead(bag: str | Path, request: tuple[float, str], stages: dict[str, Any]
-                     ) -> CalibrationAttempt:
-    """The calibration the live graph computes when Calibrate is pressed at ``request`` (s into the
-    recording, protocol): the orientation trackers and the calibration buffer with the stages'
-    parameters, fed the recording in log order as :func:`_analyze` feeds them, up to that instant."""
-    o_params: OrientationParams = stages.get("orientation_filter") or OrientationParams()
-    buffer = CalibrationBuffer(stages.get("calibration") or CalibrationParams())
     with BagReader(bag) as reader:
-        raw_topics, mag_topics = _raw_topics(reader, bag)
-        trackers = {seg: o_params.tracker(seg) for seg in o_params.segments if seg in raw_topics}
-        until_ns = reader.start_time_ns + round(request[0] * NS_PER_S)
-        buffer.schedule(until_ns, request[1], **AUTO_OPTIONS)
-        segment_of = {topic: seg for seg, topic in raw_topics.items()}
-        mag_of = {topic: seg for seg, topic in mag_topics.items()}
+        return _calibrate_ahead(_orientation_pass(reader, bag, stages), request, stages, keep=False)[0]
 
-        def feed(seg: str, samples: list, raw: Stamped) -> list[CalibrationAttempt]:
-            for sample in samples:
-                filtered = decode_imu(orientation_payload(seg, sample, raw, o_params.orientation_variance))
-                if seg in buffer.buffers:
-                    buffer.add(seg, *orientation_sample(filtered), heading=has_heading(filtered))
-            return buffer.run_due()
 
-        last_raw: dict[str, Stamped] = {}
-        for topic, _, data, _ in reader.raw_messages([*segment_of, *mag_of]):
-            seg = mag_of.get(topic) or segment_of[topic]
-            if seg not in trackers:
-                continue
-            if topic in mag_of:
-                trackers[seg].add_mag(*mag_sample(decode_mag(data)))
-                continue
-            last_raw[seg] = decode_imu(data)
-            if done := feed(seg, trackers[seg].update(*raw_sample(last_raw[seg])), last_raw[seg]):
-                return done[0]
-        for seg, raw in last_raw.items():
-            if done := feed(seg, trackers[seg].flush(end=True), raw):
-                return done[0]
+KEPT_MESSAGES = 250_000
+"""The look-ahead of an ``auto`` calibration keeps the orientation pass's items for the analysis up to
+this many messages (about 2.5 min of 8 sensors with magnetometers at 100 Hz, about 1.7 kB each); past
+it, the analysis reads the recording again."""
+
+
+def _orientation_pass(reader: BagReader, bag: str | Path, stages: dict[str, Any]) -> OrientationPass:
+    raw_topics, mag_topics = _raw_topics(reader, bag)
+    return OrientationPass(reader, raw_topics, mag_topics, truth_topics(reader),
+                           stages.get("orientation_filter") or OrientationParams())
+
+
+def _calibrate_ahead(run: OrientationPass, request: tuple[float, str], stages: dict[str, Any],
+                     keep: bool = True) -> tuple[CalibrationAttempt, list[PassItem] | None]:
+    """(the calibration the live graph computes when Calibrate is pressed at ``request`` (s into the
+    recording, protocol), the items of ``run`` read to get there: None without ``keep`` or past
+    :data:`KEPT_MESSAGES`). The calibration buffer with the stages' parameters is fed ``run``'s
+    orientations in log order, as :func:`_analyze` feeds its own, up to that instant."""
+    buffer = CalibrationBuffer(stages.get("calibration") or CalibrationParams())
+    buffer.schedule(run.start_ns + round(request[0] * NS_PER_S), request[1], **AUTO_OPTIONS)
+    kept: list[PassItem] | None = [] if keep else None
+
+    def feed(seg: str, filtered: Filtered) -> list[CalibrationAttempt]:
+        for _, sample in filtered:
+            if seg in buffer.buffers:
+                buffer.add(seg, *orientation_sample(sample), heading=has_heading(sample))
+        return buffer.run_due()
+
+    for item in run:
+        if kept is not None:
+            kept.append(item)
+            if len(kept) > KEPT_MESSAGES:
+                kept = None
+        if item.filtered is not None and (done := feed(item.segment, item.filtered)):
+            return done[0], kept
+    end = run.finish()
+    for seg in run.last_raw:
+        if done := feed(seg, end.flushed[seg]):
+            return done[0], kept
     return CalibrationAttempt(request[1], False, f"the recording ends before every sensor's data reaches "
-                              f"the calibration instant ({request[0]:.2f} s): ask for an earlier one")
+                              f"the calibration instant ({request[0]:.2f} s): ask for an earlier one"), kept
 
 
-def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
+def _analyze(reader: BagReader, run: OrientationPass, output: str | Path | None,
              calibrate_at: list[tuple[float, str]], calibration_file: str | Path | None,
              stages: dict[str, Any], overwrite: bool, ahead: CalibrationAttempt | None = None
              ) -> AnalysisResult:
-    raw_topics, mag_topics = _raw_topics(reader, bag)
     result = AnalysisResult(Path(output) if output is not None else None)
     calibration = None
     c_params: CalibrationParams = stages.get("calibration") or CalibrationParams()
@@ -422,15 +432,12 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
         calibration, saved_at = read_calibration_file(path)
 
     # -- the core objects, set up from the nodes' parameters --------------------------------------
-    o_params: OrientationParams = stages.get("orientation_filter") or OrientationParams()
-    trackers: dict[str, SegmentOrientationTracker] = {
-        seg: o_params.tracker(seg) for seg in o_params.segments if seg in raw_topics}
+    o_params, raw_topics, trackers = run.params, run.raw_topics, run.trackers
     for seg in raw_topics:
         if seg not in o_params.segments:
             known = ", ".join(o_params.segments)
             result.warnings.append(f"{raw_topics[seg]}: '{seg}' is not one of the graph's segments "
                                    f"({known}): not analysed; import it under the segment it was worn on")
-    variance = o_params.orientation_variance
     buffer = CalibrationBuffer(c_params)
     j_params: JointAnglesParams = stages.get("joint_angles") or JointAnglesParams()
     joints = JointAngleStream(j_params)
@@ -442,27 +449,27 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
                if "pelvis" in raw_topics else "")
         result.warnings.append(f"no {a_params.segment} sensor in the recording: the activity monitor "
                                f"(posture, transitions, walking bouts) did not run{fix}")
-    streams = [*trackers.values(), gait, *([activity.stream] if activity is not None else [])]
+    streams = [gait, *([activity.stream] if activity is not None else [])]  # the trackers': ``run``
 
     start_ns = reader.start_time_ns
     result.start_ns = start_ns
     for t, protocol in calibrate_at:
         buffer.schedule(start_ns + round(t * 1e9), protocol)
 
-    out: list[tuple[int, str, str, bytes]] = []
+    out: list[tuple[int, str, str, bytes, bool]] = []  # (log ns, topic, type, CDR, padding zeroed)
     keep = output is None
     emitted_joints = 0
     imu_type = topics.orientation("x").type_name
 
     def emit(topic: str, msg: Any, log_ns: int) -> None:
-        out.append((log_ns, topic, type_name_of(msg), serialize(msg)))
+        out.append((log_ns, topic, type_name_of(msg), serialize(msg), True))
         result.counts[topic] = result.counts.get(topic, 0) + 1
         if keep:
             result.messages.append((topic, msg, log_ns))
 
     def emit_imu(topic: str, data: bytes, log_ns: int) -> None:
         """An Imu the node publishes as CDR bytes: recorded as those bytes."""
-        out.append((log_ns, topic, imu_type, data))
+        out.append((log_ns, topic, imu_type, data, False))
         result.counts[topic] = result.counts.get(topic, 0) + 1
         if keep:
             result.messages.append((topic, deserialize_message(data, Imu), log_ns))
@@ -531,62 +538,38 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
             source = f"found by --calibrate-at auto on the data up to {until / NS_PER_S:.1f} s"
             publish_calibration(calibration_msg(ahead.calibration, 0, source), start_ns, ahead.calibration)
 
-    last_raw: dict[str, Any] = {}
+    def orientations(seg: str, filtered: Filtered, log_ns: int) -> None:
+        for data, sample in filtered:
+            emit_imu(topics.orientation(seg).absolute(), data, log_ns)
+            downstream(seg, sample, log_ns)
 
-    def orientations(seg: str, samples: list, log_ns: int) -> None:
-        for sample in samples:
-            filtered = orientation_payload(seg, sample, last_raw[seg], variance)
-            emit_imu(topics.orientation(seg).absolute(), filtered, log_ns)
-            downstream(seg, decode_imu(filtered), log_ns)
-
-    segment_of = {topic: seg for seg, topic in raw_topics.items()}
-    mag_of = {topic: seg for seg, topic in mag_topics.items()}
-    copied: list[tuple[int, str, str, bytes]] = []
-    truth = [t for t in reader.topics() if t.startswith(topics.TRUTH_PREFIX + "/")]
-    period_ns = round(o_params.diagnostics_period * NS_PER_S)
-    next_diagnostics = [start_ns + period_ns]
-
-    last_log: dict[str, int] = {}  # segment → log time of its newest raw sample
-
-    def report_status(log_ns: int) -> None:
-        statuses = [diagnostics.orientation_status(seg, tracker, diagnostics.no_data(
-                        (log_ns - last_log[seg]) / NS_PER_S, o_params.stale_after))
-                    for seg, tracker in trackers.items() if seg in last_raw]
-        emit(topics.DIAGNOSTICS.name, diagnostics.array(ns_to_stamp(log_ns), statuses), log_ns)
-        next_diagnostics[0] = log_ns + period_ns
-
-    for topic, type_name, data, log_ns in reader.raw_messages([*segment_of, *mag_of, *truth]):
-        if log_ns >= next_diagnostics[0] and last_raw:
-            report_status(log_ns)
+    copied: list[tuple[int, str, str, bytes, bool]] = []
+    for item in run:
+        if item.status is not None:
+            emit(topics.DIAGNOSTICS.name, item.status, item.log_ns)
         if output is not None:
-            copied.append((log_ns, topic, type_name, data))
-        if topic in truth:
+            copied.append((item.log_ns, item.topic, item.type_name, item.data, False))
+        if item.raw is None:  # ground truth or magnetometer
             continue
-        if topic in mag_of:
-            seg = mag_of[topic]
-            if seg in trackers:
-                trackers[seg].add_mag(*mag_sample(decode_mag(data)))
-            continue
-        seg = segment_of[topic]
-        raw = decode_imu(data)
+        seg, log_ns = item.segment, item.log_ns
         if activity is not None and seg == activity.segment:
-            for state in activity.update(raw):
+            for state in activity.update(item.raw):
                 emit(topics.ACTIVITY.absolute(), state, log_ns)
         elif activity is not None and seg in activity.stream.thighs.segments:
-            for state in activity.update_thigh(seg, raw):
+            for state in activity.update_thigh(seg, item.raw):
                 emit(topics.ACTIVITY.absolute(), state, log_ns)
-        tracker = trackers.get(seg)
-        if tracker is not None:
-            last_raw[seg] = raw
-            last_log[seg] = log_ns
-            orientations(seg, tracker.update(*raw_sample(raw)), log_ns)
+        if item.filtered is not None:
+            orientations(seg, item.filtered, log_ns)
+        result.warnings.extend(item.notices)
         said()
-    for seg, tracker in trackers.items():  # what the reorder windows still hold (the node: on silence)
-        if seg in last_raw:
-            orientations(seg, tracker.flush(end=True), reader.end_time_ns)
+    end = run.finish()  # what the reorder windows still hold (the node: on silence)
+    for seg, filtered in end.flushed.items():
+        orientations(seg, filtered, reader.end_time_ns)
+    result.warnings.extend(end.notices)
     said()
-    if last_raw:
-        report_status(max(last_log.values()))
+    if end.status is not None:
+        emit(topics.DIAGNOSTICS.name, end.status, end.status_ns)
+    last_log = run.last_log
     publish_joints(joints.flush(force=True), reader.end_time_ns)
     for cycle in gait.finish():
         topic, msg = stride_output(cycle)
@@ -649,9 +632,9 @@ def _analyze(reader: BagReader, bag: str | Path, output: str | Path | None,
     return result
 
 
-def _write(path: Path, records: list[tuple[int, str, str, bytes]], overwrite: bool) -> None:
+def _write(path: Path, records: list[tuple[int, str, str, bytes, bool]], overwrite: bool) -> None:
     records.sort(key=lambda r: r[0])
     with BagWriter(path, overwrite=overwrite, flush_period=None) as writer:
-        for log_ns, topic, type_name, data in records:
-            writer.write_serialized(topic, type_name, data, log_ns)
+        for log_ns, topic, type_name, data, padded in records:
+            writer.write_serialized(topic, type_name, data, log_ns, padded=padded)
 

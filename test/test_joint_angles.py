@@ -115,6 +115,20 @@ def test_streaming_calculator_equals_batch(walk):
         np.testing.assert_allclose(got, batch[name][150:], atol=1e-12)
 
 
+def test_the_streams_float_path_gives_the_numbers_of_compute_joint_angles_bit_for_bit():
+    """The stream's one-instant angles (Python floats) equal :func:`compute_joint_angles` of that
+    instant exactly (random orientations and mountings: any change in the order of the operations
+    shows in the last bits), and leave out the same joints when a segment is missing or uncalibrated."""
+    rng = np.random.default_rng(5)
+    mounting = {s: quat.normalize(rng.normal(size=4)) for s in MOUNTS if s != "right_foot"}
+    calc = JointAngleCalculator(mounting)
+    for k in range(1000):
+        instant = {s: quat.normalize(rng.normal(size=4)) for s in MOUNTS if s != "left_shank" or k % 2}
+        expected = {n: float(v) for n, v in compute_joint_angles(instant, mounting).items()}
+        got = calc.raw(instant)
+        assert list(got) == list(expected) and got == expected, k
+
+
 def test_stick_figure_of_standing_pose():
     body = BodyDimensions(thigh_length=0.45, shank_length=0.41, hip_width=0.2, foot_length=0.15,
                           ankle_height=0.07)

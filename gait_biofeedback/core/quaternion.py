@@ -18,9 +18,15 @@ import numpy as np
 IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
 
 
+_F64 = np.dtype(np.float64)
+
+
 def _single(*arrays: object) -> bool:
     """All are 1-D float64 arrays (one quaternion or vector each)."""
-    return all(type(a) is np.ndarray and a.ndim == 1 and a.dtype == np.float64 for a in arrays)
+    for a in arrays:
+        if type(a) is not np.ndarray or a.ndim != 1 or (a.dtype is not _F64 and a.dtype != _F64):
+            return False
+    return True
 
 
 def normalize(q: np.ndarray) -> np.ndarray:

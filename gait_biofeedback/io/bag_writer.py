@@ -191,13 +191,16 @@ class BagWriter:
 
     def write(self, topic: str, msg: Any, log_time_ns: int, publish_time_ns: int | None = None) -> None:
         """Serialise the rclpy message ``msg`` (exact CDR size) and write it at ``log_time_ns``."""
-        self.write_serialized(topic, type_name_of(msg), serialize(msg), log_time_ns, publish_time_ns)
+        self.write_serialized(topic, type_name_of(msg), serialize(msg), log_time_ns, publish_time_ns,
+                              padded=True)
 
     def write_serialized(
-        self, topic: str, type_name: str, data: bytes, log_time_ns: int, publish_time_ns: int | None = None
+        self, topic: str, type_name: str, data: bytes, log_time_ns: int, publish_time_ns: int | None = None,
+        padded: bool = False,
     ) -> None:
         """Write a CDR-serialised message of ``type_name`` (``pkg/msg/Type``), its padding bytes zeroed
-        (:func:`~gait_biofeedback.wire.padding.zero_padding`)."""
+        (:func:`~gait_biofeedback.wire.padding.zero_padding`; ``padded``: the caller's bytes come from
+        :func:`~gait_biofeedback.wire.cdr.serialize`, zeroed already)."""
         if self._closed:
             raise ValueError(f"bag {self.path} is closed; open a new BagWriter to write more")
         record = self._topics.get(topic) or self.add_topic(topic, type_name)
@@ -208,7 +211,7 @@ class BagWriter:
         part = self._part
         channel_id = part.channel_ids.get(topic) or self._register(part, record)
         self._sequence[topic] += 1
-        part.writer.add_message(channel_id, log_time_ns, zero_padding(data, type_name),
+        part.writer.add_message(channel_id, log_time_ns, data if padded else zero_padding(data, type_name),
                                 log_time_ns if publish_time_ns is None else int(publish_time_ns),
                                 self._sequence[topic] & 0xFFFFFFFF)
         file_record = part.record

@@ -207,6 +207,7 @@ class JointAngleCalculator:
 
     def __init__(self, calibration: Any) -> None:
         self.rotations = _rotations_of(calibration)
+        self._floats = {s: np.asarray(r, dtype=float).tolist() for s, r in self.rotations.items()}
         self.offset: dict[str, float] = {}
         self._duration: float | None = None  # of the collection asked for; None = no offset removal
         self._collect_s: float | None = None
@@ -224,8 +225,17 @@ class JointAngleCalculator:
         return self._collect_s is not None
 
     def raw(self, segment_quats: dict[str, np.ndarray]) -> dict[str, float]:
-        """Angles without offset removal of one instant (segment → (4,) sensor→world)."""
-        return {k: float(v) for k, v in compute_joint_angles(segment_quats, self.rotations).items()}
+        """Angles without offset removal of one instant (segment → (4,) sensor→world):
+        :func:`compute_joint_angles` of one sample, on Python floats (the same operations in the same
+        order: the same numbers; test/test_joint_angles.py)."""
+        rotations = self._floats
+        segments = {s: _times(np.asarray(q, dtype=float).tolist(), rotations[s])
+                    for s, q in segment_quats.items() if s in rotations}
+        out = {}
+        for prox, dist, names, signs in _JOINT_TABLE:
+            if prox in segments and dist in segments:
+                out.update(zip(names, _angles(segments[prox], segments[dist], signs), strict=True))
+        return out
 
     def update(self, stamp_ns: int, segment_quats: dict[str, np.ndarray],
                still: bool = True, leave_out: Iterable[str] = ()) -> dict[str, float]:
@@ -250,3 +260,29 @@ class JointAngleCalculator:
                     self._sums[k] = self._sums.get(k, 0.0) + v
                     self._counts[k] = self._counts.get(k, 0) + 1
         return {k: v - self.offset.get(k, 0.0) for k, v in angles.items()}
+
+
+_JOINT_TABLE = tuple((*segment_pair(side, joint), joint_angle_names(side, joint), _signs(joint, side))
+                     for side in SIDES for joint in JOINTS)
+"""(proximal, distal, angle names, signs) of every joint, in :data:`JOINT_NAMES` order."""
+
+
+def _times(p: list[float], q: list[float]) -> tuple[float, float, float, float]:
+    """``p ⊗ q`` as :func:`~gait_biofeedback.core.quaternion.multiply` computes it."""
+    pw, px, py, pz = p
+    qw, qx, qy, qz = q
+    return (pw * qw - px * qx - py * qy - pz * qz, pw * qx + px * qw + py * qz - pz * qy,
+            pw * qy - px * qz + py * qw + pz * qx, pw * qz + px * qy - py * qx + pz * qw)
+
+
+def _angles(proximal: tuple, distal: tuple, signs: tuple[float, float, float]) -> tuple[float, float, float]:
+    """:func:`angles_from_relative_rotation` of ``conj(proximal) ⊗ distal``, step by step as
+    :func:`~gait_biofeedback.core.quaternion.as_matrix` and ``normalize`` compute it."""
+    w, x, y, z = proximal
+    w, x, y, z = _times((w, -x, -y, -z), distal)
+    n = math.sqrt(w * w + x * x + y * y + z * z)
+    w, x, y, z = w / n, x / n, y / n, z / n
+    s_fe, s_aa, s_ie = signs
+    return (s_fe * math.atan2(-(2 * (x * y - w * z)), 1 - 2 * (x * x + z * z)),
+            s_aa * math.asin(min(max(2 * (y * z + w * x), -1.0), 1.0)),
+            s_ie * math.atan2(-(2 * (x * z - w * y)), 1 - 2 * (x * x + y * y)))

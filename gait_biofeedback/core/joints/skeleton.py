@@ -25,13 +25,15 @@ def stick_figure(orientations: dict[str, np.ndarray], lengths: BodyDimensions | 
     lines: list[tuple[str, np.ndarray, np.ndarray]] = []
     origin = np.zeros(3)
     if "chest" in orientations:
-        lines.append(("chest", origin, quat.rotate(orientations["chest"], [0.0, lengths.trunk_length, 0.0])))
+        trunk = np.array([0.0, lengths.trunk_length, 0.0])
+        lines.append(("chest", origin, quat.rotate(np.asarray(orientations["chest"], dtype=float), trunk)))
     for side in SIDES:
         sign = 1.0 if side == "right" else -1.0
-        hip = quat.rotate(pelvis, [0.0, 0.0, sign * lengths.hip_width / 2])
+        hip = quat.rotate(pelvis, np.array([0.0, 0.0, sign * lengths.hip_width / 2]))
         lines.append(("pelvis", origin, hip))
-        chain = (("thigh", [0.0, -lengths.thigh_length, 0.0]), ("shank", [0.0, -lengths.shank_length, 0.0]),
-                 ("foot", [lengths.foot_length, -lengths.ankle_height, 0.0]))
+        chain = (("thigh", np.array([0.0, -lengths.thigh_length, 0.0])),
+                 ("shank", np.array([0.0, -lengths.shank_length, 0.0])),
+                 ("foot", np.array([lengths.foot_length, -lengths.ankle_height, 0.0])))
         start = hip
         for part, vector in chain:
             seg = f"{side}_{part}"
