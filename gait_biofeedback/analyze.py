@@ -5,7 +5,8 @@ IMU messages are read from the MCAP in log-time order and handed to the same cor
 same message-conversion helpers, in the same order the nodes use them:
 
 1. orientation per segment: :class:`~gait_biofeedback.core.orientation.stream.SegmentOrientationTracker`
-   (``orientation_filter`` node) → ``/<segment>/imu/data``;
+   (``orientation_filter`` node) → ``/<segment>/imu/data``, one pass over the recording
+   (:mod:`gait_biofeedback.orientation_pass`) shared with an ``auto`` calibration's look-ahead;
 2. calibration: :class:`~gait_biofeedback.core.calibration.stream.CalibrationBuffer` fed with those
    orientations; a calibration file is in force from the start (the node reloads its file), and each
    ``calibrate_at`` request calibrates on the window ending at that instant, exactly as
@@ -343,15 +344,15 @@ def analyze_recording(
         is_auto = [asked is None for asked, _ in calibrate_at or []]
         auto = [r for r, a in zip(requests, is_auto, strict=True) if a]
         pressed = [r for r, a in zip(requests, is_auto, strict=True) if not a]
-        found = None
+        found, kept = None, []
         with BagReader(bag) as reader:
             run = _orientation_pass(reader, bag, stages)
             if auto:
                 found, kept = _calibrate_ahead(run, auto[0], stages)
-                run.put_back(kept or [])
-            if not auto or kept is not None:
+            if kept is not None:
+                run.put_back(kept)
                 result = _analyze(reader, run, output, pressed, calibration_file, stages, overwrite, found)
-        if auto and kept is None:  # too long to keep: read again
+        if kept is None:  # too long to keep: read again
             with BagReader(bag) as reader:
                 run = _orientation_pass(reader, bag, stages)
                 result = _analyze(reader, run, output, pressed, calibration_file, stages, overwrite, found)

@@ -6,8 +6,9 @@ releases serialised as the node publishes them, ``/diagnostics`` every ``diagnos
 recording time and the trackers' notices. An ``auto`` calibration looks ahead along this pass up to
 the instant it finds (:func:`gait_biofeedback.analyze.calibration_ahead`) and keeps what it read; the
 analysis then runs on those kept items and the rest of the same pass. Before, the look-ahead ran its
-own trackers over the same messages (a quarter of ``analyze``'s time on the demo): the trackers see
-each message once, in the same order, so both get what they got before, byte for byte.
+own trackers over the same messages (a sixth of ``analyze``'s time on the demo): the trackers see
+each message once, in the same order, so both get what they got before, byte for byte
+(test/test_analyze.py).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from gait_biofeedback.core.stamps import NS_PER_S
 from gait_biofeedback.io.bag import BagReader
 from gait_biofeedback.wire import diagnostics, topics
 from gait_biofeedback.wire.cdr import Stamped, decode_imu, decode_mag
-from gait_biofeedback.wire.imu import mag_sample, orientation_payload, raw_sample
+from gait_biofeedback.wire.imu import mag_sample, orientation_message, raw_sample
 from gait_biofeedback.wire.stamps import ns_to_stamp
 
 Filtered = list[tuple[bytes, Stamped]]
@@ -122,11 +123,8 @@ class OrientationPass:
         return self._end
 
     def _payloads(self, seg: str, samples: list) -> Filtered:
-        out = []
-        for sample in samples:
-            data = orientation_payload(seg, sample, self.last_raw[seg], self.params.orientation_variance)
-            out.append((data, decode_imu(data)))
-        return out
+        raw, variance = self.last_raw[seg], self.params.orientation_variance
+        return [orientation_message(seg, sample, raw, variance) for sample in samples]
 
     def _notices(self) -> list[str]:
         return [n.text for tracker in self.trackers.values() if tracker.notices

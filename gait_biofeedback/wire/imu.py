@@ -95,12 +95,25 @@ def orientation_payload(segment: str, sample: OrientationSample, raw: Stamped, v
     acceleration, a diagonal orientation covariance (``RECOVERING_VARIANCE`` while recovering, yaw
     ``HEADING_UNKNOWN_VARIANCE`` without a magnetometer) and the raw covariances of the message that
     released the sample."""
+    return pack_imu(*_orientation_fields(segment, sample, raw, variance))
+
+
+def orientation_message(segment: str, sample: OrientationSample, raw: Stamped, variance: float
+                        ) -> tuple[bytes, Stamped]:
+    """(:func:`orientation_payload`, the same decoded: what :func:`~gait_biofeedback.wire.cdr.decode_imu`
+    of those bytes gives, without reading them back; float64 in and out of CDR is exact)."""
+    ns, frame, values = _orientation_fields(segment, sample, raw, variance)
+    return pack_imu(ns, frame, values), Stamped(ns, frame, values)
+
+
+def _orientation_fields(segment: str, sample: OrientationSample, raw: Stamped, variance: float
+                        ) -> tuple[int, str, tuple[float, ...]]:
     w, x, y, z = sample.q.tolist()
-    v = RECOVERING_VARIANCE if sample.recovering else variance
-    yaw = v if sample.heading else HEADING_UNKNOWN_VARIANCE
+    v = float(RECOVERING_VARIANCE if sample.recovering else variance)
+    yaw = v if sample.heading else float(HEADING_UNKNOWN_VARIANCE)
     values = (x, y, z, w, v, 0.0, 0.0, 0.0, v, 0.0, 0.0, 0.0, yaw, *sample.gyr.tolist(),
               *raw.values[ANGULAR_VELOCITY_COV], *sample.acc.tolist(), *raw.values[LINEAR_ACCELERATION_COV])
-    return pack_imu(sample.stamp_ns, sensor_frame(segment), values)
+    return sample.stamp_ns, sensor_frame(segment), values
 
 
 def raw_imu_values(gyr: Vector, acc: Vector) -> tuple[float, ...]:
