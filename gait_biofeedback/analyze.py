@@ -32,12 +32,17 @@ activity monitor's periodic re-publication, here every ``publish_period`` s of r
 instead).
 
 The output bag carries the input's raw IMU and ``/ground_truth/...`` topics too, as a recording of
-the live graph does, so :mod:`gait_biofeedback.report.session` reads it unchanged.
+the live graph does, so :mod:`gait_biofeedback.report.session` reads it unchanged. It is written as
+the analysis goes, in log-time order (:mod:`gait_biofeedback.io.log_order`: memory does not grow with
+the recording's length), into a staging folder beside the output whose files move into it when the
+analysis ends well: a failed one leaves nothing.
 """
 
 from __future__ import annotations
 
 import math
+import os
+import shutil
 import time
 import warnings
 from collections.abc import Sequence
@@ -73,6 +78,7 @@ from gait_biofeedback.core.stamps import NS_PER_S, s_to_ns
 from gait_biofeedback.io.bag import BagReader, BagRecoveryWarning, BagWriter
 from gait_biofeedback.io.bag_writer import check_output
 from gait_biofeedback.io.imu_bag import read_imu_bag
+from gait_biofeedback.io.log_order import LogOrderWriter
 from gait_biofeedback.io.schemas import type_name_of
 from gait_biofeedback.orientation_pass import Filtered, OrientationPass, PassItem, truth_topics
 from gait_biofeedback.parameters import stage_parameters
@@ -345,17 +351,18 @@ def analyze_recording(
         auto = [r for r, a in zip(requests, is_auto, strict=True) if a]
         pressed = [r for r, a in zip(requests, is_auto, strict=True) if not a]
         found, kept = None, []
+        rest = (pressed, calibration_file, stages)
         with BagReader(bag) as reader:
             run = _orientation_pass(reader, bag, stages)
             if auto:
                 found, kept = _calibrate_ahead(run, auto[0], stages)
             if kept is not None:
                 run.put_back(kept)
-                result = _analyze(reader, run, output, pressed, calibration_file, stages, overwrite, found)
+                result = _analyze_into(output, overwrite, reader, run, *rest, found)
         if kept is None:  # too long to keep: read again
             with BagReader(bag) as reader:
                 run = _orientation_pass(reader, bag, stages)
-                result = _analyze(reader, run, output, pressed, calibration_file, stages, overwrite, found)
+                result = _analyze_into(output, overwrite, reader, run, *rest, found)
     if found is not None and found.success:
         notes.append("--calibrate-at auto: that calibration is in force from the start of the recording "
                      "(offline, as a calibration file would be; replay presses Calibrate at that instant, "
@@ -418,11 +425,38 @@ def _calibrate_ahead(run: OrientationPass, request: tuple[float, str], stages: d
                               f"the calibration instant ({request[0]:.2f} s): ask for an earlier one"), kept
 
 
-def _analyze(reader: BagReader, run: OrientationPass, output: str | Path | None,
+def _analyze_into(output: str | Path | None, overwrite: bool, *args: Any) -> AnalysisResult:
+    """:func:`_analyze` (``args``) written to the bag folder ``output`` as it goes (None: kept in
+    memory), in a staging folder beside it whose files move into ``output`` when it ends well (a
+    failed analysis leaves nothing, as when the bag was written at the end)."""
+    if output is None:
+        return _analyze(None, *args)
+    output = Path(output)
+    staging = output.parent / f".{output.name}.analyzing"
+    shutil.rmtree(staging, ignore_errors=True)  # left by a run that was killed
+    try:
+        with BagWriter(staging / output.name, flush_period=None) as writer:
+            ordered = LogOrderWriter(writer)
+            result = _analyze(ordered, *args)
+            ordered.close()
+        if overwrite and output.is_dir():
+            for old in output.iterdir():
+                old.unlink()
+        output.mkdir(parents=True, exist_ok=True)
+        for done in writer.path.iterdir():
+            os.replace(done, output / done.name)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    result.output = output
+    if result.calibration_file is not None:
+        result.calibration_file = output / CALIBRATION_FILE
+    return result
+
+
+def _analyze(ordered: LogOrderWriter | None, reader: BagReader, run: OrientationPass,
              calibrate_at: list[tuple[float, str]], calibration_file: str | Path | None,
-             stages: dict[str, Any], overwrite: bool, ahead: CalibrationAttempt | None = None
-             ) -> AnalysisResult:
-    result = AnalysisResult(Path(output) if output is not None else None)
+             stages: dict[str, Any], ahead: CalibrationAttempt | None = None) -> AnalysisResult:
+    result = AnalysisResult(None)
     calibration = None
     c_params: CalibrationParams = stages.get("calibration") or CalibrationParams()
     calibration_file = calibration_file or c_params.calibration_file or None
@@ -457,20 +491,21 @@ def _analyze(reader: BagReader, run: OrientationPass, output: str | Path | None,
     for t, protocol in calibrate_at:
         buffer.schedule(start_ns + round(t * 1e9), protocol)
 
-    out: list[tuple[int, str, str, bytes, bool]] = []  # (log ns, topic, type, CDR, padding zeroed)
-    keep = output is None
+    keep = ordered is None
     emitted_joints = 0
     imu_type = topics.orientation("x").type_name
 
     def emit(topic: str, msg: Any, log_ns: int) -> None:
-        out.append((log_ns, topic, type_name_of(msg), serialize(msg), True))
+        if ordered is not None:
+            ordered.produced(log_ns, topic, type_name_of(msg), serialize(msg), True)
         result.counts[topic] = result.counts.get(topic, 0) + 1
         if keep:
             result.messages.append((topic, msg, log_ns))
 
     def emit_imu(topic: str, data: bytes, log_ns: int) -> None:
         """An Imu the node publishes as CDR bytes: recorded as those bytes."""
-        out.append((log_ns, topic, imu_type, data, False))
+        if ordered is not None:
+            ordered.produced(log_ns, topic, imu_type, data, False)
         result.counts[topic] = result.counts.get(topic, 0) + 1
         if keep:
             result.messages.append((topic, deserialize_message(data, Imu), log_ns))
@@ -544,12 +579,14 @@ def _analyze(reader: BagReader, run: OrientationPass, output: str | Path | None,
             emit_imu(topics.orientation(seg).absolute(), data, log_ns)
             downstream(seg, sample, log_ns)
 
-    copied: list[tuple[int, str, str, bytes, bool]] = []
     for item in run:
         if item.status is not None:
             emit(topics.DIAGNOSTICS.name, item.status, item.log_ns)
-        if output is not None:
-            copied.append((item.log_ns, item.topic, item.type_name, item.data, False))
+        if ordered is not None:
+            # what is logged from here on comes at or after this message, or, the last /diagnostics,
+            # at the newest raw IMU sample the orientation pass has read (its look-ahead included)
+            ordered.release(min(item.log_ns, run.newest_ns or item.log_ns))
+            ordered.copied(item.log_ns, item.topic, item.type_name, item.data)
         if item.raw is None:  # ground truth or magnetometer
             continue
         seg, log_ns = item.segment, item.log_ns
@@ -625,17 +662,7 @@ def _analyze(reader: BagReader, run: OrientationPass, output: str | Path | None,
         at = (until_ns - start_ns) / NS_PER_S
         result.warnings.append(f"calibration ({protocol}) at {at:.2f} s never ran: "
                                "the recording ends before every sensor's data gets there")
-    if output is not None:
-        _write(Path(output), [*copied, *out], overwrite)
-        if in_force:
-            result.calibration_file = Path(output) / CALIBRATION_FILE
-            write_calibration_file(result.calibration_file, in_force[0], time.strftime("%Y-%m-%dT%H:%M:%S%z"))
+    if ordered is not None and in_force:
+        result.calibration_file = ordered.writer.path / CALIBRATION_FILE
+        write_calibration_file(result.calibration_file, in_force[0], time.strftime("%Y-%m-%dT%H:%M:%S%z"))
     return result
-
-
-def _write(path: Path, records: list[tuple[int, str, str, bytes, bool]], overwrite: bool) -> None:
-    records.sort(key=lambda r: r[0])
-    with BagWriter(path, overwrite=overwrite, flush_period=None) as writer:
-        for log_ns, topic, type_name, data, padded in records:
-            writer.write_serialized(topic, type_name, data, log_ns, padded=padded)
-

@@ -78,6 +78,7 @@ class OrientationPass:
             seg: params.tracker(seg) for seg in params.segments if seg in raw_topics}
         self.last_raw: dict[str, Stamped] = {}
         self.last_log: dict[str, int] = {}
+        self.newest_ns: int | None = None  # log time of the newest raw sample of a tracked segment
         self._segment_of = {topic: seg for seg, topic in raw_topics.items()}
         self._mag_of = {topic: seg for seg, topic in mag_topics.items()}
         self._period_ns = round(params.diagnostics_period * NS_PER_S)
@@ -106,7 +107,7 @@ class OrientationPass:
                 item.raw = raw = decode_imu(data)
                 if (tracker := self.trackers.get(seg)) is not None:
                     self.last_raw[seg] = raw
-                    self.last_log[seg] = log_ns
+                    self.last_log[seg] = self.newest_ns = log_ns
                     item.filtered = self._payloads(seg, tracker.update(*raw_sample(raw)))
                 item.notices = self._notices()
             yield item
