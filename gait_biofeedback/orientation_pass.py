@@ -118,7 +118,7 @@ class OrientationPass:
             flushed = {seg: self._payloads(seg, tracker.flush(end=True))
                        for seg, tracker in self.trackers.items() if seg in self.last_raw}
             notices = self._notices()
-            status_ns = max(self.last_log.values(), default=self.end_ns)
+            status_ns = self.end_ns if self.newest_ns is None else self.newest_ns
             self._end = PassEnd(flushed, notices, self._status(status_ns) if self.last_raw else None,
                                 status_ns)
         return self._end

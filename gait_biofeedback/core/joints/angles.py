@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from gait_biofeedback.core import quaternion as quat
+from gait_biofeedback.core.orientation.filters import _scalar as scalar
 from gait_biofeedback.core.segments import SIDES
 
 JOINTS: tuple[str, ...] = ("hip", "knee", "ankle")
@@ -229,7 +230,7 @@ class JointAngleCalculator:
         :func:`compute_joint_angles` of one sample, on Python floats (the same operations in the same
         order: the same numbers; test/test_joint_angles.py)."""
         rotations = self._floats
-        segments = {s: _times(np.asarray(q, dtype=float).tolist(), rotations[s])
+        segments = {s: scalar.multiply(np.asarray(q, dtype=float).tolist(), rotations[s])
                     for s, q in segment_quats.items() if s in rotations}
         out = {}
         for prox, dist, names, signs in _JOINT_TABLE:
@@ -267,19 +268,12 @@ _JOINT_TABLE = tuple((*segment_pair(side, joint), joint_angle_names(side, joint)
 """(proximal, distal, angle names, signs) of every joint, in :data:`JOINT_NAMES` order."""
 
 
-def _times(p: list[float], q: list[float]) -> tuple[float, float, float, float]:
-    """``p ⊗ q`` as :func:`~gait_biofeedback.core.quaternion.multiply` computes it."""
-    pw, px, py, pz = p
-    qw, qx, qy, qz = q
-    return (pw * qw - px * qx - py * qy - pz * qz, pw * qx + px * qw + py * qz - pz * qy,
-            pw * qy - px * qz + py * qw + pz * qx, pw * qz + px * qy - py * qx + pz * qw)
-
-
 def _angles(proximal: tuple, distal: tuple, signs: tuple[float, float, float]) -> tuple[float, float, float]:
     """:func:`angles_from_relative_rotation` of ``conj(proximal) ⊗ distal``, step by step as
-    :func:`~gait_biofeedback.core.quaternion.as_matrix` and ``normalize`` compute it."""
+    :func:`~gait_biofeedback.core.quaternion.as_matrix` and ``normalize`` compute it (the scalar
+    product is the same operations as ``quaternion.multiply``'s)."""
     w, x, y, z = proximal
-    w, x, y, z = _times((w, -x, -y, -z), distal)
+    w, x, y, z = scalar.multiply((w, -x, -y, -z), distal)
     n = math.sqrt(w * w + x * x + y * y + z * z)
     w, x, y, z = w / n, x / n, y / n, z / n
     s_fe, s_aa, s_ie = signs
