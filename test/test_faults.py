@@ -176,6 +176,41 @@ def test_stamp_alignment_by_hand():
     assert not any(batch.add("c", j * 10 * ms, 990 * ms) for j in range(70, 100))
 
 
+def test_a_backlog_drained_is_no_misalignment_and_a_step_in_batches_still_is():
+    """A busy node: four sensors at 100 Hz received 5 ms after their stamps, but two of them held back
+    from 1 s and drained from 1.6 s at three samples per 10 ms (they looked 0.6 s behind: flagged before
+    the catch-up rule, as the live graph flagged four sensors in its start-up release on a loaded
+    machine): no sensor is flagged. A sensor whose samples come in batches of four (a radio's packets)
+    and whose stamps step 0.5 s ahead is still flagged, once the step lasted 50 ms."""
+    from gait_biofeedback.core.joints.alignment import StampAlignment
+
+    ms = 1_000_000
+    align, flagged = StampAlignment(), set()
+    arrivals = []
+    for k in range(300):
+        stamp = k * 10 * ms
+        for seg in "abcd":
+            received = stamp + 5 * ms
+            if seg in "cd" and k >= 100:
+                received = max(received, 1600 * ms + (k - 100) * 10 * ms // 3)
+            arrivals.append((received, seg, stamp))
+    for received, seg, stamp in sorted(arrivals):
+        if align.add(seg, stamp, received):
+            flagged.add(seg)
+    assert flagged == set() and align.misaligned == {}
+
+    align, flagged_at = StampAlignment(), []
+    for k in range(200):
+        stamp = k * 10 * ms
+        for seg in "abc":
+            shift = 500 * ms if seg == "b" and k >= 100 else 0
+            received = (k // 4 * 4 + 3) * 10 * ms + 5 * ms if seg == "b" else stamp + 5 * ms
+            if align.add(seg, stamp + shift, received):
+                flagged_at.append(k)
+    assert flagged_at and all(k >= 100 for k in flagged_at) and flagged_at[0] <= 110, flagged_at
+    assert align.misaligned == {"b": pytest.approx(0.5, abs=0.04)}
+
+
 def test_a_sensor_that_stops_is_said_by_analyze(runs, tmp_path):
     """The left shank silent from 20 s to the end: analyze's /diagnostics says so, as the node does, and
     its warnings name it (it said nothing: the report read 'problems counted: none')."""
