@@ -180,7 +180,7 @@ def test_a_backlog_drained_is_no_misalignment_and_a_step_in_batches_still_is():
     """A busy node: four sensors at 100 Hz received 5 ms after their stamps, but two of them held back
     from 1 s and drained from 1.6 s at three samples per 10 ms (they looked 0.6 s behind: flagged before
     the catch-up rule, as the live graph flagged four sensors in its start-up release on a loaded
-    machine): no sensor is flagged. A sensor whose samples come in batches of four (a radio's packets)
+    machine): no sensor is flagged. A sensor whose samples come in packets of 4, 10 or 25 (a radio's)
     and whose stamps step 0.5 s ahead is still flagged, once the step lasted 50 ms."""
     from gait_biofeedback.core.joints.alignment import StampAlignment
 
@@ -199,16 +199,20 @@ def test_a_backlog_drained_is_no_misalignment_and_a_step_in_batches_still_is():
             flagged.add(seg)
     assert flagged == set() and align.misaligned == {}
 
-    align, flagged_at = StampAlignment(), []
-    for k in range(200):
-        stamp = k * 10 * ms
-        for seg in "abc":
-            shift = 500 * ms if seg == "b" and k >= 100 else 0
-            received = (k // 4 * 4 + 3) * 10 * ms + 5 * ms if seg == "b" else stamp + 5 * ms
-            if align.add(seg, stamp + shift, received):
-                flagged_at.append(k)
-    assert flagged_at and all(k >= 100 for k in flagged_at) and flagged_at[0] <= 110, flagged_at
-    assert align.misaligned == {"b": pytest.approx(0.5, abs=0.04)}
+    for batch in (4, 10, 25):
+        align, flagged_at = StampAlignment(), []
+        for k in range(200):
+            stamp = k * 10 * ms
+            for seg in "abc":
+                shift = 500 * ms if seg == "b" and k >= 100 else 0
+                packet_end = (k // batch * batch + batch - 1) * 10 * ms
+                received = packet_end + 5 * ms if seg == "b" else stamp + 5 * ms
+                if align.add(seg, stamp + shift, received):
+                    flagged_at.append(k)
+        # flagged once the step lasted 50 ms of received time: by the second packet after it
+        assert flagged_at and all(k >= 100 for k in flagged_at), (batch, flagged_at)
+        assert flagged_at[0] <= 100 + 2 * batch + 5, (batch, flagged_at)
+        assert align.misaligned == {"b": pytest.approx(0.5, abs=1e-9)}  # its packets' last samples
 
 
 def test_a_sensor_that_stops_is_said_by_analyze(runs, tmp_path):

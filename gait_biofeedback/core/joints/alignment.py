@@ -78,7 +78,6 @@ class StampAlignment:
         self._received[segment] = received_ns
         if self._is_catching_up(segment, stamp_ns, received_ns):
             self._catching_up.add(segment)
-            self._since.pop(segment, None)
             return segment in self.misaligned
         self._catching_up.discard(segment)
         recent = received_ns - STALE_S * NS_PER_S
