@@ -54,13 +54,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import cache
 
 import numpy as np
 
-from gait_biofeedback.core import quaternion as quat
+from gait_biofeedback.core.jit import fast
 from gait_biofeedback.core.orientation.filters import _scalar as scalar
 from gait_biofeedback.core.orientation.filters.startup import attitude_from_vectors
+from gait_biofeedback.core.spatial import _kalman_kernel as kernel
 
 GRAVITY = 9.8  # m/s², Suh's g̃ = [0, 0, 9.8]
 SHOCK_SCALE = 2.0  # m/s²: excess over acc_shock that doubles the accelerometer's noise density
@@ -105,56 +105,23 @@ class KalmanStep:
     q_noise: np.ndarray | None = None
 
 
-_I3 = np.eye(3)
-_I15 = np.eye(STATES)
-_A_CONSTANT = np.zeros((STATES, STATES))  # the parts of A that do not change
-_A_CONSTANT[0:3, 9:12] = -_I3
-_A_CONSTANT[3:6, 6:9] = _I3
+_ROWS = np.array([6, 7, 8])  # the zero-velocity update's measured states: velocity x, y, z
+_ROWS_FLOOR = np.array([6, 7, 8, 5])  # and with a flat floor the height
 
 
-def transition(omega: np.ndarray, f: np.ndarray, rot: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """``Φ = I + A T + ½ (A T)²`` (Suh Eq 12) of the error model above, and ``A₁`` (its 9 × 9 part)."""
-    a = _A_CONSTANT.copy()
-    a[0:3, 0:3] = -quat.skew(omega)
-    a[6:9, 0:3] = -rot @ quat.skew(f)
-    a[6:9, 12:15] = -rot
-    at = a * dt
-    return _I15 + at + 0.5 * at @ at, a[:NAV, :NAV]
-
-
-@cache
-def _continuous_noise(noise: KalmanNoise) -> np.ndarray:
-    return np.diag([noise.gyro] * 3 + [noise.position] * 3 + [noise.acc] * 3)
-
-
-@cache
-def _zero_velocity_model(noise: KalmanNoise, flat_floor: bool) -> tuple[np.ndarray, np.ndarray]:
-    """(H, R) of the zero-velocity update, with the floor row when ``flat_floor``."""
-    rows = 4 if flat_floor else 3
-    h = np.zeros((rows, STATES))
-    h[0:3, 6:9] = _I3
-    r_diag = [noise.zero_velocity] * 3
-    if flat_floor:
-        h[3, 5] = 1.0
-        r_diag.append(noise.floor)
-    return h, np.diag(r_diag)
+def _kernels() -> tuple:
+    """(propagate, measure) of :mod:`._kalman_kernel`, compiled (:func:`~gait_biofeedback.core.jit.fast`)."""
+    p, out = np.eye(STATES), np.empty((STATES, STATES))
+    warmup = (p, np.ones(3), np.ones(3), np.eye(3), 0.01, np.ones(9), out, out.copy(), out.copy())
+    return (fast(kernel, "propagate", warmup, helpers=["_product"]),
+            fast(kernel, "measure", (p, _ROWS_FLOOR, np.ones(4), np.ones(4), np.empty(STATES), out),
+                 helpers=["_product"]))
 
 
 def shock_gain(f: np.ndarray, noise: KalmanNoise) -> float:
     """The factor of ``R_a`` for the specific force ``f`` (module docstring, shocks)."""
     excess = abs(float(np.linalg.norm(f)) - GRAVITY) - noise.acc_shock
     return 1.0 + (excess / SHOCK_SCALE) ** 2 if excess > 0.0 else 1.0
-
-
-def process_noise(a_nav: np.ndarray, noise: KalmanNoise, dt: float, acc_gain: float = 1.0) -> np.ndarray:
-    """``∫₀ᵀ e^{A₁τ} Q_c e^{A₁'τ} dτ`` to second order: ``Q_c T + (A₁Q_c + Q_cA₁') T²/2 + A₁Q_cA₁' T³/3``,
-    with ``acc_gain`` times ``R_a``."""
-    qc = _continuous_noise(noise)
-    if acc_gain != 1.0:
-        qc = qc.copy()
-        qc[6:9, 6:9] *= acc_gain
-    aq = a_nav @ qc
-    return qc * dt + (aq + aq.T) * dt**2 / 2.0 + aq @ a_nav.T * dt**3 / 3.0
 
 
 class FootKalman:
@@ -171,6 +138,7 @@ class FootKalman:
         self._run_s: float | None = None  # s: the stance in progress so far (None: in a swing)
         self._stance_s = math.inf  # s: the last stance's duration (the first stance: unknown, long)
         self.last: KalmanStep | None = None
+        self._kernels = _kernels()
 
     def start(self, vertical: np.ndarray, gyr: np.ndarray, acc: np.ndarray, zero_velocity: bool = True,
               bias: np.ndarray | None = None) -> KalmanStep:
@@ -209,10 +177,12 @@ class FootKalman:
         omega = gyr - self.b[:3]
         f = acc - self.b[3:]
         rot = np.array(scalar.matrix(self.q))
-        phi, a_nav = transition(omega, f, rot, dt)
-        q_noise = np.zeros((STATES, STATES))
         gain = shock_gain(f, self.noise) if self._stance_s >= self.noise.shock_stance else 1.0
-        q_noise[:NAV, :NAV] = process_noise(a_nav, self.noise, dt, gain)
+        n = self.noise
+        density = np.array((n.gyro, n.gyro, n.gyro, n.position, n.position, n.position,
+                            n.acc * gain, n.acc * gain, n.acc * gain))
+        phi, q_noise, p = (np.empty((STATES, STATES)) for _ in range(3))
+        self._kernels[0](self.p, omega, f, rot, dt, density, phi, q_noise, p)
         self.last.phi = phi
         self.last.q_noise = q_noise
         wx, wy, wz = omega.tolist()
@@ -221,19 +191,18 @@ class FootKalman:
         self.q = scalar.normalized(scalar.gyro_step(self.q, wx, wy, wz, dt))
         self.r = self.r + self.v * dt + 0.5 * acc_world * dt**2
         self.v = self.v + acc_world * dt
-        self.p = phi @ self.p @ phi.T + q_noise
+        self.p = p
 
     def _measure(self, zero_velocity: bool) -> KalmanStep:
         p_prior = self.p
         dx = np.zeros(STATES)
         if zero_velocity:
-            h, r_noise = _zero_velocity_model(self.noise, self.flat_floor)
+            n = self.noise
+            rows, variance = ((_ROWS_FLOOR, np.array((n.zero_velocity,) * 3 + (n.floor,))) if self.flat_floor
+                              else (_ROWS, np.array((n.zero_velocity,) * 3)))
             residual = np.append(-self.v, -self.r[2]) if self.flat_floor else -self.v
-            s = h @ p_prior @ h.T + r_noise
-            gain = np.linalg.solve(s, h @ p_prior).T
-            dx = gain @ residual
-            ikh = _I15 - gain @ h
-            self.p = ikh @ p_prior @ ikh.T + gain @ r_noise @ gain.T  # Joseph form
+            self.p = np.empty((STATES, STATES))
+            self._kernels[1](p_prior, rows, residual, variance, dx, self.p)  # Joseph form
             self._inject(dx)
         step = KalmanStep(self.q, self.r, self.v, self.b, p_prior, self.p, dx, zero_velocity)
         self.last = step
