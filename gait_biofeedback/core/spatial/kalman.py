@@ -64,8 +64,8 @@ from gait_biofeedback.core.spatial import _kalman_kernel as kernel
 
 GRAVITY = 9.8  # m/s², Suh's g̃ = [0, 0, 9.8]
 SHOCK_SCALE = 2.0  # m/s²: excess over acc_shock that doubles the accelerometer's noise density
-STATES = 15
-NAV = 9  # attitude, position, velocity: the smoother's X_SM (Suh Eq 17)
+STATES = kernel.N  # the error state: attitude, position, velocity, gyro and accelerometer biases
+NAV = kernel.NAV  # attitude, position, velocity: the smoother's X_SM (Suh Eq 17)
 
 
 @dataclass(frozen=True)
