@@ -49,10 +49,11 @@ def calibration_time() -> float:
 
 
 def summarize(input_bag: Path, output: Path, wall_time: float, published: int,
-              calibration_message: str = "", speed: float = 1.5) -> str:
-    """The one-screen summary of a demo run (replayed at ``speed``): raw samples the recording lacks
-    are said, with what to do (on a slow or busy machine the graph falls behind and drops them, and
-    every figure above suffers)."""
+              calibration_message: str = "", speed: float = 1.5, cut_short: str = "") -> str:
+    """The one-screen summary of a demo run (replayed at ``speed``; ``cut_short``: why the replay or
+    the recording ended early, if it did): raw samples the recording lacks are said, with what to do
+    (on a slow or busy machine the graph falls behind and drops them, and every figure above
+    suffers)."""
     source = BagReader(input_bag)
     result = BagReader(output)
     counts = result.message_counts()
@@ -74,14 +75,15 @@ def summarize(input_bag: Path, output: Path, wall_time: float, published: int,
     filtered = sum(counts[t] for t in imu if t.endswith("/imu/data"))
     lines.append(f"IMU: {raw} raw samples recorded, {filtered} orientations published "
                  f"({len([t for t in imu if t.endswith('data_raw')])} segments)")
-    sent = sum(n for t, n in source.message_counts().items() if t.endswith("/imu/data_raw"))
+    sent = sum(n for t, n in source.message_counts().items() if "/imu/" in t and t.endswith("data_raw"))
     if raw < sent:
         lost = sent - raw
-        lines.append(f"LOST: {lost} of the {sent} raw samples replayed ({100 * lost / sent:.1f} %) never "
-                     f"reached the recording: this machine did not keep up with the graph at {speed:g}x and "
-                     "the figures above are from what arrived; run `gait-biofeedback demo --speed 1`, or "
-                     f"`gait-biofeedback analyze {input_bag} -o OUT --calibrate-at auto` (the same core "
-                     "objects offline, nothing dropped)")
+        why = (f"{cut_short}" if cut_short else
+               f"this machine did not keep up with the graph at {speed:g}x and the figures above are from "
+               "what arrived; run `gait-biofeedback demo --speed 1`, or `gait-biofeedback analyze "
+               f"{input_bag} -o OUT --calibrate-at auto` (the same core objects offline, nothing dropped)")
+        lines.append(f"LOST: {lost} of the {sent} raw samples of the recording ({100 * lost / sent:.1f} %) "
+                     f"never reached the output: {why}")
     lines += [
         "-" * 78,
         f"open {output} in Foxglove (File > Open local file, pick the .mcap) or run "
@@ -110,5 +112,7 @@ def run_demo(bag: Path, output: Path, speed: float = 1.5, dashboard_port: int = 
             node_parameters={"biofeedback": {"port": dashboard_port}},
             calibrate_at=[(calibration_time(), "hip_flexion")])
     said = [("" if a.success else "REFUSED: ") + a.message for a in result.calibrations]
-    print(summarize(bag, output, result.wall_time, result.published, " ".join(said), speed))
+    cut_short = ("the replay was interrupted" if result.interrupted else
+                 f"the recorder stopped: {result.write_error}" if result.write_error else "")
+    print(summarize(bag, output, result.wall_time, result.published, " ".join(said), speed, cut_short))
     return 0

@@ -27,6 +27,10 @@ def test_lost_raw_samples_are_said_with_what_to_do(tmp_path):
                       lambda i, topic: not (topic.endswith("data_raw") and i % 4 == 0))
     lines = [line for line in summarize(source, lossy, 1.0, 400, speed=1.5).splitlines() if "LOST" in line]
     recorded = sum(n for t, n in BagReader(lossy).message_counts().items() if t.endswith("data_raw"))
-    assert len(lines) == 1 and lines[0].startswith(f"LOST: {200 - recorded} of the 200 raw samples replayed")
+    assert len(lines) == 1 and lines[0].startswith(f"LOST: {200 - recorded} of the 200 raw samples of the")
     assert f"({100 * (200 - recorded) / 200:.1f} %)" in lines[0] and "at 1.5x" in lines[0]
     assert "demo --speed 1" in lines[0] and f"analyze {source} -o OUT --calibrate-at auto" in lines[0]
+    # a replay cut short (Ctrl-C, a full disk) is said as such, not blamed on the machine
+    text = summarize(source, lossy, 1.0, 400, cut_short="the replay was interrupted")
+    (line,) = [x for x in text.splitlines() if "LOST" in x]
+    assert line.endswith("never reached the output: the replay was interrupted")

@@ -30,6 +30,7 @@ from gait_biofeedback.batch import (
 from gait_biofeedback.core.gait.cycles import GaitCycleTracker
 from gait_biofeedback.core.gait.events import GaitEvent
 from gait_biofeedback.core.rate import RateCheck, StampHoles
+from gait_biofeedback.core.stamps import NS_PER_S
 from gait_biofeedback.wire.gait import stride_of
 from gait_biofeedback.wire.joints import recovering_of
 
@@ -176,43 +177,62 @@ def test_stamp_alignment_by_hand():
     assert not any(batch.add("c", j * 10 * ms, 990 * ms) for j in range(70, 100))
 
 
-def test_a_backlog_drained_is_no_misalignment_and_a_step_in_batches_still_is():
-    """A busy node: four sensors at 100 Hz received 5 ms after their stamps, but two of them held back
-    from 1 s and drained from 1.6 s at three samples per 10 ms (they looked 0.6 s behind: flagged before
-    the catch-up rule, as the live graph flagged four sensors in its start-up release on a loaded
-    machine): no sensor is flagged. A sensor whose samples come in packets of 4, 10 or 25 (a radio's)
-    and whose stamps step 0.5 s ahead is still flagged, once the step lasted 50 ms."""
+def _flagged(arrivals):
+    """StampAlignment over ``(received ns, segment, stamp ns)`` in arrival order: segment → the indices
+    (in its own samples) of its flagged samples, and the alignment."""
     from gait_biofeedback.core.joints.alignment import StampAlignment
 
-    ms = 1_000_000
-    align, flagged = StampAlignment(), set()
-    arrivals = []
-    for k in range(300):
-        stamp = k * 10 * ms
-        for seg in "abcd":
-            received = stamp + 5 * ms
-            if seg in "cd" and k >= 100:
-                received = max(received, 1600 * ms + (k - 100) * 10 * ms // 3)
-            arrivals.append((received, seg, stamp))
+    align, flagged, count = StampAlignment(), {}, {}
     for received, seg, stamp in sorted(arrivals):
+        k = count[seg] = count.get(seg, -1) + 1
         if align.add(seg, stamp, received):
-            flagged.add(seg)
-    assert flagged == set() and align.misaligned == {}
+            flagged.setdefault(seg, []).append(k)
+    return flagged, align
 
-    for batch in (4, 10, 25):
-        align, flagged_at = StampAlignment(), []
+
+def test_a_backlog_drained_is_no_misalignment():
+    """A busy node: four sensors received 5 ms after their stamps, but two of them held back from 1 s and
+    drained from 1.6 s at three samples per sample time (they looked 0.6 s behind: before the catch-up
+    rule all four were flagged, as the live graph flagged four sensors in its start-up release on a
+    loaded machine), at 100 and at 50 Hz: no sensor is flagged."""
+    ms = 1_000_000
+    for period in (10 * ms, 20 * ms):
+        arrivals = []
+        for k in range(3 * NS_PER_S // period):
+            stamp = k * period
+            for seg in "abcd":
+                received = stamp + 5 * ms
+                if seg in "cd" and stamp >= NS_PER_S:
+                    received = max(received, 1600 * ms + (stamp - NS_PER_S) // 3)
+                arrivals.append((received, seg, stamp))
+        flagged, align = _flagged(arrivals)
+        assert flagged == {} and align.misaligned == {}, (period, flagged)
+
+
+@pytest.mark.parametrize("packet", [4, 10, 25])
+def test_a_clock_step_is_flagged_beside_and_within_a_radio_s_packets(packet):
+    """Sensor b sends its 100 Hz samples in packets of ``packet`` (received with the packet's last
+    one). a's stamps step 0.5 s ahead at sample 100: flagged once that lasted 50 ms (sample 105), as
+    without packets; b's own stamps stepping 0.5 s ahead: flagged by the second packet after the step."""
+    ms = 1_000_000
+
+    def arrivals(stepped):
+        out = []
         for k in range(200):
             stamp = k * 10 * ms
-            for seg in "abc":
-                shift = 500 * ms if seg == "b" and k >= 100 else 0
-                packet_end = (k // batch * batch + batch - 1) * 10 * ms
-                received = packet_end + 5 * ms if seg == "b" else stamp + 5 * ms
-                if align.add(seg, stamp + shift, received):
-                    flagged_at.append(k)
-        # flagged once the step lasted 50 ms of received time: by the second packet after it
-        assert flagged_at and all(k >= 100 for k in flagged_at), (batch, flagged_at)
-        assert flagged_at[0] <= 100 + 2 * batch + 5, (batch, flagged_at)
-        assert align.misaligned == {"b": pytest.approx(0.5, abs=1e-9)}  # its packets' last samples
+            for seg in "abc":  # three: none may be left out of the median
+                shift = 500 * ms if seg == stepped and k >= 100 else 0
+                received = stamp + 5 * ms
+                if seg == "b":
+                    received = (k // packet * packet + packet - 1) * 10 * ms + 5 * ms
+                out.append((received, seg, stamp + shift))
+        return out
+
+    flagged, align = _flagged(arrivals("a"))
+    assert flagged == {"a": list(range(105, 200))} and align.misaligned == {"a": pytest.approx(0.5)}
+    flagged, align = _flagged(arrivals("b"))
+    assert list(flagged) == ["b"] and 100 <= flagged["b"][0] <= 100 + 2 * packet + 5, flagged
+    assert align.misaligned == {"b": pytest.approx(0.5, abs=1e-9)}  # its packets' last samples
 
 
 def test_a_sensor_that_stops_is_said_by_analyze(runs, tmp_path):

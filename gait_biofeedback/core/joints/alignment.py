@@ -15,11 +15,13 @@ doubtful (their joints get no cues) until it lines up again. (Samples released t
 or those held across a dropout, look off for a moment, until the others' come; the jump that made the
 offset marks its own first seconds: the orientation filter re-acquires the attitude, and samples marked
 so are not judged here.) A segment that is catching up is not judged either, and its offset is left out
-of the median while it is: its last ``CATCH_UP_SAMPLES`` samples were received in less than
-``CATCH_UP_RATIO`` of the time their stamps span at its usual spacing (a burst: the start-up's samples
+of the median while it is: its sample came in less than ``CATCH_UP_RATIO`` of its stamp step after the
+one before (stamps in sequence) and raised the segment's offset (a burst: the start-up's samples
 released together, or a backlog of one topic drained by a busy node; on a loaded 2-core machine the
-live graph flagged four sensors "off" by up to 0.6 s in its start-up release). A clock that steps keeps
-its pace and is judged at once. A segment silent for ``STALE_S`` no longer counts. With an even number
+live graph flagged four sensors "off" by up to 0.6 s in its start-up release). A radio's packets are no
+burst: each one's samples arrive together but leave the offset where the packet before left it. A
+clock that steps keeps its pace and is judged at once. A drain slower than twice real time is not
+recognised. A segment silent for ``STALE_S`` no longer counts. With an even number
 of segments half of which stepped, no side is the majority: both are marked. A whole recording replayed
 again, or a replay at another speed, moves every segment's offset alike and is not a misalignment.
 """
@@ -35,9 +37,8 @@ WINDOW_S = 0.3  # s of a segment's samples whose largest offset is its clock off
 MISALIGNED_S = 0.1  # s off the other segments' median: 10 samples at 100 Hz, far above a link's jitter
 STALE_S = 1.0  # s without a sample: the segment's offset no longer counts
 HOLD_S = 0.05  # s (received) that the offset must last: samples released together line up within 20 ms
-CATCH_UP_SAMPLES = 10  # a segment's last this many samples ...
-CATCH_UP_RATIO = 0.5  # ... received in less than this share of their stamps' usual span: catching up
-MAX_SPACING_S = 0.1  # stamp steps longer than this (a gap, a jump) do not count in the usual spacing
+CATCH_UP_RATIO = 0.5  # a sample received this share of its stamp step after the one before, or sooner ...
+MAX_SPACING_S = 0.1  # ... its stamp step (s) at most this (longer: a gap or a jump, not a burst)
 
 
 def said(segment: str, off_s: float) -> str:
@@ -57,9 +58,7 @@ class StampAlignment:
         self._clock: dict[str, int] = {}  # segment → its largest offset over the window, ns
         self._since: dict[str, int] = {}  # segment → when (received) it was first seen off, ns
         self._received: dict[str, int] = {}  # segment → its newest sample's received time, ns
-        self._arrivals: dict[str, deque[int]] = {}  # segment → its last samples' received times, ns
-        self._spacing: dict[str, float] = {}  # segment → its usual stamp spacing (running mean), ns
-        self._stamp: dict[str, int] = {}  # segment → its newest stamp, ns
+        self._previous: dict[str, tuple[int, int]] = {}  # segment → its newest (stamp, received), ns
         self._catching_up: set[str] = set()
         self.misaligned: dict[str, float] = {}
         self.first: dict[str, tuple[int, float]] = {}
@@ -69,6 +68,7 @@ class StampAlignment:
         """One sample; whether its segment is misaligned now."""
         window = self._window.setdefault(segment, deque())
         offset = stamp_ns - received_ns
+        catching_up = self._is_catching_up(segment, stamp_ns, received_ns, offset)
         while window and window[-1][1] <= offset:  # a sliding maximum: the smaller ones never count again
             window.pop()
         window.append((received_ns, offset))
@@ -76,7 +76,7 @@ class StampAlignment:
             window.popleft()
         self._clock[segment] = window[0][1]
         self._received[segment] = received_ns
-        if self._is_catching_up(segment, stamp_ns, received_ns):
+        if catching_up:
             self._catching_up.add(segment)
             return segment in self.misaligned
         self._catching_up.discard(segment)
@@ -98,17 +98,15 @@ class StampAlignment:
         self._since.pop(segment, None)
         return False
 
-    def _is_catching_up(self, segment: str, stamp_ns: int, received_ns: int) -> bool:
-        step = stamp_ns - self._stamp.get(segment, stamp_ns)
-        self._stamp[segment] = stamp_ns
-        if 0 < step <= MAX_SPACING_S * NS_PER_S:
-            usual = self._spacing.get(segment)
-            self._spacing[segment] = step if usual is None else usual + 0.05 * (step - usual)
-        arrivals = self._arrivals.setdefault(segment, deque(maxlen=CATCH_UP_SAMPLES))
-        arrivals.append(received_ns)
-        usual = self._spacing.get(segment)
-        return (usual is not None and len(arrivals) == CATCH_UP_SAMPLES
-                and arrivals[-1] - arrivals[0] < CATCH_UP_RATIO * (CATCH_UP_SAMPLES - 1) * usual)
+    def _is_catching_up(self, segment: str, stamp_ns: int, received_ns: int, offset: int) -> bool:
+        """Whether this sample came in a burst that raises the segment's offset (module docstring)."""
+        previous = self._previous.get(segment)
+        self._previous[segment] = (stamp_ns, received_ns)
+        if previous is None or segment not in self._clock:
+            return False
+        step = stamp_ns - previous[0]
+        return (0 < step <= MAX_SPACING_S * NS_PER_S and received_ns - previous[1] < CATCH_UP_RATIO * step
+                and offset > self._clock[segment])
 
     def misaligned_now(self, now_ns: int) -> dict[str, float]:
         """:attr:`misaligned` without the segments silent for ``STALE_S`` (a sensor that stopped is said
