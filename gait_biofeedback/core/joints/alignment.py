@@ -15,13 +15,13 @@ doubtful (their joints get no cues) until it lines up again. (Samples released t
 or those held across a dropout, look off for a moment, until the others' come; the jump that made the
 offset marks its own first seconds: the orientation filter re-acquires the attitude, and samples marked
 so are not judged here.) A segment that is catching up is not judged either, and its offset is left out
-of the median while it is: its sample came in less than ``CATCH_UP_RATIO`` of its stamp step after the
-one before (stamps in sequence) and raised the segment's offset (a burst: the start-up's samples
-released together, or a backlog of one topic drained by a busy node; on a loaded 2-core machine the
-live graph flagged four sensors "off" by up to 0.6 s in its start-up release). A radio's packets are no
-burst: each one's samples arrive together but leave the offset where the packet before left it. A
-clock that steps keeps its pace and is judged at once. A drain slower than twice real time is not
-recognised. A segment silent for ``STALE_S`` no longer counts. With an even number
+of the median while it is: a sample that came in less than ``CATCH_UP_RATIO`` of its stamp step after
+the one before (stamps in sequence) and raised the segment's offset starts it (a burst: the start-up's
+samples released together, or a backlog of one topic drained by a busy node; on a loaded 2-core machine
+the live graph flagged four sensors "off" by up to 0.6 s in its start-up release), and it lasts until
+the offset has not risen for ``SETTLE_S``. A radio's packets are no burst: each one's samples arrive
+together but leave the offset where the packet before left it. A clock that steps keeps its pace and is
+judged at once. A segment silent for ``STALE_S`` no longer counts. With an even number
 of segments half of which stepped, no side is the majority: both are marked. A whole recording replayed
 again, or a replay at another speed, moves every segment's offset alike and is not a misalignment.
 """
@@ -38,7 +38,9 @@ MISALIGNED_S = 0.1  # s off the other segments' median: 10 samples at 100 Hz, fa
 STALE_S = 1.0  # s without a sample: the segment's offset no longer counts
 HOLD_S = 0.05  # s (received) that the offset must last: samples released together line up within 20 ms
 CATCH_UP_RATIO = 0.5  # a sample received this share of its stamp step after the one before, or sooner ...
-MAX_SPACING_S = 0.1  # ... its stamp step (s) at most this (longer: a gap or a jump, not a burst)
+MAX_SPACING_S = 0.1  # ... its stamp step (s) at most this (longer: a gap or a jump, not a burst) ...
+RISE_S = 0.001  # ... that raised its segment's offset by more than this starts a catch-up ...
+SETTLE_S = 0.1  # ... which ends once the offset has not risen for this long (received time)
 
 
 def said(segment: str, off_s: float) -> str:
@@ -59,7 +61,7 @@ class StampAlignment:
         self._since: dict[str, int] = {}  # segment → when (received) it was first seen off, ns
         self._received: dict[str, int] = {}  # segment → its newest sample's received time, ns
         self._previous: dict[str, tuple[int, int]] = {}  # segment → its newest (stamp, received), ns
-        self._catching_up: set[str] = set()
+        self._catching_up: dict[str, int] = {}  # segment catching up → when (received) its offset last rose
         self.misaligned: dict[str, float] = {}
         self.first: dict[str, tuple[int, float]] = {}
         self.last: dict[str, tuple[int, float]] = {}
@@ -77,9 +79,7 @@ class StampAlignment:
         self._clock[segment] = window[0][1]
         self._received[segment] = received_ns
         if catching_up:
-            self._catching_up.add(segment)
             return segment in self.misaligned
-        self._catching_up.discard(segment)
         recent = received_ns - STALE_S * NS_PER_S
         live = [c for seg, c in self._clock.items()
                 if self._received[seg] >= recent and seg not in self._catching_up]
@@ -99,14 +99,20 @@ class StampAlignment:
         return False
 
     def _is_catching_up(self, segment: str, stamp_ns: int, received_ns: int, offset: int) -> bool:
-        """Whether this sample came in a burst that raises the segment's offset (module docstring)."""
+        """Whether the segment is catching up on a burst now (module docstring)."""
         previous = self._previous.get(segment)
         self._previous[segment] = (stamp_ns, received_ns)
-        if previous is None or segment not in self._clock:
-            return False
-        step = stamp_ns - previous[0]
-        return (0 < step <= MAX_SPACING_S * NS_PER_S and received_ns - previous[1] < CATCH_UP_RATIO * step
-                and offset > self._clock[segment])
+        rose = segment in self._clock and offset > self._clock[segment] + RISE_S * NS_PER_S
+        if previous is not None and rose:
+            step = stamp_ns - previous[0]
+            burst = 0 < step <= MAX_SPACING_S * NS_PER_S and received_ns - previous[1] < CATCH_UP_RATIO * step
+            if burst or segment in self._catching_up:
+                self._catching_up[segment] = received_ns
+                return True
+        if segment in self._catching_up and received_ns - self._catching_up[segment] < SETTLE_S * NS_PER_S:
+            return True
+        self._catching_up.pop(segment, None)
+        return False
 
     def misaligned_now(self, now_ns: int) -> dict[str, float]:
         """:attr:`misaligned` without the segments silent for ``STALE_S`` (a sensor that stopped is said
