@@ -78,7 +78,7 @@ def summarize(input_bag: Path, output: Path, wall_time: float, published: int,
     sent = sum(n for t, n in source.message_counts().items() if "/imu/" in t and t.endswith("data_raw"))
     if raw < sent:
         lost = sent - raw
-        why = (f"{cut_short}" if cut_short else
+        why = (cut_short or
                f"this machine did not keep up with the graph at {speed:g}x and the figures above are from "
                "what arrived; run `gait-biofeedback demo --speed 1`, or `gait-biofeedback analyze "
                f"{input_bag} -o OUT --calibrate-at auto` (the same core objects offline, nothing dropped)")
