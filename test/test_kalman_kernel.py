@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from gait_biofeedback.core.spatial import _kalman_kernel as kernel
-from gait_biofeedback.core.spatial.kalman import _ROWS_FLOOR, _kernels
+from gait_biofeedback.core.spatial.kalman import _ROWS_FLOOR, kernels
 
 
 def _skew(v):
@@ -48,7 +48,7 @@ def _by_numpy(p, omega, f, rot, dt, density, residual):
 @pytest.mark.parametrize("seed", range(20))
 def test_the_kernel_gives_suh_s_equations(seed):
     p, omega, f, rot, dt, density, residual = _case(seed)
-    propagate, measure = _kernels()
+    propagate, measure = kernels()
     phi, q_noise, p_next = (np.empty((15, 15)) for _ in range(3))
     propagate(p, omega, f, rot, dt, density, phi, q_noise, p_next)
     dx, p_post = np.empty(15), np.empty((15, 15))
@@ -61,7 +61,7 @@ def test_the_kernel_gives_suh_s_equations(seed):
 
 
 def test_compiled_and_plain_python_give_the_same_bits(monkeypatch):
-    propagate, measure = _kernels()
+    propagate, measure = kernels()
     if not hasattr(propagate, "py_func"):
         pytest.skip("numba is not available: the plain-Python kernel is the only one")
     p, omega, f, rot, dt, density, residual = _case(99)

@@ -109,8 +109,11 @@ _ROWS = np.array([6, 7, 8])  # the zero-velocity update's measured states: veloc
 _ROWS_FLOOR = np.array([6, 7, 8, 5])  # and with a flat floor the height
 
 
-def _kernels() -> tuple:
-    """(propagate, measure) of :mod:`._kalman_kernel`, compiled (:func:`~gait_biofeedback.core.jit.fast`)."""
+def kernels() -> tuple:
+    """(propagate, measure) of :mod:`._kalman_kernel`, compiled (:func:`~gait_biofeedback.core.jit.fast`:
+    once per process, seconds on a first run, then loaded from numba's disk cache). The foot-trajectory
+    stream asks at its start, not at the first stance: a live node compiling mid-session stalled its
+    executor and lost samples."""
     p, out = np.eye(STATES), np.empty((STATES, STATES))
     warmup = (p, np.ones(3), np.ones(3), np.eye(3), 0.01, np.ones(9), out, out.copy(), out.copy())
     return (fast(kernel, "propagate", warmup, helpers=["_product"]),
@@ -138,7 +141,7 @@ class FootKalman:
         self._run_s: float | None = None  # s: the stance in progress so far (None: in a swing)
         self._stance_s = math.inf  # s: the last stance's duration (the first stance: unknown, long)
         self.last: KalmanStep | None = None
-        self._kernels = _kernels()
+        self._kernels = kernels()
 
     def start(self, vertical: np.ndarray, gyr: np.ndarray, acc: np.ndarray, zero_velocity: bool = True,
               bias: np.ndarray | None = None) -> KalmanStep:

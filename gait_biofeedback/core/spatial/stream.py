@@ -51,6 +51,7 @@ from gait_biofeedback.core.calibration.windows import runs
 from gait_biofeedback.core.notices import Notices
 from gait_biofeedback.core.params import as_mapping, from_mapping, param, require
 from gait_biofeedback.core.spatial.kalman import FootKalman, KalmanNoise
+from gait_biofeedback.core.spatial.kalman import kernels as kalman_kernels
 from gait_biofeedback.core.spatial.provisional import (
     SWING_TOLERANCES,
     ProvisionalStride,
@@ -154,6 +155,7 @@ class FootTrajectoryStream:
         self.rate_hz = float(rate_hz)
         self.params = params or FootTrajectoryParams()
         self.keep_all = keep_all
+        kalman_kernels()  # compiled now, not in the middle of a live session at the first stance
         self.counts = {"samples": 0, "skipped": 0, "restarts": 0, "interpolated": 0, "strides": 0}
         self.notices = Notices()
         self.index: list[int] = []  # input sample number of each filter step, -1 if filled (keep_all)
