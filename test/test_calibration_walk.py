@@ -218,7 +218,9 @@ def test_replay_auto_puts_the_walks_calibration_in_force_from_the_start(walk_fro
     session = walk_from_rest if not standing_s else simulate(SimulationConfig(
         seed=1, phases=[Phase("stand", standing_s), Phase("walk", 12.0), Phase("stand", 3.0)]))
     bag = write_simulated_bag(tmp_path / "walk", session)
-    assert main(["replay", str(bag), "--record", str(tmp_path / "live"), "--speed", "2", "--calibrate-at",
+    # real time: at 2x this machine lost 12-25 % of the samples on a slow evening (2026-12-06), and
+    # replay then exits 1 saying so
+    assert main(["replay", str(bag), "--record", str(tmp_path / "live"), "--speed", "1", "--calibrate-at",
                  "auto", "--nodes", "orientation_filter,calibration,gait_events"]) == 0
     out = capsys.readouterr().out
     why = ("the walking calibration is the recording's walk" if standing_s else "no standing to press "
