@@ -60,7 +60,7 @@ class StampAlignment:
         self._clock: dict[str, int] = {}  # segment → its largest offset over the window, ns
         self._since: dict[str, int] = {}  # segment → when (received) it was first seen off, ns
         self._received: dict[str, int] = {}  # segment → its newest sample's received time, ns
-        self._previous: dict[str, tuple[int, int]] = {}  # segment → its newest (stamp, received), ns
+        self._stamp: dict[str, int] = {}  # segment → its newest stamp, ns
         self._catching_up: dict[str, int] = {}  # segment catching up → when (received) its offset last rose
         self.misaligned: dict[str, float] = {}
         self.first: dict[str, tuple[int, float]] = {}
@@ -100,12 +100,13 @@ class StampAlignment:
 
     def _is_catching_up(self, segment: str, stamp_ns: int, received_ns: int, offset: int) -> bool:
         """Whether the segment is catching up on a burst now (module docstring)."""
-        previous = self._previous.get(segment)
-        self._previous[segment] = (stamp_ns, received_ns)
+        previous_stamp = self._stamp.get(segment)
+        self._stamp[segment] = stamp_ns
         rose = segment in self._clock and offset > self._clock[segment] + RISE_S * NS_PER_S
-        if previous is not None and rose:
-            step = stamp_ns - previous[0]
-            burst = 0 < step <= MAX_SPACING_S * NS_PER_S and received_ns - previous[1] < CATCH_UP_RATIO * step
+        if previous_stamp is not None and rose:  # _received still holds the segment's previous sample's
+            step = stamp_ns - previous_stamp
+            burst = (0 < step <= MAX_SPACING_S * NS_PER_S
+                     and received_ns - self._received[segment] < CATCH_UP_RATIO * step)
             if burst or segment in self._catching_up:
                 self._catching_up[segment] = received_ns
                 return True

@@ -142,6 +142,10 @@ class FootKalman:
         self._stance_s = math.inf  # s: the last stance's duration (the first stance: unknown, long)
         self.last: KalmanStep | None = None
         self._kernels = kernels()
+        n = self.noise
+        self._density = np.array((n.gyro,) * 3 + (n.position,) * 3 + (n.acc,) * 3)  # Q_c's diagonal
+        self._zero_velocity = ((_ROWS_FLOOR, np.array((n.zero_velocity,) * 3 + (n.floor,))) if flat_floor
+                               else (_ROWS, np.array((n.zero_velocity,) * 3)))  # measured states, R
 
     def start(self, vertical: np.ndarray, gyr: np.ndarray, acc: np.ndarray, zero_velocity: bool = True,
               bias: np.ndarray | None = None) -> KalmanStep:
@@ -181,9 +185,10 @@ class FootKalman:
         f = acc - self.b[3:]
         rot = np.array(scalar.matrix(self.q))
         gain = shock_gain(f, self.noise) if self._stance_s >= self.noise.shock_stance else 1.0
-        n = self.noise
-        density = np.array((n.gyro, n.gyro, n.gyro, n.position, n.position, n.position,
-                            n.acc * gain, n.acc * gain, n.acc * gain))
+        density = self._density
+        if gain != 1.0:
+            density = density.copy()
+            density[6:9] *= gain
         phi, q_noise, p = (np.empty((STATES, STATES)) for _ in range(3))
         self._kernels[0](self.p, omega, f, rot, dt, density, phi, q_noise, p)
         self.last.phi = phi
@@ -200,9 +205,7 @@ class FootKalman:
         p_prior = self.p
         dx = np.zeros(STATES)
         if zero_velocity:
-            n = self.noise
-            rows, variance = ((_ROWS_FLOOR, np.array((n.zero_velocity,) * 3 + (n.floor,))) if self.flat_floor
-                              else (_ROWS, np.array((n.zero_velocity,) * 3)))
+            rows, variance = self._zero_velocity
             residual = np.append(-self.v, -self.r[2]) if self.flat_floor else -self.v
             self.p = np.empty((STATES, STATES))
             self._kernels[1](p_prior, rows, residual, variance, dx, self.p)  # Joseph form
