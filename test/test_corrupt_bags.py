@@ -8,6 +8,7 @@ chunk; ``analyze`` goes on without it.
 from __future__ import annotations
 
 import shutil
+import struct
 import warnings
 
 import numpy as np
@@ -16,7 +17,13 @@ from conftest import synthetic_imu
 
 from gait_biofeedback.cli import main
 from gait_biofeedback.io.bag import BagReader, BagRecoveryWarning, repair, write_imu_bag
-from gait_biofeedback.io.mcap_file import McapFile
+from gait_biofeedback.io.mcap_file import (
+    _DAMAGE_ERRORS,
+    OP_MESSAGE,
+    McapFile,
+    RawMessage,
+    _chunk_message_list,
+)
 
 
 def _bag(tmp_path):
@@ -125,3 +132,25 @@ def test_a_cut_recording_with_a_bad_first_chunk_keeps_its_later_chunks(tmp_path)
     with pytest.warns(BagRecoveryWarning), BagReader(cut) as reader:
         assert reader.message_count == len(messages)
         assert sorted(reader.topics()) == ["/left_foot/imu/data_raw", "/pelvis/imu/data_raw"]
+
+
+def _record(op: int, body: bytes) -> bytes:
+    return struct.pack("<BQ", op, len(body)) + body
+
+
+def test_a_chunks_message_records_are_read_by_hand_derived_layout():
+    """The one-loop chunk parser against records written here by the MCAP layout (opcode, length,
+    channel id, sequence, log time, publish time, data): other records are skipped, the channel
+    filter holds, a record that overruns the chunk or a message record shorter than its head is
+    damage (one of the errors that set a chunk aside, said, instead of ending the read)."""
+    first = _record(OP_MESSAGE, struct.pack("<HIQQ", 3, 7, 1_000, 1_001) + b"abc")
+    other = _record(0x0A, b"x" * 5)  # a record the parser skips
+    second = _record(OP_MESSAGE, struct.pack("<HIQQ", 4, 8, 2_000, 2_002) + b"")
+    chunk = first + other + second
+    assert _chunk_message_list(chunk, None) == [RawMessage(1_000, 3, 1_001, 7, b"abc"),
+                                                RawMessage(2_000, 4, 2_002, 8, b"")]
+    assert _chunk_message_list(chunk, frozenset({4})) == [RawMessage(2_000, 4, 2_002, 8, b"")]
+    with pytest.raises(ValueError, match="overruns the chunk"):
+        _chunk_message_list(chunk + struct.pack("<BQ", OP_MESSAGE, 100), None)
+    with pytest.raises(_DAMAGE_ERRORS):
+        _chunk_message_list(_record(OP_MESSAGE, b"\x01\x00\x02"), None)

@@ -30,7 +30,6 @@ OP_HEADER, OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK = 0x01, 0x02, 
 OP_MESSAGE_INDEX, OP_CHUNK_INDEX, OP_STATISTICS, OP_METADATA, OP_DATA_END = 0x07, 0x08, 0x0B, 0x0C, 0x0F
 _RECORD_HEAD = struct.Struct("<BQ")
 _MESSAGE_HEAD = struct.Struct("<HIQQ")
-_CHANNEL_ID = struct.Struct("<H")  # the head of a message record
 _FOOTER_SIZE = 1 + 8 + 20
 _NO_LIMIT = 2**64 - 1
 _DAMAGE_ERRORS = (ValueError, struct.error, zstandard.ZstdError, RuntimeError, UnicodeDecodeError, IndexError)
@@ -386,15 +385,10 @@ class McapFile:
 
     def _chunk_messages(self, chunk: ChunkRef, channel_ids: frozenset[int] | None) -> list[RawMessage]:
         try:
-            records = list(_chunk_records(self._chunk_data(chunk.offset, check_crc=True)))
+            return _chunk_message_list(self._chunk_data(chunk.offset, check_crc=True), channel_ids)
         except _DAMAGE_ERRORS as err:
             self._set_aside(chunk.offset, chunk, f"{type(err).__name__}: {err}")
             return []
-        if channel_ids is None:
-            return [_message(data, p, q) for op, data, p, q in records if op == OP_MESSAGE]
-        channel_of = _CHANNEL_ID.unpack_from
-        return [_message(data, p, q) for op, data, p, q in records
-                if op == OP_MESSAGE and channel_of(data, p)[0] in channel_ids]
 
     def messages(
         self, channel_ids: frozenset[int] | None = None, start: int | None = None, stop: int | None = None
@@ -456,6 +450,27 @@ def _message(buf: bytes | mmap.mmap, body: int, end: int) -> RawMessage:
 
 def _chunk_head(buf: bytes | mmap.mmap, body: int) -> tuple[int, int, int, int]:
     return struct.unpack_from("<QQQI", buf, body)  # start, end, uncompressed size, uncompressed crc
+
+
+def _chunk_message_list(data: bytes, channel_ids: frozenset[int] | None) -> list[RawMessage]:
+    """The message records of a chunk's ``data`` (of ``channel_ids``; None: all), in file order: what
+    :func:`_chunk_records` and :func:`_message` give, in one loop (a chunk holds thousands: the loop is
+    ``analyze``'s reading). ValueError when a record overruns the chunk."""
+    out: list[RawMessage] = []
+    append, head, message_head = out.append, _RECORD_HEAD.unpack_from, _MESSAGE_HEAD.unpack_from
+    pos, n = 0, len(data)
+    while pos + 9 <= n:
+        op, length = head(data, pos)
+        body = pos + 9
+        end = body + length
+        if end > n:
+            raise ValueError(f"chunk record at {pos} overruns the chunk")
+        if op == OP_MESSAGE:
+            channel_id, sequence, log_time, publish_time = message_head(data, body)
+            if channel_ids is None or channel_id in channel_ids:
+                append(RawMessage(log_time, channel_id, publish_time, sequence, data[body + 22 : end]))
+        pos = end
+    return out
 
 
 def _chunk_records(data: bytes) -> Iterator[tuple[int, bytes, int, int]]:

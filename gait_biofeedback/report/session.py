@@ -14,6 +14,7 @@ import math
 from collections import defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -53,32 +54,24 @@ class SessionReport:
     true_steps: int = 0
 
 
-def _calibration(reader: BagReader, recorded: dict) -> dict[str, dict]:
+def _calibration(messages: list[tuple[str, Any]]) -> dict[str, dict]:
+    """The estimated and true calibrations per segment (the estimates' segments first, in their order)."""
     found: dict[str, dict] = {}
-    for topic in (CALIBRATION, TRUE_CALIBRATION):
-        if topic not in recorded:
-            continue
-        for _, msg, _ in reader.messages([topic]):
-            for seg in msg.segments:
-                entry = found.setdefault(seg.segment, {})
-                key = "truth" if topic == TRUE_CALIBRATION else "estimate"
-                entry[key] = rotation(seg)
-                if key == "estimate":
-                    entry.update(valid=seg.valid, quality=seg.quality, message=seg.message)
+    for topic, msg in sorted(messages, key=lambda m: m[0] == TRUE_CALIBRATION):
+        for seg in msg.segments:
+            entry = found.setdefault(seg.segment, {})
+            key = "truth" if topic == TRUE_CALIBRATION else "estimate"
+            entry[key] = rotation(seg)
+            if key == "estimate":
+                entry.update(valid=seg.valid, quality=seg.quality, message=seg.message)
     for entry in found.values():
         if "truth" in entry and "estimate" in entry:
             entry["error"] = float(quat.angle_between(entry["estimate"], entry["truth"]))
     return found
 
 
-def _joint_rmse(reader: BagReader, recorded: dict) -> dict[str, float]:
-    if JOINTS not in recorded or TRUE_JOINTS not in recorded:
-        return {}
-    measured: dict[int, dict[str, float]] = {}
-    truth: dict[int, dict[str, float]] = {}
-    for topic, msg, _ in reader.messages([JOINTS, TRUE_JOINTS]):
-        stamp_ns, angles = angles_of(msg)
-        (truth if topic == TRUE_JOINTS else measured).setdefault(stamp_ns, {}).update(angles)
+def _joint_rmse(measured: dict[int, dict[str, float]], truth: dict[int, dict[str, float]]
+                ) -> dict[str, float]:
     errors: dict[str, list[float]] = defaultdict(list)
     for stamp, angles in measured.items():
         for name, value in angles.items():
@@ -87,13 +80,9 @@ def _joint_rmse(reader: BagReader, recorded: dict) -> dict[str, float]:
     return {name: float(np.sqrt(np.mean(np.square(e)))) for name, e in errors.items()}
 
 
-def _events(reader: BagReader, recorded: dict) -> dict[str, EventScore]:
-    if TRUE_EVENTS not in recorded:
-        return {}
-    times: dict[tuple[bool, str, str], list[float]] = defaultdict(list)
-    for topic, msg, _ in reader.messages([EVENTS, TRUE_EVENTS]):
-        side, kind, stamp_ns, _ = event_of(msg)
-        times[(topic == TRUE_EVENTS, side, kind)].append(stamp_ns * 1e-9)
+def _events(times: dict[tuple[bool, str, str], list[float]]) -> dict[str, EventScore]:
+    """Scores of the detected events (``times[(False, side, kind)]``, s) against the true ones
+    (``times[(True, side, kind)]``)."""
     if not any(not truth for truth, _, _ in times):
         return {}
     scores: dict[str, EventScore] = {}
@@ -109,16 +98,13 @@ def _events(reader: BagReader, recorded: dict) -> dict[str, EventScore]:
     return scores
 
 
-def _cycles(reader: BagReader, recorded: dict) -> dict[str, float]:
+def _cycles(cycle_messages: list[tuple[str, Any]]) -> dict[str, float]:
     """The strides' counts and the medians over the plausible steady straight ones (as in the report: a
     turn, ``turning_angle`` over ``TURN_LIMIT``, and a walk's first and last stride of each foot,
-    :func:`~gait_biofeedback.core.gait.cycles.steady_strides`, are left out)."""
-    cycles = topics.GAIT_CYCLES.absolute()
-    if cycles not in recorded:
-        return {}
+    :func:`~gait_biofeedback.core.gait.cycles.steady_strides`, are left out), from the ``gait/cycles``
+    and ``gait/stride_space`` messages in log order."""
     rows, spatial = [], []
-    revisions = [t for t in (topics.STRIDE_SPACE.absolute(),) if t in recorded]
-    messages = list(revised_cycles((t, m) for t, m, _ in reader.messages([cycles, *revisions])))
+    messages = revised_cycles(cycle_messages)
     steady = steady_strides([(m.side, stamp_to_ns(m.start), stamp_to_ns(m.header.stamp), m.plausible)
                              for m in messages])
     plausible = sum(m.plausible for m in messages)
@@ -148,24 +134,45 @@ def _cycles(reader: BagReader, recorded: dict) -> dict[str, float]:
 
 
 def session_report(path: str | Path) -> SessionReport:
-    """Read a session recording and compute its figures."""
-    reader = BagReader(path)
-    recorded = reader.topics()
-    report = SessionReport(duration=reader.duration_ns / NS_PER_S, counts=reader.message_counts())
-    report.calibration = _calibration(reader, recorded)
-    report.joint_rmse = _joint_rmse(reader, recorded)
-    report.events = _events(reader, recorded)
-    report.cycles = _cycles(reader, recorded)
-    activity = topics.ACTIVITY.absolute()
-    if activity in recorded:
-        seen: list[tuple[int, int]] = []
-        for _, msg, _ in reader.messages([activity]):
-            report.steps = max(report.steps, msg.step_count)
-            add_transition(seen, msg)
-        report.transitions = [(stamp_ns * 1e-9, kind) for stamp_ns, kind in seen]
-    if TRUE_EVENTS in recorded:
-        report.true_steps = sum(1 for _, m, _ in reader.messages([TRUE_EVENTS])
-                                if event_of(m)[1] == INITIAL_CONTACT)
+    """Read a session recording (once: its outputs' topics, in log order) and compute its figures."""
+    with BagReader(path) as reader:
+        recorded = reader.topics()
+        report = SessionReport(duration=reader.duration_ns / NS_PER_S, counts=reader.message_counts())
+        cycles, space = topics.GAIT_CYCLES.absolute(), topics.STRIDE_SPACE.absolute()
+        activity = topics.ACTIVITY.absolute()
+        wanted = {CALIBRATION, TRUE_CALIBRATION, TRUE_EVENTS, activity}
+        if TRUE_JOINTS in recorded:
+            wanted |= {JOINTS, TRUE_JOINTS}
+        if TRUE_EVENTS in recorded:
+            wanted.add(EVENTS)
+        if cycles in recorded:
+            wanted |= {cycles, space}
+        calibrations: list[tuple[str, Any]] = []
+        measured: dict[int, dict[str, float]] = {}
+        true_angles: dict[int, dict[str, float]] = {}
+        times: dict[tuple[bool, str, str], list[float]] = defaultdict(list)
+        cycle_messages: list[tuple[str, Any]] = []
+        transitions: list[tuple[int, int]] = []
+        for topic, msg, _ in reader.messages([t for t in recorded if t in wanted]):
+            if topic in (CALIBRATION, TRUE_CALIBRATION):
+                calibrations.append((topic, msg))
+            elif topic in (JOINTS, TRUE_JOINTS):
+                stamp_ns, angles = angles_of(msg)
+                (true_angles if topic == TRUE_JOINTS else measured).setdefault(stamp_ns, {}).update(angles)
+            elif topic in (EVENTS, TRUE_EVENTS):
+                side, kind, stamp_ns, _ = event_of(msg)
+                times[(topic == TRUE_EVENTS, side, kind)].append(stamp_ns * 1e-9)
+                report.true_steps += topic == TRUE_EVENTS and kind == INITIAL_CONTACT
+            elif topic in (cycles, space):
+                cycle_messages.append((topic, msg))
+            elif topic == activity:
+                report.steps = max(report.steps, msg.step_count)
+                add_transition(transitions, msg)
+    report.calibration = _calibration(calibrations)
+    report.joint_rmse = _joint_rmse(measured, true_angles)
+    report.events = _events(times) if TRUE_EVENTS in recorded else {}
+    report.cycles = _cycles(cycle_messages) if cycles in recorded else {}
+    report.transitions = [(stamp_ns * 1e-9, kind) for stamp_ns, kind in transitions]
     return report
 
 

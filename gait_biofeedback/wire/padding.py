@@ -26,6 +26,7 @@ IMU_DOUBLES, MAG_DOUBLES = 37, 12  # sensor_msgs/Imu, MagneticField: header, the
 _SIZES = {"boolean": 1, "octet": 1, "byte": 1, "char": 1, "uint8": 1, "int8": 1, "uint16": 2, "int16": 2,
           "uint32": 4, "int32": 4, "float": 4, "uint64": 8, "int64": 8, "double": 8}
 _U32 = struct.Struct("<I")
+_STRING = (("s",),)  # the plan of a string element
 _STAMPED = {"sensor_msgs/msg/Imu": IMU_DOUBLES, "sensor_msgs/msg/MagneticField": MAG_DOUBLES}
 
 # A plan is a tuple of steps: ("p", size) a primitive, ("s",) a string, ("q", element plan or size) a
@@ -81,6 +82,12 @@ def _walk(buf: bytearray, steps: tuple, pos: int) -> int:
             if isinstance(element, int):
                 if n:
                     pos = _align(buf, pos, element) + element * n
+            elif element == _STRING:  # names, labels: inline (a JointState has 18)
+                for _ in range(n):
+                    pos = _align(buf, pos, 4)
+                    pos += 4 + _U32.unpack_from(buf, 4 + pos)[0]
+                    if 4 + pos > len(buf):
+                        raise IndexError("the bytes end inside the message")
             else:
                 for _ in range(n):
                     pos = _walk(buf, element, pos)

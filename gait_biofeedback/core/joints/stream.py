@@ -205,7 +205,9 @@ class JointAngleStream:
             return []
         stamps = sorted(self.pending)
         wanted = self._wanted(stamps[-1])
-        complete = [ns for ns in stamps if all(s in self.pending[ns] for s in wanted)]
+        pending, n_wanted = self.pending, len(wanted)
+        complete = [ns for ns in stamps
+                    if len(pending[ns]) >= n_wanted and all(s in pending[ns] for s in wanted)]
         newest_complete = complete[-1] if complete else None
         out = []
         for ns in stamps:

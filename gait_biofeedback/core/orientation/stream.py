@@ -204,8 +204,8 @@ class SegmentOrientationTracker:
 
     def add_mag(self, stamp_ns: int, mag: Any) -> None:
         """A magnetometer sample (any unit, tesla on the wire) stamped ``stamp_ns``."""
-        m = tuple(float(v) for v in mag)
-        if all(math.isfinite(v) for v in m):
+        m = tuple(map(float, mag))
+        if math.isfinite(sum(m)) or all(math.isfinite(v) for v in m):
             self._mag.append((stamp_ns / NS_PER_S, m))
             self.counts["mag_samples"] += 1
 
@@ -220,9 +220,9 @@ class SegmentOrientationTracker:
         """One IMU sample (rad/s, m/s²) stamped ``stamp_ns`` → the samples ready now (usually one,
         ``reorder_window`` s after its stamp)."""
         self.counts["samples"] += 1
-        g = tuple(float(v) for v in gyr)
-        a = tuple(float(v) for v in acc)
-        if not all(math.isfinite(v) for v in g + a):
+        g = tuple(map(float, gyr))
+        a = tuple(map(float, acc))
+        if not math.isfinite(sum(g) + sum(a)) and not all(math.isfinite(v) for v in g + a):
             no_gyro = all(math.isfinite(v) for v in a) and not any(math.isfinite(v) for v in g)
             self.counts["no_gyro" if no_gyro else "nan_skipped"] += 1
             return []

@@ -51,11 +51,15 @@ def rts_smooth(steps: Sequence[KalmanStep]) -> dict[str, np.ndarray]:
     """RTS over ``steps`` (each but the last with its ``phi``); the last sample is kept as filtered."""
     n = len(steps)
     errors = np.zeros((n, STATES))
+    if n < 2:
+        return apply(steps, errors)
+    # C_k' of every k in one stacked solve (the same LAPACK call per matrix as one at a time)
+    before = steps[:-1]
+    gains_t = np.linalg.solve(np.array([s.p_prior for s in steps[1:]]),
+                              np.array([s.phi for s in before]) @ np.array([s.p_post for s in before]))
     e = np.zeros(STATES)
     for k in range(n - 2, -1, -1):
-        nxt = steps[k + 1]
-        gain_t = np.linalg.solve(nxt.p_prior, steps[k].phi @ steps[k].p_post)  # C_k'
-        e = gain_t.T @ (nxt.dx + e)
+        e = gains_t[k].T @ (steps[k + 1].dx + e)
         errors[k] = e
     return apply(steps, errors)
 

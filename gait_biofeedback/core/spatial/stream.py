@@ -194,7 +194,8 @@ class FootTrajectoryStream:
         number = self.counts["samples"]
         self.counts["samples"] += 1
         gyr, acc = np.asarray(gyr, float), np.asarray(acc, float)
-        if not (np.all(np.isfinite(gyr)) and np.all(np.isfinite(acc))):
+        if not math.isfinite(sum(gyr.tolist()) + sum(acc.tolist())) and not (
+                np.all(np.isfinite(gyr)) and np.all(np.isfinite(acc))):
             self.counts["skipped"] += 1
             return []
         if self._last_ns is not None and not 0 < stamp_ns - self._last_ns <= self.params.max_gap * NS_PER_S:
