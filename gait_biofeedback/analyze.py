@@ -51,7 +51,7 @@ from pathlib import Path
 from typing import Any
 
 from rclpy.serialization import deserialize_message
-from sensor_msgs.msg import Imu
+from sensor_msgs.msg import Imu, JointState
 
 from gait_biofeedback.core.activity.stream import ActivityParams, ActivityStream
 from gait_biofeedback.core.calibration.find import find_calibration
@@ -93,7 +93,7 @@ from gait_biofeedback.wire.imu import (
     orientation_sample,
     raw_sample,
 )
-from gait_biofeedback.wire.joints import joint_state_msg, skeleton_msg
+from gait_biofeedback.wire.joints import JOINT_STATE_TYPE, joint_state_bytes, skeleton_msg
 
 
 @dataclass
@@ -502,13 +502,14 @@ def _analyze(ordered: LogOrderWriter | None, reader: BagReader, run: Orientation
         if keep:
             result.messages.append((topic, msg, log_ns))
 
-    def emit_imu(topic: str, data: bytes, log_ns: int) -> None:
-        """An Imu the node publishes as CDR bytes: recorded as those bytes."""
+    def emit_data(topic: str, data: bytes, log_ns: int, cls: type = Imu, type_name: str = imu_type) -> None:
+        """A message of ``cls`` as its CDR bytes (an Imu the node publishes as bytes, joint states
+        written without an rclpy message): recorded as those bytes."""
         if ordered is not None:
-            ordered.produced(log_ns, topic, imu_type, data, False)
+            ordered.produced(log_ns, topic, type_name, data, cls is not Imu)  # an Imu's padding: the writer's
         result.counts[topic] = result.counts.get(topic, 0) + 1
         if keep:
-            result.messages.append((topic, deserialize_message(data, Imu), log_ns))
+            result.messages.append((topic, deserialize_message(data, cls), log_ns))
 
     def said() -> None:
         for stream in streams:
@@ -534,8 +535,8 @@ def _analyze(ordered: LogOrderWriter | None, reader: BagReader, run: Orientation
                 if all(s in synced.rotations for s in segment_pair(*joint.split("_", 1))):
                     waiting.setdefault(joint, [synced.ns, synced.ns])[1] = synced.ns
             if synced.angles:
-                msg = joint_state_msg(synced.angles, synced.ns, synced.recovering)
-                emit(topics.JOINT_STATES.absolute(), msg, log_ns)
+                emit_data(topics.JOINT_STATES.absolute(), joint_state_bytes(synced.angles, synced.ns,
+                          synced.recovering), log_ns, JointState, JOINT_STATE_TYPE)
             emitted_joints += 1
             every = j_params.skeleton_every
             if every > 0 and emitted_joints % every == 0:
@@ -576,7 +577,7 @@ def _analyze(ordered: LogOrderWriter | None, reader: BagReader, run: Orientation
 
     def orientations(seg: str, filtered: Filtered, log_ns: int) -> None:
         for data, sample in filtered:
-            emit_imu(topics.orientation(seg).absolute(), data, log_ns)
+            emit_data(topics.orientation(seg).absolute(), data, log_ns)
             downstream(seg, sample, log_ns)
 
     for item in run:

@@ -157,3 +157,43 @@ def test_an_orientation_message_is_its_bytes_decoded(recovering: bool, heading: 
     assert data == orientation_payload("left_foot", sample, raw, 2)
     assert decoded == cdr.decode_imu(data)
     assert all(type(v) is float for v in decoded.values)
+
+
+_JOINTS = ["left_hip_flexion", "left_hip_adduction", "left_hip_internal_rotation", "left_knee_flexion",
+           "left_knee_adduction", "left_knee_internal_rotation", "left_ankle_dorsiflexion",
+           "left_ankle_inversion", "left_ankle_internal_rotation"]
+
+
+@pytest.mark.parametrize(("names", "recovering", "stamp_ns"), [
+    ([], (), 0),
+    (_JOINTS[:1], (), 1_700_000_000_123_456_789),
+    (_JOINTS[:6], ("left_thigh",), 5),
+    (_JOINTS + [n.replace("left", "right") for n in _JOINTS], ("left_thigh", "pelvis", "right_foot"),
+     -1_500_000_001),
+    (["genou_flexión", "x"], ("cuisse_gauche",), 123_456_789_000),  # non-ASCII: lengths in bytes
+])
+def test_joint_state_bytes_are_rclpys_and_read_back(names, recovering, stamp_ns) -> None:
+    """The hand-written JointState codec against rclpy's serializer (padding zeroed, cut to size) and
+    deserializer: every layout the project writes (empty, 1, 6 and 18 angles; marked recovering or not;
+    a stamp before 1970; names of multi-byte characters)."""
+    from gait_biofeedback.wire.joints import angles_of, joint_state_angles, joint_state_bytes, joint_state_msg
+
+    rng = np.random.default_rng(len(names))
+    angles = {name: float(v) for name, v in zip(names, rng.normal(size=len(names)), strict=True)}
+    msg = joint_state_msg(angles, stamp_ns, recovering)
+    data = joint_state_bytes(angles, stamp_ns, recovering)
+    assert data == cdr.serialize(msg)
+    assert joint_state_angles(data) == angles_of(deserialize_message(data, type(msg)))
+    assert joint_state_angles(serialize_message(msg)) == (stamp_ns, angles)  # rclpy's own, longer bytes
+
+
+def test_joint_states_of_another_form_are_left_to_rclpy() -> None:
+    from gait_biofeedback.wire.joints import joint_state_angles, joint_state_bytes, joint_state_msg
+
+    msg = joint_state_msg({"a": 0.5, "b": -0.25}, 10)
+    msg.velocity = [1.0, 2.0]
+    assert joint_state_angles(cdr.serialize(msg)) is None  # a velocity: not the project's form
+    data = joint_state_bytes({"a": 0.5, "b": -0.25}, 10)
+    assert joint_state_angles(b"\x00\x00" + data[2:]) is None  # big endian
+    assert joint_state_angles(data[:30]) is None  # cut inside a name
+    assert joint_state_angles(data[:-6]) is None  # cut inside the sequences' counts

@@ -52,6 +52,7 @@ class BagReader:
             paths = [self.path]
         self.files: list[McapFile] = []
         self.warnings: list[str] = []
+        self._classes: dict[str, type] = {}  # type name → rclpy message class
         try:
             for p in paths:
                 self.files.append(McapFile.open(p))
@@ -174,19 +175,22 @@ class BagReader:
         self, topics: Iterable[str] | None = None, start_ns: int | None = None, stop_ns: int | None = None
     ) -> Iterator[tuple[str, Any, int]]:
         """``(topic, rclpy message, log_time_ns)``; the message class is imported from the type name."""
-        classes: dict[str, type] = {}
         for topic, type_name, data, log_time in self.raw_messages(topics, start_ns, stop_ns):
-            cls = classes.get(topic)
-            if cls is None:
-                cls = classes[topic] = message_class(type_name)
-            try:
-                msg = deserialize_message(data, cls)
-            except Exception as exc:  # rclpy raises RMWError (not exported) for bytes of another definition
-                raise ValueError(
-                    f"{self.path}: a {type_name} message on {topic} does not decode with this version's "
-                    f"definition ({exc}); a recording made by an older version? Its raw sensor topics "
-                    "still are: run `gait-biofeedback analyze` on it again") from None
-            yield topic, msg, log_time
+            yield topic, self.decode(topic, type_name, data), log_time
+
+    def decode(self, topic: str, type_name: str, data: bytes) -> Any:
+        """One message of :meth:`raw_messages` as an rclpy message; ValueError saying what to do when it
+        does not decode with this version's definition of its type."""
+        cls = self._classes.get(type_name)
+        if cls is None:
+            cls = self._classes[type_name] = message_class(type_name)
+        try:
+            return deserialize_message(data, cls)
+        except Exception as exc:  # rclpy raises RMWError (not exported) for bytes of another definition
+            raise ValueError(
+                f"{self.path}: a {type_name} message on {topic} does not decode with this version's "
+                f"definition ({exc}); a recording made by an older version? Its raw sensor topics "
+                "still are: run `gait-biofeedback analyze` on it again") from None
 
     def close(self) -> None:
         """Release the files."""

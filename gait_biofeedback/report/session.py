@@ -29,7 +29,7 @@ from gait_biofeedback.wire import topics
 from gait_biofeedback.wire.activity import add_transition
 from gait_biofeedback.wire.calibration import rotation
 from gait_biofeedback.wire.gait import event_of, revised_cycles
-from gait_biofeedback.wire.joints import angles_of
+from gait_biofeedback.wire.joints import angles_of, joint_state_angles
 from gait_biofeedback.wire.stamps import stamp_to_ns
 
 CALIBRATION, TRUE_CALIBRATION = topics.CALIBRATION.absolute(), topics.truth(topics.CALIBRATION)
@@ -153,12 +153,15 @@ def session_report(path: str | Path) -> SessionReport:
         times: dict[tuple[bool, str, str], list[float]] = defaultdict(list)
         cycle_messages: list[tuple[str, Any]] = []
         transitions: list[tuple[int, int]] = []
-        for topic, msg, _ in reader.messages([t for t in recorded if t in wanted]):
+        for topic, type_name, data, _ in reader.raw_messages([t for t in recorded if t in wanted]):
+            if topic in (JOINTS, TRUE_JOINTS):  # most of them: read without an rclpy message
+                stamp_ns, angles = (joint_state_angles(data)
+                                    or angles_of(reader.decode(topic, type_name, data)))
+                (true_angles if topic == TRUE_JOINTS else measured).setdefault(stamp_ns, {}).update(angles)
+                continue
+            msg = reader.decode(topic, type_name, data)
             if topic in (CALIBRATION, TRUE_CALIBRATION):
                 calibrations.append((topic, msg))
-            elif topic in (JOINTS, TRUE_JOINTS):
-                stamp_ns, angles = angles_of(msg)
-                (true_angles if topic == TRUE_JOINTS else measured).setdefault(stamp_ns, {}).update(angles)
             elif topic in (EVENTS, TRUE_EVENTS):
                 side, kind, stamp_ns, _ = event_of(msg)
                 times[(topic == TRUE_EVENTS, side, kind)].append(stamp_ns * 1e-9)

@@ -9,6 +9,7 @@ but no biofeedback is computed from them (:func:`recovering_of`).
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Mapping, Sequence
 
 from geometry_msgs.msg import Point
@@ -20,6 +21,8 @@ from gait_biofeedback.core.joints.angles import segment_orientations
 from gait_biofeedback.core.joints.skeleton import stick_figure
 from gait_biofeedback.core.joints.stream import SyncedAngles
 from gait_biofeedback.core.segments import WORLD_FRAME
+from gait_biofeedback.core.stamps import NS_PER_S
+from gait_biofeedback.wire.padding import CDR_LE
 from gait_biofeedback.wire.stamps import ns_to_stamp, stamp_to_ns
 
 RECOVERING = "recovering: "
@@ -34,6 +37,82 @@ def joint_state_msg(angles: Mapping[str, float], stamp_ns: int,
     if recovering:
         msg.header.frame_id = RECOVERING + ",".join(recovering)
     return msg
+
+
+JOINT_STATE_TYPE = "sensor_msgs/msg/JointState"
+_U32 = struct.Struct("<I")
+_STAMP = struct.Struct("<iI")
+
+
+def _string_bytes(text: bytes, pos: int) -> tuple[bytes, int]:
+    """A CDR string at offset ``pos`` (after the encapsulation): padding to 4, length with the NUL,
+    the bytes, the NUL; and the offset after it."""
+    pad = -pos % 4
+    return bytes(pad) + _U32.pack(len(text) + 1) + text + b"\0", pos + pad + 5 + len(text)
+
+
+def joint_state_bytes(angles: Mapping[str, float], stamp_ns: int, recovering: Sequence[str] = ()) -> bytes:
+    """The bytes :func:`~gait_biofeedback.wire.cdr.serialize` gives for :func:`joint_state_msg` (XCDR1
+    little endian, padding 0, exact size: header, ``name``, ``position``, empty ``velocity`` and
+    ``effort``), written without an rclpy message: ``analyze`` writes one per instant (test/test_cdr.py
+    compares them with rclpy's)."""
+    stamp = ns_to_stamp(stamp_ns)
+    frame = (RECOVERING + ",".join(recovering)).encode("utf-8") if recovering else b""
+    parts = [CDR_LE, _STAMP.pack(stamp.sec, stamp.nanosec)]
+    part, pos = _string_bytes(frame, 8)
+    parts.append(part)
+    pad = -pos % 4
+    parts.append(bytes(pad) + _U32.pack(len(angles)))
+    pos += pad + 4
+    for name in angles:
+        part, pos = _string_bytes(name.encode("utf-8"), pos)
+        parts.append(part)
+    pad = -pos % 4
+    parts.append(bytes(pad) + _U32.pack(len(angles)))
+    pos += pad + 4
+    if angles:
+        pad = -pos % 8
+        parts.append(bytes(pad) + struct.pack(f"<{len(angles)}d", *map(float, angles.values())))
+        pos += pad + 8 * len(angles)
+    for _ in ("velocity", "effort"):
+        pad = -pos % 4
+        parts.append(bytes(pad) + _U32.pack(0))
+        pos += pad + 4
+    return b"".join(parts)
+
+
+def joint_state_angles(data: bytes) -> tuple[int, dict[str, float]] | None:
+    """:func:`angles_of` read straight from a ``joint_states`` message's CDR bytes (XCDR1 little
+    endian, as the project writes them); None for other bytes (another encoding, a velocity or effort,
+    a truncated message): decode those with rclpy."""
+    try:
+        if data[:2] != CDR_LE[:2]:
+            return None
+        sec, nanosec = _STAMP.unpack_from(data, 4)
+        pos = 8 + 4 + _U32.unpack_from(data, 12)[0]  # past the frame_id
+        pos += -pos % 4
+        n = _U32.unpack_from(data, 4 + pos)[0]
+        pos += 4
+        names = []
+        for _ in range(n):
+            pos += -pos % 4
+            size = _U32.unpack_from(data, 4 + pos)[0]
+            names.append(str(data[8 + pos:7 + pos + size], "utf-8"))
+            pos += 4 + size
+        pos += -pos % 4
+        if _U32.unpack_from(data, 4 + pos)[0] != n:
+            return None
+        pos += 4
+        if n:
+            pos += -pos % 8
+        values = struct.unpack_from(f"<{n}d", data, 4 + pos)
+        pos += 8 * n
+        pos += -pos % 4
+        if _U32.unpack_from(data, 4 + pos)[0] or _U32.unpack_from(data, 8 + pos)[0]:
+            return None  # a velocity or an effort: not the project's form
+    except (struct.error, UnicodeDecodeError):
+        return None
+    return sec * NS_PER_S + nanosec, dict(zip(names, values, strict=True))
 
 
 def recovering_of(msg: JointState) -> tuple[str, ...]:
