@@ -26,7 +26,7 @@ from __future__ import annotations
 import bisect
 from collections import deque
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 from gait_biofeedback.core.stamps import NS_PER_S
 
@@ -37,10 +37,10 @@ START_JUMP_S = 1.0
 """The jump threshold while the stream's interval is not known yet (its first 4 intervals)."""
 
 
-@dataclass(frozen=True)
-class Released:
+class Released(NamedTuple):
     """A sample let through, in stamp order; ``gap_s`` / ``restart_s``: the first sample after a
-    confirmed jump ahead / back of that many seconds (0 otherwise)."""
+    confirmed jump ahead / back of that many seconds (0 otherwise). (A named tuple: one is made per
+    sample of every sensor, five times faster than a frozen dataclass.)"""
 
     stamp_ns: int
     payload: Any
@@ -67,6 +67,7 @@ class StreamSequencer:
         self._newest_ns: int | None = None
         self._jumped: list[tuple[int, Any]] = []
         self._intervals: deque[int] = deque(maxlen=16)
+        self._jump_threshold: int | None = None  # _jump_ns, until the intervals change
         self._arrivals = 0
 
     def push(self, stamp_ns: int, payload: Any) -> list[Released]:
@@ -112,9 +113,13 @@ class StreamSequencer:
     def _jump_ns(self) -> int:
         """The jump threshold: ``max_jump`` s or 8 sample intervals once 4 intervals are known; before,
         ``START_JUMP_S`` (a slow stream's first intervals are not jumps, a glitched stamp of seconds is)."""
-        if len(self._intervals) < 4:
-            return max(self._max_jump_ns, round(START_JUMP_S * NS_PER_S))
-        return max(self._max_jump_ns, 8 * sorted(self._intervals)[len(self._intervals) // 2])
+        if self._jump_threshold is None:
+            if len(self._intervals) < 4:
+                self._jump_threshold = max(self._max_jump_ns, round(START_JUMP_S * NS_PER_S))
+            else:
+                self._jump_threshold = max(self._max_jump_ns,
+                                           8 * sorted(self._intervals)[len(self._intervals) // 2])
+        return self._jump_threshold
 
     def _accept(self, stamp_ns: int, payload: Any, gap_s: float = 0.0,
                 restart_s: float = 0.0) -> list[Released]:
@@ -142,6 +147,7 @@ class StreamSequencer:
             s, _, p, g, r = self._pending.pop(0)
             if self._released_ns is not None and not (g or r):
                 self._intervals.append(s - self._released_ns)
+                self._jump_threshold = None
             out.append(Released(s, p, g, r))
             self._released_ns = s
         return out

@@ -65,6 +65,7 @@ import dataclasses
 import math
 from collections import deque
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -141,11 +142,11 @@ def _centre_force(gyr: tuple, gyr_dot: tuple, acc: tuple, r: np.ndarray) -> tupl
             acc[2] + wx * cy - wy * cx + dx * ry - dy * rx)
 
 
-@dataclass(frozen=True)
-class HeadingEstimate:
+class HeadingEstimate(NamedTuple):
     """One sample's result: ``delta`` (rad, rotate the distal sensor's world frame by it about the
     vertical to put it in the proximal's), ``established``, ``coherence`` (0..1) and a ``state`` word
-    for diagnostics ("collecting motion", "joint centre refused: …", "converging", "ok")."""
+    for diagnostics ("collecting motion", "joint centre refused: …", "converging", "ok"). (A named
+    tuple: every joint makes one per instant.)"""
 
     delta: float
     established: bool

@@ -307,7 +307,8 @@ class SegmentOrientationTracker:
         self._rate_note = self.rate.update(stamp_ns) or self._rate_note
         m = self._mag_for(t)
         for held, duration, finish in ((self._recover, self.recover_s, self._finish_recovery),
-                                       (self._startup, self.startup_s, self._finish_startup)):
+                                       (self._startup, self.startup_s, self._finish_startup)
+                                       ) if self._recover is not None or self._startup is not None else ():
             if held is not None:  # the re-acquisition or start-up window: held, then released together
                 held.append((t, g, a, m, stamp_ns))
                 self._t_last = t
