@@ -503,10 +503,10 @@ def _analyze(ordered: LogOrderWriter | None, reader: BagReader, run: Orientation
             result.messages.append((topic, msg, log_ns))
 
     def emit_data(topic: str, data: bytes, log_ns: int, cls: type = Imu, type_name: str = imu_type) -> None:
-        """A message of ``cls`` as its CDR bytes (an Imu the node publishes as bytes, joint states
-        written without an rclpy message): recorded as those bytes."""
+        """A message of ``cls`` as its CDR bytes, padding zeroed (an Imu the node publishes as bytes,
+        joint states written without an rclpy message): recorded as those bytes."""
         if ordered is not None:
-            ordered.produced(log_ns, topic, type_name, data, cls is not Imu)  # an Imu's padding: the writer's
+            ordered.produced(log_ns, topic, type_name, data, True)
         result.counts[topic] = result.counts.get(topic, 0) + 1
         if keep:
             result.messages.append((topic, deserialize_message(data, cls), log_ns))
