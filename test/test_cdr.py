@@ -197,3 +197,7 @@ def test_joint_states_of_another_form_are_left_to_rclpy() -> None:
     assert joint_state_angles(b"\x00\x00" + data[2:]) is None  # big endian
     assert joint_state_angles(data[:30]) is None  # cut inside a name
     assert joint_state_angles(data[:-6]) is None  # cut inside the sequences' counts
+    # name "a" (length 2: "a", NUL) at byte 24 (encapsulation, stamp, empty frame_id, padding, count)
+    assert data[24:30] == b"\x02\x00\x00\x00a\x00"
+    assert joint_state_angles(data[:29] + b"x" + data[30:]) is None  # no NUL: rclpy reads it its way
+    assert joint_state_angles(data[:28] + b"\x00" + data[29:]) is None  # a NUL inside: rclpy cuts there

@@ -141,8 +141,9 @@ def _record(op: int, body: bytes) -> bytes:
 def test_a_chunks_message_records_are_read_by_hand_derived_layout():
     """The one-loop chunk parser against records written here by the MCAP layout (opcode, length,
     channel id, sequence, log time, publish time, data): other records are skipped, the channel
-    filter holds, a record that overruns the chunk or a message record shorter than its head is
-    damage (one of the errors that set a chunk aside, said, instead of ending the read)."""
+    filter holds, a record that overruns the chunk or a message record read that is shorter than its
+    head is damage (one of the errors that set a chunk aside, said, instead of ending the read); another
+    channel's short record is skipped unread."""
     first = _record(OP_MESSAGE, struct.pack("<HIQQ", 3, 7, 1_000, 1_001) + b"abc")
     other = _record(0x0A, b"x" * 5)  # a record the parser skips
     second = _record(OP_MESSAGE, struct.pack("<HIQQ", 4, 8, 2_000, 2_002) + b"")
@@ -152,5 +153,8 @@ def test_a_chunks_message_records_are_read_by_hand_derived_layout():
     assert _chunk_message_list(chunk, frozenset({4})) == [RawMessage(2_000, 4, 2_002, 8, b"")]
     with pytest.raises(ValueError, match="overruns the chunk"):
         _chunk_message_list(chunk + struct.pack("<BQ", OP_MESSAGE, 100), None)
-    with pytest.raises(_DAMAGE_ERRORS):
-        _chunk_message_list(_record(OP_MESSAGE, b"\x01\x00\x02"), None)
+    short = _record(OP_MESSAGE, struct.pack("<H", 9) + bytes(5))  # channel 9, then 5 of 20 bytes
+    with pytest.raises(ValueError, match="shorter than its head"):
+        _chunk_message_list(short + first, None)
+    assert issubclass(ValueError, _DAMAGE_ERRORS)
+    assert _chunk_message_list(first + short, frozenset({3})) == [RawMessage(1_000, 3, 1_001, 7, b"abc")]

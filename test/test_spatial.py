@@ -31,7 +31,7 @@ from gait_biofeedback.core.spatial.kalman import (
     filter_recording,
     shock_gain,
 )
-from gait_biofeedback.core.spatial.smoother import rts_smooth, suh_smooth
+from gait_biofeedback.core.spatial.smoother import RTS_BLOCK, rts_smooth, suh_smooth
 from gait_biofeedback.core.spatial.strides import LOST_FLAG, SpatialStride, unknown
 from gait_biofeedback.core.spatial.zero_velocity import (
     StanceDetector,
@@ -168,6 +168,7 @@ def test_suh_quadratic_program_equals_the_rts_pass(walk):
     zv = detect_zero_velocity(imu.gyr, imu.acc, 100.0, 0.4, 150.0, 0.05)
     assert zv[0]  # the filter starts at sample 0
     kf = filter_recording(imu.gyr, imu.acc, 100.0, zv)
+    assert len(kf.steps) > RTS_BLOCK  # the RTS pass crosses a block of stacked gains
     suh, rts = suh_smooth(kf.steps, kf.noise), rts_smooth(kf.steps)
     filtered = np.array([s.r for s in kf.steps])
     assert np.abs(suh["position"] - filtered).max() > 1e-3  # the smoothers do change the trajectory

@@ -145,26 +145,16 @@ class BagReader:
         """``(topic, type name, CDR bytes, log_time_ns)`` with ``start_ns <= log_time < stop_ns``."""
         wanted = None if topics is None else set(topics)
         types = self.topics()
-        if len(self.files) == 1:  # most bags: no merge (a sixth of reading's time)
-            topic_of = self._topic_of(self.files[0], wanted)
-            ids = frozenset(topic_of) if wanted is not None else None
-            for m in self.files[0].messages(ids, start_ns, stop_ns):
-                topic = topic_of.get(m.channel_id)
-                if topic is not None:
-                    yield topic, types[topic], m.data, m.log_time
-            return
         streams = [self._file_stream(f, wanted, start_ns, stop_ns) for f in self.files]
-        for log_time, topic, data in heapq.merge(*streams, key=lambda item: item[0]):
+        # most bags are one file: no merge (its key calls were a sixth of reading's time)
+        merged = streams[0] if len(streams) == 1 else heapq.merge(*streams, key=lambda item: item[0])
+        for log_time, topic, data in merged:
             yield topic, types[topic], data, log_time
-
-    @staticmethod
-    def _topic_of(f: McapFile, wanted: set[str] | None) -> dict[int, str]:
-        return {c.id: c.topic for c in f.channels.values() if wanted is None or c.topic in wanted}
 
     def _file_stream(
         self, f: McapFile, wanted: set[str] | None, start_ns: int | None, stop_ns: int | None
     ) -> Iterator[tuple[int, str, bytes]]:
-        topic_of = self._topic_of(f, wanted)
+        topic_of = {c.id: c.topic for c in f.channels.values() if wanted is None or c.topic in wanted}
         ids = frozenset(topic_of) if wanted is not None else None
         for m in f.messages(ids, start_ns, stop_ns):
             topic = topic_of.get(m.channel_id)

@@ -30,6 +30,7 @@ OP_HEADER, OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK = 0x01, 0x02, 
 OP_MESSAGE_INDEX, OP_CHUNK_INDEX, OP_STATISTICS, OP_METADATA, OP_DATA_END = 0x07, 0x08, 0x0B, 0x0C, 0x0F
 _RECORD_HEAD = struct.Struct("<BQ")
 _MESSAGE_HEAD = struct.Struct("<HIQQ")
+_CHANNEL_ID = struct.Struct("<H")  # the head of a message record
 _FOOTER_SIZE = 1 + 8 + 20
 _NO_LIMIT = 2**64 - 1
 _DAMAGE_ERRORS = (ValueError, struct.error, zstandard.ZstdError, RuntimeError, UnicodeDecodeError, IndexError)
@@ -455,9 +456,11 @@ def _chunk_head(buf: bytes | mmap.mmap, body: int) -> tuple[int, int, int, int]:
 def _chunk_message_list(data: bytes, channel_ids: frozenset[int] | None) -> list[RawMessage]:
     """The message records of a chunk's ``data`` (of ``channel_ids``; None: all), in file order: what
     :func:`_chunk_records` and :func:`_message` give, in one loop (a chunk holds thousands: the loop is
-    ``analyze``'s reading). ValueError when a record overruns the chunk."""
+    ``analyze``'s reading). ValueError when a record overruns the chunk or a message record read is
+    shorter than its head (other channels' are skipped unread, as before)."""
     out: list[RawMessage] = []
     append, head, message_head = out.append, _RECORD_HEAD.unpack_from, _MESSAGE_HEAD.unpack_from
+    channel_of = _CHANNEL_ID.unpack_from
     pos, n = 0, len(data)
     while pos + 9 <= n:
         op, length = head(data, pos)
@@ -465,10 +468,11 @@ def _chunk_message_list(data: bytes, channel_ids: frozenset[int] | None) -> list
         end = body + length
         if end > n:
             raise ValueError(f"chunk record at {pos} overruns the chunk")
-        if op == OP_MESSAGE:
+        if op == OP_MESSAGE and (channel_ids is None or channel_of(data, body)[0] in channel_ids):
+            if length < 22:
+                raise ValueError(f"message record at {pos} is shorter than its head")
             channel_id, sequence, log_time, publish_time = message_head(data, body)
-            if channel_ids is None or channel_id in channel_ids:
-                append(RawMessage(log_time, channel_id, publish_time, sequence, data[body + 22 : end]))
+            append(RawMessage(log_time, channel_id, publish_time, sequence, data[body + 22 : end]))
         pos = end
     return out
 

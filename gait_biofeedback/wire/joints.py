@@ -52,10 +52,10 @@ def _string_bytes(text: bytes, pos: int) -> tuple[bytes, int]:
 
 
 def joint_state_bytes(angles: Mapping[str, float], stamp_ns: int, recovering: Sequence[str] = ()) -> bytes:
-    """The bytes :func:`~gait_biofeedback.wire.cdr.serialize` gives for :func:`joint_state_msg` (XCDR1
-    little endian, padding 0, exact size: header, ``name``, ``position``, empty ``velocity`` and
-    ``effort``), written without an rclpy message: ``analyze`` writes one per instant (test/test_cdr.py
-    compares them with rclpy's)."""
+    """:func:`joint_state_msg` (names without NUL) as XCDR1 little-endian bytes, padding 0, exact size
+    (header, ``name``, ``position``, empty ``velocity`` and ``effort``), written without an rclpy
+    message: ``analyze`` writes one per instant. For one with angles, what
+    :func:`~gait_biofeedback.wire.cdr.serialize` gives (test/test_cdr.py compares them with rclpy's)."""
     stamp = ns_to_stamp(stamp_ns)
     frame = (RECOVERING + ",".join(recovering)).encode("utf-8") if recovering else b""
     parts = [CDR_LE, _STAMP.pack(stamp.sec, stamp.nanosec)]
@@ -97,7 +97,10 @@ def joint_state_angles(data: bytes) -> tuple[int, dict[str, float]] | None:
         for _ in range(n):
             pos += -pos % 4
             size = _U32.unpack_from(data, 4 + pos)[0]
-            names.append(str(data[8 + pos:7 + pos + size], "utf-8"))
+            text = data[8 + pos:8 + pos + size]
+            if not size or len(text) != size or text.find(0) != size - 1:
+                return None  # not one NUL, at the end: rclpy's reading of it
+            names.append(str(text[:-1], "utf-8"))
             pos += 4 + size
         pos += -pos % 4
         if _U32.unpack_from(data, 4 + pos)[0] != n:

@@ -32,6 +32,7 @@ from gait_biofeedback.core import quaternion as quat
 from gait_biofeedback.core.spatial.kalman import NAV, STATES, KalmanStep
 
 BAND = 2 * NAV - 1  # upper bandwidth of M₁₁: 17 (Suh §5)
+RTS_BLOCK = 1024  # steps whose RTS gains are solved together
 
 
 def apply(steps: Sequence[KalmanStep], errors: np.ndarray,
@@ -51,16 +52,17 @@ def rts_smooth(steps: Sequence[KalmanStep]) -> dict[str, np.ndarray]:
     """RTS over ``steps`` (each but the last with its ``phi``); the last sample is kept as filtered."""
     n = len(steps)
     errors = np.zeros((n, STATES))
-    if n < 2:
-        return apply(steps, errors)
-    # C_k' of every k in one stacked solve (the same LAPACK call per matrix as one at a time)
-    before = steps[:-1]
-    gains_t = np.linalg.solve(np.array([s.p_prior for s in steps[1:]]),
-                              np.array([s.phi for s in before]) @ np.array([s.p_post for s in before]))
     e = np.zeros(STATES)
-    for k in range(n - 2, -1, -1):
-        e = gains_t[k].T @ (steps[k + 1].dx + e)
-        errors[k] = e
+    for hi in range(n - 1, 0, -RTS_BLOCK):
+        lo = max(0, hi - RTS_BLOCK)
+        # C_k' of the block's k in one stacked solve (the same LAPACK call per matrix as one at a time;
+        # blocks keep a whole session's offline pass from stacking gigabytes)
+        block = steps[lo:hi]
+        gains_t = np.linalg.solve(np.array([s.p_prior for s in steps[lo + 1:hi + 1]]),
+                                  np.array([s.phi for s in block]) @ np.array([s.p_post for s in block]))
+        for k in range(hi - 1, lo - 1, -1):
+            e = gains_t[k - lo].T @ (steps[k + 1].dx + e)
+            errors[k] = e
     return apply(steps, errors)
 
 

@@ -194,7 +194,7 @@ class FootTrajectoryStream:
         number = self.counts["samples"]
         self.counts["samples"] += 1
         gyr, acc = np.asarray(gyr, float), np.asarray(acc, float)
-        if not math.isfinite(sum(gyr.tolist()) + sum(acc.tolist())) and not (
+        if not math.isfinite(sum(gyr.ravel().tolist()) + sum(acc.ravel().tolist())) and not (
                 np.all(np.isfinite(gyr)) and np.all(np.isfinite(acc))):
             self.counts["skipped"] += 1
             return []
