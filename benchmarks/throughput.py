@@ -14,12 +14,19 @@ training --duration S``: 8 sensors at 100 Hz, the demo's calibration, then 50 s 
    wall time, and the time 100 sessions take at that rate.
 
 The issue's targets: marginal >= 100x real time, 2 workers >= 1.8x one, 100 sessions <= 5 min.
+
+``--against REV [--pairs N] [--durations 120,600]`` instead compares this checkout's ``analyze`` with
+the one of the git revision ``REV`` (a temporary worktree, run with this venv), the two side by side,
+one per core, on the same simulated session, ``N`` pairs per duration: their user CPU seconds and the
+ratio. This machine's speed drifts during a day by as much as a change is worth (the same 600 s
+session took 119 s and 210 s on two evenings); run at the same time, both sides see the same machine.
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
+import os
 import subprocess
 import sys
 import tempfile
@@ -108,14 +115,56 @@ def cohort(work: Path, n: int) -> None:
     )
 
 
+def _analyze_started(code: Path, bag: Path, out: Path) -> subprocess.Popen:
+    """``analyze`` with the package in ``code``, started now (:func:`_user_cpu` waits for it)."""
+    return subprocess.Popen([*CLI, "analyze", str(bag), "-o", str(out), "--calibrate-at", "auto"], cwd=code,
+                            env={**os.environ, "PYTHONPATH": str(code)}, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+
+
+def _user_cpu(process: subprocess.Popen) -> float:
+    """The user CPU seconds of a finished child (``os.wait4``'s resource usage)."""
+    _, status, usage = os.wait4(process.pid, 0)
+    if status:
+        raise RuntimeError(f"analyze failed (wait status {status})")
+    return usage.ru_utime
+
+
+def compare(work: Path, revision: str, pairs: int, durations: list[float]) -> None:
+    here = Path(__file__).resolve().parent.parent
+    other = work / "other"
+    subprocess.run(["git", "-C", str(here), "worktree", "add", "--detach", str(other), revision], check=True,
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        print(f"analyze --calibrate-at auto, user CPU s: {revision} | this checkout, side by side")
+        for duration in durations:
+            bag = work / f"session_{duration:.0f}"
+            _simulate(bag, duration, 1)
+            for k in range(pairs):
+                runs = [_analyze_started(code, bag, work / f"out_{side}_{duration:.0f}_{k}")
+                        for side, code in (("other", other), ("this", here))]
+                old, new = (_user_cpu(p) for p in runs)
+                print(f"{duration:>6.0f} s session, pair {k + 1}: {old:7.1f} | {new:7.1f}   "
+                      f"ratio {new / old:.3f}")
+    finally:
+        subprocess.run(["git", "-C", str(here), "worktree", "remove", "--force", str(other)], check=False,
+                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--cohort", type=int, default=100, help="sessions of part 3 [%(default)s]")
+    parser.add_argument("--against", metavar="REV", help="compare analyze with git revision REV instead")
+    parser.add_argument("--pairs", type=int, default=3, help="side-by-side runs per duration [%(default)s]")
+    parser.add_argument("--durations", default="120,600", help="session lengths, s [%(default)s]")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix="throughput_") as tmp:
         work = Path(tmp)
+        if args.against:
+            compare(work, args.against, args.pairs, [float(d) for d in args.durations.split(",")])
+            return
         analyze_rates(work)
         print("\n2. batch of 8 sessions of 60 s, --no-report")
         batch_scaling(work)
