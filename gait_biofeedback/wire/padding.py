@@ -69,8 +69,7 @@ def _walk(buf: bytearray, steps: tuple, pos: int) -> int:
         if kind == "p":
             pos = _align(buf, pos, step[1]) + step[1]
         elif kind == "s":
-            pos = _align(buf, pos, 4)
-            pos += 4 + _U32.unpack_from(buf, 4 + pos)[0]
+            pos = _string_end(buf, pos)
         else:
             if kind == "q":
                 pos = _align(buf, pos, 4)
@@ -82,10 +81,9 @@ def _walk(buf: bytearray, steps: tuple, pos: int) -> int:
             if isinstance(element, int):
                 if n:
                     pos = _align(buf, pos, element) + element * n
-            elif element == _STRING:  # names, labels: inline (a JointState has 18)
+            elif element == _STRING:  # names, labels: without a walk each (a JointState has 18)
                 for _ in range(n):
-                    pos = _align(buf, pos, 4)
-                    pos += 4 + _U32.unpack_from(buf, 4 + pos)[0]
+                    pos = _string_end(buf, pos)
                     if 4 + pos > len(buf):
                         raise IndexError("the bytes end inside the message")
             else:
@@ -94,6 +92,12 @@ def _walk(buf: bytearray, steps: tuple, pos: int) -> int:
         if 4 + pos > len(buf):
             raise IndexError("the bytes end inside the message")
     return pos
+
+
+def _string_end(buf: bytearray, pos: int) -> int:
+    """The end of the string encoded at ``pos`` (its length's padding zeroed)."""
+    pos = _align(buf, pos, 4)
+    return pos + 4 + _U32.unpack_from(buf, 4 + pos)[0]
 
 
 def _align(buf: bytearray, pos: int, size: int) -> int:
