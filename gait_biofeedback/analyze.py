@@ -335,14 +335,14 @@ def analyze_recording(
     """
     if output is not None:
         check_output(output, overwrite)  # before the analysis, not after it
-    rates = recording_rates(bag)
-    params, rate_notes = with_recording_rate(rates, params)
-    stages = {node: stage_parameters(node, values) for node, values in params.items()}
-    for _t, protocol in calibrate_at or []:
-        if protocol not in REQUESTS:
-            raise ValueError(f"unknown calibration protocol {protocol!r}; use one of {list(REQUESTS)}")
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore", BagRecoveryWarning)  # they go into result.warnings
+        warnings.simplefilter("ignore", BagRecoveryWarning)  # they go into result.warnings, said once
+        rates = recording_rates(bag)
+        params, rate_notes = with_recording_rate(rates, params)
+        stages = {node: stage_parameters(node, values) for node, values in params.items()}
+        for _t, protocol in calibrate_at or []:
+            if protocol not in REQUESTS:
+                raise ValueError(f"unknown calibration protocol {protocol!r}; use one of {list(REQUESTS)}")
         standing_s = (stages.get("calibration") or CalibrationParams()).default_standing_duration
         calibrate_at, notes = drop_needless_auto(list(rates), list(calibrate_at or []))
         requests, found_notes = resolve_calibrate_at(bag, calibrate_at, standing_s)

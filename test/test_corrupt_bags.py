@@ -158,3 +158,16 @@ def test_a_chunks_message_records_are_read_by_hand_derived_layout():
         _chunk_message_list(short + first, None)
     assert issubclass(ValueError, _DAMAGE_ERRORS)
     assert _chunk_message_list(first + short, frozenset({3})) == [RawMessage(1_000, 3, 1_001, 7, b"abc")]
+
+
+def test_analyze_says_a_cut_recording_once(tmp_path, capsys):
+    """A recording cut short (no summary: the recorder died) is said once by ``analyze``, however many
+    times the analysis opens it (its rates, the calibration search, the pass itself)."""
+    good = _bag(tmp_path)
+    (file,) = good.glob("*.mcap")
+    cut = tmp_path / "cut"
+    cut.mkdir()
+    (cut / file.name).write_bytes(file.read_bytes()[: file.stat().st_size // 2])
+    assert main(["analyze", str(cut), "-o", str(tmp_path / "out")]) == 0
+    err = capsys.readouterr().err
+    assert err.count("damaged or unfinished MCAP file") == 1, err
