@@ -77,9 +77,9 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def cmd_import(args: argparse.Namespace) -> int:
-    from gait_biofeedback.io.bag import write_imu_bag
+    from gait_biofeedback.core.safe_yaml import clip
     from gait_biofeedback.io.bag_writer import check_output
-    from gait_biofeedback.io.importers import import_recording
+    from gait_biofeedback.io.importers import import_to_bag
 
     check_output(args.output)
     options = {}
@@ -93,12 +93,18 @@ def cmd_import(args: argparse.Namespace) -> int:
         options["units"] = dict(u.split("=", 1) for u in args.units)
     if args.rate:
         options["rate_hz"] = args.rate
-    recording = import_recording(args.kind, args.path, **options)
-    for warning in recording.warnings:
-        print(f"warning: {warning}", file=sys.stderr)
-    path = write_imu_bag(args.output, recording.imu)
-    sensors = plural(len(recording.imu), "sensor")
-    print(f"wrote {path}: {sensors} ({', '.join(recording.imu)}) from {args.path}")
+    try:  # a CSV is streamed (bounded memory); whatever fails ends in one line (main)
+        path, segments = import_to_bag(args.kind, args.path, args.output, **options,
+                                       warn=lambda text: print(f"warning: {text}", file=sys.stderr))
+    except MemoryError:
+        raise ValueError(f"{args.path}: not enough memory to import it (a {args.kind} file is read whole; "
+                         "a CSV is streamed)") from None
+    except (ValueError, OSError):
+        raise
+    except Exception as exc:  # e.g. a damaged MAT file: what failed, not a traceback
+        raise ValueError(f"{args.path}: cannot import it ({type(exc).__name__}: "
+                         f"{clip(' '.join(str(exc).split()), 200)})") from None
+    print(f"wrote {path}: {plural(len(segments), 'sensor')} ({', '.join(segments)}) from {args.path}")
     return 0
 
 
@@ -140,12 +146,17 @@ def cmd_run(args: argparse.Namespace) -> int:
     params = _session_parameters(args.params)
     if args.driver:
         params["imu_driver"] = {**params.get("imu_driver", {}), **parse_driver(args.driver)}
+        if args.frame_key_file:
+            params["imu_driver"]["frame_key_file"] = args.frame_key_file
+    elif args.frame_key_file:
+        raise ValueError("--frame-key-file is the driver's: give --driver too")
     end = time.monotonic() + args.duration if args.duration > 0 else None
     return run_live(_node_list(args.nodes), args.record, params, driver=bool(args.driver),
                     until=None if end is None else (lambda: time.monotonic() > end))
 
 
 def cmd_stream_sim(args: argparse.Namespace) -> int:
+    from gait_biofeedback.core.driver.protocol import load_frame_key
     from gait_biofeedback.io.imu_bag import read_imu_bag
     from gait_biofeedback.parameters import stage_parameters
     from gait_biofeedback.sim.sensor_link import FrameSchedule, LinkModel, send_udp
@@ -158,12 +169,14 @@ def cmd_stream_sim(args: argparse.Namespace) -> int:
     ids = {segment: sid for sid, segment in driver.mapping().items()}
     link = LinkModel(args.offset_s, args.drift_ppm, args.jitter_ms, args.loss, args.reorder,
                      args.samples_per_frame, args.seed)
-    schedule = FrameSchedule(read_imu_bag(args.bag), ids, link)
+    key = load_frame_key(args.frame_key_file) if args.frame_key_file else None
+    schedule = FrameSchedule(read_imu_bag(args.bag), ids, link, key)
     if schedule.missing:
         print(f"note: the mapping's {', '.join(schedule.missing)} are not in {args.bag}")
     duration = schedule.send_ns[-1] * 1e-9
+    signed = f", signed with the key of {args.frame_key_file}" if key is not None else ""
     print(f"sending {schedule.samples} samples of {len(schedule.series)} sensors ({duration:.1f} s) to "
-          f"{host}:{port}; Ctrl-C stops")
+          f"{host}:{port}{signed}; Ctrl-C stops")
     from gait_biofeedback.nodes.common import STOP, stop_on_signals
 
     with stop_on_signals():
@@ -288,14 +301,9 @@ def cmd_replay(args: argparse.Namespace) -> int:
     if result.write_error:
         print(f"warning: {result.write_error}", file=sys.stderr)
         return 1
-    lost = sum(n for n, _ in result.raw_lost.values())
-    sent = sum(n for _, n in result.raw_lost.values())
-    if sent and lost > LOST_WARN * sent:
-        worst = max(result.raw_lost, key=lambda s: result.raw_lost[s][0] / result.raw_lost[s][1])
-        print(f"replay: the graph lost {100 * lost / sent:.1f} % of the raw IMU samples (worst {worst}: "
-              f"{result.raw_lost[worst][0]} of {result.raw_lost[worst][1]}): this machine could not keep up "
-              f"at --speed {args.speed:g}; its outputs miss those samples. Replay slower (--speed 1), or "
-              "run `gait-biofeedback analyze`, which loses none", file=sys.stderr)
+    note = result.loss_note(args.speed, args.bag, LOST_WARN)
+    if note:
+        print(f"replay: {note}", file=sys.stderr)
         return 1
     return 0
 
@@ -625,6 +633,8 @@ def build_parser() -> argparse.ArgumentParser:
                        "until Ctrl-C")
     p.add_argument("--driver", metavar="SPEC", help="also run imu_driver: udp:PORT, udp:ADDRESS:PORT, "
                    "serial:DEVICE[:BAUD] or simulated[:SCENARIO] (its other parameters: --params)")
+    p.add_argument("--frame-key-file", metavar="PATH", help="with --driver: take only frames signed with "
+                   "the session key in PATH (imu_driver's 'frame_key_file'; README: Frame format)")
     p.add_argument("--record", help="also record every topic to this bag folder")
     p.add_argument("--params", default=None, help="ROS 2 parameter file, e.g. config/session.yaml")
     p.add_argument("--nodes", help="comma-separated processing nodes (default: all; '' = none)")
@@ -649,6 +659,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--samples-per-frame", type=int, default=1, help="samples of one sensor per datagram")
     p.add_argument("--seed", type=int, default=0, help="random seed of jitter, loss and reordering")
     p.add_argument("--params", default=None, help="parameter file whose imu_driver 'sensors' gives the ids")
+    p.add_argument("--frame-key-file", metavar="PATH", help="sign the frames (GBI2) with the session key "
+                   "in PATH, as the driver's 'frame_key_file' expects")
     p.set_defaults(func=cmd_stream_sim)
 
     p = sub.add_parser("record", help="record live topics to a crash-safe MCAP bag until Ctrl-C")

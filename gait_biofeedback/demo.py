@@ -14,7 +14,7 @@ import sys
 import time
 from pathlib import Path
 
-from gait_biofeedback.graph import processing_nodes, replay_through_graph
+from gait_biofeedback.graph import catch_up_advice, processing_nodes, replay_through_graph
 from gait_biofeedback.io.bag import BagReader
 from gait_biofeedback.report.session import format_report, session_report
 
@@ -48,12 +48,16 @@ def calibration_time() -> float:
     raise ValueError("the demo scenario has no hip flexion calibration moves")
 
 
+_SLOWER = "run `gait-biofeedback demo --speed 1`"
+
+
 def summarize(input_bag: Path, output: Path, wall_time: float, published: int,
-              calibration_message: str = "", speed: float = 1.5, cut_short: str = "") -> str:
+              calibration_message: str = "", speed: float = 1.5, cut_short: str = "",
+              graph_note: str | None = None) -> str:
     """The one-screen summary of a demo run (replayed at ``speed``; ``cut_short``: why the replay or
     the recording ended early, if it did): raw samples the recording lacks are said, with what to do
     (on a slow or busy machine the graph falls behind and drops them, and every figure above
-    suffers)."""
+    suffers), and ``graph_note``, what the processing graph lost (:meth:`ReplayResult.loss_note`)."""
     source = BagReader(input_bag)
     result = BagReader(output)
     counts = result.message_counts()
@@ -78,12 +82,12 @@ def summarize(input_bag: Path, output: Path, wall_time: float, published: int,
     sent = sum(n for t, n in source.message_counts().items() if "/imu/" in t and t.endswith("data_raw"))
     if raw < sent:
         lost = sent - raw
-        why = (cut_short or
-               f"this machine did not keep up with the graph at {speed:g}x and the figures above are from "
-               "what arrived; run `gait-biofeedback demo --speed 1`, or `gait-biofeedback analyze "
-               f"{input_bag} -o OUT --calibrate-at auto` (the same core objects offline, nothing dropped)")
+        advice = catch_up_advice(speed, input_bag, _SLOWER)
+        why = cut_short or f"the figures above are from what arrived. {advice}"
         lines.append(f"LOST: {lost} of the {sent} raw samples of the recording ({100 * lost / sent:.1f} %) "
                      f"never reached the output: {why}")
+    if graph_note and not cut_short:
+        lines.append(f"LOST in the graph: {graph_note}")
     lines += [
         "-" * 78,
         f"open {output} in Foxglove (File > Open local file, pick the .mcap) or run "
@@ -114,5 +118,6 @@ def run_demo(bag: Path, output: Path, speed: float = 1.5, dashboard_port: int = 
     said = [("" if a.success else "REFUSED: ") + a.message for a in result.calibrations]
     cut_short = ("the replay was interrupted" if result.interrupted else
                  f"the recorder stopped: {result.write_error}" if result.write_error else "")
-    print(summarize(bag, output, result.wall_time, result.published, " ".join(said), speed, cut_short))
+    print(summarize(bag, output, result.wall_time, result.published, " ".join(said), speed, cut_short,
+                    result.loss_note(speed, bag, slower=_SLOWER)))
     return 0

@@ -14,6 +14,7 @@ from contextlib import contextmanager, suppress
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 import rclpy
 from rclpy.context import Context
 from rclpy.executors import Executor
@@ -23,6 +24,7 @@ from gait_biofeedback.core.calibration.stream import CalibrationAttempt
 from gait_biofeedback.io.bag import BagReader
 from gait_biofeedback.nodes.common import (
     STOP,
+    GraphClaim,
     init_ros,
     make_executor,
     refuse_other_graph,
@@ -107,6 +109,40 @@ class ReplayResult:
     raw_lost: dict[str, tuple[int, int]] = field(default_factory=dict)
     """Segment → (raw IMU samples the orientation filter never received, samples replayed): what a
     graph that could not keep up lost (DDS best effort drops the samples a busy process cannot take)."""
+    graph_holes: dict[str, list[tuple[float, int]]] = field(default_factory=dict)
+    """Segment → (s, samples) of each gap the orientation filter took for a sensor dropout although the
+    recording has samples in it: holes the graph itself dropped."""
+
+    def loss_note(self, speed: float, bag: str | Path, threshold: float = 0.005,
+                  slower: str = "replay at --speed 1") -> str | None:
+        """What the graph lost, with what to do (fitting ``speed``; ``slower``: how to run slower), or
+        None when it lost at most ``threshold`` of the raw samples and no hole."""
+        lost = sum(n for n, _ in self.raw_lost.values())
+        sent = sum(n for _, n in self.raw_lost.values())
+        holes = [(seconds, segment) for segment, found in self.graph_holes.items() for seconds, _ in found]
+        if not holes and not (sent and lost > threshold * sent):
+            return None
+        worst = max(self.raw_lost, key=lambda s: self.raw_lost[s][0] / max(self.raw_lost[s][1], 1))
+        text = (f"the graph lost {100 * lost / max(sent, 1):.1f} % of the raw IMU samples (worst {worst}: "
+                f"{self.raw_lost[worst][0]} of {self.raw_lost[worst][1]})")
+        if holes:
+            longest, where = max(holes)
+            text += (f", among them {len(holes)} hole(s) of consecutive samples (longest {longest:.2f} s, "
+                     f"{where}) that the recording has: the filters took them for sensor dropouts, but the "
+                     "graph dropped them")
+        return f"{text}; its outputs miss those samples. {catch_up_advice(speed, bag, slower)}"
+
+
+def catch_up_advice(speed: float, bag: str | Path, slower: str = "replay at --speed 1") -> str:
+    """What to do when a replay at ``speed`` (0: as fast as possible) lost samples: at real time or
+    slower, nothing but a quieter machine or the offline path helps."""
+    offline = f"`gait-biofeedback analyze {bag} -o OUT --calibrate-at auto`"
+    if 0 < speed <= 1:
+        return ("This machine could not keep up even at real time: close other programs, or analyze the "
+                f"recording offline ({offline}: the same core objects, nothing dropped).")
+    pace = "as fast as possible" if speed <= 0 else f"at {speed:g}x"
+    return (f"This machine could not keep up {pace}: {slower}, or run {offline} (the same core objects "
+            "offline, nothing dropped).")
 
 
 @dataclass
@@ -139,8 +175,8 @@ def running_graph(
     all), created in data-flow order; the recorder is subscribed to every output before this
     yields. ``driver``: an ``imu_driver`` (parameters ``node_parameters["imu_driver"]``) comes first
     and starts receiving only once the recorder and the nodes listen to it. ``use_sim_time``: every
-    node follows ``/clock`` (a replayer's). With ``output``, the calibration is saved in it unless the
-    calibration's ``session_dir`` is set. SIGINT and SIGTERM end every spin loop (see
+    node follows ``/clock`` (a replayer's). With ``output``, the calibration and the dashboard's link
+    are saved in it unless the stage's ``session_dir`` is set. SIGINT and SIGTERM end every spin loop (see
     :func:`stop_on_signals`). Everything is destroyed (files closed, bags summarised) and rclpy shut
     down on exit, whatever happened."""
     factories = processing_nodes()
@@ -153,16 +189,19 @@ def running_graph(
         stage_parameters(name, values)
     if use_sim_time:
         params = {n: {**params.get(n, {}), "use_sim_time": True} for n in {*chosen, "recorder", *params}}
-    if output is not None and not params.get("calibration", {}).get("session_dir"):
-        params = {**params, "calibration": {**params.get("calibration", {}), "session_dir": str(output)}}
+    if output is not None:
+        for stage in ("calibration", "biofeedback"):
+            if not params.get(stage, {}).get("session_dir"):
+                params = {**params, stage: {**params.get(stage, {}), "session_dir": str(output)}}
     context = Context()
     init_ros(args or [], context)
     graph = RunningGraph(context, make_executor(context), {}, None)
     ready = False
+    claim = GraphClaim([])
     with stop_on_signals():
         try:
-            refuse_other_graph(context, [*chosen, *(["recorder"] if output is not None else []),
-                                         *(["imu_driver"] if driver else [])])
+            claim = refuse_other_graph(context, [*chosen, *(["recorder"] if output is not None else []),
+                                                 *(["imu_driver"] if driver else [])])
             if output is not None:
                 recorder = Recorder(context, output=str(output), **params.get("recorder", {}))
                 graph.recorder = graph.add(recorder)
@@ -186,6 +225,7 @@ def running_graph(
                 node.destroy_node()
             if not ready and graph.recorder is not None:  # a node refused: no recording to keep
                 graph.recorder.discard()
+            claim.release()
             graph.executor.shutdown()
             if context.ok():
                 rclpy.shutdown(context=context)
@@ -260,7 +300,8 @@ def replay_through_graph(
                         recorder.write_error if recorder is not None else None, interrupted,
                         list(getattr(calibration, "attempts", [])), start_ns,
                         getattr(calibration, "saved_file", None),
-                        _raw_lost(replayer.published_by_topic, graph.nodes.get("orientation_filter")))
+                        _raw_lost(replayer.published_by_topic, graph.nodes.get("orientation_filter")),
+                        _graph_holes(replayer.raw_stamps, graph.nodes.get("orientation_filter")))
 
 
 def _raw_lost(sent: dict[str, int], orientation: Node | None) -> dict[str, tuple[int, int]]:
@@ -272,6 +313,26 @@ def _raw_lost(sent: dict[str, int], orientation: Node | None) -> dict[str, tuple
         replayed = sum(n for topic, n in sent.items() if topic.endswith(f"/{segment}/imu/data_raw"))
         if replayed:
             out[segment] = (max(replayed - tracker.counts["samples"], 0), replayed)
+    return out
+
+
+def _graph_holes(replayed: dict[str, Sequence[int]], orientation: Node | None
+                 ) -> dict[str, list[tuple[float, int]]]:
+    """Per tracked segment: (length s, samples replayed within) of each gap its filter saw where the
+    replayer had published samples (1 ms inside either end)."""
+    if orientation is None:
+        return {}
+    out: dict[str, list[tuple[float, int]]] = {}
+    for segment, tracker in orientation.trackers.items():
+        stamps = [np.asarray(v) for t, v in replayed.items() if t.endswith(f"/{segment}/imu/data_raw")]
+        if not stamps or not tracker.gaps:
+            continue
+        sent = np.sort(np.concatenate(stamps))
+        for before, after in tracker.gaps:
+            inside = int(np.searchsorted(sent, after - 1_000_000) - np.searchsorted(sent, before + 1_000_000,
+                                                                                    side="right"))
+            if inside > 0:
+                out.setdefault(segment, []).append(((after - before) * 1e-9, inside))
     return out
 
 

@@ -31,6 +31,7 @@ from gait_biofeedback.core.params import (
     specs,
     unknown_name,
 )
+from gait_biofeedback.core.safe_yaml import YamlRefusedError, describe, load_yaml_file, shown
 from gait_biofeedback.io.params import RecorderParams, ReplayerParams
 
 NODE_PARAMETERS: dict[str, type] = {
@@ -60,7 +61,7 @@ def is_ros_parameter(name: str) -> bool:
 def stage_parameters(node: str, values: Mapping[str, Any] | None = None, where: str = "") -> Any:
     """The parameters dataclass of ``node`` from ROS-named ``values`` (the rest default), checked."""
     if node not in NODE_PARAMETERS:
-        raise ParameterError(f"{where + ': ' if where else ''}unknown node {node!r}; nodes: "
+        raise ParameterError(f"{where + ': ' if where else ''}unknown node {shown(node)}; nodes: "
                              f"{', '.join(NODE_PARAMETERS)}")
     given = {k: v for k, v in (values or {}).items() if not is_ros_parameter(k)}
     return from_mapping(NODE_PARAMETERS[node], given, where or f"node {node}")
@@ -86,12 +87,11 @@ def read_params_file(path: str | Path) -> dict[str, dict[str, Any]]:
     if not path.is_file():
         raise ParameterError(f"parameter file {path} not found (see config/session.yaml for the format)")
     try:
-        document = yaml.safe_load(path.read_text())
+        document = load_yaml_file(path)
+    except YamlRefusedError as exc:
+        raise ParameterError(f"{path}: {describe(exc)}") from None
     except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-        raise ParameterError(f"{path}: not valid YAML{where}: {problem}") from None
+        raise ParameterError(f"{path}: not valid YAML {describe(exc)}") from None
     if document is None:
         return {}
     if not isinstance(document, Mapping):
@@ -107,7 +107,7 @@ def read_params_file(path: str | Path) -> dict[str, dict[str, Any]]:
             raise unknown_node(path, str(key), node)
         values = entry.get("ros__parameters") if isinstance(entry, Mapping) else None
         if not isinstance(values, Mapping):
-            raise ParameterError(f"{path}: entry {key!r} has no 'ros__parameters' mapping")
+            raise ParameterError(f"{path}: entry {shown(key)} has no 'ros__parameters' mapping")
         out.setdefault(node, {}).update(_flatten(values))
     return out
 
@@ -123,14 +123,14 @@ def patient_block(path: str | Path, entry: Any) -> dict[str, str]:
                              "session: ...}}}}' (ROS 2 refuses plain values at the top of a params file)")
     unknown = sorted(set(map(str, values)) - set(PATIENT_KEYS))
     if unknown:
-        raise ParameterError(f"{path}: patient block: unknown key(s) {unknown}; "
+        raise ParameterError(f"{path}: patient block: unknown key(s) {shown(unknown)}; "
                              f"it takes {', '.join(PATIENT_KEYS)}")
     return {str(k): str(v) for k, v in values.items()}
 
 
 def unknown_node(path: Path, key: str, node: str) -> ParameterError:
     error = unknown_name(node, list(NODE_PARAMETERS), f"{path}")
-    return ParameterError(str(error).replace("unknown parameter", f"entry {key!r}: unknown node", 1))
+    return ParameterError(str(error).replace("unknown parameter", f"entry {shown(key)}: unknown node", 1))
 
 
 def load_params_file(path: str | Path, nodes: list[str] | None = None) -> dict[str, dict[str, Any]]:

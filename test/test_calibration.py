@@ -20,7 +20,7 @@ from gait_biofeedback.core.calibration.sensor_to_segment import (
     vertical_calibration,
 )
 from gait_biofeedback.core.calibration.windows import find_standing_then_motion
-from gait_biofeedback.core.segments import ImuSeries
+from gait_biofeedback.core.segments import SEGMENTS, ImuSeries
 from gait_biofeedback.sim.simulator import SCENARIOS, simulate
 
 DEG = np.pi / 180.0
@@ -385,8 +385,188 @@ def test_calibration_file_is_written_atomically_and_checked_on_load(tmp_path):
         with pytest.raises(ValueError, match="not a usable calibration file"):
             read_calibration_file(path, segments)
     path.write_text(text.replace("- 1.0\n", "- .nan\n", 1))
-    with pytest.raises(ValueError, match="no valid rotation for pelvis"):
+    with pytest.raises(ValueError, match=r"pelvis: .*rotation has a value that is not a finite number"):
         read_calibration_file(path, segments)
+
+
+# ---- the calibration file trusted only as written (core/calibration/file.py) ------------------------
+
+def _saved(tmp_path, segments=SEGMENTS, seed=0):
+    """A calibration of random unit rotations for ``segments`` (left_thigh's w reads 0.706...), written."""
+    from gait_biofeedback.core.calibration.file import write_calibration_file
+
+    rng = np.random.default_rng(seed)
+    results = {}
+    for s in segments:
+        r = quat.normalize(np.array([0.706, 0.5, 0.4, 0.3]) if s == "left_thigh" else rng.normal(size=4))
+        results[s] = SegmentCalibrationResult(s, r, True, float(rng.uniform(0.6, 1.0)), "explained_variance",
+                                              float(rng.uniform(0.0, 0.05)), details={"cycles": 5})
+    cal = SessionCalibration("walking", results, True, "calibrated", (1.0, 4.0), (4.0, 20.0), "walking")
+    path = tmp_path / "calibration.yaml"
+    write_calibration_file(path, cal, "2026-12-01T10:00:00+0100")
+    return cal, path
+
+
+def _edit(path, change):
+    """Apply ``change`` to the parsed file and write it back with its digest recomputed (a deliberate
+    forgery: the digest is consistent, so only the value checks can refuse it)."""
+    from gait_biofeedback.core.calibration.file import file_digest
+
+    document = yaml.safe_load(path.read_text())
+    change(document)
+    body = {k: v for k, v in document.items() if k not in ("digest", "complete")}
+    path.write_text(yaml.safe_dump({**body, "digest": file_digest(body), "complete": True}, sort_keys=False))
+
+
+def _refusal(path, segments=SEGMENTS):
+    from gait_biofeedback.core.calibration.file import load_calibration_file
+
+    with pytest.raises(ValueError) as info:
+        load_calibration_file(path, segments)
+    text = str(info.value)
+    assert "\n" not in text and text.startswith(f"{path} is not a usable calibration file: ")
+    assert text.endswith("; calibrate again"), text
+    return text
+
+
+def test_calibration_file_round_trip_is_bit_for_bit(tmp_path):
+    from gait_biofeedback.core.calibration.file import load_calibration_file
+
+    cal, path = _saved(tmp_path)
+    loaded = load_calibration_file(path, SEGMENTS)
+    assert loaded.missing == () and loaded.notes == () and loaded.saved_at == "2026-12-01T10:00:00+0100"
+    assert list(loaded.calibration.segments) == list(SEGMENTS)
+    for s, result in cal.segments.items():
+        back = loaded.calibration.segments[s]
+        assert back.rotation.dtype == np.float64 and back.rotation.tobytes() == result.rotation.tobytes(), s
+        assert (back.quality, back.standing_motion, back.valid) == (result.quality, result.standing_motion,
+                                                                    True)
+    assert loaded.calibration.standing == (1.0, 4.0) and loaded.calibration.protocol == "walking"
+
+
+def test_calibration_file_edited_quaternion_is_refused_naming_its_segment(tmp_path):
+    """The probe: left_thigh's w edited from 0.706... to 7.06... was normalised and applied silently."""
+    _, path = _saved(tmp_path)
+    text = path.read_text()
+    assert text.count("- 0.706") == 1
+    path.write_text(text.replace("- 0.706", "- 7.06"))
+    refusal = _refusal(path)
+    assert "left_thigh: its entry changed since the file was written" in refusal
+    assert "rotation is not a unit quaternion (|r| = 7.1" in refusal
+    assert "right_" not in refusal and "pelvis" not in refusal
+
+
+def test_calibration_file_non_unit_quaternion_with_its_digest_recomputed_is_refused(tmp_path):
+    _, path = _saved(tmp_path)
+
+    def scale(document):
+        document["segments"]["left_thigh"]["rotation"][0] *= 1.0 + 1e-5  # |r| off by about 5e-6
+
+    _edit(path, scale)
+    refusal = _refusal(path)
+    assert "left_thigh: rotation is not a unit quaternion" in refusal and "allowed 1 ± 1e-06" in refusal
+    assert "changed since" not in refusal, "the digest is consistent: the unit check alone refuses it"
+
+
+@pytest.mark.parametrize(("field", "value", "says"), [
+    ("rotation", [float("nan"), 0.0, 0.0, 1.0], "rotation has a value that is not a finite number"),
+    ("rotation", [1.0, 0.0, 0.0], "rotation is not four numbers"),
+    ("rotation", ["1", 0, 0, 0], "rotation is not four numbers"),
+    ("quality", float("nan"), "'quality' is nan, not a finite number in [0, 1]"),
+    ("quality", 1.5, "'quality' is 1.5"),
+    ("standing_motion", float("inf"), "'standing_motion' is inf"),
+    ("valid", "yes", "'valid' is not true or false"),
+    ("segment", "right_foot", "its entry says segment 'right_foot'"),
+])
+def test_calibration_file_bad_values_are_refused_even_with_a_consistent_digest(tmp_path, field, value, says):
+    _, path = _saved(tmp_path)
+    _edit(path, lambda document: document["segments"]["left_thigh"].__setitem__(field, value))
+    refusal = _refusal(path)
+    assert f"left_thigh: {says}" in refusal, refusal
+
+
+def test_calibration_file_nan_refused(tmp_path):
+    _, path = _saved(tmp_path)
+    lines = path.read_text().splitlines(keepends=True)
+    at = lines.index("  left_thigh:\n") + 3  # its rotation's x
+    lines[at] = "    - .nan\n"
+    path.write_text("".join(lines))
+    refusal = _refusal(path)
+    assert "left_thigh: its entry changed" in refusal and "not a finite number" in refusal
+
+
+def test_calibration_file_deleted_segment_with_complete_kept_is_refused(tmp_path):
+    _, path = _saved(tmp_path)
+    document = yaml.safe_load(path.read_text())
+    del document["segments"]["right_foot"]
+    path.write_text(yaml.safe_dump(document, sort_keys=False))
+    assert path.read_text().rstrip().endswith("complete: true")
+    assert "right_foot: its entry was deleted" in _refusal(path)
+    assert "right_foot: its entry was deleted" in _refusal(path, ["pelvis"]), "whatever the session has"
+    # its digest line deleted too: the file digest still tells, the segment cannot be told
+    del document["digest"]["segments"]["right_foot"]
+    path.write_text(yaml.safe_dump(document, sort_keys=False))
+    assert "no longer match the file's digest" in _refusal(path)
+
+
+def test_calibration_file_unknown_segment_is_refused(tmp_path):
+    _, path = _saved(tmp_path)
+
+    def add(document):
+        document["segments"]["left_arm"] = {**document["segments"]["pelvis"], "segment": "left_arm"}
+
+    _edit(path, add)
+    assert "left_arm: not a segment name (known: pelvis, left_thigh" in _refusal(path)
+
+
+def test_calibration_file_header_edit_is_refused(tmp_path):
+    _, path = _saved(tmp_path)
+    path.write_text(path.read_text().replace("2026-12-01T10", "2026-12-02T10"))
+    assert "no longer match the file's digest" in _refusal(path)
+    _edit(path, lambda document: document.__setitem__("standing", [4.0, 1.0]))
+    assert "'standing' is [4.0, 1.0], not null or a window" in _refusal(path)
+
+
+def test_calibration_file_written_for_fewer_segments_is_put_in_force_for_those(tmp_path):
+    from gait_biofeedback.core.calibration.file import load_calibration_file, read_calibration_file
+
+    kept = [s for s in SEGMENTS if s not in ("right_shank", "right_foot")]
+    _, path = _saved(tmp_path, kept)
+    loaded = load_calibration_file(path, SEGMENTS)
+    assert loaded.missing == ("right_shank", "right_foot") and list(loaded.calibration.segments) == kept
+    with pytest.raises(ValueError, match="no entry for right_shank, right_foot; calibrate again"):
+        read_calibration_file(path, SEGMENTS)  # the strict form: every segment or nothing
+    assert "no entry for any of this session's segments (right_foot)" in _refusal(path, ["right_foot"])
+
+
+def test_calibration_file_without_digest_is_accepted_with_a_note_and_its_values_checked(tmp_path):
+    """Files written before digests: accepted (module docstring of core/calibration/file.py says why)."""
+    from gait_biofeedback.core.calibration.file import load_calibration_file
+
+    cal, path = _saved(tmp_path)
+    document = yaml.safe_load(path.read_text())
+    del document["digest"]
+    path.write_text(yaml.safe_dump(document, sort_keys=False))
+    loaded = load_calibration_file(path, SEGMENTS)
+    assert loaded.notes and "carries no digest" in loaded.notes[0] and str(path) in loaded.notes[0]
+    assert loaded.calibration.segments["left_thigh"].rotation.tobytes() == \
+        cal.segments["left_thigh"].rotation.tobytes()
+    path.write_text(path.read_text().replace("- 0.706", "- 7.06"))
+    assert "left_thigh: rotation is not a unit quaternion" in _refusal(path)
+    document["digest"] = "0" * 64
+    path.write_text(yaml.safe_dump(document, sort_keys=False))
+    assert "its digest is not an sha256 digest as written" in _refusal(path)
+
+
+def test_calibration_file_writer_refuses_what_its_reader_would(tmp_path):
+    from gait_biofeedback.core.calibration.file import write_calibration_file
+
+    r = np.array([0.706, 0.5, 0.4, 0.3])  # 0.706 of a unit quaternion typed in: |r| = 0.9992
+    entry = SegmentCalibrationResult("pelvis", r, True, 1.0, "x", 0.0)
+    cal = SessionCalibration("walking", {"pelvis": entry}, True, "")
+    with pytest.raises(ValueError, match=r"not saved to .*pelvis: rotation is not a unit quaternion"):
+        write_calibration_file(tmp_path / "calibration.yaml", cal, "t")
+    assert not any(tmp_path.iterdir())
 
 
 @pytest.mark.parametrize(("kept_s", "shorter"), [(1.2, True), (0.4, None)])

@@ -135,3 +135,72 @@ def test_service_calibrates_and_latched_result_reaches_late_subscriber(ros_conte
         CalibrationNode(ros_context, segments=SEGMENTS, calibration_file=str(tmp_path / "calibration.yaml"))
     with pytest.raises(ValueError, match="not found"):
         CalibrationNode(ros_context, segments=SEGMENTS, calibration_file=str(tmp_path / "nowhere.yaml"))
+
+
+def test_a_file_without_some_segments_is_in_force_for_the_others_with_a_warning(ros_context, tmp_path):
+    """A file written for fewer segments than this session's: put in force for those it has, the others
+    named on /diagnostics (status 'calibration', WARN), in the latched message's source (the dashboard
+    shows it) and as invalid entries; an edited file is refused at start naming its segment."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.node import Node
+
+    from gait_biofeedback.core.calibration.sensor_to_segment import (
+        SegmentCalibrationResult,
+        SessionCalibration,
+    )
+    from gait_biofeedback.core.calibration.stream import (
+        CalibrationAttempt,
+        read_calibration_file,
+        write_calibration_file,
+    )
+    from gait_biofeedback.nodes.calibration import CalibrationNode
+    from gait_biofeedback.nodes.common import make_executor, spin_until
+    from gait_biofeedback.wire import diagnostics
+    from gait_biofeedback.wire.topics import LATCHED_QOS, RELIABLE_QOS
+    from gait_biofeedback_msgs.msg import SegmentCalibrationArray
+
+    has = SEGMENTS[:3]
+    results = {s: SegmentCalibrationResult(s, quat.IDENTITY.copy(), True, 0.9, "explained_variance", 0.01)
+               for s in has}
+    path = tmp_path / "earlier" / "calibration.yaml"
+    write_calibration_file(path, SessionCalibration("walking", results, True, "calibrated"), "2026-12-01")
+    node = CalibrationNode(ros_context, segments=SEGMENTS, session_dir=str(tmp_path / "new"),
+                           calibration_file=str(path))
+    listener = Node("listener", context=ros_context)
+    statuses, latched = [], []
+    listener.create_subscription(DiagnosticArray, "/diagnostics", lambda m: statuses.extend(m.status),
+                                 RELIABLE_QOS)
+    listener.create_subscription(SegmentCalibrationArray, "calibration/sensor_to_segment", latched.append,
+                                 LATCHED_QOS)
+    executor = make_executor(ros_context)
+    executor.add_node(node)
+    executor.add_node(listener)
+    ours = lambda: [s for s in statuses if s.name == "calibration" and str(path) in s.message]  # noqa: E731
+    mine = lambda: [m for m in latched if str(path) in m.source]  # noqa: E731
+    try:
+        assert spin_until(executor, lambda: ours() and mine(), timeout=10)
+        assert [s for s, r in node.current.segments.items() if r.valid] == list(has)
+        # a calibration computed in this session replaces the file: the status says so (the dashboard
+        # keeps the last status of each name) and the new file has every segment
+        every = {s: SegmentCalibrationResult(s, quat.IDENTITY.copy(), True, 0.9, "explained_variance", 0.01)
+                 for s in SEGMENTS}
+        node._accept(CalibrationAttempt("walking", True, "calibrated",
+                                        SessionCalibration("walking", every, True, "calibrated"), 1, 2))
+        assert diagnostics.level_of(node.file_status) == diagnostics.OK
+        assert "computed in this session" in node.file_status.message
+        assert read_calibration_file(tmp_path / "new" / "calibration.yaml", SEGMENTS)[0].success
+    finally:
+        node.destroy_node()
+        listener.destroy_node()
+        executor.shutdown()
+    status = ours()[0]
+    assert diagnostics.level_of(status) == diagnostics.WARN
+    assert f"{path} has no entry for right_thigh: not calibrated" in status.message
+    assert {kv.key: kv.value for kv in status.values}["missing"] == "right_thigh"
+    message = mine()[0]
+    assert "no entry for right_thigh: not calibrated" in message.source
+    assert [(e.segment, e.valid) for e in message.segments] == [(s, s in has) for s in SEGMENTS]
+
+    path.write_text(path.read_text().replace("quality: 0.9", "quality: 0.95", 1))  # pelvis' entry
+    with pytest.raises(ValueError, match="pelvis: its entry changed since the file was written"):
+        CalibrationNode(ros_context, segments=SEGMENTS, calibration_file=str(path))

@@ -34,3 +34,14 @@ def test_lost_raw_samples_are_said_with_what_to_do(tmp_path):
     text = summarize(source, lossy, 1.0, 400, cut_short="the replay was interrupted")
     (line,) = [x for x in text.splitlines() if "LOST" in x]
     assert line.endswith("never reached the output: the replay was interrupted")
+
+
+def test_at_real_time_the_advice_is_not_to_replay_slower(tmp_path):
+    """A machine that lost samples at 1x (a CPU hog beside it) is told to close programs or analyze offline,
+    not to replay at the speed it already ran at."""
+    source = write_imu_bag(tmp_path / "in", synthetic_imu(["left_foot"], duration=1.0))
+    lossy = _recorded(source, tmp_path / "lossy",
+                      lambda i, topic: not (topic.endswith("data_raw") and i % 4 == 0))
+    (line,) = [x for x in summarize(source, lossy, 1.0, 200, speed=1.0).splitlines() if "LOST" in x]
+    assert "even at real time: close other programs" in line and "--speed 1" not in line
+    assert f"analyze {source} -o OUT --calibrate-at auto" in line

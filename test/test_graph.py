@@ -356,3 +356,50 @@ def test_raw_samples_a_busy_graph_lost_are_counted_per_segment():
     lost = _raw_lost(sent, SimpleNamespace(trackers=trackers))
     assert lost == {"left_foot": (430, 1000), "pelvis": (0, 800)}
     assert _raw_lost(sent, None) == {}
+
+
+def test_holes_the_graph_dropped_are_told_from_sensor_dropouts():
+    """A gap the orientation filter saw is the graph's own loss when the replayer had published samples
+    inside it, a sensor dropout when the recording has none there; the graph's holes make replay fail
+    even below the 0.5 % share (0.14 s of one sensor in 60 s of 8), with advice that fits the speed."""
+    from array import array
+    from types import SimpleNamespace
+
+    from gait_biofeedback.graph import ReplayResult, _graph_holes
+
+    ns = 10_000_000  # 100 Hz
+    stamps = [k * ns for k in range(6000)]
+    sensor_dropout = set(range(1000, 1050))  # 0.5 s the recording itself lacks
+    replayed = {"/left_foot/imu/data_raw": array("q", [t for k, t in enumerate(stamps)
+                                                       if k not in sensor_dropout]),
+                "/pelvis/imu/data_raw": array("q", stamps)}
+    gaps = {"left_foot": [(999 * ns, 1050 * ns), (3000 * ns, 3015 * ns)], "pelvis": []}
+    trackers = {s: SimpleNamespace(gaps=g, counts={"samples": 0}) for s, g in gaps.items()}
+    holes = _graph_holes(replayed, SimpleNamespace(trackers=trackers))
+    assert holes == {"left_foot": [(pytest.approx(0.15), 14)]}
+
+    result = ReplayResult(None, 0, 0, 1.0, raw_lost={"left_foot": (14, 5950), "pelvis": (0, 6000)},
+                          graph_holes=holes)
+    note = result.loss_note(1.0, "in.mcap")
+    assert note and "1 hole(s)" in note and "longest 0.15 s, left_foot" in note
+    assert "graph dropped them" in note
+    assert "even at real time: close other programs" in note and "--speed 1" not in note
+    assert "replay at --speed 1" in result.loss_note(3.0, "in.mcap")
+    assert ReplayResult(None, 0, 0, 1.0, raw_lost={"pelvis": (10, 6000)}).loss_note(1.0, "x") is None
+
+
+def test_replay_exits_1_naming_a_hole_the_graph_dropped(tmp_path, monkeypatch, capsys):
+    import gait_biofeedback.graph as graph
+    from gait_biofeedback import cli
+
+    bag = write_imu_bag(tmp_path / "in", synthetic_imu(["left_foot"], duration=0.5))
+
+    def lossy_replay(*args, **kwargs):
+        return graph.ReplayResult(None, 50, 0, 1.0, raw_lost={"left_foot": (14, 50)},
+                                  graph_holes={"left_foot": [(0.15, 14)]})
+
+    monkeypatch.setattr(graph, "replay_through_graph", lossy_replay)
+    assert cli.main(["replay", str(bag), "--speed", "1"]) == 1
+    err = capsys.readouterr().err
+    assert "hole(s) of consecutive samples (longest 0.15 s, left_foot)" in err
+    assert "even at real time" in err

@@ -167,6 +167,109 @@ def test_unmapped_and_missing_sensors_are_named_on_diagnostics_and_the_dashboard
         executor.shutdown()
 
 
+def _send_genuine_and_forged(port, key=None, forged_frames=()):
+    """Sensor 3 (left_foot) sends 100 samples at 200 Hz from one socket, its device clock the wall
+    clock; a second socket sends ``forged_frames`` interleaved. (genuine send ns, forger's port)."""
+    import socket
+
+    from gait_biofeedback.core.driver.protocol import DeviceSample, encode_frame
+
+    genuine, forger = (socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(2))
+    sent = []
+    try:
+        forger.bind(("127.0.0.1", 0))
+        start = time.time_ns()
+        for k in range(100):
+            now = time.time_ns()
+            frame = encode_frame([DeviceSample(3, 7000 + k, (now - start) // 1000, (float(k), 0.0, 9.8),
+                                               (0.0, 0.0, 0.0))], key)
+            genuine.sendto(frame, ("127.0.0.1", port))
+            sent.append(now)
+            if k >= 10 and k - 10 < len(forged_frames):  # the id is bound to the genuine sender by now
+                forger.sendto(forged_frames[k - 10], ("127.0.0.1", port))
+            time.sleep(0.005)
+        return np.array(sent), forger.getsockname()[1]
+    finally:
+        genuine.close()
+        forger.close()
+
+
+def _forged(seq, t_us, key=None):
+    from gait_biofeedback.core.driver.protocol import DeviceSample, encode_frame
+
+    return encode_frame([DeviceSample(3, seq, t_us, (-1.0, 0.0, 0.0), (0.0, 0.0, 0.0))], key)
+
+
+def _send_while_spinning(executor, *args):
+    """:func:`_send_genuine_and_forged` in a thread while the graph spins (the topics' depth is 100)."""
+    from gait_biofeedback.nodes.common import spin_until
+
+    result = []
+    thread = threading.Thread(target=lambda: result.append(_send_genuine_and_forged(*args)), daemon=True)
+    thread.start()
+    spin_until(executor, lambda: not thread.is_alive(), timeout=10)
+    assert result, "the senders finished"
+    return result[0]
+
+
+def _genuine_only(listener, sent):
+    got = listener.imu["left_foot"]
+    assert [m.linear_acceleration.x for m in got] == [float(k) for k in range(100)]
+    stamps = np.array([m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for m in got])
+    assert (np.diff(stamps) > 0).all()
+    assert np.abs(stamps - sent).max() < 50e6  # a forged sample taken would move them seconds
+
+
+def test_udp_a_second_sender_claiming_a_sensors_id_is_dropped_and_named(ros_context):
+    from gait_biofeedback.nodes.common import spin_until
+
+    driver, listener, executor = _graph(ros_context, port=0, diagnostics_period=0.2)
+    try:
+        # the hostile probe: sequence 123 at device time 1 µs, then a stream of its own (a second sensor 3)
+        forged = [_forged(123, 1)] + [_forged(k, 5_000 * k) for k in range(50)]
+        sent, forger_port = _send_while_spinning(executor, driver.link.port, None, forged)
+        name = "imu_driver: left_foot"
+        spin_until(executor, lambda: name in listener.diagnostics and listener.values(name)["foreign_samples"]
+                   == "51" and len(listener.imu["left_foot"]) >= 100, timeout=10)
+        _genuine_only(listener, sent)
+        values = listener.values(name)
+        assert (values["foreign_samples"], values["lost"], values["reboots"], values["rejected"]) == (
+            "51", "0", "0", "0")
+        status = listener.diagnostics[name]
+        assert status.level == b"\x01"
+        assert f"sensor 3 also sent from 127.0.0.1:{forger_port}: two sources claim one id" in status.message
+    finally:
+        driver.destroy_node()
+        listener.node.destroy_node()
+        executor.shutdown()
+
+
+def test_udp_with_a_session_key_only_signed_frames_are_taken(ros_context, tmp_path):
+    from gait_biofeedback.nodes.common import spin_until
+
+    key = b"a session key of the clinic, 0123"
+    key_file = tmp_path / "frame.key"
+    key_file.write_bytes(key + b"\n")
+    key_file.chmod(0o600)
+    driver, listener, executor = _graph(ros_context, port=0, diagnostics_period=0.2,
+                                        frame_key_file=str(key_file))
+    try:
+        forged = [_forged(7000 + k, 1, None) for k in range(20)]  # unsigned, with sequences ahead
+        forged += [_forged(7100 + k, 1, b"guessed key 0123456789") for k in range(10)]
+        sent, _ = _send_while_spinning(executor, driver.link.port, key, forged)
+        name = "imu_driver: link"
+        spin_until(executor, lambda: name in listener.diagnostics and len(listener.imu["left_foot"]) >= 100
+                   and listener.values(name)["wrongly_signed_frames"] == "10", timeout=10)
+        _genuine_only(listener, sent)
+        assert listener.values(name)["unsigned_frames"] == "20"
+        assert "30 frames refused: not signed with the session key" in listener.diagnostics[name].message
+        assert listener.values("imu_driver: left_foot")["foreign_samples"] == "0"  # refused, not foreign
+    finally:
+        driver.destroy_node()
+        listener.node.destroy_node()
+        executor.shutdown()
+
+
 def _pty():
     import tty
 

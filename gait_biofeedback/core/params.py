@@ -23,6 +23,8 @@ from dataclasses import dataclass
 from functools import cache
 from typing import Any
 
+from gait_biofeedback.core.safe_yaml import shown
+
 _META = "gait_biofeedback.param"
 _KINDS = {bool: "bool", int: "int", float: "float", str: "str", tuple[str, ...]: "str_list",
           tuple[float, ...]: "float_list", dict[str, str]: "str_per_key"}
@@ -148,27 +150,27 @@ def _is_number(value: Any) -> bool:
 def _problem(spec: Spec, value: Any) -> str:
     kind = spec.kind
     if kind == "bool":
-        return "" if isinstance(value, bool) else f"got {value!r}"
+        return "" if isinstance(value, bool) else f"got {shown(value)}"
     if kind == "int":
         if not isinstance(value, int) or isinstance(value, bool):
-            return f"got {value!r}"
+            return f"got {shown(value)}"
         return _range_problem(spec, value)
     if kind == "float":
         if not _is_number(value) or not math.isfinite(value):
-            return f"got {value!r}"
+            return f"got {shown(value)}"
         return _range_problem(spec, value)
     if kind == "str":
         if not isinstance(value, str):
-            return f"got {value!r}"
-        return "" if spec.choices is None or value in spec.choices else f"got {value!r}"
+            return f"got {shown(value)}"
+        return "" if spec.choices is None or value in spec.choices else f"got {shown(value)}"
     if not isinstance(value, (list, tuple)):
-        return f"got {value!r}"
+        return f"got {shown(value)}"
     if kind == "str_list":
         bad = [v for v in value
                if not isinstance(v, str) or (spec.choices is not None and v not in spec.choices)]
-        return f"got {list(value)!r} ({bad!r} not allowed)" if bad else ""
+        return f"got {shown(list(value))} ({shown(bad)} not allowed)" if bad else ""
     if not all(_is_number(v) and math.isfinite(v) for v in value):
-        return f"got {list(value)!r}"
+        return f"got {shown(list(value))}"
     if spec.length is not None and len(value) != spec.length:
         return f"got {len(value)} numbers"
     return ""
@@ -176,7 +178,7 @@ def _problem(spec: Spec, value: Any) -> str:
 
 def _range_problem(spec: Spec, value: float) -> str:
     if (spec.low is not None and value < spec.low) or (spec.high is not None and value > spec.high):
-        return f"{value!r} is out of range"
+        return f"{shown(value)} is out of range"
     return ""
 
 
@@ -185,7 +187,8 @@ def unknown_name(name: str, known: Sequence[str], where: str) -> ParameterError:
     close = difflib.get_close_matches(name, known, n=3, cutoff=0.6)
     hint = f"; did you mean {', '.join(repr(c) for c in close)}?" if close else ""
     prefix = f"{where}: " if where else ""
-    return ParameterError(f"{prefix}unknown parameter {name!r}{hint} (known: {', '.join(sorted(known))})")
+    return ParameterError(f"{prefix}unknown parameter {shown(name)}{hint} "
+                          f"(known: {', '.join(sorted(known))})")
 
 
 def from_mapping(cls: type, values: Mapping[str, Any] | None = None, where: str = "") -> Any:

@@ -16,8 +16,10 @@ Security (the page shows and drives a patient's session):
 * every request must name this server in its ``Host`` header (``127.0.0.1:<port>``, ``localhost:<port>``
   or ``[::1]:<port>`` for a loopback bind; ``<host>:<port>`` otherwise), so a web page that rebinds
   its own DNS name to 127.0.0.1 cannot reach it; the websocket handshake must carry no ``Origin`` or
-  the origin of this server, so no other web page can open it. Refusals are HTTP 403, logged once per
-  origin or host;
+  the origin of this server, so no other web page can open it. Refusals are HTTP 403, logged at most
+  once per ``REFUSAL_LOG_PERIOD`` (the first at once, then one line with the count of those since),
+  the offending value cut to 80 characters: a flood of refused requests grows neither memory nor log;
+* at most ``max_clients`` pages are connected at once (another websocket handshake gets HTTP 503);
 * commands need the session's token: a random string made at start (:attr:`DashboardServer.token`),
   known only to whoever reads the node's log, which prints the link with it
   (``http://127.0.0.1:8080/?token=...``, as Jupyter does). The page passes it on in the websocket URL;
@@ -37,6 +39,7 @@ import errno
 import hmac
 import json
 import logging
+import math
 import mimetypes
 import secrets
 import threading
@@ -51,6 +54,8 @@ from websockets.asyncio.server import ServerConnection, broadcast, serve
 from websockets.datastructures import Headers
 from websockets.exceptions import ConnectionClosed
 from websockets.http11 import Request, Response
+
+from gait_biofeedback.core.safe_yaml import shown
 
 STATIC_DIR = Path(__file__).resolve().parent
 WEBSOCKET_PATH = "/ws"
@@ -70,6 +75,9 @@ def _bracketed(host: str) -> str:
     """An IPv6 address as a Host header writes it (``[::1]``)."""
     return f"[{host}]" if ":" in host and not host.startswith("[") else host
 PORT_TRIES = 20
+REFUSAL_LOG_PERIOD = 10.0
+"""s: at most one log line about refused requests this often (module docstring)."""
+MAX_CLIENTS = 16
 _TYPES = {".html": "text/html; charset=utf-8", ".js": "text/javascript; charset=utf-8",
           ".css": "text/css; charset=utf-8", ".png": "image/png", ".svg": "image/svg+xml"}
 
@@ -80,7 +88,8 @@ class DashboardServer:
     def __init__(self, build_frame: Callable[[], dict | None], on_message: Callable[[dict], None],
                  hello: Callable[[], dict], host: str = "127.0.0.1", port: int = 8080,
                  frame_rate: float = 30.0, static_dir: Path = STATIC_DIR, max_buffer: int = 1 << 20,
-                 logger: Any = None, token: str | None = None, allowed_hosts: Sequence[str] = ()) -> None:
+                 logger: Any = None, token: str | None = None, allowed_hosts: Sequence[str] = (),
+                 max_clients: int = MAX_CLIENTS) -> None:
         self.build_frame = build_frame
         self.on_message = on_message
         self.hello = hello
@@ -90,16 +99,19 @@ class DashboardServer:
         self.period = 1.0 / max(float(frame_rate), 1.0)
         self.static_dir = Path(static_dir).resolve()
         self.max_buffer = int(max_buffer)
+        self.max_clients = int(max_clients)
         self.log = logger
         self.token = token or secrets.token_urlsafe(18)
         self.port: int | None = None
         self.frames_sent = 0
         self.frames_skipped = 0
         self.refused = 0
+        self.token_failures = 0
         self.error: BaseException | None = None
         self._clients: set[ServerConnection] = set()
         self._commanders: set[ServerConnection] = set()
-        self._refusals_logged: set[str] = set()
+        self._refusal_logged_at = -math.inf  # monotonic time of the last refusal line
+        self._refusals_unlogged = 0  # refusals since that line
         self._ready = threading.Event()
         self._loop: asyncio.AbstractEventLoop | None = None
         self._stop: asyncio.Event | None = None
@@ -186,6 +198,8 @@ class DashboardServer:
                 next_t += self.period
                 if self._clients:
                     self._send_frame()
+                if self._refusals_unlogged:
+                    self._log_refusal(None)
                 delay = next_t - time.monotonic()
                 if delay < 0:  # fell behind: do not burst to catch up
                     next_t = time.monotonic()
@@ -215,8 +229,17 @@ class DashboardServer:
             self.frames_sent += 1
 
     def _may_command(self, request: Request) -> bool:
+        """Whether the page's link carries the session's token. A wrong one (a guess) is counted in
+        :attr:`token_failures` and logged at the refusals' bounded rate; no token is a read-only view."""
         given = parse_qs(urlsplit(request.path).query).get("token", [""])[0]
-        return hmac.compare_digest(given.encode(), self.token.encode())
+        if hmac.compare_digest(given.encode(), self.token.encode()):
+            return True
+        if given:
+            self.token_failures += 1
+            self._refusals_unlogged += 1
+            self._log_refusal(f"a page with a wrong command token ({self.token_failures} so far); it is "
+                              "shown read-only")
+        return False
 
     async def _handler(self, ws: ServerConnection) -> None:
         self._clients.add(ws)
@@ -240,8 +263,9 @@ class DashboardServer:
                     self.refused += 1
                     await ws.send(json.dumps({
                         "type": "reply", "action": str(message.get("action", "?"))[:40], "success": False,
-                        "message": "read-only view: open the dashboard with the link the biofeedback node "
-                                   "logged (…/?token=…) to send commands"}))
+                        "message": "read-only view: open the dashboard with the link printed where the "
+                                   "session was started (…/?token=…, also in the session folder's "
+                                   "dashboard_url.txt) to send commands"}))
                     continue
                 self.on_message(message)
         except ConnectionClosed:
@@ -250,12 +274,26 @@ class DashboardServer:
             self._clients.discard(ws)
             self._commanders.discard(ws)
 
-    def _refuse(self, connection: ServerConnection, why: str) -> Response:
+    def _refuse(self, connection: ServerConnection, why: str,
+                status: HTTPStatus = HTTPStatus.FORBIDDEN) -> Response:
         self.refused += 1
-        if why not in self._refusals_logged and self.log is not None:
-            self._refusals_logged.add(why)
-            self.log.warning(f"dashboard refused a request: {why}")
-        return connection.respond(HTTPStatus.FORBIDDEN, f"refused: {why}\n")
+        self._refusals_unlogged += 1
+        self._log_refusal(why)
+        return connection.respond(status, f"refused: {why}\n")
+
+    def _log_refusal(self, why: str | None) -> None:
+        """Log ``why`` (None: only the count of refusals not logged yet) unless a refusal line was
+        logged less than ``REFUSAL_LOG_PERIOD`` ago (module docstring)."""
+        now = time.monotonic()
+        if self.log is None or now - self._refusal_logged_at < REFUSAL_LOG_PERIOD:
+            return
+        count, self._refusals_unlogged = self._refusals_unlogged, 0
+        self._refusal_logged_at = now
+        if why is None:
+            self.log.warning(f"dashboard refused {count} more request(s) since the last such line")
+        else:
+            more = f" ({count - 1} more refused since the last such line)" if count > 1 else ""
+            self.log.warning(f"dashboard refused a request: {why}{more}")
 
     def _http(self, connection: ServerConnection, request: Request) -> Response | None:
         hosts = request.headers.get_all("Host")
@@ -264,13 +302,16 @@ class DashboardServer:
         host = hosts[0] if hosts else ""
         allowed = self._allowed_hosts()
         if host.lower() not in allowed:
-            return self._refuse(connection, f"Host {host!r} is not this dashboard (a page rebinding its "
-                                            "address to this machine?)")
+            return self._refuse(connection, f"Host {shown(host)} is not this dashboard (a page rebinding "
+                                            "its address to this machine?)")
         path = urlsplit(request.path).path
         if path == WEBSOCKET_PATH:
             origin = request.headers.get("Origin")
             if origin is not None and origin.lower() not in _origins(allowed):
-                return self._refuse(connection, f"websocket from the web page of origin {origin!r}")
+                return self._refuse(connection, f"websocket from the web page of origin {shown(origin)}")
+            if len(self._clients) >= self.max_clients:
+                return self._refuse(connection, f"{self.max_clients} pages are connected already",
+                                    HTTPStatus.SERVICE_UNAVAILABLE)
             return None  # go on with the websocket handshake
         name = "index.html" if path in ("", "/") else path.lstrip("/")
         file = (self.static_dir / name).resolve()

@@ -15,10 +15,16 @@ from typing import Any
 
 import yaml
 
+from gait_biofeedback.core.safe_yaml import dump_yaml, load_yaml, load_yaml_file
+
 METADATA_FILE = "metadata.yaml"
 METADATA_VERSION = 9
 ROS_DISTRO = "jazzy"
 _INFINITE = {"sec": 9223372036, "nsec": 854775807}
+MAX_METADATA_BYTES = 8 << 20
+"""Largest metadata.yaml read (a bag of thousands of split files stays far below it)."""
+MAX_METADATA_NODES = 200_000
+MAX_QOS_BYTES = 64 << 10
 
 
 def qos_profile(reliability: str = "reliable", durability: str = "volatile", depth: int = 100) -> list[dict]:
@@ -40,13 +46,13 @@ def qos_profile(reliability: str = "reliable", durability: str = "volatile", dep
 
 def qos_to_text(profiles: list[dict]) -> str:
     """The string stored in an MCAP channel's ``offered_qos_profiles`` metadata."""
-    return yaml.safe_dump(profiles, sort_keys=False, default_flow_style=False).strip()
+    return dump_yaml(profiles, sort_keys=False, default_flow_style=False).strip()
 
 
 def qos_from_text(text: str) -> list[dict]:
     """Inverse of :func:`qos_to_text`; [] for empty or unparsable text."""
     try:
-        loaded = yaml.safe_load(text) if text else []
+        loaded = load_yaml(text, max_bytes=MAX_QOS_BYTES) if text else []
     except yaml.YAMLError:
         return []
     return loaded if isinstance(loaded, list) else []
@@ -121,7 +127,7 @@ def write_metadata(bag_dir: Path, document: dict[str, Any]) -> Path:
     path = Path(bag_dir) / METADATA_FILE
     tmp = path.with_name(f".{METADATA_FILE}.tmp")
     try:
-        tmp.write_text(yaml.safe_dump(document, sort_keys=False, default_flow_style=False), encoding="utf-8")
+        tmp.write_text(dump_yaml(document, sort_keys=False, default_flow_style=False), encoding="utf-8")
     except OSError:
         tmp.unlink(missing_ok=True)
         raise
@@ -133,7 +139,7 @@ def read_metadata(bag_dir: Path) -> dict[str, Any] | None:
     """The ``rosbag2_bagfile_information`` mapping of ``bag_dir``, or None if absent or unreadable."""
     path = Path(bag_dir) / METADATA_FILE
     try:
-        document = yaml.safe_load(path.read_text(encoding="utf-8"))
+        document = load_yaml_file(path, max_bytes=MAX_METADATA_BYTES, max_nodes=MAX_METADATA_NODES)
         info = document["rosbag2_bagfile_information"]
     except (OSError, yaml.YAMLError, TypeError, KeyError):
         return None

@@ -18,17 +18,23 @@ Use :func:`import_recording` with ``kind="auto"`` to pick the importer from the 
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import difflib
 import gzip
+import io
 import math
 import re
-from collections.abc import Callable, Mapping
+import shutil
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
+from warnings import catch_warnings, simplefilter
 
 import numpy as np
 
+from gait_biofeedback.core.safe_yaml import describe, load_yaml_file, shown
 from gait_biofeedback.core.segments import GRAVITY, SEGMENTS, STANDARD_GRAVITY, ImuSeries
 from gait_biofeedback.io.ipol import TRIAL_NAME, import_ipol_gait
 from gait_biofeedback.io.recording import Recording
@@ -309,6 +315,16 @@ def import_broad(path_mat: str | Path, segment: str = "board") -> Recording:
 # --------------------------------------------------------------------------------------------------
 
 
+CSV_BLOCK_CHARS = 2 << 20
+"""Characters of a CSV parsed at a time (about 50 000 rows of 40 characters): memory stays bounded for
+any file size."""
+CSV_MAX_LINE = 1 << 20
+"""Longest line accepted in a CSV (a header of thousands of columns is far below it)."""
+CSV_WINDOW_BYTES = 64 << 20
+"""Memory for the first samples of a streamed import, on which its time base and units are judged."""
+_SAMPLE_BYTES = 80  # t, acc, gyr, mag of one segment's sample, float64
+
+
 def import_generic_csv(
     path: str | Path,
     mapping: Mapping[str, Any] | str | Path,
@@ -341,7 +357,55 @@ def import_generic_csv(
     strictly. Rows with NaN/empty IMU values are kept (downstream filters skip them) and counted in
     ``warnings``. Raises ValueError naming a missing column (and listing the file's columns) or an
     unknown unit (and listing the allowed ones).
+
+    The whole recording is held in memory; :func:`import_csv_to_bag` writes a bag of any size in
+    bounded memory (the same messages).
     """
+    layout = csv_layout(path, mapping, units, rate_hz)
+    chunks = [chunk.imu for chunk in csv_chunks(layout)]
+    if not chunks:
+        raise ValueError(f"{layout.path}: no data rows after the header")
+    imu = {segment: _joined([c[segment] for c in chunks]) for segment in layout.columns}
+    del chunks
+    _check_sample_rate(layout.path, next(iter(imu.values())).t, layout.time_unit)
+    warnings: list[str] = []
+    for segment, series in imu.items():
+        warnings += _csv_warnings(layout, series, _nan_count(series, layout.has_gyro(segment)), len(series))
+    return Recording(imu=imu, source=f"csv:{layout.path}", reference={}, warnings=warnings)
+
+
+@dataclass(frozen=True)
+class CsvLayout:
+    """Where the values of a mapped CSV are (:func:`csv_layout`): ``columns``: segment -> quantity ->
+    the 3 column indices (None: absent), ``time``: (name, index) of the time column (None: ``rate_hz``
+    gives the time), ``factors``: quantity -> factor to SI, ``units``: the unit names."""
+
+    path: Path
+    header: list[str]
+    delimiter: str
+    columns: dict[str, dict[str, list[int] | None]]
+    time: tuple[str, int] | None
+    rate_hz: float | None
+    factors: dict[str, float]
+    units: dict[str, str]
+
+    @property
+    def time_unit(self) -> str | None:
+        """The time column's unit (None: the rate was given)."""
+        return None if self.rate_hz is not None else self.units["time"]
+
+    def has_gyro(self, segment: str) -> bool:
+        return self.columns[segment]["gyr"] is not None
+
+
+def csv_layout(
+    path: str | Path,
+    mapping: Mapping[str, Any] | str | Path,
+    units: Mapping[str, str] | None = None,
+    rate_hz: float | None = None,
+) -> CsvLayout:
+    """The mapping (see :func:`import_generic_csv`) checked against the units and the file's header
+    row; ValueError naming what is wrong."""
     path = Path(path)
     mapping_dict = _load_mapping(mapping)
     segment_map = {k: v for k, v in mapping_dict.items() if k not in ("time", "units")}
@@ -351,63 +415,201 @@ def import_generic_csv(
     for segment in segment_map:
         if segment not in SEGMENTS:
             close = difflib.get_close_matches(str(segment), SEGMENTS, n=1)
-            raise ValueError(f"mapping for {path} names an unknown segment '{segment}'"
+            raise ValueError(f"mapping for {path} names an unknown segment {shown(segment)}"
                              + (f" (did you mean '{close[0]}'?)" if close else "")
                              + f"; the segments are {list(SEGMENTS)}")
     merged_units = {**DEFAULT_UNITS, **dict(mapping_dict.get("units") or {}), **dict(units or {})}
     factors = _unit_factors(merged_units)
-
     header, delimiter = _read_header(path)
-    data = np.genfromtxt(path, delimiter=delimiter, skip_header=1, dtype=float, invalid_raise=True)
-    data = np.atleast_2d(data)
-    if data.size == 0:
-        raise ValueError(f"{path}: no data rows after the header")
-    if data.shape[1] != len(header):
-        raise ValueError(f"{path}: {data.shape[1]} data columns but {len(header)} header names")
     column_index = {name: i for i, name in enumerate(header)}
 
-    def column(name: str, what: str) -> np.ndarray:
-        if name not in column_index:
-            raise ValueError(f"{path}: column '{name}' ({what}) not in the file; the file has {header}")
-        return data[:, column_index[name]]
+    def index(name: Any, what: str) -> int:
+        if not isinstance(name, str) or name not in column_index:
+            raise ValueError(f"{path}: column {shown(name)} ({what}) not in the file; the file has "
+                             f"{shown(header, 1000)}")
+        return column_index[name]
 
-    t = _csv_time(path, data.shape[0], mapping_dict.get("time"), header, column, rate_hz,
-                  factors["time"])
-    _check_sample_rate(path, t, None if rate_hz is not None else merged_units["time"])
-    imu: dict[str, ImuSeries] = {}
-    warnings: list[str] = []
-    for segment, columns in segment_map.items():
-        if not isinstance(columns, Mapping):
+    time_name = _time_column(path, mapping_dict.get("time"), header, rate_hz)
+    time = None if time_name is None else (time_name, index(time_name, "time"))
+    columns: dict[str, dict[str, list[int] | None]] = {}
+    for segment, given in segment_map.items():
+        if not isinstance(given, Mapping):
             raise ValueError(f"mapping['{segment}'] must be {{'acc': [3 columns], 'gyr': [3 columns]}}, "
-                             f"got {columns!r}")
-        unknown = [k for k in columns if k not in _VECTOR_QUANTITIES]
+                             f"got {shown(given)}")
+        unknown = [k for k in given if k not in _VECTOR_QUANTITIES]
         if unknown:
-            raise ValueError(f"mapping['{segment}'] has unknown key(s) {unknown}; "
+            raise ValueError(f"mapping['{segment}'] has unknown key(s) {shown(unknown)}; "
                              f"allowed: {list(_VECTOR_QUANTITIES)}")
-        vectors: dict[str, np.ndarray | None] = {}
+        columns[segment] = {}
         for quantity in _VECTOR_QUANTITIES:
-            names = columns.get(quantity)
+            names = given.get(quantity)
             if names is None:
                 if quantity == "acc":
                     raise ValueError(f"mapping['{segment}'] lacks 'acc' (3 column names)")
-                vectors[quantity] = None
+                columns[segment][quantity] = None
                 continue
-            if isinstance(names, str) or len(names) != 3:
+            if isinstance(names, str) or not isinstance(names, (list, tuple)) or len(names) != 3:
                 raise ValueError(f"mapping['{segment}']['{quantity}'] must list 3 column names (x, y, z), "
-                                 f"got {names!r}")
-            vectors[quantity] = np.column_stack(
-                [column(n, f"{segment} {quantity}") for n in names]) * factors[quantity]
-        gyr = vectors["gyr"]
-        if gyr is None:  # an accelerometer alone: its rate is unknown (NaN), not zero
-            gyr = np.full_like(vectors["acc"], np.nan)
-            warnings.append(f"{segment}: no gyro columns: its angular rate is written as unknown (NaN), so "
-                            "the orientation filter gives it no orientation (nor joint angles); the activity "
-                            "monitor uses its accelerometer alone")
-        series = ImuSeries(segment=segment, t=t, acc=vectors["acc"], gyr=gyr, mag=vectors["mag"])
-        imu[segment] = series
-        warnings += _nan_warnings(series, gyro=vectors["gyr"] is not None)
-        warnings += _unit_plausibility_warnings(series, merged_units)
-    return Recording(imu=imu, source=f"csv:{path}", reference={}, warnings=warnings)
+                                 f"got {shown(names)}")
+            columns[segment][quantity] = [index(n, f"{segment} {quantity}") for n in names]
+    return CsvLayout(path, header, delimiter, columns, time, None if rate_hz is None else float(rate_hz),
+                     factors, merged_units)
+
+
+def _time_column(path: Path, time_column: Any, header: list[str], rate_hz: float | None) -> str | None:
+    """The name of the time column, None when ``rate_hz`` gives the time."""
+    if rate_hz is not None:
+        if time_column is not None:
+            raise ValueError(f"{path}: both rate_hz={rate_hz} and time column {shown(time_column)} given; "
+                             "pass one of them")
+        if not rate_hz > 0:
+            raise ValueError(f"rate_hz must be > 0, got {rate_hz}")
+        return None
+    if time_column is None:
+        found = [name for name in DEFAULT_TIME_COLUMNS if name in header]
+        if not found:
+            raise ValueError(f"{path}: no time column named {list(DEFAULT_TIME_COLUMNS)}; the file has "
+                             f"{shown(header, 1000)}. Name it with mapping['time'], or give the rate "
+                             "(--rate HZ; rate_hz in Python)")
+        time_column = found[0]
+    return time_column
+
+
+class CsvChunk(NamedTuple):
+    """Consecutive rows of a CSV: segment -> their samples, the index of the first (0 = the first data
+    row), and the bytes of the file (compressed, for ``.gz``) read so far."""
+
+    imu: dict[str, ImuSeries]
+    first_row: int
+    bytes_read: int
+
+
+def csv_chunks(layout: CsvLayout, block_chars: int = CSV_BLOCK_CHARS) -> Iterator[CsvChunk]:
+    """The data rows of ``layout.path`` in chunks of about ``block_chars`` characters, in SI units,
+    their times checked (finite, strictly increasing across chunks); a chunk is the same as the rows
+    of the whole file read at once. A ragged row, or a line still unended after :data:`CSV_MAX_LINE`
+    characters, is refused with its line number."""
+    path = layout.path
+    with open(path, "rb") as raw:
+        binary = gzip.GzipFile(fileobj=raw, mode="rb") if path.suffix == ".gz" else raw
+        with io.TextIOWrapper(binary, encoding="utf-8-sig", errors="replace") as text:
+            rows, last_t = 0, None
+            for first_line, lines in _line_blocks(path, text, block_chars):
+                data = _parse_rows(layout, lines, first_line)
+                if not data.shape[0]:
+                    continue
+                t = _chunk_time(layout, data, rows, last_t)
+                imu = {segment: _chunk_series(layout, segment, data, t) for segment in layout.columns}
+                yield CsvChunk(imu, rows, raw.tell())
+                rows, last_t = rows + len(t), t[-1]
+
+
+def _line_blocks(path: Path, text: io.TextIOBase, block_chars: int) -> Iterator[tuple[int, list[str]]]:
+    """(file line number of the first, lines) of the data lines (after the header), a block at a time."""
+    carry, line_number, header_done = "", 1, False
+    while True:
+        block = text.read(block_chars)
+        lines = (carry + block).split("\n")
+        carry = lines.pop() if block else ""
+        if len(carry) > CSV_MAX_LINE:
+            raise ValueError(f"{path}: line {line_number + len(lines)} is longer than {CSV_MAX_LINE} "
+                             "characters; not a CSV of IMU samples")
+        if not header_done and lines:
+            lines, header_done, line_number = lines[1:], True, line_number + 1
+        if lines and not (len(lines) == 1 and not lines[0] and not block):
+            yield line_number, lines
+        line_number += len(lines)
+        if not block:
+            return
+
+
+def _parse_rows(layout: CsvLayout, lines: list[str], first_line: int) -> np.ndarray:
+    """The values of ``lines`` as ``np.genfromtxt(..., dtype=float, invalid_raise=True)`` reads them
+    (an empty or non-numeric field: NaN), via the faster ``np.loadtxt`` when every field is a number."""
+    with catch_warnings():
+        simplefilter("ignore")  # "input contained no data": a block of blank lines
+        try:
+            data = np.loadtxt(lines, delimiter=layout.delimiter, dtype=float, ndmin=2)
+        except ValueError:
+            try:
+                data = np.genfromtxt(lines, delimiter=layout.delimiter, dtype=float, invalid_raise=True,
+                                     ndmin=2)
+            except ValueError:
+                raise ValueError(_ragged(layout, lines, first_line)) from None
+    if not data.size:
+        return np.zeros((0, len(layout.header)))
+    if data.shape[1] != len(layout.header):
+        raise ValueError(f"{layout.path}: {data.shape[1]} data columns but {len(layout.header)} header names")
+    return data
+
+
+def _ragged(layout: CsvLayout, lines: list[str], first_line: int) -> str:
+    """The refusal of rows genfromtxt cannot read: the first whose column count is not the header's."""
+    wanted = len(layout.header)
+    for k, line in enumerate(lines):
+        fields = line.split("#", 1)[0].strip(" \r\n")
+        if fields and fields.count(layout.delimiter) + 1 != wanted:
+            return (f"{layout.path}: line {first_line + k} has {fields.count(layout.delimiter) + 1} "
+                    f"columns, the header {wanted}")
+    return f"{layout.path}: lines {first_line}-{first_line + len(lines) - 1} cannot be read as numbers"
+
+
+def _chunk_time(layout: CsvLayout, data: np.ndarray, first_row: int, last_t: float | None) -> np.ndarray:
+    """The times of a chunk of rows (``first_row``: index of its first data row; ``last_t``: the time of
+    the row before it), checked: finite and strictly increasing."""
+    path = layout.path
+    if layout.time is None:
+        return np.arange(first_row, first_row + data.shape[0]) / float(layout.rate_hz)
+    name, column = layout.time
+    t = data[:, column] * layout.factors["time"]
+    if np.any(~np.isfinite(t)):
+        row = first_row + int(np.flatnonzero(~np.isfinite(t))[0])
+        raise ValueError(f"{path}: time column '{name}' is empty/NaN at data row {row}; fix the file "
+                         "or give the rate (--rate HZ; rate_hz in Python)")
+    before = t[:-1] if last_t is None else np.concatenate([[last_t], t[:-1]])
+    after = t[1:] if last_t is None else t
+    bad = np.flatnonzero(after - before <= 0)
+    if bad.size:
+        k = int(bad[0])
+        row = first_row + k + (1 if last_t is None else 0)
+        raise ValueError(f"{path}: time column '{name}' does not increase at data row {row} "
+                         f"({before[k]} s -> {after[k]} s); times must increase strictly")
+    return t
+
+
+def _chunk_series(layout: CsvLayout, segment: str, data: np.ndarray, t: np.ndarray) -> ImuSeries:
+    vectors: dict[str, np.ndarray | None] = {}
+    for quantity, columns in layout.columns[segment].items():
+        vectors[quantity] = None if columns is None else data[:, columns] * layout.factors[quantity]
+    gyr = vectors["gyr"]
+    if gyr is None:  # an accelerometer alone: its rate is unknown (NaN), not zero
+        gyr = np.full_like(vectors["acc"], np.nan)
+    return ImuSeries(segment=segment, t=t, acc=vectors["acc"], gyr=gyr, mag=vectors["mag"])
+
+
+def _joined(parts: list[ImuSeries]) -> ImuSeries:
+    """One series of consecutive parts of a segment's samples."""
+    if len(parts) == 1:
+        return parts[0]
+    first = parts[0]
+    mag = None if first.mag is None else np.concatenate([p.mag for p in parts])
+    return ImuSeries(first.segment, np.concatenate([p.t for p in parts]),
+                     np.concatenate([p.acc for p in parts]), np.concatenate([p.gyr for p in parts]), mag,
+                     first.frame_id)
+
+
+def _csv_warnings(layout: CsvLayout, series: ImuSeries, nan_count: int | None, total: int) -> list[str]:
+    """A CSV segment's warnings, as :func:`import_generic_csv` gives them (``nan_count`` None: left
+    out), the units judged on ``series``."""
+    segment = series.segment
+    out = []
+    if not layout.has_gyro(segment):
+        out.append(f"{segment}: no gyro columns: its angular rate is written as unknown (NaN), so the "
+                   "orientation filter gives it no orientation (nor joint angles); the activity monitor "
+                   "uses its accelerometer alone")
+    if nan_count is not None:
+        out += _nan_text(segment, nan_count, total)
+    return out + _unit_plausibility_warnings(series, layout.units)
 
 
 def _load_mapping(mapping: Mapping[str, Any] | str | Path) -> dict[str, Any]:
@@ -417,8 +619,10 @@ def _load_mapping(mapping: Mapping[str, Any] | str | Path) -> dict[str, Any]:
         mapping_path = Path(mapping)
         if not mapping_path.is_file():
             raise FileNotFoundError(f"mapping file {mapping_path} not found")
-        with mapping_path.open() as handle:
-            loaded = yaml.safe_load(handle)
+        try:
+            loaded = load_yaml_file(mapping_path)
+        except yaml.YAMLError as exc:
+            raise ValueError(f"{mapping_path}: not a usable YAML mapping: {describe(exc)}") from None
         if not isinstance(loaded, Mapping):
             raise ValueError(f"{mapping_path}: expected a YAML mapping of segment -> {{acc, gyr, mag}} "
                              f"columns, got {type(loaded).__name__}")
@@ -444,48 +648,15 @@ def _read_header(path: Path) -> tuple[list[str], str]:
     """(column names, delimiter) of a CSV, gzip-compressed (``.gz``) or not."""
     opener = gzip.open if path.suffix == ".gz" else open
     with opener(path, "rt", newline="", encoding="utf-8-sig") as handle:  # a BOM (Excel's) is not a name
-        first_line = handle.readline()
+        first_line = handle.readline(CSV_MAX_LINE + 1)
+    if len(first_line) > CSV_MAX_LINE:
+        raise ValueError(f"{path}: the header line is longer than {CSV_MAX_LINE} characters; expected one "
+                         "row of column names")
     if not first_line.strip():
         raise ValueError(f"{path}: empty file or empty header line; expected one row of column names")
     delimiter = max((",", ";", "\t"), key=first_line.count)
     header = [name.strip() for name in next(csv.reader([first_line], delimiter=delimiter))]
     return header, delimiter
-
-
-def _csv_time(
-    path: Path,
-    n_rows: int,
-    time_column: str | None,
-    header: list[str],
-    column: Callable[[str, str], np.ndarray],
-    rate_hz: float | None,
-    time_factor: float,
-) -> np.ndarray:
-    if rate_hz is not None:
-        if time_column is not None:
-            raise ValueError(f"{path}: both rate_hz={rate_hz} and time column '{time_column}' given; "
-                             "pass one of them")
-        if not rate_hz > 0:
-            raise ValueError(f"rate_hz must be > 0, got {rate_hz}")
-        return np.arange(n_rows) / float(rate_hz)
-    if time_column is None:
-        found = [name for name in DEFAULT_TIME_COLUMNS if name in header]
-        if not found:
-            raise ValueError(f"{path}: no time column named {list(DEFAULT_TIME_COLUMNS)}; the file has "
-                             f"{header}. Name it with mapping['time'], or give the rate (--rate HZ; "
-                             "rate_hz in Python)")
-        time_column = found[0]
-    t = column(time_column, "time") * time_factor
-    if np.any(~np.isfinite(t)):
-        row = int(np.flatnonzero(~np.isfinite(t))[0])
-        raise ValueError(f"{path}: time column '{time_column}' is empty/NaN at data row {row}; fix the file "
-                         "or give the rate (--rate HZ; rate_hz in Python)")
-    steps = np.diff(t)
-    if np.any(steps <= 0):
-        row = int(np.flatnonzero(steps <= 0)[0]) + 1
-        raise ValueError(f"{path}: time column '{time_column}' does not increase at data row {row} "
-                         f"({t[row - 1]} s -> {t[row]} s); times must increase strictly")
-    return t
 
 
 PLAUSIBLE_RATE_HZ = (5.0, 5000.0)
@@ -593,13 +764,18 @@ def _mat_keys(data: Mapping[str, Any]) -> list[str]:
 
 def _nan_warnings(series: ImuSeries, gyro: bool = True) -> list[str]:
     """Samples with NaN, counted (``gyro`` False: an accelerometer alone, its unknown rate not counted)."""
+    return _nan_text(series.segment, _nan_count(series, gyro), len(series))
+
+
+def _nan_count(series: ImuSeries, gyro: bool = True) -> int:
     parts = [series.acc] + ([series.gyr] if gyro else []) + ([series.mag] if series.mag is not None else [])
-    bad = np.any(np.isnan(np.hstack(parts)), axis=1)
-    count = int(bad.sum())
+    return int(np.any(np.isnan(np.hstack(parts)), axis=1).sum())
+
+
+def _nan_text(segment: str, count: int, total: int) -> list[str]:
     if not count:
         return []
-    return [f"{series.segment}: {count} of {len(series)} samples contain NaN (kept; downstream filters "
-            "skip them)"]
+    return [f"{segment}: {count} of {total} samples contain NaN (kept; downstream filters skip them)"]
 
 
 IMPORTERS: dict[str, Callable[..., Recording]] = {
@@ -671,3 +847,163 @@ def import_recording(kind: str, path: str | Path, **options: Any) -> Recording:
                          "map.yaml; Python: mapping=...) naming the time column and each segment's acc/gyr "
                          "columns; see the README, Replaying your own recording")
     return IMPORTERS[kind](path, **options)
+
+
+# --------------------------------------------------------------------------------------------------
+# Straight to a bag, in bounded memory
+# --------------------------------------------------------------------------------------------------
+
+BYTES_PER_MESSAGE = 100
+"""Upper estimate of one message's bytes in an imported bag (zstd chunks and indexes; measured: 63 for
+random full-precision values, 46-60 for 4-5 digits), for the free disk an import needs."""
+_WRITE_ROWS = 8192  # samples encoded at a time
+
+
+def import_to_bag(kind: str, path: str | Path, output: str | Path,
+                  warn: Callable[[str], None] | None = None, **options: Any) -> tuple[Path, list[str]]:
+    """Import ``path`` (as :func:`import_recording`) and write it to the bag folder ``output``; return
+    (the folder, the segments). ``warn`` receives each warning. A CSV is streamed
+    (:func:`import_csv_to_bag`: any size in bounded memory); the other kinds are read whole. An output
+    the free disk cannot hold is refused before anything is written."""
+    from gait_biofeedback.io.imu_bag import write_imu_bag
+
+    warn = warn or (lambda text: None)
+    if kind == "auto" and Path(path).exists():
+        kind = detect_kind(path, **options)
+    if kind == "csv" and "mapping" in options and Path(path).exists():
+        return import_csv_to_bag(path, output, warn=warn, **options)
+    recording = import_recording(kind, path, **options)
+    for text in recording.warnings:
+        warn(text)
+    check_disk_space(output, sum(len(s) * (1 if s.mag is None else 2) for s in recording.imu.values()))
+    return write_imu_bag(output, recording.imu), list(recording.imu)
+
+
+def check_disk_space(output: str | Path, messages: int, bytes_per_message: float = BYTES_PER_MESSAGE) -> None:
+    """OSError unless the disk of ``output`` (or of its nearest existing parent) has room for
+    ``messages`` IMU messages (:data:`BYTES_PER_MESSAGE` each, plus 1 MiB)."""
+    folder = Path(output).absolute()
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    free = shutil.disk_usage(folder).free
+    need = int(messages * bytes_per_message) + (1 << 20)
+    if need > free:
+        raise OSError(f"{output}: the bag would take about {_megabytes(need)} ({messages} messages) but "
+                      f"the disk has {_megabytes(free)} free: free some space or write it elsewhere (-o)")
+
+
+def _megabytes(n: int) -> str:
+    return f"{n / 1e9:.1f} GB" if n >= 1e9 else f"{n / 1e6:.1f} MB"
+
+
+def import_csv_to_bag(
+    path: str | Path,
+    output: str | Path,
+    mapping: Mapping[str, Any] | str | Path,
+    units: Mapping[str, str] | None = None,
+    rate_hz: float | None = None,
+    *,
+    warn: Callable[[str], None] | None = None,
+    block_chars: int = CSV_BLOCK_CHARS,
+    window_bytes: int = CSV_WINDOW_BYTES,
+) -> tuple[Path, list[str]]:
+    """:func:`import_generic_csv` written straight to the bag folder ``output`` a chunk at a time, in
+    memory bounded whatever the file's size; return (the folder, the segments). The bag is the one
+    ``write_imu_bag(output, import_generic_csv(...).imu)`` writes, byte for byte.
+
+    The time base and the units are judged on the first rows (``window_bytes`` of samples: the whole
+    file up to about 800 000 rows of one sensor); their warnings go to ``warn`` before anything is
+    written, the NaN counts when the file has been read (before writing too, for a file within the
+    window). A file the free disk cannot hold (estimated from the rows read so far and the file's size)
+    is refused before writing; a refusal further on (a ragged row, a time going back) removes what was
+    written."""
+    from gait_biofeedback.io.bag_writer import BagWriter
+
+    warn = warn or (lambda text: None)
+    layout = csv_layout(path, mapping, units, rate_hz)
+    segments = list(layout.columns)
+    window_rows = max(1, window_bytes // (_SAMPLE_BYTES * len(segments)))
+    with contextlib.closing(csv_chunks(layout, block_chars)) as chunks:
+        held: list[CsvChunk] = []
+        rows, complete = 0, True
+        for chunk in chunks:
+            held.append(chunk)
+            rows += len(chunk.imu[segments[0]])
+            if rows >= window_rows:
+                complete = False
+                break
+        if not held:
+            raise ValueError(f"{layout.path}: no data rows after the header")
+        nans = {s: sum(_nan_count(c.imu[s], layout.has_gyro(s)) for c in held) for s in segments}
+        window = {s: _joined([c.imu[s] for c in held]) for s in segments}
+        _check_sample_rate(layout.path, window[segments[0]].t, layout.time_unit)
+        for segment in segments:
+            for text in _csv_warnings(layout, window[segment], nans[segment] if complete else None, rows):
+                warn(text)
+        del window
+        streams = sum(1 if layout.columns[s]["mag"] is None else 2 for s in segments)
+        expected_rows = rows if complete else rows * layout.path.stat().st_size / max(held[-1].bytes_read, 1)
+        check_disk_space(output, int(expected_rows * streams))
+
+        out = Path(output)
+        created = [p for p in (out, *out.parents) if not p.exists()]
+        writer = BagWriter(out, flush_period=None)
+        try:
+            while held:
+                _write_series(writer, held.pop(0).imu)
+            for chunk in chunks:
+                rows += len(chunk.imu[segments[0]])
+                for segment in segments:
+                    nans[segment] += _nan_count(chunk.imu[segment], layout.has_gyro(segment))
+                _write_series(writer, chunk.imu)
+                del chunk
+            writer.close()
+        except BaseException:
+            writer.abandon()
+            _remove_bag(out, writer.files, created)
+            raise
+    if not complete:
+        for segment in segments:
+            for text in _nan_text(segment, nans[segment], rows):
+                warn(text)
+    return writer.path, segments
+
+
+def _write_series(writer: Any, imu: dict[str, ImuSeries]) -> None:
+    """The messages of series on one time base in the order of ``write_imu_bag`` (by stamp; at one
+    stamp, by segment, Imu before MagneticField), a few thousand samples encoded at a time."""
+    from gait_biofeedback.wire import topics
+    from gait_biofeedback.wire.imu import encode_series, series_topics
+
+    imu_type, mag_type = topics.raw_imu("x").type_name, topics.magnetometer("x").type_name
+    write = writer.write_serialized
+    n = len(next(iter(imu.values())))
+    for start in range(0, n, _WRITE_ROWS):
+        stop = min(start + _WRITE_ROWS, n)
+        streams: list[tuple[str, str, np.ndarray, list[bytes]]] = []
+        for segment, whole in imu.items():
+            series = ImuSeries(segment, whole.t[start:stop], whole.acc[start:stop], whole.gyr[start:stop],
+                               None if whole.mag is None else whole.mag[start:stop], whole.frame_id)
+            ns, imu_payloads, mag_payloads = encode_series(series)
+            imu_topic, mag_name = series_topics(segment)
+            streams.append((imu_topic, imu_type, ns, imu_payloads))
+            if mag_payloads is not None:
+                streams.append((mag_name, mag_type, ns, mag_payloads))
+        all_ns = np.concatenate([s[2] for s in streams])
+        stream_of = np.concatenate([np.full(len(s[2]), k) for k, s in enumerate(streams)])
+        sample_of = np.concatenate([np.arange(len(s[2])) for s in streams])
+        order = np.argsort(all_ns, kind="stable")
+        for t, k, i in zip(all_ns[order].tolist(), stream_of[order].tolist(), sample_of[order].tolist(),
+                           strict=True):
+            topic, type_name, _, payloads = streams[k]
+            write(topic, type_name, payloads[i], t)
+
+
+def _remove_bag(folder: Path, files: list[Path], created: list[Path]) -> None:
+    """Remove what a failed import wrote: its files, then the folders it created."""
+    for file in [*files, folder / "metadata.yaml", folder / ".metadata.yaml.tmp"]:
+        with contextlib.suppress(OSError):
+            file.unlink()
+    for made in created:
+        with contextlib.suppress(OSError):
+            made.rmdir()

@@ -1,7 +1,9 @@
 """Where ``imu_driver``'s frames come from: a UDP socket, a serial line, or the simulator.
 
-Every link has ``receive(timeout_s) -> [(frame bytes, arrival ns), ...]`` (what came within the
-timeout, possibly nothing) and ``close()``. Arrival times are host (ROS) time: the kernel's receive
+Every link has ``receive(timeout_s) -> [(frame bytes, arrival ns, source), ...]`` (what came within
+the timeout, possibly nothing) and ``close()``. ``source`` names where a frame came from, for the
+driver to bind each sensor id to one source: a UDP sender's ``address:port``, ``serial DEVICE``, or
+``simulator``. Arrival times are host (ROS) time: the kernel's receive
 timestamp of a datagram (``SO_TIMESTAMPNS``, else ``SO_TIMESTAMP``; unaffected by a busy Python
 process), else the time the bytes were read: :attr:`UdpLink.arrival_clock` says which, and the driver
 names it on ``/diagnostics``. Sandboxed kernels (gVisor, some containers) accept the options and deliver
@@ -20,7 +22,7 @@ from collections.abc import Iterator
 
 from gait_biofeedback.core.driver.protocol import FrameReader
 
-Received = list[tuple[bytes, int]]
+Received = list[tuple[bytes, int, str]]
 _TIMESPEC = struct.Struct("@qq")
 _LINUX = sys.platform.startswith("linux")
 _SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35 if _LINUX else None)
@@ -67,7 +69,7 @@ class UdpLink:
             time.sleep(self.GATHER_S)
         while True:
             try:
-                data, ancillary, _, _ = self.sock.recvmsg(65536, 64)
+                data, ancillary, _, sender = self.sock.recvmsg(65536, 64)
             except BlockingIOError:
                 return out
             read_ns = time.time_ns()
@@ -80,7 +82,7 @@ class UdpLink:
                 self.arrival_clock = "kernel"
             elif self.arrival_clock != "kernel":
                 self._ask_kernel_for_stamps()
-            out.append((data, arrival if arrival is not None else read_ns))
+            out.append((data, arrival if arrival is not None else read_ns, f"{sender[0]}:{sender[1]}"))
 
     def _ask_kernel_for_stamps(self) -> None:
         """Enable the next timestamp option this kernel accepts; none left: stamp when read."""
@@ -107,6 +109,7 @@ class SerialLink:
         self.device, self.baud = device, baud
         self.reader = FrameReader()
         self.description = f"serial {device} at {baud} Bd"
+        self.source = f"serial {device}"
         self.reconnects = 0
         self.problem: str | None = None
         self._retry_at = 0.0
@@ -147,7 +150,7 @@ class SerialLink:
                             "check the receiver's cable")
             return []
         arrival = time.time_ns()
-        return [(frame, arrival) for frame in self.reader.feed(data)]
+        return [(frame, arrival, self.source) for frame in self.reader.feed(data)]
 
     @property
     def bad_frames(self) -> int:
@@ -160,7 +163,10 @@ class SerialLink:
 
 class PacedLink:
     """Frames of a :class:`~gait_biofeedback.sim.sensor_link.FrameSchedule` handed over at their send
-    times (real time from the first :meth:`receive`): the simulator as live sensors, in process."""
+    times (real time from the first :meth:`receive`): the simulator as live sensors, in process; every
+    frame's source is :attr:`SOURCE`."""
+
+    SOURCE = "simulator"
 
     def __init__(self, schedules: Iterator, description: str = "simulated sensors") -> None:
         self._schedules = schedules
@@ -187,7 +193,7 @@ class PacedLink:
         send_ns = self._schedule.send_ns
         while self._i < len(send_ns) and self._t0 + int(send_ns[self._i]) <= now:
             if not self._schedule.dropped[self._i]:
-                out.append((self._schedule.frame(self._i), now))
+                out.append((self._schedule.frame(self._i), now, self.SOURCE))
             self._i += 1
         return out
 

@@ -33,9 +33,12 @@ dimensions draw the stick figure).
 
 from __future__ import annotations
 
+import contextlib
 import math
+import os
 import time
 from collections import deque
+from pathlib import Path
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
@@ -155,6 +158,7 @@ class BiofeedbackNode(GuardedNode):
 
         self.server = None
         self.port: int | None = None
+        self.url_file: Path | None = None
         if p.serve_dashboard:
             from gait_biofeedback.dashboard.server import DashboardServer
 
@@ -162,8 +166,14 @@ class BiofeedbackNode(GuardedNode):
                                           port=p.port, frame_rate=p.frame_rate, logger=self.get_logger(),
                                           allowed_hosts=p.allowed_hosts)
             self.port = self.server.start()
-            self.get_logger().info(f"dashboard: {self.server.url} (commands need this link: without its "
-                                   "token the page is a read-only view)")
+            self.url_file = write_private_link(self.server.url, p.session_dir)
+            # the token goes to the terminal and an owner-only file, never to rclpy's log (/rosout, log files)
+            print(f"dashboard: {self.server.url}  (commands need this link; without its token the page is "
+                  "a read-only view)" + (f"; also in {self.url_file}" if self.url_file else ""), flush=True)
+            page = self.server.url.partition("?")[0]
+            self.get_logger().info(f"dashboard: {page} (read-only view; the link with the command token was "
+                                   "printed on the terminal" + (f" and written to {self.url_file})"
+                                                                if self.url_file else ")"))
 
     # -- ROS callbacks (executor thread): cheap, never wait ------------------------------------------
 
@@ -418,6 +428,24 @@ class BiofeedbackNode(GuardedNode):
             self.server.stop()
             self.server = None
         super().destroy_node()
+
+
+URL_FILE = "dashboard_url.txt"
+
+
+def write_private_link(url: str, session_dir: str) -> Path | None:
+    """Write the dashboard's link with its command token to ``<session_dir>/dashboard_url.txt``, created
+    readable and writable by its owner only (0600, whatever the umask); None when no ``session_dir``."""
+    if not session_dir:
+        return None
+    path = Path(session_dir) / URL_FILE
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with contextlib.suppress(FileNotFoundError):
+        path.unlink()  # a file left by an earlier session may have looser permissions
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o600)
+    with os.fdopen(fd, "w") as f:
+        f.write(url + "\n")
+    return path
 
 
 def main(args: list[str] | None = None) -> int:

@@ -10,37 +10,47 @@ a given sample stamp once the data gets there (replays; the offline ``analyze`` 
 On success: publishes the result latched on ``calibration/sensor_to_segment`` (with its source:
 computed in this session, and when) and writes ``<session_dir>/calibration.yaml`` atomically. At start
 it puts that file in force only when asked (``reload_calibration``: a file found in a shared folder may
-belong to another patient or dataset), after checking it is complete and has every segment; otherwise
-it says the file is there and not used; ``calibration_file`` names a file to put in force instead
-(an unusable one is refused at start with the reason). The message's header.stamp is the sample stamp
-from which the calibration is in force: ``apply_delay`` s after the newest sample used (0 for a
-reloaded file: at once), so joint_angles and gait_events switch at the same sample whenever the
-message reaches them within that delay. A refused calibration keeps the previous one in force and
-publishes nothing.
+belong to another patient or dataset), after checking it (:mod:`~gait_biofeedback.core.calibration.file`:
+complete, unedited, every value valid); otherwise it says the file is there and not used;
+``calibration_file`` names a file to put in force instead (an unusable one is refused at start with the
+reason). A file without entries for some of ``segments`` is put in force for the others, those named in
+a WARN status ``calibration`` on ``/diagnostics`` (every second; OK once a calibration computed in this
+session replaces it), in the message's source and as invalid entries (the dashboard counts them).
+The message's header.stamp is the sample stamp from which the calibration is in force: ``apply_delay``
+s after the newest sample used (0 for a reloaded file: at once), so joint_angles and gait_events
+switch at the same sample whenever the message reaches them within that delay. A refused calibration
+keeps the previous one in force and publishes nothing.
 
 Parameters: :class:`~gait_biofeedback.core.calibration.stream.CalibrationParams`.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections import deque
 from pathlib import Path
 
+from diagnostic_msgs.msg import DiagnosticStatus
 from rclpy.context import Context
 
+from gait_biofeedback.core.calibration.file import (
+    LoadedCalibration,
+    load_calibration_file,
+    missing_text,
+    placeholder,
+)
 from gait_biofeedback.core.calibration.sensor_to_segment import SessionCalibration
 from gait_biofeedback.core.calibration.stream import (
     CALIBRATION_FILE,
     CalibrationAttempt,
     CalibrationBuffer,
     CalibrationParams,
-    read_calibration_file,
     write_calibration_file,
 )
 from gait_biofeedback.nodes.common import GuardedNode, publisher, subscribe
 from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
-from gait_biofeedback.wire import topics
+from gait_biofeedback.wire import diagnostics, topics
 from gait_biofeedback.wire.calibration import calibration_msg, segment_messages
 from gait_biofeedback.wire.cdr import decode_imu
 from gait_biofeedback.wire.imu import has_heading, orientation_sample
@@ -62,6 +72,7 @@ class CalibrationNode(GuardedNode):
         self.last_attempt: CalibrationAttempt | None = None
         self.attempts: list[CalibrationAttempt] = []  # every request's outcome, in order
         self.saved_file: Path | None = None  # where the last result in force was saved
+        self.file_status: DiagnosticStatus | None = None  # /diagnostics 'calibration', once there is news
         for seg in self.segments:
             subscribe(self, topics.orientation(seg), lambda m, s=seg: self._on_imu(s, m), raw=True)
         self._pub = publisher(self, topics.CALIBRATION)
@@ -82,8 +93,7 @@ class CalibrationNode(GuardedNode):
             path = Path(self.params.calibration_file).absolute()
             if not path.is_file():
                 raise ValueError(f"calibration: parameter 'calibration_file': {path} not found")
-            calibration, saved_at = read_calibration_file(path, self.segments)  # ValueError says why
-            self._put_in_force(calibration, path, saved_at)
+            self._put_in_force(load_calibration_file(path, self.segments), path)  # ValueError says why
             return
         path = self.calibration_file.absolute()
         if not path.exists():
@@ -93,17 +103,43 @@ class CalibrationNode(GuardedNode):
                                    "reload_calibration:=true to put it in force): calibrate this session")
             return
         try:
-            calibration, saved_at = read_calibration_file(path, self.segments)
+            loaded = load_calibration_file(path, self.segments)
         except (ValueError, OSError) as exc:
             self.get_logger().error(f"calibration not reloaded: {exc}")
             return
-        self._put_in_force(calibration, path, saved_at)
+        self._put_in_force(loaded, path)
 
-    def _put_in_force(self, calibration: SessionCalibration, path: Path, saved_at: str) -> None:
+    def _put_in_force(self, loaded: LoadedCalibration, path: Path) -> None:
+        """Put a checked file in force; the session's segments it lacks as invalid entries, said."""
+        for note in loaded.notes:
+            self.get_logger().info(note)
+        calibration = loaded.calibration
+        source = f"from {path} (saved {loaded.saved_at or 'at an unknown time'})"
+        if loaded.missing:
+            warning = missing_text(path, loaded.missing)
+            source += f"; no entry for {', '.join(loaded.missing)}: not calibrated"
+            absent = {s: placeholder(s, path) for s in loaded.missing}
+            calibration = dataclasses.replace(calibration, segments={**calibration.segments, **absent})
+            self.get_logger().warning(f"calibration in force {source}; calibrate again to calibrate every "
+                                      "segment")
+            self._set_file_status(diagnostics.WARN, warning,
+                                  {"file": str(path), "missing": ", ".join(loaded.missing)})
+        else:
+            self.get_logger().info(f"calibration in force {source}")
         self.current = calibration
-        source = f"from {path} (saved {saved_at or 'at an unknown time'})"
-        self.get_logger().info(f"calibration in force {source}")
         self._pub.publish(calibration_msg(calibration, 0, source, path.stat().st_mtime_ns))
+
+    def _set_file_status(self, level: int, message: str, values: dict[str, str]) -> None:
+        """The 'calibration' status, published now and every second from now on."""
+        first = self.file_status is None
+        self.file_status = diagnostics.status(self.NODE_NAME, level, message, values=values)
+        if first:
+            self.create_timer(1.0, self._publish_file_status)
+        self._publish_file_status()
+
+    def _publish_file_status(self) -> None:
+        if self.file_status is not None:
+            self.publish_diagnostics([self.file_status])
 
     def _on_imu(self, segment: str, data: bytes) -> None:
         imu = decode_imu(data)
@@ -130,10 +166,13 @@ class CalibrationNode(GuardedNode):
             until = "" if attempt.until_ns is None else f", data up to {attempt.until_ns / 1e9:.1f} s"
             self._pub.publish(calibration_msg(cal, attempt.applies_from_ns,
                                               f"computed in this session at {when}{until}", now))
+            if self.file_status is not None:  # the file's warning no longer holds
+                self._set_file_status(diagnostics.OK, f"calibration computed in this session at {when} in "
+                                      "force", {})
             try:
                 write_calibration_file(self.calibration_file, cal, time.strftime("%Y-%m-%dT%H:%M:%S%z"))
                 self.saved_file = self.calibration_file.absolute()
-            except OSError as exc:
+            except (OSError, ValueError) as exc:
                 self.get_logger().error(f"calibration in force but not saved: {exc}")
 
     def calibrate(self, protocol: str, standing_duration: float = 0.0, motion_duration: float = 0.0,

@@ -12,10 +12,13 @@ called. ``GAIT_EXECUTOR=single`` selects the fallback.
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import functools
 import os
+import re
 import signal
 import sys
+import tempfile
 import threading
 import time
 import traceback
@@ -256,33 +259,86 @@ class DomainInUseError(ValueError):
     CLI prints it in one line)."""
 
 
-def refuse_other_graph(context: Context, names: Iterable[str], settle: float = 0.6) -> None:
-    """Raise :class:`DomainInUseError` when another process on this ROS domain (and namespace) already runs
-    a node called one of ``names``: two graphs on one domain process each other's data (joint states
-    of both patients in one bag). Checked before the nodes exist (no file is opened), for ``settle`` s
-    of discovery. Two graphs started within that time of each other are not caught."""
+class GraphClaim:
+    """The node names a graph holds on its ROS domain and namespace (see :func:`refuse_other_graph`):
+    one exclusive ``flock`` per name, released by :meth:`release` or by the kernel when the process
+    ends, however it ends."""
+
+    def __init__(self, handles: list[int]) -> None:
+        self._handles = handles
+
+    def release(self) -> None:
+        while self._handles:
+            os.close(self._handles.pop())
+
+
+def _lock_path(domain: int, namespace: str, name: str) -> str:
+    slug = re.sub(r"[^A-Za-z0-9_]", "_", namespace.strip("/"))
+    return os.path.join(tempfile.gettempdir(),
+                        f"gait_biofeedback.ros_domain_{domain}{'.' + slug if slug else ''}.{name}.lock")
+
+
+def _claim_names(domain: int, namespace: str, names: Iterable[str]) -> tuple[list[int], list[str]]:
+    """Lock one file per node name (see :class:`GraphClaim`): (the held descriptors, the names another
+    process of this machine holds). A lock file that cannot be opened (another user's, a symlink) is
+    left to the discovery check."""
+    held: list[int] = []
+    taken: list[str] = []
+    for name in sorted(set(names)):
+        path = _lock_path(domain, namespace, name)
+        try:
+            fd = os.open(path, os.O_RDONLY | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644)
+        except OSError:
+            continue
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(fd)
+            taken.append(name)
+            continue
+        held.append(fd)
+    return held, taken
+
+
+def refuse_other_graph(context: Context, names: Iterable[str], settle: float = 0.6) -> GraphClaim:
+    """Claim the node ``names`` on this ROS domain and namespace for this process, or raise
+    :class:`DomainInUseError` when another process already runs one of them: two graphs on one domain
+    process each other's data (joint states of both patients in one bag). Checked before the nodes
+    exist (no file is opened). Keep the returned claim until the nodes are destroyed.
+
+    Two checks: on this machine, an exclusive lock per node name (:class:`GraphClaim`), taken at once,
+    so two graphs started at any offset, even together, end with exactly one running; on other
+    machines of the domain, ``settle`` s of DDS discovery, which cannot tell two graphs started within
+    that time of each other apart."""
     probe = Node(f"_gait_biofeedback_probe_{os.getpid()}", context=context)
+    domain = context.get_domain_id()
+    namespace = probe.get_namespace()
+    wanted = {n for n in names if n}
+    handles: list[int] = []
     try:
-        namespace = probe.get_namespace()
-        wanted = set(names)
+        handles, taken = _claim_names(domain, namespace, wanted)
         deadline = time.monotonic() + settle
-        while True:
+        while not taken:
             taken = sorted({n for n, ns in probe.get_node_names_and_namespaces()
                             if n in wanted and ns == namespace})
             if taken or time.monotonic() > deadline:
                 break
             time.sleep(0.02)
+    except BaseException:
+        GraphClaim(handles).release()
+        raise
     finally:
         probe.destroy_node()
     if taken:
-        domain = context.get_domain_id()
+        GraphClaim(handles).release()
         where = f"namespace {namespace} of " if namespace != "/" else ""
         raise DomainInUseError(
-            f"another gait_biofeedback graph already runs {', '.join(taken)} on {where}ROS_DOMAIN_ID="
+            f"another gait_biofeedback graph already runs {', '.join(sorted(taken))} on {where}ROS_DOMAIN_ID="
             f"{domain}; two graphs on one domain process each other's data. Stop it, or start this one on "
             f"a domain of its own (e.g. ROS_DOMAIN_ID={(domain + 1) % 101} gait-biofeedback ...) or in a "
             "namespace of its own (console scripts: --ros-args -r __ns:=/patient2). A graph killed with -9 "
             "stays visible for up to 20 s (the DDS lease).")
+    return GraphClaim(handles)
 
 
 def run_nodes(node_factories: Sequence[Callable[[Context], Node]], args: list[str] | None = None) -> int:
@@ -300,10 +356,11 @@ def run_nodes(node_factories: Sequence[Callable[[Context], Node]], args: list[st
     init_ros(args, context)
     nodes: list[Node] = []
     executor = make_executor(context)
+    claim = GraphClaim([])
     code = 0
     try:
         with stop_on_signals():
-            refuse_other_graph(context, [getattr(f, "NODE_NAME", "") for f in node_factories])
+            claim = refuse_other_graph(context, [getattr(f, "NODE_NAME", "") for f in node_factories])
             for factory in node_factories:
                 nodes.append(factory(context))
                 executor.add_node(nodes[-1])
@@ -316,6 +373,7 @@ def run_nodes(node_factories: Sequence[Callable[[Context], Node]], args: list[st
     finally:
         for node in nodes:
             node.destroy_node()
+        claim.release()
         executor.shutdown()
         if context.ok():
             rclpy.shutdown(context=context)

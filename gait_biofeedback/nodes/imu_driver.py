@@ -5,8 +5,9 @@ A receiving thread reads frames from the link (``backend``: udp, serial, simulat
 (:class:`~gait_biofeedback.core.driver.stream.DriverCore`: sequence order, loss, device time → ROS
 time) and publishes each sample as the replayer would, stamped in ROS time, frame ``<segment>_imu``.
 The executor thread only publishes ``/diagnostics``: one status per mapped sensor (rate, loss,
-duplicates, clock offset and drift, last seen; ERROR when silent), one per unmapped sensor id that
-sends, and one for the link (corrupt frames, the receiving thread's CPU).
+duplicates, clock offset and drift, last seen, samples claiming its id from another source; ERROR
+when silent), one per unmapped sensor id that sends, and one for the link (corrupt frames, frames
+refused for their signature, the receiving thread's CPU).
 
 Stamps are the system clock (ROS time), whatever ``use_sim_time`` says: sensors live in real time.
 Parameters: :class:`~gait_biofeedback.core.driver.stream.DriverParams`.
@@ -40,10 +41,12 @@ def open_link(p: DriverParams):
         return sensor_links.UdpLink(p.address, p.port)
     if p.backend == "serial":
         return sensor_links.SerialLink(p.device, p.baud)
+    from gait_biofeedback.core.driver.protocol import load_frame_key
     from gait_biofeedback.sim.sensor_link import simulated_schedules
 
     ids = {segment: sid for sid, segment in p.mapping().items()}
-    return sensor_links.PacedLink(simulated_schedules(p.scenario, p.sim_rate, ids, p.sim_loop),
+    key = load_frame_key(p.frame_key_file) if p.frame_key_file else None  # the simulator signs as sensors do
+    return sensor_links.PacedLink(simulated_schedules(p.scenario, p.sim_rate, ids, p.sim_loop, key=key),
                                   f"simulated sensors ({p.scenario} at {p.sim_rate:g} Hz)")
 
 
@@ -93,8 +96,8 @@ class ImuDriverNode(GuardedNode):
                 received = receive(POLL_S)
                 with self._lock:
                     out = []
-                    for frame, arrival in received:
-                        out.extend(core.feed(frame, arrival))
+                    for frame, arrival, source in received:
+                        out.extend(core.feed(frame, arrival, source))
                     out.extend(core.expire(time.time_ns()))
                     notices = core.notices.pop()
                 for sample in out:

@@ -12,8 +12,10 @@ Parameters: :class:`~gait_biofeedback.io.params.ReplayerParams` (``bag`` is requ
 
 from __future__ import annotations
 
+import struct
 import threading
 import time
+from array import array
 from pathlib import Path
 
 from rclpy.context import Context
@@ -25,6 +27,9 @@ from gait_biofeedback.nodes.common import GuardedNode
 from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
 from gait_biofeedback.wire import topics
 from gait_biofeedback.wire.stamps import ns_to_stamp
+
+RAW_SUFFIX = "/imu/data_raw"
+_STAMP_LE, _STAMP_BE = struct.Struct("<iI"), struct.Struct(">iI")
 
 
 class ImuReplayer(GuardedNode):
@@ -60,6 +65,8 @@ class ImuReplayer(GuardedNode):
         self._clock_pub = self.create_publisher(Clock, "/clock", 10) if p.publish_clock else None
         self.published = 0
         self.published_by_topic: dict[str, int] = {}  # recorded topic → messages published
+        self.raw_stamps: dict[str, array] = {t: array("q") for t in self.topics if t.endswith(RAW_SUFFIX)}
+        """Raw IMU topic → the header stamps (int ns) published, in order: what the graph was given."""
         self.position_ns = self.reader.start_time_ns  # log time of the newest published message
         self.loops_done = 0
         self.finished = threading.Event()
@@ -124,6 +131,11 @@ class ImuReplayer(GuardedNode):
                 self._topic_publishers[topic].publish(data)
                 self.published += 1
                 self.published_by_topic[topic] = self.published_by_topic.get(topic, 0) + 1
+                stamps = self.raw_stamps.get(topic)
+                if stamps is not None and len(data) >= 12:
+                    # the header stamp after the 4-byte CDR encapsulation (byte 1: 1 little-endian)
+                    sec, nanosec = (_STAMP_LE if data[1] == 1 else _STAMP_BE).unpack_from(data, 4)
+                    stamps.append(sec * 1_000_000_000 + nanosec)
                 self.position_ns = log_ns
             self.loops_done += 1
             if not self.loop or first_ns is None:

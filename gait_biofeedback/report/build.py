@@ -24,6 +24,7 @@ from pathlib import Path
 import yaml
 
 from gait_biofeedback.core.biofeedback.evaluator import default_targets_path, load_targets
+from gait_biofeedback.core.safe_yaml import describe, load_yaml_file
 from gait_biofeedback.io.bag import BagRecoveryWarning
 from gait_biofeedback.parameters import PATIENT_BLOCK, PATIENT_KEYS, patient_block
 from gait_biofeedback.report import content
@@ -67,9 +68,11 @@ def patient_from_params(path: str | Path) -> Patient:
     """The ``patient:`` block of a session parameter file
     (:func:`~gait_biofeedback.parameters.patient_block`); empty without one."""
     try:
-        document = yaml.safe_load(Path(path).read_text()) or {}
-    except (OSError, yaml.YAMLError) as exc:
+        document = load_yaml_file(path) or {}
+    except OSError as exc:
         raise ValueError(f"{path}: cannot read the patient block: {exc}") from None
+    except yaml.YAMLError as exc:
+        raise ValueError(f"{path}: cannot read the patient block: {describe(exc)}") from None
     if not isinstance(document, dict) or PATIENT_BLOCK not in document:
         return Patient()
     return Patient(**patient_block(path, document[PATIENT_BLOCK]))

@@ -19,6 +19,8 @@ from pathlib import Path
 
 import yaml
 
+from gait_biofeedback.core.safe_yaml import describe, load_yaml_file, shown
+
 PERRY = (
     "Perry J, Burnfield JM. Gait Analysis: Normal and Pathological Function. 2nd ed. SLACK; 2010 "
     "(adult free walking: 82 m/min, stride 1.41 m, 113 steps/min, stance 60 %, swing 40 %, "
@@ -110,15 +112,17 @@ def load_norms(path: str | Path) -> dict[str, NormBand]:
     band's SI unit (m/s, m, Hz, s, fractions). An unknown parameter or a band without a source is refused."""
     path = Path(path)
     try:
-        document = yaml.safe_load(path.read_text()) or {}
-    except (OSError, yaml.YAMLError) as exc:
+        document = load_yaml_file(path) or {}
+    except OSError as exc:
         raise ValueError(f"{path}: cannot read the normative bands: {exc}") from None
+    except yaml.YAMLError as exc:
+        raise ValueError(f"{path}: cannot read the normative bands: {describe(exc)}") from None
     if not isinstance(document, dict):
         raise ValueError(f"{path}: expected '<parameter>: {{low, high, source}}' entries")
     out = dict(NORMS)
     for name, spec in document.items():
         if name not in NORMS:
-            raise ValueError(f"{path}: unknown parameter {name!r}; known: {', '.join(NORMS)}")
+            raise ValueError(f"{path}: unknown parameter {shown(name)}; known: {', '.join(NORMS)}")
         if not isinstance(spec, dict) or not {"low", "high", "source"} <= set(spec):
             raise ValueError(f"{path}: {name} needs low, high and source (in {NORMS[name].unit})")
         try:

@@ -8,7 +8,8 @@ each other by twice the drift), where ``t`` is the sample's true time from the r
 A frame of ``samples_per_frame`` samples of one sensor is sent when its last sample is taken, plus a
 delay uniform in ``[0, jitter_ms]``; a fraction ``reorder`` of the frames is held back two frame
 periods more (so they arrive after later ones), a fraction ``loss`` is not sent at all. Sequence
-numbers count each sensor's samples from ``1000 k``.
+numbers count each sensor's samples from ``1000 k``. Given a session key, the frames are signed
+(GBI2).
 """
 
 from __future__ import annotations
@@ -64,9 +65,12 @@ class SensorTruth:
 
 class FrameSchedule:
     """Every frame of a session in sending order: :attr:`send_ns` (ns from the start, sorted),
-    :attr:`dropped` (not sent), :meth:`frame` (its bytes), :attr:`truth` per segment."""
+    :attr:`dropped` (not sent), :meth:`frame` (its bytes, signed with ``key`` if given), :attr:`truth`
+    per segment."""
 
-    def __init__(self, series: Mapping[str, ImuSeries], ids: Mapping[str, int], link: LinkModel) -> None:
+    def __init__(self, series: Mapping[str, ImuSeries], ids: Mapping[str, int], link: LinkModel,
+                 key: bytes | None = None) -> None:
+        self._key = key
         rng = np.random.default_rng(link.seed)
         self.series = {seg: series[seg] for seg in ids if seg in series}
         missing = [seg for seg in ids if seg not in series]
@@ -114,7 +118,7 @@ class FrameSchedule:
             mag = None if s.mag is None else tuple(s.mag[j].tolist())
             samples.append(DeviceSample(truth.sensor_id, int(truth.sequence[j]), int(truth.device_us[j]),
                                         tuple(s.acc[j].tolist()), tuple(s.gyr[j].tolist()), mag))
-        return encode_frame(samples)
+        return encode_frame(samples, self._key)
 
     @property
     def samples(self) -> int:
@@ -173,9 +177,10 @@ def send_udp(schedule: FrameSchedule, host: str, port: int, lead_s: float = 0.2,
 
 
 def simulated_schedules(scenario: str, rate_hz: float, ids: Mapping[str, int], loop: bool,
-                        seed: int = 0) -> Iterator[FrameSchedule]:
+                        seed: int = 0, key: bytes | None = None) -> Iterator[FrameSchedule]:
     """The ``simulated`` driver backend's frames: the simulator's ``scenario`` with ideal clocks and
-    link, one frame per sample and sensor, again and again if ``loop`` (each pass a sensor reboot)."""
+    link, one frame per sample and sensor (signed with ``key`` if given), again and again if ``loop``
+    (each pass a sensor reboot)."""
     from gait_biofeedback.sim.simulator import SCENARIOS, simulate
 
     if scenario not in SCENARIOS:
@@ -183,7 +188,7 @@ def simulated_schedules(scenario: str, rate_hz: float, ids: Mapping[str, int], l
     config = SCENARIOS[scenario]()
     config.rate_hz = rate_hz
     config.seed = seed
-    schedule = FrameSchedule(simulate(config).imu, ids, LinkModel())
+    schedule = FrameSchedule(simulate(config).imu, ids, LinkModel(), key)
     yield schedule
     while loop:
         yield schedule

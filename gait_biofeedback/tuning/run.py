@@ -18,10 +18,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from gait_biofeedback.core.orientation.filters import estimate_orientation
 from gait_biofeedback.core.orientation.filters.config import TUNED_PATH, load_tuned, read_tuned
+from gait_biofeedback.core.safe_yaml import dump_yaml
 from gait_biofeedback.tuning.data import ReferenceRecording, rms_errors
 from gait_biofeedback.tuning.pso import PsoSettings, particle_swarm
 from gait_biofeedback.tuning.space import SearchSpace
@@ -213,6 +213,6 @@ def write(
             for line in lines[: next((i for i, x in enumerate(lines) if not x.startswith("#")), len(lines))]
         )
     tmp = p.with_suffix(".tmp")
-    tmp.write_text(header + yaml.safe_dump(data, sort_keys=False, allow_unicode=True))
+    tmp.write_text(header + dump_yaml(data, sort_keys=False, allow_unicode=True))
     tmp.replace(p)
     return p

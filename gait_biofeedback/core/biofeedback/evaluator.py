@@ -57,7 +57,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from gait_biofeedback.core.biofeedback import normative as normative_gait
 from gait_biofeedback.core.body import BodyDimensions, StickFigureDimensions
@@ -66,6 +65,7 @@ from gait_biofeedback.core.joints.angles import joint_angle_names, relative_rota
 from gait_biofeedback.core.joints.skeleton import stick_figure
 from gait_biofeedback.core.params import param
 from gait_biofeedback.core.quaternion import multiply
+from gait_biofeedback.core.safe_yaml import load_yaml_file
 from gait_biofeedback.core.segments import SIDES
 from gait_biofeedback.core.stamps import NS_PER_S
 from gait_biofeedback.resources import config_path
@@ -205,7 +205,7 @@ def targets_from_dict(config: Mapping[str, Any]) -> Targets:
 
 def load_targets(path: str | Path) -> Targets:
     """Targets from a YAML file (config/targets.yaml)."""
-    return targets_from_dict(yaml.safe_load(Path(path).read_text()) or {})
+    return targets_from_dict(load_yaml_file(path) or {})
 
 
 def default_targets_path() -> Path:
@@ -379,6 +379,9 @@ class BiofeedbackParams(StickFigureDimensions):
                                            "e.g. this machine's LAN name, or a proxy's); needed when host is "
                                            "not 127.0.0.1")
     port: int = param(8080, "dashboard port (0 = any free port)", low=0, high=65535)
+    session_dir: str = param("", "folder where the link with the command token is written "
+                             "(dashboard_url.txt, readable by its owner only); '' = the recording's "
+                             "folder when the graph records, else none (the link is printed on the terminal)")
     frame_rate: float = param(30.0, "dashboard frames per second", "Hz", low=1.0, high=120.0)
     stride_wait: float = param(0.5, "longest wait for a stride's joint angles before it is evaluated "
                                "without them", "s", low=0.0, high=10.0)

@@ -9,17 +9,16 @@ thesis ch. 3). Samples and the instant from which a result is in force are stamp
 
 from __future__ import annotations
 
-import contextlib
-import os
 from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
+from gait_biofeedback.core.calibration.file import CALIBRATION_FILE as CALIBRATION_FILE
+from gait_biofeedback.core.calibration.file import read_calibration_file as read_calibration_file
+from gait_biofeedback.core.calibration.file import write_calibration_file as write_calibration_file
 from gait_biofeedback.core.calibration.sensor_to_segment import (
     REQUESTS,
     SessionCalibration,
@@ -30,50 +29,6 @@ from gait_biofeedback.core.calibration.windows import find_standing_then_motion
 from gait_biofeedback.core.params import param, require
 from gait_biofeedback.core.segments import SEGMENTS, ImuSeries
 from gait_biofeedback.core.stamps import NS_PER_S, s_to_ns
-
-CALIBRATION_FILE = "calibration.yaml"
-"""The file a session's calibration is saved to (in ``session_dir``) and reloaded from."""
-
-
-def write_calibration_file(path: str | Path, calibration: SessionCalibration, saved_at: str) -> None:
-    """Save a calibration atomically (a temporary file renamed over the old one, so a crash leaves the
-    old file or the new one, never half of one): the YAML of :meth:`SessionCalibration.to_dict`,
-    ``saved_at`` (ISO time) and, last, ``complete: true``."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    document = {**calibration.to_dict(), "saved_at": saved_at, "complete": True}
-    tmp = path.with_name(f".{path.name}.tmp")
-    try:
-        with open(tmp, "w") as f:
-            f.write(yaml.safe_dump(document, sort_keys=False))
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    finally:
-        with contextlib.suppress(FileNotFoundError):
-            tmp.unlink()
-
-
-def read_calibration_file(path: str | Path,
-                          segments: Sequence[str] = ()) -> tuple[SessionCalibration, str]:
-    """(calibration, saved_at) of a file :func:`write_calibration_file` wrote. ValueError saying what
-    is wrong: unreadable, cut off (no ``complete: true`` at its end), a field missing, a rotation that
-    is not a unit quaternion, or one of ``segments`` absent (then nothing of it is used)."""
-    try:
-        document = yaml.safe_load(Path(path).read_text())
-        if not isinstance(document, dict) or document.get("complete") is not True:
-            raise ValueError("it is incomplete (cut off while it was written?)")
-        calibration = SessionCalibration.from_dict(document)
-    except (KeyError, TypeError, AttributeError, yaml.YAMLError, ValueError) as exc:
-        raise ValueError(f"{path} is not a usable calibration file: {exc}") from None
-    bad = [s for s, r in calibration.segments.items()
-           if not (np.all(np.isfinite(r.rotation)) and abs(np.linalg.norm(r.rotation) - 1.0) < 1e-6)]
-    missing = [s for s in segments if s not in calibration.segments]
-    if bad or missing:
-        what = "; ".join(part for part in (f"no valid rotation for {', '.join(bad)}" if bad else "",
-                                            f"no entry for {', '.join(missing)}" if missing else "") if part)
-        raise ValueError(f"{path} is not a usable calibration file: {what}; calibrate again")
-    return calibration, str(document.get("saved_at", ""))
 
 
 @dataclass(frozen=True)

@@ -8,12 +8,18 @@ each the host stamp of its device time (:class:`~gait_biofeedback.core.driver.cl
   oldest held sample has waited ``reorder_window``; the missing ones are then counted lost, and if
   one arrives later it is counted ``late`` and dropped (stamps never go back);
 * a sample seen before is counted as a duplicate and dropped;
-* a sequence number far behind (more than :data:`REBOOT_SAMPLES`), or one behind whose device time
-  lies more than :data:`CLOCK_BACK_S` before the last sample's, is the sensor rebooting: its
-  sequence and clock are picked up again from that sample (``reboots``), with a notice;
-* a device time that does not fit the sequence numbers (more than :data:`CLOCK_JUMP_S` off the
-  sensor's own rate) is the device clock being reset: the clock is estimated again
-  (``clock_resets``), the sequence goes on;
+* a sample that does not fit the sequence is a *suspect*: a sequence number far behind (more than
+  :data:`REBOOT_SAMPLES`) or behind with a device time more than :data:`CLOCK_BACK_S` before the
+  last sample's (the sensor rebooted), far ahead (a reboot, or a long outage if its device time
+  fits), or a device time more than :data:`CLOCK_JUMP_S` off the sensor's own rate (the device
+  clock was reset). One sample never changes anything: suspects are set aside, unstamped and unseen
+  by the clock estimate, until :data:`CONFIRM_SAMPLES` of them in at least :data:`CONFIRM_FRAMES`
+  frames form a chain (sequence steps of 1 to :data:`CHAIN_GAP`, device time steps at one rate,
+  each within :data:`RATE_TOLERANCE` of the chain's first) with no fitting sample of the old
+  sequence in between. Then the chain is taken: a reboot (sequence and clock picked up again from
+  its first sample, ``reboots``), a clock reset (``clock_resets``, the sequence goes on) or an
+  outage (the samples in between lost); its samples go out. A suspect not confirmed within
+  :data:`SUSPECT_WAIT_S`, or when the old sequence goes on, is dropped (``rejected``);
 * stamps are strictly increasing: a stamp not after the last one is moved 1 µs after it
   (``stamps_adjusted``).
 """
@@ -21,6 +27,7 @@ each the host stamp of its device time (:class:`~gait_biofeedback.core.driver.cl
 from __future__ import annotations
 
 from collections import deque
+from dataclasses import dataclass
 from typing import NamedTuple
 
 from gait_biofeedback.core.driver.clock import DeviceClock
@@ -32,6 +39,21 @@ CLOCK_BACK_S = 1.0
 CLOCK_JUMP_S = 1.0
 LOST_MEMORY = 4096
 """Lost sequence numbers remembered (to tell a late sample from a duplicate)."""
+CONFIRM_SAMPLES = 5
+"""Suspect samples in one chain that confirm a reboot, clock reset or outage."""
+CONFIRM_FRAMES = 3
+"""Frames the confirming chain spans at least (one frame alone never confirms)."""
+CHAIN_GAP = 8
+"""Largest sequence step between two samples of a chain (samples lost while it forms)."""
+RATE_TOLERANCE = 0.25
+"""A chain's device time per sequence step may differ this much (fraction) from its first step's."""
+MIN_PERIOD_US = 250
+MAX_PERIOD_US = 200_000
+"""µs of device time per sequence step a chain may have (4 kHz down to 5 Hz)."""
+SUSPECT_WAIT_S = 2.0
+"""s (arrival) a suspect waits for the samples that confirm it."""
+SUSPECT_MEMORY = 64
+"""Suspects kept at most (the oldest is rejected first)."""
 _MOD = 1 << 32
 
 
@@ -51,8 +73,24 @@ class StampedSample(NamedTuple):
     mag: tuple[float, float, float] | None
 
 
+@dataclass(eq=False)
+class _Suspect:
+    """A suspect sample and the chain it ends: previous link, samples and frames in the chain, the
+    chain's µs per sequence step (None for a chain of one)."""
+
+    sample: DeviceSample
+    arrival_ns: int
+    frame: int
+    prev: _Suspect | None
+    length: int
+    frames: int
+    period_us: float | None
+
+
 class SensorStream:
-    """One mapped sensor (module docstring)."""
+    """One mapped sensor (module docstring). :attr:`source` is where its frames come from (set by
+    :class:`~gait_biofeedback.core.driver.stream.DriverCore`), :attr:`foreign` the samples claiming
+    its id from elsewhere, per source."""
 
     def __init__(self, sensor_id: int, segment: str, reorder_window_s: float = 0.05,
                  clock_bin_s: float = 0.5, clock_window_s: float = 60.0,
@@ -63,7 +101,9 @@ class SensorStream:
         self.clock = DeviceClock(clock_bin_s, clock_window_s)
         self.notices = notices if notices is not None else Notices()
         self.received = self.published = self.lost = self.late = self.duplicates = 0
-        self.reboots = self.clock_resets = self.stamps_adjusted = 0
+        self.reboots = self.clock_resets = self.stamps_adjusted = self.rejected = 0
+        self.source: str | None = None
+        self.foreign: dict[str, int] = {}
         self.last_arrival_ns: int | None = None
         self._next: int | None = None  # the sequence number expected next
         self._held: dict[int, tuple[DeviceSample, int]] = {}
@@ -72,37 +112,74 @@ class SensorStream:
         self._last_seq: int | None = None
         self._last_stamp = -1
         self._recent: deque[tuple[int, int]] = deque(maxlen=201)  # (sequence, device µs), last published
+        self._suspects: list[_Suspect] = []
+        self._frames = 0
 
     @property
     def name(self) -> str:
         return f"{self.segment} (sensor {self.sensor_id})"
 
-    def push(self, sample: DeviceSample, arrival_ns: int) -> list[StampedSample]:
-        """One received sample → the samples that can go out now, in sequence order."""
+    def push(self, sample: DeviceSample, arrival_ns: int, frame: int | None = None) -> list[StampedSample]:
+        """One received sample → the samples that can go out now, in sequence order. ``frame``: a
+        number of the frame it came in (samples of one frame share it); None: a frame of its own."""
         self.received += 1
         self.last_arrival_ns = arrival_ns
+        if frame is None:
+            self._frames += 1
+            frame = -self._frames
         if self._next is None:
             self._next = sample.sequence
+        if self._suspicion(sample) is not None:
+            return self._suspect(sample, arrival_ns, frame)
+        return self._accept(sample, arrival_ns)
+
+    def expire(self, now_ns: int) -> list[StampedSample]:
+        """Give up waiting for missing samples once the oldest held one has waited the reorder
+        window: they are lost, the held ones go out. Suspects unconfirmed for
+        :data:`SUSPECT_WAIT_S` are rejected."""
+        if self._suspects and now_ns - self._suspects[0].arrival_ns > SUSPECT_WAIT_S * 1e9:
+            old = [s for s in self._suspects if now_ns - s.arrival_ns > SUSPECT_WAIT_S * 1e9]
+            self._suspects = [s for s in self._suspects if now_ns - s.arrival_ns <= SUSPECT_WAIT_S * 1e9]
+            self._reject(old)
+        if not self._held:
+            return []
+        oldest = min(arrival for _, arrival in self._held.values())
+        if now_ns - oldest < self.reorder_window_ns:
+            return []
+        first = min(self._held, key=lambda s: seq_diff(s, self._next))
+        self._count_lost(seq_diff(first, self._next))
+        self._next = first
+        return self._release()
+
+    def _suspicion(self, sample: DeviceSample) -> str | None:
+        """What ``sample`` would mean if confirmed: ``"reboot"``, ``"outage"``, ``"clock"`` (a reset
+        device clock), or None: it fits the sequence (new, duplicate or late)."""
         diff = seq_diff(sample.sequence, self._next)
         if diff < 0:
             back = (self.last_device_us is not None
                     and sample.device_time_us < self.last_device_us - CLOCK_BACK_S * 1e6)
-            if diff < -REBOOT_SAMPLES or back:
-                self._reboot(sample)
-                diff = 0
-            elif sample.sequence in self._lost:
+            return "reboot" if diff < -REBOOT_SAMPLES or back else None
+        jumped = abs(self._time_error_us(sample)) > CLOCK_JUMP_S * 1e6
+        if diff > REBOOT_SAMPLES:
+            return "reboot" if jumped else "outage"
+        return "clock" if jumped else None
+
+    def _accept(self, sample: DeviceSample, arrival_ns: int) -> list[StampedSample]:
+        """A sample that fits the sequence: out now, held, or dropped as a duplicate or late."""
+        diff = seq_diff(sample.sequence, self._next)
+        if diff < 0:
+            if sample.sequence in self._lost:
                 self._lost.remove(sample.sequence)
                 self.late += 1
-                return []
             else:
                 self.duplicates += 1
-                return []
-        elif sample.sequence in self._held:
+            return []
+        if sample.sequence in self._held:
             self.duplicates += 1
             return []
-        elif diff > REBOOT_SAMPLES and abs(self._time_error_us(sample)) > CLOCK_JUMP_S * 1e6:
-            self._reboot(sample)  # a new sequence start, not an outage of the same clock
-            diff = 0
+        if self._suspects:  # the old sequence goes on: what looked like a restart was none
+            self._reject(self._suspects)
+            self._suspects = []
         self.clock.observe(sample.device_time_us, arrival_ns)
         if diff == 0 and not self._held:  # in order: straight out
             self._next = (sample.sequence + 1) % _MOD
@@ -110,20 +187,95 @@ class SensorStream:
         self._held[sample.sequence] = (sample, arrival_ns)
         return self._release()
 
-    def expire(self, now_ns: int) -> list[StampedSample]:
-        """Give up waiting for missing samples once the oldest held one has waited the reorder
-        window: they are lost, the held ones go out."""
-        if not self._held:
+    def _suspect(self, sample: DeviceSample, arrival_ns: int, frame: int) -> list[StampedSample]:
+        """Set ``sample`` aside; take the chain it completes, if it does."""
+        prev = None
+        for s in self._suspects:
+            if self._agrees(s, sample) and (prev is None or s.length > prev.length):
+                prev = s
+        if prev is None:
+            entry = _Suspect(sample, arrival_ns, frame, None, 1, 1, None)
+        else:
+            step = (sample.device_time_us - prev.sample.device_time_us) / seq_diff(sample.sequence,
+                                                                                 prev.sample.sequence)
+            entry = _Suspect(sample, arrival_ns, frame, prev, prev.length + 1,
+                             prev.frames + (frame != prev.frame), prev.period_us or step)
+        self._suspects.append(entry)
+        if len(self._suspects) > SUSPECT_MEMORY:
+            self._reject([self._suspects.pop(0)])
+        if entry.length < CONFIRM_SAMPLES or entry.frames < CONFIRM_FRAMES:
             return []
-        oldest = min(arrival for _, arrival in self._held.values())
-        if now_ns - oldest < self.reorder_window_ns:
-            return []
-        first = min(self._held, key=lambda s: seq_diff(s, self._next))
-        gap = seq_diff(first, self._next)
+        chain: list[_Suspect] = []
+        link: _Suspect | None = entry
+        while link is not None and link in self._suspects:
+            chain.append(link)
+            link = link.prev
+        if len(chain) < CONFIRM_SAMPLES or len({s.frame for s in chain}) < CONFIRM_FRAMES:
+            return []  # older links were forgotten
+        return self._confirm(chain[::-1])
+
+    @staticmethod
+    def _agrees(prev: _Suspect, sample: DeviceSample) -> bool:
+        """Whether ``sample`` can follow ``prev`` in a chain: a few sequence numbers on, its device
+        time on at the chain's rate."""
+        steps = seq_diff(sample.sequence, prev.sample.sequence)
+        if not 1 <= steps <= CHAIN_GAP:
+            return False
+        step = (sample.device_time_us - prev.sample.device_time_us) / steps
+        if not MIN_PERIOD_US <= step <= MAX_PERIOD_US:
+            return False
+        return prev.period_us is None or abs(step - prev.period_us) <= RATE_TOLERANCE * prev.period_us
+
+    def _confirm(self, chain: list[_Suspect]) -> list[StampedSample]:
+        """Take a confirmed chain: restart what its first sample says, then pass its samples on."""
+        self._reject([s for s in self._suspects if s not in chain])
+        self._suspects = []
+        first = chain[0].sample
+        kind = self._suspicion(first)
+        out: list[StampedSample] = []
+        if kind == "reboot":
+            self._reboot(first, len(chain))
+        elif kind == "outage":
+            out += self._skip_to(first.sequence)
+        elif kind == "clock":
+            self.clock_resets += 1
+            jump_s = self._time_error_us(first) * 1e-6
+            self.notices.say("warn", f"{self.name}: device clock jumped by {jump_s:+.3f} s against its "
+                             f"sequence numbers (confirmed by {len(chain)} samples); clock offset and drift "
+                             "estimated again")
+            self._recent.clear()
+            self.clock.reset()
+        for s in chain:
+            out += self._accept(s.sample, s.arrival_ns)
+        return out
+
+    def _reject(self, suspects: list[_Suspect]) -> None:
+        if not suspects:
+            return
+        if self.rejected == 0:
+            s = suspects[0].sample
+            self.notices.say("warn", f"{self.name}: a sample that would restart its sequence or clock "
+                             f"(sequence {s.sequence}, device clock {s.device_time_us} µs) was not confirmed "
+                             "by the ones after it and was dropped (a glitch, or a frame forged or replayed "
+                             "from the sensor's address); further ones are counted on /diagnostics "
+                             "('rejected')")
+        self.rejected += len(suspects)
+
+    def _count_lost(self, gap: int) -> None:
         self.lost += gap
         self._lost.extend((self._next + i) % _MOD for i in range(min(gap, LOST_MEMORY)))
-        self._next = first
-        return self._release()
+
+    def _skip_to(self, sequence: int) -> list[StampedSample]:
+        """An outage ended at ``sequence``: the held samples go out, the ones missing are lost."""
+        out = []
+        while self._held:
+            first = min(self._held, key=lambda s: seq_diff(s, self._next))
+            self._count_lost(seq_diff(first, self._next))
+            self._next = first
+            out += self._release()
+        self._count_lost(seq_diff(sequence, self._next))
+        self._next = sequence
+        return out
 
     def _release(self) -> list[StampedSample]:
         out = []
@@ -133,11 +285,12 @@ class SensorStream:
             self._next = (self._next + 1) % _MOD
         return out
 
-    def _reboot(self, sample: DeviceSample) -> None:
+    def _reboot(self, sample: DeviceSample, confirmed_by: int) -> None:
         self.reboots += 1
         self.notices.say("warn", f"{self.name} restarted (sequence {self._last_seq} → {sample.sequence}, "
-                         f"device clock {self.last_device_us} → {sample.device_time_us} µs): picked up "
-                         f"again, clock re-estimated; {len(self._held)} held sample(s) dropped")
+                         f"device clock {self.last_device_us} → {sample.device_time_us} µs, confirmed by "
+                         f"{confirmed_by} samples): picked up again, clock re-estimated; {len(self._held)} "
+                         "held sample(s) dropped")
         self.lost += len(self._held)
         self._held.clear()
         self._lost.clear()
@@ -155,19 +308,7 @@ class SensorStream:
         expected = self.last_device_us + seq_diff(sample.sequence, self._last_seq) * period_us
         return sample.device_time_us - expected
 
-    def _check_clock(self, sample: DeviceSample) -> None:
-        """Reset the clock estimate if the device time does not fit the sequence numbers."""
-        error = self._time_error_us(sample)
-        if abs(error) > CLOCK_JUMP_S * 1e6:
-            self.clock_resets += 1
-            self.notices.say("warn", f"{self.name}: device clock jumped by {error * 1e-6:+.3f} s against "
-                             "its sequence numbers; clock offset and drift estimated again")
-            self._recent.clear()
-            self.clock.reset()
-            self.clock.observe(sample.device_time_us, self.last_arrival_ns)
-
     def _stamp(self, sample: DeviceSample) -> StampedSample:
-        self._check_clock(sample)
         stamp = self.clock.to_host_ns(sample.device_time_us)
         if stamp <= self._last_stamp:
             stamp = self._last_stamp + 1000

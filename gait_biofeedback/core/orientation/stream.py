@@ -187,6 +187,8 @@ class SegmentOrientationTracker:
                        "mag_samples": 0}
         self.startup_quiet: bool | None = None
         self.last_gap_s = 0.0
+        self.gaps: deque[tuple[int, int]] = deque(maxlen=1000)
+        """(stamp before, stamp after) of the latest gaps taken for a dropout, int ns."""
         self._reported: dict[str, int] = {}  # the counts at the last report()
         self.notices = Notices()
         self._mag: deque[tuple[float, tuple[float, float, float]]] = deque(maxlen=64)
@@ -296,6 +298,7 @@ class SegmentOrientationTracker:
                     released = self._finish_recovery()
                 self.counts["gaps"] += 1
                 self.last_gap_s = dt
+                self.gaps.append((round(self._t_last * NS_PER_S), stamp_ns))
                 self._say("warn", f"{dt:.2f} s without data: attitude re-acquired from the next "
                                   f"{self.recover_s:g} s (those samples are marked as recovering)")
                 self._recover = []

@@ -11,8 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import yaml
-
+from gait_biofeedback.core.safe_yaml import load_yaml_file
 from gait_biofeedback.core.segments import SIDES
 from gait_biofeedback.resources import config_path
 
@@ -32,7 +31,7 @@ def read_tuned(path: Path | str | None = None) -> dict[str, Any]:
     p = Path(path) if path is not None else TUNED_PATH
     if not p.is_file():
         return {}
-    return yaml.safe_load(p.read_text()) or {}
+    return load_yaml_file(p) or {}
 
 
 def load_tuned(path: Path | str | None = None, location: str | None = None) -> dict[str, dict[str, Any]]:
