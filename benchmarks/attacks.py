@@ -73,7 +73,7 @@ def alias_bomb(tmp: Path) -> Row:
     code, _, err, seconds, peak = _cli("params", "--check", str(path))
     return Row("YAML alias bomb", f"{path.stat().st_size} B params file, 9 levels of 9 aliases",
                said=f"exit {code}, {len(err.splitlines())} line(s): {_first_line(err)}", seconds=seconds,
-               peak_mb=peak, test="test_parameters.py")
+               peak_mb=peak, test="test_bounded_inputs.py")
 
 
 def deep_nesting(tmp: Path) -> Row:
@@ -82,7 +82,7 @@ def deep_nesting(tmp: Path) -> Row:
     code, _, err, seconds, peak = _cli("params", "--check", str(path))
     return Row("deep nesting", "5,000 nested [ in a params file",
                said=f"exit {code}, {len(err.splitlines())} line(s): {_first_line(err)}", seconds=seconds,
-               peak_mb=peak, test="test_parameters.py")
+               peak_mb=peak, test="test_bounded_inputs.py")
 
 
 def huge_csv(tmp: Path, rows: int) -> Row:
@@ -106,7 +106,7 @@ def huge_csv(tmp: Path, rows: int) -> Row:
     said = f"exit {code}: {_first_line(out if code == 0 else err)}"
     path.unlink()
     return Row("huge CSV import", f"{rows:,} rows ({size_mb:.0f} MB)", said=said, seconds=seconds,
-               peak_mb=peak, test="test_importers.py")
+               peak_mb=peak, test="test_bounded_inputs.py")
 
 
 FORGED_ACC = (123.0, 45.0, 67.0)
@@ -245,12 +245,9 @@ def two_graphs(tmp: Path, tries: int = 10) -> Row:
     """``run --driver simulated --record`` twice on one domain, the second 0-10 s after the first (0
     and 5 ms among them): how many tries ended with both running, how many recordings of the refused
     one exist, and how many raw samples the winner recorded against what one driver sends."""
-    import random
-
     from gait_biofeedback.io.bag import BagReader
 
-    rng = random.Random(45)
-    offsets = [0.0, 0.005, *sorted(rng.uniform(0.0, 10.0) for _ in range(tries - 2))]
+    offsets = [0.0, 0.005, 0.05, 0.3, 1.0, 2.0, 3.5, 5.0, 7.5, 10.0][:tries]
     domain = int(os.environ.get("ATTACK_DOMAIN_ID", "77"))
     both = extra_recordings = 0
     said = ""
@@ -359,7 +356,7 @@ def host_flood(tmp: Path, requests: int = 13_000) -> Row:
     return Row("Host header flood", f"{requests:,} requests, each a distinct 4 kB Host",
                said=f"{server.refused:,} refused, {logged[0]} log line(s), {logged[1] / 1e3:.1f} kB logged; "
                f"Python heap after {current / 1e6:.1f} MB", seconds=seconds, peak_mb=peak / 1e6,
-               test="test_dashboard_security.py")
+               test="test_bounded_inputs.py, test_session_token.py")
 
 
 def edited_calibration(tmp: Path) -> Row:
@@ -409,6 +406,25 @@ def _drop_entry(text: str, segment: str) -> str:
     return "".join(lines[:start] + lines[end:])
 
 
+def busy_replay(tmp: Path) -> Row:
+    """A 1x replay of a 30 s walk of 8 sensors while two CPU hogs hold both cores: what replay says of
+    the samples the graph could not take, and its exit code."""
+    from gait_biofeedback.io.bag import write_imu_bag
+    from gait_biofeedback.sim.simulator import SCENARIOS, simulate
+
+    bag = write_imu_bag(tmp / "walk", simulate(SCENARIOS["walk"](duration=30.0).without_errors()).imu)
+    hogs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(2)]
+    try:
+        code, _, err, seconds, peak = _cli("replay", str(bag), "--speed", "1", timeout=300)
+    finally:
+        for hog in hogs:
+            hog.kill()
+    said = next((line for line in err.splitlines() if line.startswith("replay: ")), "nothing said")
+    return Row("replay on a busy machine", "1x replay of a 30 s walk, 2 CPU hogs on the 2 cores",
+               said=f"exit {code}: {_first_line(said, 400)}", seconds=seconds, peak_mb=peak,
+               test="test_graph.py, test_demo_summary.py")
+
+
 ATTACKS: dict[str, Callable[..., Row]] = {
     "forged_frame": forged_frame,
     "second_sender": second_sender,
@@ -420,6 +436,7 @@ ATTACKS: dict[str, Callable[..., Row]] = {
     "edited_calibration": edited_calibration,
     "token_on_rosout": token_on_rosout,
     "host_flood": host_flood,
+    "busy_replay": busy_replay,
 }
 
 

@@ -208,7 +208,7 @@ def with_recording_rate(rates: dict[str, float], params: dict[str, dict] | None
     more than 10 % from the default; what was set, in words). The stage would switch to that rate after
     its first stamps anyway, with a warning meant for a live sensor set to the wrong rate; a recording
     states its rate. ``replay`` gives the graph the same."""
-    params = {node: dict(values) for node, values in (params or {}).items()}
+    params = {node: values.copy() for node, values in (params or {}).items()}
     notes = []
     for node, which in RATE_STAGES.items():
         values = params.setdefault(node, {})

@@ -11,8 +11,6 @@ from typing import Any
 
 from gait_biofeedback.core.words import plural
 
-LOST_WARN = 0.005
-"""replay says so, and exits 1, when the graph lost more than this share of the raw IMU samples."""
 DEMO_BAG = Path("bags/demo_walk")
 DEMO_OUTPUT = Path("output/demo_session")
 
@@ -301,7 +299,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
     if result.write_error:
         print(f"warning: {result.write_error}", file=sys.stderr)
         return 1
-    note = result.loss_note(args.speed, args.bag, LOST_WARN)
+    note = result.loss_note(args.speed, args.bag)
     if note:
         print(f"replay: {note}", file=sys.stderr)
         return 1

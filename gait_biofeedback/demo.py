@@ -86,7 +86,7 @@ def summarize(input_bag: Path, output: Path, wall_time: float, published: int,
         why = cut_short or f"the figures above are from what arrived. {advice}"
         lines.append(f"LOST: {lost} of the {sent} raw samples of the recording ({100 * lost / sent:.1f} %) "
                      f"never reached the output: {why}")
-    if graph_note and not cut_short:
+    elif graph_note and not cut_short:  # (the LOST line above gives the same advice)
         lines.append(f"LOST in the graph: {graph_note}")
     lines += [
         "-" * 78,

@@ -11,7 +11,7 @@ import sys
 import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager, suppress
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -91,6 +91,10 @@ def _wait_until_heard(driver: Node, timeout: float = 5.0) -> None:
     time.sleep(0.25)  # the readers match the writer a moment after it matched them (see imu_replayer)
 
 
+LOST_WARN = 0.005
+"""A replay says what the graph lost, and exits 1, above this share of the raw IMU samples (or a hole)."""
+
+
 @dataclass
 class ReplayResult:
     """What one in-process replay did."""
@@ -113,7 +117,7 @@ class ReplayResult:
     """Segment → (s, samples) of each gap the orientation filter took for a sensor dropout although the
     recording has samples in it: holes the graph itself dropped."""
 
-    def loss_note(self, speed: float, bag: str | Path, threshold: float = 0.005,
+    def loss_note(self, speed: float, bag: str | Path, threshold: float = LOST_WARN,
                   slower: str = "replay at --speed 1") -> str | None:
         """What the graph lost, with what to do (fitting ``speed``; ``slower``: how to run slower), or
         None when it lost at most ``threshold`` of the raw samples and no hole."""
@@ -185,14 +189,15 @@ def running_graph(
     if unknown:
         raise ValueError(f"unknown node(s) {unknown}; this build has {sorted(factories)}")
     params = node_parameters or {}
-    for name, values in params.items():  # refused before anything starts
-        stage_parameters(name, values)
-    if use_sim_time:
-        params = {n: {**params.get(n, {}), "use_sim_time": True} for n in {*chosen, "recorder", *params}}
+    # every stage's parameters checked once, here, before anything starts; the nodes take them as they are
+    stages = {name: stage_parameters(name, params.get(name))
+              for name in {*chosen, *params, *(["recorder"] if output is not None else []),
+                           *(["imu_driver"] if driver else [])}}
     if output is not None:
-        for stage in ("calibration", "biofeedback"):
-            if not params.get(stage, {}).get("session_dir"):
-                params = {**params, stage: {**params.get(stage, {}), "session_dir": str(output)}}
+        for name in ("calibration", "biofeedback"):
+            if name in stages and not stages[name].session_dir:
+                stages[name] = replace(stages[name], session_dir=str(output))
+    ros = {"use_sim_time": True} if use_sim_time else {}
     context = Context()
     init_ros(args or [], context)
     graph = RunningGraph(context, make_executor(context), {}, None)
@@ -203,15 +208,15 @@ def running_graph(
             claim = refuse_other_graph(context, [*chosen, *(["recorder"] if output is not None else []),
                                                  *(["imu_driver"] if driver else [])])
             if output is not None:
-                recorder = Recorder(context, output=str(output), **params.get("recorder", {}))
+                recorder = Recorder(context, replace(stages["recorder"], output=str(output)), **ros)
                 graph.recorder = graph.add(recorder)
             if driver:
                 from gait_biofeedback.nodes.imu_driver import ImuDriverNode
 
                 graph.nodes["imu_driver"] = graph.add(
-                    ImuDriverNode(context, start=False, **params.get("imu_driver", {})))
+                    ImuDriverNode(context, stages["imu_driver"], start=False, **ros))
             for name in chosen:
-                graph.nodes[name] = graph.add(factories[name](context, **params.get(name, {})))
+                graph.nodes[name] = graph.add(factories[name](context, stages[name], **ros))
             if graph.recorder is not None:
                 _wait_until_recorded(graph.recorder, list(graph.nodes.values()))
             if driver:

@@ -25,7 +25,7 @@ from gait_biofeedback.core.joints.stream import JointAnglesParams
 from gait_biofeedback.core.orientation.stream import OrientationParams
 from gait_biofeedback.core.params import (
     ParameterError,
-    check,
+    Spec,
     from_mapping,
     spec_by_name,
     specs,
@@ -58,11 +58,51 @@ def is_ros_parameter(name: str) -> bool:
     return name in ROS_PARAMETERS or name.startswith("qos_overrides.")
 
 
+class StageValues(dict):
+    """A node's parameter values as checked (ROS name → value), holding the stage dataclass they were
+    checked into (:attr:`stage`): handed on unchanged (to the graph, a node, ``analyze``), they are not
+    checked again (:func:`stage_parameters`). Any change forgets the stage, so changed values are checked
+    where they are used."""
+
+    stage: Any = None
+
+    @classmethod
+    def checked(cls, values: Mapping[str, Any], stage: Any) -> StageValues:
+        """``values`` with the stage dataclass instance they were checked into."""
+        out = cls(values)
+        out.stage = stage
+        return out
+
+    def copy(self) -> StageValues:
+        """A copy that keeps the checked stage (until it is changed)."""
+        return StageValues.checked(self, self.stage)
+
+
+def _forgetting(method: str) -> Any:
+    """``dict.<method>`` that forgets the checked stage first."""
+    base = getattr(dict, method)
+
+    def changed(self: StageValues, *args: Any, **kwargs: Any) -> Any:
+        self.stage = None
+        return base(self, *args, **kwargs)
+
+    changed.__name__ = method
+    return changed
+
+
+for _method in ("__setitem__", "__delitem__", "update", "pop", "popitem", "setdefault", "clear", "__ior__"):
+    setattr(StageValues, _method, _forgetting(_method))
+
+
 def stage_parameters(node: str, values: Mapping[str, Any] | None = None, where: str = "") -> Any:
-    """The parameters dataclass of ``node`` from ROS-named ``values`` (the rest default), checked."""
+    """The parameters dataclass of ``node`` from ROS-named ``values`` (the rest default), checked; values
+    already checked into their stage (:class:`StageValues`, as :func:`load_params_file` gives them) are
+    not checked again."""
     if node not in NODE_PARAMETERS:
         raise ParameterError(f"{where + ': ' if where else ''}unknown node {shown(node)}; nodes: "
                              f"{', '.join(NODE_PARAMETERS)}")
+    if isinstance(values, StageValues) and isinstance(values.stage, NODE_PARAMETERS[node]):
+        return values.stage
     given = {k: v for k, v in (values or {}).items() if not is_ros_parameter(k)}
     return from_mapping(NODE_PARAMETERS[node], given, where or f"node {node}")
 
@@ -134,7 +174,8 @@ def unknown_node(path: Path, key: str, node: str) -> ParameterError:
 
 
 def load_params_file(path: str | Path, nodes: list[str] | None = None) -> dict[str, dict[str, Any]]:
-    """A params file checked against every node's parameters → node → the values it sets (converted).
+    """A params file checked against every node's parameters → node → the values it sets (converted),
+    each node's as :class:`StageValues` (checked once, here).
 
     ``/**`` values go to every node (of ``nodes``, default all) that declares them; a node's own
     entry wins over them. Raises ParameterError (module docstring)."""
@@ -150,14 +191,20 @@ def load_params_file(path: str | Path, nodes: list[str] | None = None) -> dict[s
         declared = spec_by_name(NODE_PARAMETERS[node])
         values = {k: v for k, v in shared.items() if k in declared or is_ros_parameter(k)}
         values.update(raw.get(node, {}))
-        where = f"{path}, node {node}"
-        stage_parameters(node, values, where)
+        stage = stage_parameters(node, values, f"{path}, node {node}")
         if values:
-            out[node] = {k: v if is_ros_parameter(k) else check(declared[k], v) for k, v in values.items()}
+            out[node] = StageValues.checked({k: v if is_ros_parameter(k) else _value(stage, declared[k])
+                                             for k, v in values.items()}, stage)
     for node in raw:
         if nodes is not None and node not in nodes:
             stage_parameters(node, raw[node], f"{path}, node {node}")
     return out
+
+
+def _value(stage: Any, spec: Spec) -> Any:
+    """The checked value of one parameter in a stage dataclass instance."""
+    value = getattr(stage, spec.field)
+    return value[spec.key] if spec.key is not None else value
 
 
 def _shown(value: Any) -> str:

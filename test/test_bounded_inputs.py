@@ -7,6 +7,7 @@ from __future__ import annotations
 import contextlib
 import http.client
 import itertools
+import json
 import os
 import re
 import subprocess
@@ -420,6 +421,9 @@ def test_the_number_of_connected_pages_is_bounded():
                 third.recv(timeout=5)
                 with pytest.raises(InvalidStatus, match="503"):
                     connect(url, open_timeout=5)
+                # the clinician's link still gets in: read-only pages cannot lock it out
+                with connect(f"{url}?token={server.token}", open_timeout=5) as clinician:
+                    assert json.loads(clinician.recv(timeout=5)).get("read_only") is False
             deadline = time.monotonic() + 5
             while server.clients > 2 and time.monotonic() < deadline:
                 time.sleep(0.02)
@@ -427,4 +431,4 @@ def test_the_number_of_connected_pages_is_bounded():
             assert server.clients == 3
     finally:
         server.stop()
-    assert any("3 pages are connected already" in line for line in log.lines)
+    assert any("3 read-only pages are connected already" in line for line in log.lines)

@@ -629,3 +629,16 @@ def test_a_walk_without_standing_calibrates_the_foot_from_its_stance_phases():
         assert np.degrees(helical_angle(r, session.truth.mounting[f"{side}_foot"])) < limit
     with pytest.raises(ValueError, match=r"left foot: only 0 swings \(steps of this leg\) detected"):
         foot_calibration(foot.gyr[k + 60:k + 90], foot.acc[k + 60:k + 90], foot.rate_hz, "left_foot")
+
+
+def test_calibration_file_refusal_echoes_a_huge_name_or_value_briefly(tmp_path):
+    """A refusal names what is wrong without echoing a hostile file's 200,000-character name or value."""
+    _, path = _saved(tmp_path)
+
+    def hostile(document):
+        document["segments"]["x" * 200_000] = document["segments"].pop("pelvis")
+        document["segments"]["left_thigh"]["quality"] = "q" * 200_000
+
+    _edit(path, hostile)
+    refusal = _refusal(path)
+    assert len(refusal) < 1000 and "xxx" in refusal and "'quality' is 'qqq" in refusal

@@ -331,7 +331,7 @@ def test_a_second_graph_on_the_same_domain_is_refused_before_it_opens_anything(t
     with running_graph(["orientation_filter", "calibration"]) as first:
         assert "orientation_filter" in first.nodes
         domain = os.environ["ROS_DOMAIN_ID"]
-        with pytest.raises(DomainInUseError, match=rf"already runs calibration, orientation_filter on "
+        with pytest.raises(DomainInUseError, match=rf"already runs calibration on "
                            rf"ROS_DOMAIN_ID={domain}; .* Stop it, or start this one on a domain"):
             replay_through_graph(bag, tmp_path / "second", nodes=["orientation_filter", "calibration"],
                                  timeout=30)
@@ -403,3 +403,23 @@ def test_replay_exits_1_naming_a_hole_the_graph_dropped(tmp_path, monkeypatch, c
     err = capsys.readouterr().err
     assert "hole(s) of consecutive samples (longest 0.15 s, left_foot)" in err
     assert "even at real time" in err
+
+
+def test_two_graphs_whose_node_names_overlap_never_both_refuse():
+    """The per-name locks are taken in name order and the first one held elsewhere stops the claim: a
+    graph refused at 'calibration' holds nothing after it, so the graph that holds 'calibration' can
+    still take 'joint_angles' (taking on past a refusal, each of two graphs held a name the other needed
+    and both refused)."""
+    from gait_biofeedback.nodes.common import _claim_names
+
+    first, taken = _claim_names(9_999, "/overlap_test", ["calibration"])
+    assert taken == [] and len(first) == 1
+    try:
+        second, taken = _claim_names(9_999, "/overlap_test", ["joint_angles", "calibration"])
+        assert taken == ["calibration"] and second == []
+        more, taken = _claim_names(9_999, "/overlap_test", ["joint_angles"])
+        assert taken == [] and len(more) == 1
+        first += more
+    finally:
+        for fd in first:
+            os.close(fd)

@@ -176,3 +176,39 @@ def test_node_refuses_a_bad_override_and_converts_an_int(ros_context):
         GaitEventsNode(ros_context, max_gap=-1)
     with pytest.raises(ParameterError, match=r"unknown parameter 'max_gapp'; did you mean 'max_gap'"):
         GaitEventsNode(ros_context, max_gapp=1.0)
+
+
+@pytest.mark.timeout(60)
+def test_a_session_file_value_is_checked_once_on_its_way_to_its_node(monkeypatch):
+    """config/session.yaml → the in-process graph → the node: each value the file sets is checked once,
+    when the file is loaded (it was checked four times and built into its dataclass three times)."""
+    from collections import Counter
+
+    import gait_biofeedback.core.params as core_params
+    import gait_biofeedback.nodes.parameters as node_parameters
+    from gait_biofeedback.graph import running_graph
+
+    calls: Counter = Counter()
+    real = core_params.check
+
+    def counting(spec, value):
+        calls[spec.name] += 1
+        return real(spec, value)
+
+    monkeypatch.setattr(core_params, "check", counting)
+    monkeypatch.setattr(node_parameters, "check", counting)
+    params = load_params_file(REPO / "config" / "session.yaml")
+    assert calls["buffer_s"] == 1 and calls["max_gap"] == 1
+    with running_graph(["orientation_filter", "calibration"], node_parameters=params) as graph:
+        assert graph.nodes["calibration"].params.buffer_s == params["calibration"]["buffer_s"]
+        assert graph.nodes["calibration"].params is params["calibration"].stage
+        assert graph.nodes["orientation_filter"].params.max_gap == params["orientation_filter"]["max_gap"]
+    assert calls["buffer_s"] == 1 and calls["max_gap"] == 1, calls
+    # a value changed on the way (the command line's) is checked where it is used, with the others
+    changed = params["calibration"].copy()
+    assert stage_parameters("calibration", changed) is params["calibration"].stage
+    changed["buffer_s"] = 30.0
+    assert stage_parameters("calibration", changed).buffer_s == 30.0 and calls["buffer_s"] == 2
+    changed["buffer_s"] = -1.0
+    with pytest.raises(ParameterError, match="buffer_s"):
+        stage_parameters("calibration", changed)

@@ -48,6 +48,7 @@ def test_the_token_is_on_the_terminal_and_in_an_owner_only_file_never_on_rosout(
         node.destroy_node()
         listener.destroy_node()
         executor.shutdown()
+    assert not (tmp_path / "session" / "dashboard_url.txt").exists(), "the dead token's file is removed"
     home = Path(os.environ.get("ROS_HOME", "~/.ros")).expanduser()
     log_dir = Path(os.environ.get("ROS_LOG_DIR") or home / "log")
     recent = [p for p in log_dir.rglob("*") if p.is_file() and p.stat().st_mtime >= started - 1]

@@ -19,11 +19,15 @@ Security (the page shows and drives a patient's session):
   the origin of this server, so no other web page can open it. Refusals are HTTP 403, logged at most
   once per ``REFUSAL_LOG_PERIOD`` (the first at once, then one line with the count of those since),
   the offending value cut to 80 characters: a flood of refused requests grows neither memory nor log;
-* at most ``max_clients`` pages are connected at once (another websocket handshake gets HTTP 503);
+* at most ``max_clients`` read-only pages and :data:`COMMANDER_SLOTS` pages with the token are
+  connected at once (another websocket handshake gets HTTP 503): idle read-only pages cannot lock the
+  clinician out;
 * commands need the session's token: a random string made at start (:attr:`DashboardServer.token`),
-  known only to whoever reads the node's log, which prints the link with it
-  (``http://127.0.0.1:8080/?token=...``, as Jupyter does). The page passes it on in the websocket URL;
-  a connection without it is read-only: it receives frames, and every command gets a refusal reply.
+  known only to whoever started the session: the node prints the link with it on the terminal and
+  writes it to an owner-only file, never to the ROS log (``http://127.0.0.1:8080/?token=...``, as
+  Jupyter does). The page passes it on in the websocket URL; a connection without it is read-only: it
+  receives frames, and every command gets a refusal reply; a wrong one is counted
+  (:attr:`DashboardServer.token_failures`) and logged at the refusals' rate.
 
 Frames go to every page with ``websockets.broadcast`` (non-blocking); a page whose send buffer is above
 ``max_buffer`` bytes skips frames until it catches up, so a stalled browser cannot grow memory.
@@ -77,6 +81,8 @@ def _bracketed(host: str) -> str:
 PORT_TRIES = 20
 REFUSAL_LOG_PERIOD = 10.0
 """s: at most one log line about refused requests this often (module docstring)."""
+COMMANDER_SLOTS = 4
+"""Pages with the session's token connected at most, apart from the read-only ones' ``max_clients``."""
 MAX_CLIENTS = 16
 _TYPES = {".html": "text/html; charset=utf-8", ".js": "text/javascript; charset=utf-8",
           ".css": "text/css; charset=utf-8", ".png": "image/png", ".svg": "image/svg+xml"}
@@ -228,12 +234,18 @@ class DashboardServer:
             broadcast(ready, text)
             self.frames_sent += 1
 
+    def _given_token(self, request: Request) -> str:
+        return parse_qs(urlsplit(request.path).query).get("token", [""])[0]
+
+    def _has_token(self, request: Request) -> bool:
+        return hmac.compare_digest(self._given_token(request).encode(), self.token.encode())
+
     def _may_command(self, request: Request) -> bool:
         """Whether the page's link carries the session's token. A wrong one (a guess) is counted in
         :attr:`token_failures` and logged at the refusals' bounded rate; no token is a read-only view."""
-        given = parse_qs(urlsplit(request.path).query).get("token", [""])[0]
-        if hmac.compare_digest(given.encode(), self.token.encode()):
+        if self._has_token(request):
             return True
+        given = self._given_token(request)
         if given:
             self.token_failures += 1
             self._refusals_unlogged += 1
@@ -309,8 +321,13 @@ class DashboardServer:
             origin = request.headers.get("Origin")
             if origin is not None and origin.lower() not in _origins(allowed):
                 return self._refuse(connection, f"websocket from the web page of origin {shown(origin)}")
-            if len(self._clients) >= self.max_clients:
-                return self._refuse(connection, f"{self.max_clients} pages are connected already",
+            # read-only pages cannot crowd out the clinician's: pages with the token have slots of their own
+            commanding = self._has_token(request)
+            full = (len(self._commanders) >= COMMANDER_SLOTS if commanding
+                    else len(self._clients) - len(self._commanders) >= self.max_clients)
+            if full:
+                return self._refuse(connection, f"{COMMANDER_SLOTS if commanding else self.max_clients} "
+                                    f"{'command' if commanding else 'read-only'} pages are connected already",
                                     HTTPStatus.SERVICE_UNAVAILABLE)
             return None  # go on with the websocket handshake
         name = "index.html" if path in ("", "/") else path.lstrip("/")

@@ -19,6 +19,7 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any, BinaryIO
 
+from gait_biofeedback.core.biofeedback.evaluator import DASHBOARD_LINK_FILE
 from gait_biofeedback.core.calibration.stream import CALIBRATION_FILE
 from gait_biofeedback.io.bag_metadata import (
     FileRecord,
@@ -34,19 +35,22 @@ from gait_biofeedback.io.schemas import schema_text, type_description_hash, type
 from gait_biofeedback.wire.cdr import serialize
 from gait_biofeedback.wire.padding import zero_padding
 
+SESSION_FILES = (CALIBRATION_FILE, DASHBOARD_LINK_FILE)
+"""Files of a session that may be in its bag folder before the bag (a graph that crashed leaves the
+dashboard's link)."""
 COMPRESSIONS = dict(zip(COMPRESSION_NAMES, ("zstd", "lz4", ""), strict=True))
 LIBRARY = "gait_biofeedback"
 
 
 def check_output(path: str | Path, overwrite: bool = False) -> None:
     """Raise, with a message that says what to do, unless a bag folder can be written at ``path``:
-    it must not be a file, an existing folder must be empty or hold only the session's
-    calibration.yaml (or hold only a bag, replaced with ``overwrite``), and a file must be creatable
+    it must not be a file, an existing folder must be empty or hold only the session's files
+    (:data:`SESSION_FILES`; or hold only a bag, replaced with ``overwrite``), and a file must be creatable
     in it (tried, and removed again with any folder created for the try)."""
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise FileExistsError(f"{path} exists and is not a folder; a bag is written as a folder")
-    if path.is_dir() and any(p.name != CALIBRATION_FILE for p in path.iterdir()):
+    if path.is_dir() and any(p.name not in SESSION_FILES for p in path.iterdir()):
         if not overwrite:
             raise FileExistsError(f"bag folder {path} exists and is not empty: write to another folder "
                                   "or remove it first")
@@ -70,7 +74,7 @@ def check_output(path: str | Path, overwrite: bool = False) -> None:
 
 
 def _bag_part(path: Path) -> bool:
-    return path.suffix == ".mcap" or path.name in ("metadata.yaml", CALIBRATION_FILE)
+    return path.suffix == ".mcap" or path.name in ("metadata.yaml", *SESSION_FILES)
 
 
 @dataclass

@@ -970,33 +970,17 @@ def import_csv_to_bag(
 
 
 def _write_series(writer: Any, imu: dict[str, ImuSeries]) -> None:
-    """The messages of series on one time base in the order of ``write_imu_bag`` (by stamp; at one
-    stamp, by segment, Imu before MagneticField), a few thousand samples encoded at a time."""
-    from gait_biofeedback.wire import topics
-    from gait_biofeedback.wire.imu import encode_series, series_topics
+    """:func:`~gait_biofeedback.io.imu_bag.write_series` a few thousand samples at a time (the order of
+    ``write_imu_bag``: by stamp; at one stamp, by segment, Imu before MagneticField)."""
+    from gait_biofeedback.io.imu_bag import write_series
 
-    imu_type, mag_type = topics.raw_imu("x").type_name, topics.magnetometer("x").type_name
-    write = writer.write_serialized
     n = len(next(iter(imu.values())))
     for start in range(0, n, _WRITE_ROWS):
         stop = min(start + _WRITE_ROWS, n)
-        streams: list[tuple[str, str, np.ndarray, list[bytes]]] = []
-        for segment, whole in imu.items():
-            series = ImuSeries(segment, whole.t[start:stop], whole.acc[start:stop], whole.gyr[start:stop],
-                               None if whole.mag is None else whole.mag[start:stop], whole.frame_id)
-            ns, imu_payloads, mag_payloads = encode_series(series)
-            imu_topic, mag_name = series_topics(segment)
-            streams.append((imu_topic, imu_type, ns, imu_payloads))
-            if mag_payloads is not None:
-                streams.append((mag_name, mag_type, ns, mag_payloads))
-        all_ns = np.concatenate([s[2] for s in streams])
-        stream_of = np.concatenate([np.full(len(s[2]), k) for k, s in enumerate(streams)])
-        sample_of = np.concatenate([np.arange(len(s[2])) for s in streams])
-        order = np.argsort(all_ns, kind="stable")
-        for t, k, i in zip(all_ns[order].tolist(), stream_of[order].tolist(), sample_of[order].tolist(),
-                           strict=True):
-            topic, type_name, _, payloads = streams[k]
-            write(topic, type_name, payloads[i], t)
+        part = {segment: ImuSeries(segment, s.t[start:stop], s.acc[start:stop], s.gyr[start:stop],
+                                   None if s.mag is None else s.mag[start:stop], s.frame_id)
+                for segment, s in imu.items()}
+        write_series(writer, part)
 
 
 def _remove_bag(folder: Path, files: list[Path], created: list[Path]) -> None:

@@ -11,7 +11,7 @@ faster); the tests check they match rclpy's serialisation.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -46,32 +46,43 @@ def write_imu_bag(
     Log time = header stamp. ``writer_options`` go to :class:`BagWriter` (e.g. ``overwrite=True``).
     Returns the bag folder.
     """
-    imu_type, mag_type = topics.raw_imu("x").type_name, topics.magnetometer("x").type_name
-    streams: list[tuple[str, str, np.ndarray, list[bytes]]] = []
     for key, series in imu.items():
         if key != series.segment:
             raise ValueError(f"imu[{key!r}] holds the series of segment {series.segment!r}; keys must match")
+    extra_streams = [(topic, type_name_of(msg), np.array([int(t)], dtype=np.int64), [serialize(msg)])
+                     for topic, msg, t in extra]
+    with BagWriter(path, **{"flush_period": None, **writer_options}) as writer:
+        write_series(writer, imu, extra_streams)
+    return writer.path
+
+
+Stream = tuple[str, str, np.ndarray, list[bytes]]
+"""(topic, type name, log times ns, CDR payloads) of one topic's messages."""
+
+
+def write_series(writer: BagWriter, imu: dict[str, ImuSeries], extra: Sequence[Stream] = ()) -> None:
+    """The messages of IMU series (and ``extra`` streams) into ``writer`` by log time = header stamp; at
+    one time by series, Imu before MagneticField, then ``extra`` (a stable sort)."""
+    imu_type, mag_type = topics.raw_imu("x").type_name, topics.magnetometer("x").type_name
+    streams: list[Stream] = []
+    for series in imu.values():
         ns, imu_payloads, mag_payloads = encode_series(series)
         imu_topic, mag_name = series_topics(series.segment)
         streams.append((imu_topic, imu_type, ns, imu_payloads))
         if mag_payloads is not None:
             streams.append((mag_name, mag_type, ns, mag_payloads))
-    extra_items = [(topic, type_name_of(msg), int(t), serialize(msg)) for topic, msg, t in extra]
-    for topic, type_name, t, data in extra_items:
-        streams.append((topic, type_name, np.array([t], dtype=np.int64), [data]))
-
-    all_ns = np.concatenate([s[2] for s in streams]) if streams else np.zeros(0, dtype=np.int64)
-    stream_of = np.concatenate([np.full(len(s[2]), k) for k, s in enumerate(streams)]) if streams else all_ns
-    sample_of = np.concatenate([np.arange(len(s[2])) for s in streams]) if streams else all_ns
+    streams += extra
+    if not streams:
+        return
+    all_ns = np.concatenate([s[2] for s in streams])
+    stream_of = np.concatenate([np.full(len(s[2]), k) for k, s in enumerate(streams)])
+    sample_of = np.concatenate([np.arange(len(s[2])) for s in streams])
     order = np.argsort(all_ns, kind="stable")
-    with BagWriter(path, **{"flush_period": None, **writer_options}) as writer:
-        write = writer.write_serialized
-        for t, k, i in zip(
-            all_ns[order].tolist(), stream_of[order].tolist(), sample_of[order].tolist(), strict=True
-        ):
-            topic, type_name, _, payloads = streams[k]
-            write(topic, type_name, payloads[i], t)
-    return writer.path
+    write = writer.write_serialized
+    for t, k, i in zip(all_ns[order].tolist(), stream_of[order].tolist(), sample_of[order].tolist(),
+                       strict=True):
+        topic, type_name, _, payloads = streams[k]
+        write(topic, type_name, payloads[i], t)
 
 
 def read_imu_bag(path: str | Path, segments: Iterable[str] | None = None) -> dict[str, ImuSeries]:

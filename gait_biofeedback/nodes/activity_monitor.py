@@ -41,9 +41,10 @@ class ActivityMonitorNode(GuardedNode):
 
     NODE_NAME = "activity_monitor"
 
-    def __init__(self, context: Context | None = None, **overrides: object) -> None:
+    def __init__(self, context: Context | None = None, params: ActivityParams | None = None,
+                 **overrides: object) -> None:
         super().__init__(self.NODE_NAME, context=context, parameter_overrides=node_overrides(overrides))
-        self.params: ActivityParams = declare_parameters(self, ActivityParams)
+        self.params: ActivityParams = declare_parameters(self, ActivityParams, params)
         self.segment = self.params.segment
         self.stream = ActivityStream(self.params)
         self._newest_ns = 0

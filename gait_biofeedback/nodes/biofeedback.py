@@ -47,6 +47,7 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
 from gait_biofeedback.core.biofeedback.evaluator import (
+    DASHBOARD_LINK_FILE,
     SPATIAL,
     BiofeedbackEvaluator,
     BiofeedbackParams,
@@ -106,9 +107,10 @@ class BiofeedbackNode(GuardedNode):
 
     NODE_NAME = "biofeedback"
 
-    def __init__(self, context: Context | None = None, **overrides: object) -> None:
+    def __init__(self, context: Context | None = None, params: BiofeedbackParams | None = None,
+                 **overrides: object) -> None:
         super().__init__(self.NODE_NAME, context=context, parameter_overrides=node_overrides(overrides))
-        self.params: BiofeedbackParams = declare_parameters(self, BiofeedbackParams)
+        self.params: BiofeedbackParams = declare_parameters(self, BiofeedbackParams, params)
         p = self.params
         self.targets = load_targets(p.targets_file or str(default_targets_path()))
         self.targets_json = self.targets.to_json()
@@ -427,18 +429,20 @@ class BiofeedbackNode(GuardedNode):
         if self.server is not None:
             self.server.stop()
             self.server = None
+        if self.url_file is not None:  # the token dies with the server
+            self.url_file.unlink(missing_ok=True)
+            self.url_file = None
         super().destroy_node()
 
-
-URL_FILE = "dashboard_url.txt"
 
 
 def write_private_link(url: str, session_dir: str) -> Path | None:
     """Write the dashboard's link with its command token to ``<session_dir>/dashboard_url.txt``, created
-    readable and writable by its owner only (0600, whatever the umask); None when no ``session_dir``."""
+    readable and writable by its owner only (0600, whatever the umask); None when no ``session_dir``.
+    The node removes it when it stops."""
     if not session_dir:
         return None
-    path = Path(session_dir) / URL_FILE
+    path = Path(session_dir) / DASHBOARD_LINK_FILE
     path.parent.mkdir(parents=True, exist_ok=True)
     with contextlib.suppress(FileNotFoundError):
         path.unlink()  # a file left by an earlier session may have looser permissions

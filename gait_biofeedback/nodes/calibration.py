@@ -62,9 +62,10 @@ class CalibrationNode(GuardedNode):
 
     NODE_NAME = "calibration"
 
-    def __init__(self, context: Context | None = None, **overrides: object) -> None:
+    def __init__(self, context: Context | None = None, params: CalibrationParams | None = None,
+                 **overrides: object) -> None:
         super().__init__(self.NODE_NAME, context=context, parameter_overrides=node_overrides(overrides))
-        self.params: CalibrationParams = declare_parameters(self, CalibrationParams)
+        self.params: CalibrationParams = declare_parameters(self, CalibrationParams, params)
         self.segments = list(self.params.segments)
         self.session_dir = Path(self.params.session_dir or "session")
         self.core = CalibrationBuffer(self.params)

@@ -279,9 +279,10 @@ def _lock_path(domain: int, namespace: str, name: str) -> str:
 
 
 def _claim_names(domain: int, namespace: str, names: Iterable[str]) -> tuple[list[int], list[str]]:
-    """Lock one file per node name (see :class:`GraphClaim`): (the held descriptors, the names another
-    process of this machine holds). A lock file that cannot be opened (another user's, a symlink) is
-    left to the discovery check."""
+    """Lock one file per node name, in name order (see :class:`GraphClaim`): (the held descriptors, the
+    first name another process of this machine holds, if any). Taking them in one order and stopping at
+    the first one taken means two graphs whose names overlap never both refuse. A lock file that cannot
+    be opened (another user's, a symlink) is left to the discovery check."""
     held: list[int] = []
     taken: list[str] = []
     for name in sorted(set(names)):
@@ -295,7 +296,7 @@ def _claim_names(domain: int, namespace: str, names: Iterable[str]) -> tuple[lis
         except OSError:
             os.close(fd)
             taken.append(name)
-            continue
+            break  # in name order, so of two graphs the one holding the first shared name wins
         held.append(fd)
     return held, taken
 

@@ -50,9 +50,10 @@ class GaitEventsNode(GuardedNode):
 
     NODE_NAME = "gait_events"
 
-    def __init__(self, context: Context | None = None, **overrides: object) -> None:
+    def __init__(self, context: Context | None = None, params: GaitEventsParams | None = None,
+                 **overrides: object) -> None:
         super().__init__(self.NODE_NAME, context=context, parameter_overrides=node_overrides(overrides))
-        self.params: GaitEventsParams = declare_parameters(self, GaitEventsParams)
+        self.params: GaitEventsParams = declare_parameters(self, GaitEventsParams, params)
         self.stream = GaitEventStream(self.params)
         self.sides = self.stream.sides
         self.stale_after = self.params.stale_after

@@ -56,9 +56,10 @@ class ImuDriverNode(GuardedNode):
 
     NODE_NAME = "imu_driver"
 
-    def __init__(self, context: Context | None = None, start: bool = True, **overrides: object) -> None:
+    def __init__(self, context: Context | None = None, params: DriverParams | None = None,
+                 start: bool = True, **overrides: object) -> None:
         super().__init__(self.NODE_NAME, context=context, parameter_overrides=node_overrides(overrides))
-        p: DriverParams = declare_parameters(self, DriverParams)
+        p: DriverParams = declare_parameters(self, DriverParams, params)
         self.params = p
         self.core = DriverCore(p)
         segments = [s.segment for s in self.core.sensors.values()]

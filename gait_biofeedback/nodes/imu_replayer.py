@@ -37,9 +37,10 @@ class ImuReplayer(GuardedNode):
 
     NODE_NAME = "imu_replayer"
 
-    def __init__(self, context: Context | None = None, **overrides: object) -> None:
+    def __init__(self, context: Context | None = None, params: ReplayerParams | None = None,
+                 **overrides: object) -> None:
         super().__init__(self.NODE_NAME, context=context, parameter_overrides=node_overrides(overrides))
-        p: ReplayerParams = declare_parameters(self, ReplayerParams)
+        p: ReplayerParams = declare_parameters(self, ReplayerParams, params)
         self.params = p
         bag = p.bag
         if not bag or not Path(bag).exists():
@@ -65,8 +66,10 @@ class ImuReplayer(GuardedNode):
         self._clock_pub = self.create_publisher(Clock, "/clock", 10) if p.publish_clock else None
         self.published = 0
         self.published_by_topic: dict[str, int] = {}  # recorded topic → messages published
-        self.raw_stamps: dict[str, array] = {t: array("q") for t in self.topics if t.endswith(RAW_SUFFIX)}
-        """Raw IMU topic → the header stamps (int ns) published, in order: what the graph was given."""
+        self.raw_stamps: dict[str, array] = {} if p.loop else {t: array("q") for t in self.topics
+                                                               if t.endswith(RAW_SUFFIX)}
+        """Raw IMU topic → the header stamps (int ns) published, in order: what the graph was given (one
+        pass only: a looping replay keeps none)."""
         self.position_ns = self.reader.start_time_ns  # log time of the newest published message
         self.loops_done = 0
         self.finished = threading.Event()

@@ -48,9 +48,10 @@ class JointAnglesNode(GuardedNode):
 
     NODE_NAME = "joint_angles"
 
-    def __init__(self, context: Context | None = None, **overrides: object) -> None:
+    def __init__(self, context: Context | None = None, params: JointAnglesParams | None = None,
+                 **overrides: object) -> None:
         super().__init__(self.NODE_NAME, context=context, parameter_overrides=node_overrides(overrides))
-        self.params: JointAnglesParams = declare_parameters(self, JointAnglesParams)
+        self.params: JointAnglesParams = declare_parameters(self, JointAnglesParams, params)
         self.body = self.params.body
         self.stream = JointAngleStream(self.params)
         self.published = 0

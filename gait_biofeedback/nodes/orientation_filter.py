@@ -44,9 +44,10 @@ class OrientationFilterNode(GuardedNode):
 
     NODE_NAME = "orientation_filter"
 
-    def __init__(self, context: Context | None = None, **overrides: object) -> None:
+    def __init__(self, context: Context | None = None, params: OrientationParams | None = None,
+                 **overrides: object) -> None:
         super().__init__(self.NODE_NAME, context=context, parameter_overrides=node_overrides(overrides))
-        self.params: OrientationParams = declare_parameters(self, OrientationParams)
+        self.params: OrientationParams = declare_parameters(self, OrientationParams, params)
         self.orientation_variance = self.params.orientation_variance
         self.stale_after = self.params.stale_after
         self.trackers: dict[str, SegmentOrientationTracker] = {}

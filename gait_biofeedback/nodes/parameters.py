@@ -19,7 +19,15 @@ from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescri
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from gait_biofeedback.core.params import ParameterError, Spec, check, from_mapping, specs, unknown_name
+from gait_biofeedback.core.params import (
+    ParameterError,
+    Spec,
+    as_mapping,
+    check,
+    from_mapping,
+    specs,
+    unknown_name,
+)
 from gait_biofeedback.parameters import NODE_PARAMETERS, is_ros_parameter
 
 _TYPES = {"bool": Parameter.Type.BOOL, "int": Parameter.Type.INTEGER, "float": Parameter.Type.DOUBLE,
@@ -48,12 +56,16 @@ def node_overrides(overrides: dict[str, object]) -> list[Parameter]:
     return [Parameter(k, value=_ros(v)) for k, v in overrides.items()]
 
 
-def declare_parameters(node: Node, cls: type) -> Any:
+def declare_parameters(node: Node, cls: type, checked: Any = None) -> Any:
     """Declare every parameter of the stage dataclass ``cls`` on ``node``; return the instance built
-    from their values (see module docstring)."""
+    from their values (see module docstring). ``checked``: an instance of ``cls`` whose values were
+    checked already (the in-process graph checks a params file once, :func:`load_params_file`): they
+    are declared as they are, and only a value the node's own overrides change is checked here."""
     where = f"node {node.get_fully_qualified_name()}"
     overrides = node._parameter_overrides
+    preset = as_mapping(checked) if checked is not None else {}
     values: dict[str, Any] = {}
+    changed = False
     for spec in specs(cls):
         given = overrides.get(spec.name)
         if given is not None:
@@ -62,14 +74,17 @@ def declare_parameters(node: Node, cls: type) -> Any:
             except ParameterError as exc:
                 raise ParameterError(f"{where}: {exc}") from None
             overrides[spec.name] = Parameter(spec.name, value=_ros(value))
-        default = spec.default
-        if isinstance(default, tuple) and not default:
+            changed = True
+        default = preset.get(spec.name, spec.default)
+        if isinstance(default, (tuple, list)) and not default:
             declared = node.declare_parameters("", [(spec.name, _TYPES[spec.kind], descriptor(spec))])[0]
         else:
             declared = node.declare_parameter(spec.name, _ros(default), descriptor(spec))
         if declared.type_ != Parameter.Type.NOT_SET:
             values[spec.name] = declared.value
     _refuse_unknown(node, cls, overrides, where)
+    if checked is not None and not changed:
+        return checked
     return from_mapping(cls, values, where)
 
 

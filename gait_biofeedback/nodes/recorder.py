@@ -51,9 +51,10 @@ class Recorder(GuardedNode):
 
     NODE_NAME = "recorder"
 
-    def __init__(self, context: Context | None = None, **overrides: object) -> None:
+    def __init__(self, context: Context | None = None, params: RecorderParams | None = None,
+                 **overrides: object) -> None:
         super().__init__(self.NODE_NAME, context=context, parameter_overrides=node_overrides(overrides))
-        p: RecorderParams = declare_parameters(self, RecorderParams)
+        p: RecorderParams = declare_parameters(self, RecorderParams, params)
         self.params = p
         self._base_output = p.output
         self.requested = [t if t.startswith("/") else self.resolve_topic_name(t) for t in p.topics if t]

@@ -368,6 +368,11 @@ FEEDBACK_SIDES = (*SIDES, "both")
 FEEDBACK_JOINTS = (*JOINT_GROUPS, "all")
 
 
+DASHBOARD_LINK_FILE = "dashboard_url.txt"
+"""The file in the session folder holding the dashboard's link with its command token (0600), removed
+when the session ends."""
+
+
 @dataclass(frozen=True)
 class BiofeedbackParams(StickFigureDimensions):
     """Parameters of the biofeedback stage and its dashboard (node ``biofeedback``)."""

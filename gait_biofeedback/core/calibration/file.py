@@ -36,7 +36,7 @@ from gait_biofeedback.core.calibration.sensor_to_segment import (
     SessionCalibration,
     label,
 )
-from gait_biofeedback.core.safe_yaml import load_yaml_file
+from gait_biofeedback.core.safe_yaml import clip, load_yaml_file, shown
 from gait_biofeedback.core.segments import SEGMENTS
 
 CALIBRATION_FILE = "calibration.yaml"
@@ -97,7 +97,7 @@ def entry_problems(name: Any, entry: Any) -> list[str]:
         return ["its entry is not a mapping"]
     problems = []
     if entry.get("segment") != name:
-        problems.append(f"its entry says segment {entry.get('segment')!r}")
+        problems.append(f"its entry says segment {shown(entry.get('segment'))}")
     r = entry.get("rotation")
     if not (isinstance(r, list) and len(r) == 4 and all(_real(v) for v in r)):
         problems.append("rotation is not four numbers (w, x, y, z)")
@@ -115,7 +115,7 @@ def entry_problems(name: Any, entry: Any) -> list[str]:
         v = entry.get(key)
         if not _real(v) or (math.isnan(v) and valid is not False) or not (
                 math.isnan(v) or (math.isfinite(v) and low <= v <= high)):
-            problems.append(f"'{key}' is {v!r}, not a finite number in [{low:g}, {high:g}]")
+            problems.append(f"'{key}' is {shown(v)}, not a finite number in [{low:g}, {high:g}]")
     if not isinstance(entry.get("quality_metric"), str) or not isinstance(entry.get("message", ""), str):
         problems.append("'quality_metric' or 'message' is not text")
     if not isinstance(entry.get("details", {}), Mapping):
@@ -182,7 +182,7 @@ def check_calibration_document(document: Any) -> list[str]:
         found = entry_problems(name, entry)
         if found:
             per_segment.setdefault(str(name), []).extend(found)
-    return general + [f"{name}: {', '.join(found)}" for name, found in per_segment.items()]
+    return general + [f"{clip(name)}: {', '.join(found)}" for name, found in per_segment.items()]
 
 
 def _calibration(document: Mapping[str, Any]) -> SessionCalibration:
