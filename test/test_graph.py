@@ -423,3 +423,27 @@ def test_two_graphs_whose_node_names_overlap_never_both_refuse():
     finally:
         for fd in first:
             os.close(fd)
+
+
+def test_a_hole_the_filter_saw_is_the_graphs_when_the_replayer_had_sent_its_samples():
+    """The real orientation stream's gap record (not a hand-made one): 0.2 s of a sensor that the
+    replayer sent but the filter never got is the graph's hole; 0.3 s the recording itself lacks is not."""
+    from array import array
+    from types import SimpleNamespace
+
+    from gait_biofeedback.core.orientation.stream import SegmentOrientationTracker
+    from gait_biofeedback.graph import _graph_holes
+
+    series = synthetic_imu(["left_foot"], duration=6.0)["left_foot"]
+    stamps = np.round(series.t * 1e9).astype(np.int64)
+    in_recording = np.ones(len(stamps), bool)
+    in_recording[300:330] = False  # the sensor's own dropout, 3.0-3.3 s
+    dropped_by_graph = np.zeros(len(stamps), bool)
+    dropped_by_graph[450:470] = True  # the graph's, 4.5-4.7 s
+    tracker = SegmentOrientationTracker("left_foot")
+    for k in np.flatnonzero(in_recording & ~dropped_by_graph):
+        tracker.update(int(stamps[k]), series.gyr[k], series.acc[k])
+    assert len(tracker.gaps) == 2
+    replayed = {"/left_foot/imu/data_raw": array("q", stamps[in_recording].tolist())}
+    holes = _graph_holes(replayed, SimpleNamespace(trackers={"left_foot": tracker}))
+    assert holes == {"left_foot": [(pytest.approx(0.21, abs=1e-6), 20)]}
