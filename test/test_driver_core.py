@@ -7,6 +7,7 @@ import struct
 import numpy as np
 import pytest
 
+from gait_biofeedback.core.driver.chain import SUSPECT_MEMORY
 from gait_biofeedback.core.driver.clock import DeviceClock, map_device_time
 from gait_biofeedback.core.driver.protocol import (
     DeviceSample,
@@ -195,6 +196,11 @@ def test_a_device_clock_jump_restarts_the_clock_estimate_only():
 def test_the_core_names_unmapped_and_silent_sensors_with_what_to_do():
     core = DriverCore(DriverParams(sensors=("1:left_foot", "2:right_foot")))
     core.feed(encode_frame([sample(0, 0, sid=1), sample(0, 0, sid=9)]), T0, "10.0.0.5:4000")
+    held = {r.name: r for r in core.reports(T0)}["imu_driver: left_foot"]
+    assert held.level == 1 and "heard from 10.0.0.5:4000, not confirmed yet" in held.message
+    for k in range(1, 5):  # 5 samples over 40 ms: its source is confirmed, its samples go out
+        core.feed(encode_frame([sample(k, 10_000 * k, sid=1), sample(k, 10_000 * k, sid=9)]), T0 + k * 10**7,
+                  "10.0.0.5:4000")
     core.feed(b"garbage", T0, "10.0.0.5:4000")
     reports = {r.name: r for r in core.reports(T0 + 3 * 10**8)}
     assert reports["imu_driver: left_foot"].level == 0
@@ -204,9 +210,67 @@ def test_the_core_names_unmapped_and_silent_sensors_with_what_to_do():
     assert reports["imu_driver: link"].values["bad_frames"] == 1
     later = {r.name: r for r in core.reports(T0 + 2 * 10**9)}
     left = later["imu_driver: left_foot"]
-    assert left.level == 2 and "silent for 2.0 s" in left.message
+    assert left.level == 2 and "silent for 2.0 s" in left.message and left.values["published"] == 5
     texts = [n.text for n in core.notices.pop()]
     assert any("sensor 9 sends but is not mapped" in t for t in texts)
+
+
+def _framed(per_frame: int, n: int, seq0: int, device0_us: int, t0_s: float, rng, rate: float = 1000.0):
+    """``n`` samples of sensor 2 at ``rate`` in frames of ``per_frame``, each frame sent when its last sample
+    is taken and arriving 2 ms + uniform [0, 3 ms] later: [(samples, arrival ns)]. acc x = sequence."""
+    out = []
+    for start in range(0, n, per_frame):
+        ks = range(start, min(start + per_frame, n))
+        samples = [DeviceSample(2, seq0 + k, device0_us + round(k * 1e6 / rate), (float(seq0 + k), 0.0, 9.75),
+                                (0.0, 0.0, 0.0)) for k in ks]
+        out.append((samples, T0 + round((t0_s + ks[-1] / rate) * 1e9) + 2_000_000
+                    + int(rng.integers(0, 3_000_000))))
+    return out
+
+
+@pytest.mark.parametrize("per_frame", [1, 10, 63, 100, 255])
+def test_a_reboot_is_confirmed_at_any_number_of_samples_per_frame(per_frame):
+    # a 1 kHz sensor: 3 s, then it reboots (sequence from 0, device clock from 0.5 s) and sends 2 s more
+    rng = np.random.default_rng(per_frame)
+    frames = (_framed(per_frame, 3000, 5000, 42_000_000, 0.0, rng)
+              + _framed(per_frame, 2000, 0, 500_000, 3.5, rng))
+    core = DriverCore(DriverParams(sensors=("2:left_shank",)))
+    s = core.sensors[2]
+    out, most = [], 0
+    for samples, arrival in sorted(frames, key=lambda f: f[1]):
+        out += core.feed_samples(samples, arrival, "10.0.0.5:4000") + core.expire(arrival)
+        most = max(most, s.suspects)
+    out += core.expire(frames[-1][1] + 10**10)
+    assert (s.reboots, s.clock_resets, s.lost, s.rejected, s.duplicates) == (1, 0, 0, 0, 0)
+    assert [o.acc[0] for o in out] == [float(5000 + k) for k in range(3000)] + [float(k) for k in range(2000)]
+    assert (np.diff([o.stamp_ns for o in out]) > 0).all()
+    assert most <= SUSPECT_MEMORY and s.suspects == 0
+
+
+def _live_links() -> int:
+    import gc
+
+    gc.collect()
+    count = 0
+    for o in gc.get_objects():  # the set-aside samples' records, whatever their class is called
+        module = getattr(type(o), "__module__", None)
+        ours = isinstance(module, str) and module.startswith("gait_biofeedback.core.driver.")
+        count += ours and hasattr(o, "prev")
+    return count
+
+
+def test_suspects_that_never_confirm_stay_bounded_in_memory():
+    s = SensorStream(2, "chest")
+    for k in range(300):
+        s.push(sample(5000 + k, 42_000_000 + 10_000 * k), T0 + k * 10**7)
+    before = _live_links()
+    # 20 000 samples of a new sequence at 100 Hz that arrive 5 times too fast (2 ms apart): a chain
+    # that never arrives in real time, so never confirms; nothing fitting comes to void it
+    for k in range(20_000):
+        s.push(sample(100_000 + k, 1 + 10_000 * k), T0 + 3 * 10**9 + k * 2_000_000)
+        assert s.suspects <= SUSPECT_MEMORY
+    assert (s.reboots, s.published) == (0, 300) and s.rejected == 20_000 - s.suspects
+    assert _live_links() - before <= 2 * SUSPECT_MEMORY  # dropped links free their ancestry
 
 
 @pytest.mark.parametrize("sensors, message", [

@@ -1,10 +1,12 @@
-"""imu_driver against forged, foreign and unsigned frames: a sensor id is bound to its first source,
-restarts need confirming samples, reserved fields are checked, frames can be signed (GBI2)."""
+"""imu_driver against forged, replayed, foreign and unsigned frames: a sensor id is bound to the first
+source that sends a confirmed chain and moves only once that source is silent; restarts need
+confirming samples that arrived in real time; reserved fields are checked; frames can be signed (GBI2)."""
 
 from __future__ import annotations
 
 import hashlib
 import hmac
+import re
 import struct
 import zlib
 
@@ -283,17 +285,19 @@ def _key_file(tmp_path, content=KEY + b"\n", mode=0o600):
 def test_a_driver_with_a_key_takes_only_frames_signed_with_it_and_says_so(tmp_path):
     core = DriverCore(DriverParams(sensors=("2:left_shank",), frame_key_file=_key_file(tmp_path)))
     assert core.signed
-    assert len(core.feed(encode_frame([genuine(0, 0)], KEY), T0, SENSOR)) == 1
-    assert core.feed(encode_frame([forged(1, 10_000)]), T0 + 10**7, FORGER) == []
-    for k in range(2, 5):
+    got = [len(core.feed(encode_frame([genuine(k, 10_000 * k)], KEY), T0 + k * 10**7, SENSOR))
+           for k in range(5)]
+    assert got == [0, 0, 0, 0, 5]  # held until 5 agreeing samples confirm their source, then all out
+    assert core.feed(encode_frame([forged(5, 50_000)]), T0 + 5 * 10**7, FORGER) == []
+    for k in range(6, 9):
         assert core.feed(encode_frame([forged(k, 10_000 * k)], b"a guessed key 0123456"), T0 + k * 10**7,
                          SENSOR) == []
     # the refused frames were never samples: the genuine sequence goes on with no gap
-    assert len(core.feed(encode_frame([genuine(1, 10_000)], KEY), T0 + 5 * 10**7, SENSOR)) == 1
-    assert (core.sensors[2].lost, core.sensors[2].received) == (0, 2)
+    assert len(core.feed(encode_frame([genuine(5, 50_000)], KEY), T0 + 9 * 10**7, SENSOR)) == 1
+    assert (core.sensors[2].lost, core.sensors[2].received) == (0, 6)
     assert core.refused == {"unsigned": 1, "wrong key": 3, "no key": 0}
     assert core.sensors[2].foreign == {}  # a refused frame binds nothing and counts as no sample
-    link = {r.name: r for r in core.reports(T0 + 6 * 10**7)}["imu_driver: link"]
+    link = {r.name: r for r in core.reports(T0 + 10 * 10**7)}["imu_driver: link"]
     assert "4 frames refused: not signed with the session key" in link.message
     assert link.values["unsigned_frames"] == 1 and link.values["wrongly_signed_frames"] == 3
     texts = [n.text for n in core.notices.pop()]
@@ -391,3 +395,165 @@ def test_a_genuine_long_outage_is_confirmed_as_loss_not_a_reboot():
     assert (s.reboots, s.clock_resets, s.rejected, s.lost, len(published)) == (0, 0, 0, 1500, 400)
     error_ms = np.array([(stamps[float(6800 + k)] - e[3]) * 1e-6 for k, e in enumerate(events[300:])])
     assert error_ms.min() >= 1.9 and error_ms.max() <= 7.1  # the clock line went on, unreset
+
+
+NEW_PORT = "10.0.0.5:4001"
+
+
+def _signed(events, key=KEY):
+    """``events`` with their frames signed."""
+    return [(encode_frame(decode_frame(f), key), a, src, *rest) for f, a, src, *rest in events]
+
+
+@pytest.mark.parametrize("resends", [1, 10])
+def test_a_replayed_signed_frame_from_another_address_cannot_take_the_sensors_id(tmp_path, resends):
+    # a signed frame of the sensor's, captured (this session or an earlier one with the same key), is sent
+    # from another address before the sensor's first frame (once, or 10 times over 1 s): one frame is no
+    # chain of samples, so it binds nothing; the sensor's own 500 frames all go out
+    core = DriverCore(DriverParams(sensors=("2:left_shank",), frame_key_file=_key_file(tmp_path)))
+    events = _signed(link_events(500, t0_s=0.1))
+    captured = encode_frame([genuine(4990, 41_900_000)], KEY)
+    replays = [(captured, T0 + i * 100_000_000, FORGER) for i in range(resends)]
+    core, _, published = run(events + replays, core)
+    s = core.sensors[2]
+    assert [p.acc[0] for p in published] == [float(5000 + k) for k in range(500)]
+    assert (s.source, s.foreign, s.lost, s.reboots) == (SENSOR, {FORGER: resends}, 0, 0)
+    warnings = [n.text for n in core.notices.pop() if n.level == "warn"]
+    assert len(warnings) == 1 and f"sensor 2 {TWO_SOURCES}" in warnings[0]  # the replayer is named, once
+
+
+@pytest.mark.parametrize("per_frame", [1, 4])
+def test_the_first_samples_wait_for_their_source_to_be_confirmed_and_none_is_lost(per_frame):
+    # 100 Hz in frames of `per_frame`; the 2nd frame comes after the 3rd, the 5th never comes
+    rng = np.random.default_rng(per_frame)
+    frames = []
+    for f in range(60):
+        ks = range(f * per_frame, (f + 1) * per_frame)
+        arrival = T0 + ks[-1] * 10**7 + 2_000_000 + int(rng.integers(0, 5_000_000)) + (
+            25_000_000 * per_frame if f == 1 else 0)
+        if f != 4:
+            frames.append((encode_frame([genuine(5000 + k, 42_000_000 + 10_000 * k) for k in ks]), arrival))
+    core = DriverCore(DriverParams(sensors=("2:left_shank",)))
+    counts, out = [], []
+    for frame, arrival in sorted(frames, key=lambda f: f[1]):
+        got = core.feed(frame, arrival, SENSOR) + core.expire(arrival)
+        counts.append(len(got))
+        out += got
+    out += core.expire(frames[-1][1] + 10**10)
+    s = core.sensors[2]
+    confirming = next(i for i, n in enumerate(counts) if n)
+    assert confirming >= 2 and counts[confirming] >= per_frame  # held until confirmed, then out together
+    expected = [float(5000 + k) for k in range(60 * per_frame) if not 4 * per_frame <= k < 5 * per_frame]
+    assert [o.acc[0] for o in out] == expected  # in sequence order, the reordered frame in its place
+    assert (s.lost, s.late, s.duplicates, s.rejected) == (per_frame, 0, 0, 0)
+    assert (np.diff([o.stamp_ns for o in out]) > 0).all()
+
+
+def test_a_sensor_back_from_a_new_source_port_takes_its_id_once_the_old_one_is_silent():
+    # sensor 4 sends from port 4000 for 3 s, reboots and sends from port 4001 0.5 s later (lwIP on an ESP32
+    # picks a new source port at each boot): sequence from 0, device clock from 0.4 s
+    sensors = ("4:right_thigh",)
+    new = link_events(300, seq0=0, device0_us=400_000, seed=3, t0_s=3.5, sid=4)
+    core, stamps, published = run(link_events(300, sid=4) + [(f, a, NEW_PORT, t) for f, a, _, t in new],
+                                  sensors=sensors)
+    s = core.sensors[4]
+    assert (s.source, core.rebinds[4], s.reboots, s.lost, s.rejected, s.foreign) == (NEW_PORT, 1, 1, 0, 0, {})
+    assert len(published) == 600  # the new source's samples held while the old one was not yet silent 1 s
+    error_ms = np.array([(stamps[float(k)] - e[3]) * 1e-6 for k, e in enumerate(new)])
+    assert error_ms.min() >= 1.9 and error_ms.max() <= 7.1
+    warnings = [n.text for n in core.notices.pop() if n.level == "warn"]
+    moved = [t for t in warnings if "now sends from" in t]
+    assert len(moved) == 1 and re.search(r"sensor 4 now sends from 10\.0\.0\.5:4001, 10\.0\.0\.5:4000 "
+                                          r"silent for 1\.\d s", moved[0])
+    report = {r.name: r for r in core.reports(new[-1][1])}["imu_driver: right_thigh"]
+    assert report.level == 0 and report.values["rebinds"] == 1 and report.values["source"] == NEW_PORT
+
+
+def test_while_its_source_sends_no_other_source_takes_the_id_even_across_a_short_pause():
+    # sensor 4 is out of range for 0.8 s (under stale_after, 1 s) while another source streams a sequence
+    # of its own, in real time, from 0.9 s to 2.5 s
+    sensors = ("4:right_thigh",)
+    events = [e for k, e in enumerate(link_events(300, sid=4)) if not 100 <= k < 180]
+    other = [(encode_frame([forged(k, 10_000 * k, sid=4)]), T0 + 900_000_000 + k * 10_000_000, FORGER)
+             for k in range(160)]
+    core, stamps, published = run(events + other, sensors=sensors)
+    s = core.sensors[4]
+    assert FORGED_MARK not in stamps and len(published) == 220
+    assert (s.source, core.rebinds[4], s.reboots, s.lost, s.foreign) == (SENSOR, 0, 0, 80, {FORGER: 160})
+
+
+def test_held_samples_are_bounded_and_the_rest_counted():
+    from gait_biofeedback.core.driver.stream import HOLD_SAMPLES, MAX_CANDIDATES
+
+    # before the sensor's first frame, one source sends 10 full frames (2550 samples) in one burst, never a
+    # confirmed chain, and 40 sources send one frame each; then the sensor starts
+    burst = [(encode_frame([forged(255 * f + i, 1 + 1000 * (255 * f + i)) for i in range(255)]), T0 + f,
+              "10.0.0.9:1") for f in range(10)]
+    single = [(encode_frame([forged(7 * p, 1)]), T0 + 1_000_000 * (p + 1), f"10.0.0.8:{p}")
+              for p in range(40)]
+    events = burst + single + link_events(300, t0_s=0.1)
+    core = DriverCore(DriverParams(sensors=("2:left_shank",)))
+    most = 0
+    published = []
+    for frame, arrival, source, *_ in sorted(events, key=lambda e: e[1]):
+        published += core.feed(frame, arrival, source) + core.expire(arrival)
+        most = max(most, core.reports(arrival)[0].values["held"])
+    published += core.expire(events[-1][1] + 10**10)
+    s = core.sensors[2]
+    # the burst's source capped; 3 other sources at most beside it, the sensor's with its first few samples
+    assert HOLD_SAMPLES <= most <= HOLD_SAMPLES + (MAX_CANDIDATES - 1) * 5
+    assert FORGED_MARK not in {p.acc[0] for p in published} and len(published) == 300
+    assert (s.source, s.lost) == (SENSOR, 0)
+    assert s.rejected + sum(s.foreign.values()) == 2550 + 40  # every sample not taken is counted
+
+
+@pytest.mark.parametrize("frames, per_frame, period_us", [(3, 2, 10_000), (5, 1, 10_000), (3, 2, 250),
+                                                          (5, 10, 1000)])
+def test_a_burst_of_forged_frames_within_1_ms_from_the_sensors_address_restarts_nothing(frames, per_frame,
+                                                                                        period_us):
+    # unsigned: a restart from sequence 7, its samples agreeing in sequence and device time (at 100 Hz,
+    # 4 kHz or 1 kHz), sent within 1 ms after genuine sample 100: they did not arrive in real time
+    events = link_events()
+    _, clean, _ = run(events)
+    burst = [(encode_frame([forged(7 + f * per_frame + i, 1 + period_us * (f * per_frame + i))
+                            for i in range(per_frame)]), events[100][1] + 1_000_000 + f * 1_000_000 // frames,
+              SENSOR) for f in range(frames)]
+    core, stamps, published = run(events + burst)
+    s = core.sensors[2]
+    assert FORGED_MARK not in stamps and len(published) == 300 and deviation_ms(clean, stamps) <= 2.0
+    assert (s.reboots, s.clock_resets, s.lost, s.rejected) == (0, 0, 0, frames * per_frame)
+
+
+def test_a_rebooted_sensor_that_first_sends_a_backlog_burst_then_streams_is_confirmed():
+    # after the restart the sensor's first 30 samples were buffered: they arrive together (within 0.9 ms)
+    # with the 30th; the rest stream in real time
+    before = link_events(300)
+    after = link_events(200, seq0=0, device0_us=1_200_000, seed=1, t0_s=3.3)
+    burst_at = after[29][1]
+    after = [(f, burst_at + 30_000 * i if i < 30 else a, src, t) for i, (f, a, src, t) in enumerate(after)]
+    core, _, published = run(before + after)
+    s = core.sensors[2]
+    assert (s.reboots, s.lost, s.rejected, len(published)) == (1, 0, 0, 500)
+    assert [p.acc[0] for p in published] == [float(k) for k in [*range(5000, 5300), *range(200)]]
+    assert (np.diff([p.stamp_ns for p in published]) > 0).all()
+
+
+def test_the_key_file_is_checked_as_opened_not_by_its_name(tmp_path, monkeypatch):
+    import os
+    import stat
+
+    path = _key_file(tmp_path, mode=0o644)
+    real_stat = os.stat
+
+    def looks_private(p, *args, **kwargs):  # as if a private file were swapped for this one after a check
+        info = real_stat(p, *args, **kwargs)
+        return os.stat_result((stat.S_IFREG | 0o600, *info[1:10]))
+
+    monkeypatch.setattr(os, "stat", looks_private)
+    with pytest.raises(ValueError, match=r"may be read by other users \(mode 0644\)"):
+        load_frame_key(path)
+    monkeypatch.undo()
+    fifo = tmp_path / "fifo.key"
+    os.mkfifo(fifo, 0o600)
+    with pytest.raises(ValueError, match="is not a regular file"):
+        load_frame_key(fifo)  # refused at once: opening it does not wait for a writer

@@ -143,10 +143,11 @@ def test_unmapped_and_missing_sensors_are_named_on_diagnostics_and_the_dashboard
     executor.add_node(dashboard)
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     try:
-        for k in range(20):
+        for k in range(20):  # in real time: a source is bound once its samples came as they were taken
             frame = encode_frame([DeviceSample(sid, k, 10_000 * k, (0.0, 0.0, 9.8), (0.0, 0.0, 0.0))
                                   for sid in (3, 11)])
             sock.sendto(frame, ("127.0.0.1", driver.link.port))
+            time.sleep(0.01)
         sock.sendto(b"not a frame at all", ("127.0.0.1", driver.link.port))
         names = {"imu_driver: sensor 11", "imu_driver: link"}
         spin_until(executor, lambda: names <= set(listener.diagnostics), timeout=5)
@@ -292,11 +293,22 @@ def test_serial_sensors_with_line_noise_and_a_receiver_plugged_out_and_in(ros_co
     driver, listener, executor = _graph(ros_context, backend="serial", device=str(device), baud=115200)
     rng = np.random.default_rng(0)
     opened = [master, slave]
+
+    def write_in_real_time(part, fd):  # as the receiver sends them: a burst of 1 s of frames is no sensor
+        start = time.monotonic() - schedule.send_ns[part.start] * 1e-9
+        for i in range(part.start, part.stop):
+            time.sleep(max(0.0, start + schedule.send_ns[i] * 1e-9 - time.monotonic()))
+            os.write(fd, rng.bytes(3) + frames[i])  # noise before every frame
+
+    def written(part, fd):
+        thread = threading.Thread(target=write_in_real_time, args=(part, fd), daemon=True)
+        thread.start()
+        return lambda: not thread.is_alive()
+
     try:
-        for frame in frames[:half]:
-            os.write(master, rng.bytes(3) + frame)  # noise before every frame
+        done = written(range(0, half), master)
         first = sum(len(decode_frame(f)) for f in frames[:half])
-        spin_until(executor, lambda: sum(map(len, listener.imu.values())) >= first, timeout=10)
+        spin_until(executor, lambda: done() and sum(map(len, listener.imu.values())) >= first, timeout=10)
         os.close(opened.pop(0))  # plugged out: reading the device fails
         spin_until(executor, lambda: driver.link.problem is not None, timeout=5)
         assert "went away" in driver.link.problem
@@ -305,8 +317,8 @@ def test_serial_sensors_with_line_noise_and_a_receiver_plugged_out_and_in(ros_co
         device.unlink()
         device.symlink_to(os.ttyname(slave))  # plugged in again
         spin_until(executor, lambda: driver.link.reconnects == 1, timeout=5)
-        for frame in frames[half:]:
-            os.write(master, rng.bytes(3) + frame)
+        done = written(range(half, len(frames)), master)
+        spin_until(executor, done, timeout=10)
         spin_until(executor, lambda: sum(map(len, listener.imu.values())) >= schedule.samples, timeout=10)
         _check_exact(schedule, listener, series)
         name = "imu_driver: receiving"
@@ -346,6 +358,34 @@ def test_simulated_sensors_run_live_at_their_rate(ros_context):
         driver.destroy_node()
         listener.node.destroy_node()
         executor.shutdown()
+
+
+def test_simulated_sensors_sign_with_the_key_the_driver_read_once(ros_context, tmp_path, monkeypatch):
+    from gait_biofeedback.core.driver import protocol, stream
+    from gait_biofeedback.nodes.imu_driver import ImuDriverNode
+
+    key = b"a session key of the clinic, 0123"
+    key_file = tmp_path / "frame.key"
+    key_file.write_bytes(key + b"\n")
+    key_file.chmod(0o600)
+    reads = []
+
+    def counted(path):
+        reads.append(path)
+        return load(path)
+
+    load = protocol.load_frame_key
+    monkeypatch.setattr(protocol, "load_frame_key", counted)
+    monkeypatch.setattr(stream, "load_frame_key", counted)
+    driver = ImuDriverNode(ros_context, start=False, backend="simulated", scenario="walk",
+                           frame_key_file=str(key_file))
+    try:
+        assert reads == [str(key_file)]  # read once, by the core; the simulator is given the key
+        frames = driver.link.receive(0.05)
+        assert frames and all(f[:4] == b"GBI2" for f, _, _ in frames)
+        assert protocol.decode_frame(frames[0][0], key)[0].sensor_id in driver.core.sensors
+    finally:
+        driver.destroy_node()
 
 
 def test_run_driver_and_stream_sim_record_every_sample_through_the_command_line(tmp_path):

@@ -33,19 +33,18 @@ POLL_S = 0.005
 """s: the receiving thread's longest wait, i.e. how late a held sample can be released."""
 
 
-def open_link(p: DriverParams):
-    """The link of the ``backend`` parameter."""
+def open_link(p: DriverParams, key: bytes | None = None):
+    """The link of the ``backend`` parameter; the simulator signs its frames with ``key`` (the
+    session key the core read, as sensors do)."""
     from gait_biofeedback.io import sensor_links
 
     if p.backend == "udp":
         return sensor_links.UdpLink(p.address, p.port)
     if p.backend == "serial":
         return sensor_links.SerialLink(p.device, p.baud)
-    from gait_biofeedback.core.driver.protocol import load_frame_key
     from gait_biofeedback.sim.sensor_link import simulated_schedules
 
     ids = {segment: sid for sid, segment in p.mapping().items()}
-    key = load_frame_key(p.frame_key_file) if p.frame_key_file else None  # the simulator signs as sensors do
     return sensor_links.PacedLink(simulated_schedules(p.scenario, p.sim_rate, ids, p.sim_loop, key=key),
                                   f"simulated sensors ({p.scenario} at {p.sim_rate:g} Hz)")
 
@@ -70,7 +69,7 @@ class ImuDriverNode(GuardedNode):
                      for seg in segments}
         self._packers = {seg: (StampedPacker(sensor_frame(seg), IMU_DOUBLES),
                                StampedPacker(sensor_frame(seg), MAG_DOUBLES)) for seg in segments}
-        self.link = open_link(p)
+        self.link = open_link(p, self.core.frame_key)
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None

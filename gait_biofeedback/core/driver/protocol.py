@@ -86,19 +86,24 @@ def frame_tag(key: bytes, body: bytes | memoryview) -> bytes:
 def load_frame_key(path: str | os.PathLike) -> bytes:
     """The session key in the file ``path``: its bytes without surrounding whitespace (a final newline),
     at least :data:`MIN_KEY_BYTES`. ValueError (naming the file, never the key) if it cannot be read,
-    is too short, or other users may read it (it must be mode 0600 or 0400)."""
+    is not a regular file, is too short, or other users may read it (it must be mode 0600 or 0400).
+    The checks are made on the opened file (no swap between a check and the read)."""
     try:
-        info = os.stat(path)
-        if not stat.S_ISREG(info.st_mode):
-            raise ValueError(f"frame key file {path} is not a regular file")
-        if info.st_mode & 0o077:
-            raise ValueError(f"frame key file {path} may be read by other users (mode "
-                             f"{stat.S_IMODE(info.st_mode):04o}): anyone who reads it can forge sensor "
-                             f"frames; restrict it with 'chmod 600 {path}'")
-        with open(path, "rb") as f:
-            key = f.read().strip()
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
     except OSError as err:
         raise ValueError(f"cannot read frame key file {path} ({err.strerror})") from err
+    with os.fdopen(fd, "rb") as f:
+        try:
+            info = os.fstat(fd)
+            if not stat.S_ISREG(info.st_mode):
+                raise ValueError(f"frame key file {path} is not a regular file")
+            if info.st_mode & 0o077:
+                raise ValueError(f"frame key file {path} may be read by other users (mode "
+                                 f"{stat.S_IMODE(info.st_mode):04o}): anyone who reads it can forge sensor "
+                                 f"frames; restrict it with 'chmod 600 {path}'")
+            key = f.read().strip()
+        except OSError as err:
+            raise ValueError(f"cannot read frame key file {path} ({err.strerror})") from err
     if len(key) < MIN_KEY_BYTES:
         raise ValueError(f"frame key file {path} holds {len(key)} bytes; a session key has at least "
                          f"{MIN_KEY_BYTES} (e.g. 'openssl rand -hex 32 > {path}')")

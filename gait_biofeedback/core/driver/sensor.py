@@ -13,13 +13,14 @@ each the host stamp of its device time (:class:`~gait_biofeedback.core.driver.cl
   last sample's (the sensor rebooted), far ahead (a reboot, or a long outage if its device time
   fits), or a device time more than :data:`CLOCK_JUMP_S` off the sensor's own rate (the device
   clock was reset). One sample never changes anything: suspects are set aside, unstamped and unseen
-  by the clock estimate, until :data:`CONFIRM_SAMPLES` of them in at least :data:`CONFIRM_FRAMES`
-  frames form a chain (sequence steps of 1 to :data:`CHAIN_GAP`, device time steps at one rate,
-  each within :data:`RATE_TOLERANCE` of the chain's first) with no fitting sample of the old
-  sequence in between. Then the chain is taken: a reboot (sequence and clock picked up again from
-  its first sample, ``reboots``), a clock reset (``clock_resets``, the sequence goes on) or an
-  outage (the samples in between lost); its samples go out. A suspect not confirmed within
-  :data:`SUSPECT_WAIT_S`, or when the old sequence goes on, is dropped (``rejected``);
+  by the clock estimate, until a chain of them is confirmed
+  (:mod:`~gait_biofeedback.core.driver.chain`: 5 agreeing samples in at least 3 frames over at
+  least 20 ms, arrived in real time) with no fitting sample of the old sequence in between. Then
+  the chain is taken: a reboot (sequence and clock picked up again from its first sample,
+  ``reboots``), a clock reset (``clock_resets``, the sequence goes on) or an outage (the samples in
+  between lost); its samples go out, and the other suspects that fit then. A suspect not confirmed
+  in time (2 s after its chain's next frame was due), beyond the chains' memory (766), or set aside
+  when the old sequence goes on, is dropped (``rejected``);
 * stamps are strictly increasing: a stamp not after the last one is moved 1 µs after it
   (``stamps_adjusted``).
 """
@@ -27,9 +28,9 @@ each the host stamp of its device time (:class:`~gait_biofeedback.core.driver.cl
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass
 from typing import NamedTuple
 
+from gait_biofeedback.core.driver.chain import Chains, Link, seq_diff
 from gait_biofeedback.core.driver.clock import DeviceClock
 from gait_biofeedback.core.driver.protocol import DeviceSample
 from gait_biofeedback.core.notices import Notices
@@ -39,27 +40,7 @@ CLOCK_BACK_S = 1.0
 CLOCK_JUMP_S = 1.0
 LOST_MEMORY = 4096
 """Lost sequence numbers remembered (to tell a late sample from a duplicate)."""
-CONFIRM_SAMPLES = 5
-"""Suspect samples in one chain that confirm a reboot, clock reset or outage."""
-CONFIRM_FRAMES = 3
-"""Frames the confirming chain spans at least (one frame alone never confirms)."""
-CHAIN_GAP = 8
-"""Largest sequence step between two samples of a chain (samples lost while it forms)."""
-RATE_TOLERANCE = 0.25
-"""A chain's device time per sequence step may differ this much (fraction) from its first step's."""
-MIN_PERIOD_US = 250
-MAX_PERIOD_US = 200_000
-"""µs of device time per sequence step a chain may have (4 kHz down to 5 Hz)."""
-SUSPECT_WAIT_S = 2.0
-"""s (arrival) a suspect waits for the samples that confirm it."""
-SUSPECT_MEMORY = 64
-"""Suspects kept at most (the oldest is rejected first)."""
 _MOD = 1 << 32
-
-
-def seq_diff(a: int, b: int) -> int:
-    """``a - b`` for 32-bit sequence numbers that wrap (in [-2³¹, 2³¹))."""
-    return (a - b + (1 << 31)) % _MOD - (1 << 31)
 
 
 class StampedSample(NamedTuple):
@@ -71,20 +52,6 @@ class StampedSample(NamedTuple):
     gyr: tuple[float, float, float]
     acc: tuple[float, float, float]
     mag: tuple[float, float, float] | None
-
-
-@dataclass(eq=False)
-class _Suspect:
-    """A suspect sample and the chain it ends: previous link, samples and frames in the chain, the
-    chain's µs per sequence step (None for a chain of one)."""
-
-    sample: DeviceSample
-    arrival_ns: int
-    frame: int
-    prev: _Suspect | None
-    length: int
-    frames: int
-    period_us: float | None
 
 
 class SensorStream:
@@ -112,18 +79,24 @@ class SensorStream:
         self._last_seq: int | None = None
         self._last_stamp = -1
         self._recent: deque[tuple[int, int]] = deque(maxlen=201)  # (sequence, device µs), last published
-        self._suspects: list[_Suspect] = []
+        self._suspects = Chains()
         self._frames = 0
 
     @property
     def name(self) -> str:
         return f"{self.segment} (sensor {self.sensor_id})"
 
+    @property
+    def suspects(self) -> int:
+        """Suspects set aside now (bounded by the chains' memory)."""
+        return len(self._suspects)
+
     def push(self, sample: DeviceSample, arrival_ns: int, frame: int | None = None) -> list[StampedSample]:
         """One received sample → the samples that can go out now, in sequence order. ``frame``: a
         number of the frame it came in (samples of one frame share it); None: a frame of its own."""
         self.received += 1
-        self.last_arrival_ns = arrival_ns
+        if self.last_arrival_ns is None or arrival_ns > self.last_arrival_ns:
+            self.last_arrival_ns = arrival_ns  # held samples handed over late keep it from going back
         if frame is None:
             self._frames += 1
             frame = -self._frames
@@ -135,12 +108,9 @@ class SensorStream:
 
     def expire(self, now_ns: int) -> list[StampedSample]:
         """Give up waiting for missing samples once the oldest held one has waited the reorder
-        window: they are lost, the held ones go out. Suspects unconfirmed for
-        :data:`SUSPECT_WAIT_S` are rejected."""
-        if self._suspects and now_ns - self._suspects[0].arrival_ns > SUSPECT_WAIT_S * 1e9:
-            old = [s for s in self._suspects if now_ns - s.arrival_ns > SUSPECT_WAIT_S * 1e9]
-            self._suspects = [s for s in self._suspects if now_ns - s.arrival_ns <= SUSPECT_WAIT_S * 1e9]
-            self._reject(old)
+        window: they are lost, the held ones go out. Suspects that waited long enough
+        (:mod:`~gait_biofeedback.core.driver.chain`) are rejected."""
+        self._reject(self._suspects.expire(now_ns))
         if not self._held:
             return []
         oldest = min(arrival for _, arrival in self._held.values())
@@ -178,8 +148,7 @@ class SensorStream:
             self.duplicates += 1
             return []
         if self._suspects:  # the old sequence goes on: what looked like a restart was none
-            self._reject(self._suspects)
-            self._suspects = []
+            self._reject(self._suspects.clear())
         self.clock.observe(sample.device_time_us, arrival_ns)
         if diff == 0 and not self._held:  # in order: straight out
             self._next = (sample.sequence + 1) % _MOD
@@ -188,48 +157,15 @@ class SensorStream:
         return self._release()
 
     def _suspect(self, sample: DeviceSample, arrival_ns: int, frame: int) -> list[StampedSample]:
-        """Set ``sample`` aside; take the chain it completes, if it does."""
-        prev = None
-        for s in self._suspects:
-            if self._agrees(s, sample) and (prev is None or s.length > prev.length):
-                prev = s
-        if prev is None:
-            entry = _Suspect(sample, arrival_ns, frame, None, 1, 1, None)
-        else:
-            step = (sample.device_time_us - prev.sample.device_time_us) / seq_diff(sample.sequence,
-                                                                                 prev.sample.sequence)
-            entry = _Suspect(sample, arrival_ns, frame, prev, prev.length + 1,
-                             prev.frames + (frame != prev.frame), prev.period_us or step)
-        self._suspects.append(entry)
-        if len(self._suspects) > SUSPECT_MEMORY:
-            self._reject([self._suspects.pop(0)])
-        if entry.length < CONFIRM_SAMPLES or entry.frames < CONFIRM_FRAMES:
-            return []
-        chain: list[_Suspect] = []
-        link: _Suspect | None = entry
-        while link is not None and link in self._suspects:
-            chain.append(link)
-            link = link.prev
-        if len(chain) < CONFIRM_SAMPLES or len({s.frame for s in chain}) < CONFIRM_FRAMES:
-            return []  # older links were forgotten
-        return self._confirm(chain[::-1])
+        """Set ``sample`` aside; take the chain it confirms, if it does."""
+        chain, dropped = self._suspects.add(sample, arrival_ns, frame)
+        self._reject(dropped)
+        return [] if chain is None else self._confirm(chain)
 
-    @staticmethod
-    def _agrees(prev: _Suspect, sample: DeviceSample) -> bool:
-        """Whether ``sample`` can follow ``prev`` in a chain: a few sequence numbers on, its device
-        time on at the chain's rate."""
-        steps = seq_diff(sample.sequence, prev.sample.sequence)
-        if not 1 <= steps <= CHAIN_GAP:
-            return False
-        step = (sample.device_time_us - prev.sample.device_time_us) / steps
-        if not MIN_PERIOD_US <= step <= MAX_PERIOD_US:
-            return False
-        return prev.period_us is None or abs(step - prev.period_us) <= RATE_TOLERANCE * prev.period_us
-
-    def _confirm(self, chain: list[_Suspect]) -> list[StampedSample]:
-        """Take a confirmed chain: restart what its first sample says, then pass its samples on."""
-        self._reject([s for s in self._suspects if s not in chain])
-        self._suspects = []
+    def _confirm(self, chain: list[Link]) -> list[StampedSample]:
+        """Take a confirmed chain: restart what its first sample says, then pass its samples on, and
+        the other suspects that fit now (a sample of the chain's that came out of order)."""
+        others = self._suspects.clear(keep=chain)
         first = chain[0].sample
         kind = self._suspicion(first)
         out: list[StampedSample] = []
@@ -247,9 +183,13 @@ class SensorStream:
             self.clock.reset()
         for s in chain:
             out += self._accept(s.sample, s.arrival_ns)
+        self._reject([s for s in others if self._suspicion(s.sample) is not None])
+        for s in others:
+            if self._suspicion(s.sample) is None:
+                out += self._accept(s.sample, s.arrival_ns)
         return out
 
-    def _reject(self, suspects: list[_Suspect]) -> None:
+    def _reject(self, suspects: list[Link]) -> None:
         if not suspects:
             return
         if self.rejected == 0:

@@ -6,17 +6,25 @@ sample to its sensor's :class:`~gait_biofeedback.core.driver.sensor.SensorStream
 ``/diagnostics`` shows: rate, loss, duplicates, clock offset and drift, last seen; a sensor that
 sends but is not mapped, and a mapped sensor that is silent, are named with what to do.
 
-A sensor id is bound to the source it is first heard from (a UDP sender's ``address:port``, the
-serial device) for the session: samples claiming that id from any other source are dropped, counted
-and named (two sources claim one id). With a session key (``frame_key_file``) only frames signed
-with it (GBI2) are taken; unsigned or wrongly signed ones are refused and counted, as are signed
-frames while no key is set.
+A sensor id is bound to one source (a UDP sender's ``address:port``, the serial device): the first
+that sends a confirmed chain of samples (:mod:`~gait_biofeedback.core.driver.chain`: 5 agreeing in
+sequence and device time over at least 3 frames, arrived in real time). Until then each source's
+samples are held (:data:`MAX_CANDIDATES` sources, :data:`HOLD_SAMPLES` samples each); the bound
+source's go out in order, the others' are dropped and counted. Samples claiming a bound id from
+another source are held as well, and dropped, counted and named (two sources claim one id) as soon
+as the bound source sends again: while it keeps sending, no other source takes the id. Once it has
+been silent for ``stale_after``, a source that sends a confirmed chain takes the id (re-binding,
+with a warning): a sensor that comes back from a new source port after a reboot. With a session key
+(``frame_key_file``) only frames signed with it (GBI2) are taken; unsigned or wrongly signed ones
+are refused and counted, as are signed frames while no key is set.
 """
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass
 
+from gait_biofeedback.core.driver.chain import CONFIRM_FRAMES, CONFIRM_SAMPLES, Chains, seq_diff, wait_ns
 from gait_biofeedback.core.driver.protocol import (
     DeviceSample,
     FrameError,
@@ -30,6 +38,11 @@ from gait_biofeedback.core.params import ParameterError, param, require
 from gait_biofeedback.core.segments import SEGMENTS
 
 BACKENDS = ("udp", "serial", "simulated")
+MAX_CANDIDATES = 4
+"""Sources per sensor id whose samples are held at once. A new one takes the place of the one heard
+from longest ago that has not sent 2 agreeing samples; if none has, its samples are dropped."""
+HOLD_SAMPLES = 1024
+"""Samples held per source not (yet) bound (the oldest dropped first)."""
 MAX_FOREIGN_SOURCES = 16
 """Foreign sources counted by name per sensor; more are counted together as :data:`OTHER_SOURCES`."""
 OTHER_SOURCES = "other sources"
@@ -62,7 +75,8 @@ class DriverParams:
                                 "s", low=5.0, high=3600.0)
     frame_key_file: str = param("", "file holding the session key the sensors sign their frames with "
                                 "(GBI2, README: Frame format; mode 0600); '' = frames are not signed")
-    stale_after: float = param(1.0, "a mapped sensor silent for this long is reported missing", "s",
+    stale_after: float = param(1.0, "a mapped sensor silent for this long is reported missing, and "
+                               "another source that sends a confirmed chain may then take its id", "s",
                                low=0.05, high=60.0)
     diagnostics_period: float = param(1.0, "how often /diagnostics is published", "s", low=0.1, high=60.0)
 
@@ -93,6 +107,26 @@ class DriverParams:
         return out
 
 
+class _Candidate:
+    """A source not bound to a sensor id: its held samples (sample, arrival ns, frame), its chains,
+    the first sample and µs per sample of its confirmed chain (None before), until when it is kept
+    once confirmed (:func:`~gait_biofeedback.core.driver.chain.wait_ns`)."""
+
+    def __init__(self) -> None:
+        self.held: deque[tuple[DeviceSample, int, int]] = deque()
+        self.chains = Chains()
+        self.root: DeviceSample | None = None
+        self.period_us: float | None = None
+        self.until_ns = 0
+        self._frame, self._in_frame = 0, 0
+
+    def heard(self, arrival_ns: int, frame: int) -> None:
+        """A sample came in ``frame``: kept until its next frame is due, and a while."""
+        self._in_frame = self._in_frame + 1 if frame == self._frame else 1
+        self._frame = frame
+        self.until_ns = wait_ns(arrival_ns, self._in_frame, self.period_us)
+
+
 @dataclass(frozen=True)
 class SensorReport:
     """What ``/diagnostics`` says of one sensor id: ``level`` 0 OK, 1 WARN, 2 ERROR, a message and
@@ -117,6 +151,9 @@ class DriverCore:
         self.bad_frames = 0
         self.frames = 0
         self.refused: dict[str, int] = {"unsigned": 0, "wrong key": 0, "no key": 0}
+        self.rebinds = dict.fromkeys(self.sensors, 0)
+        self._candidates: dict[int, dict[str, _Candidate]] = {sid: {} for sid in self.sensors}
+        self._stale_ns = round(p.stale_after * 1e9)
         try:
             self._key = load_frame_key(p.frame_key_file) if p.frame_key_file else None
         except ValueError as err:
@@ -129,6 +166,11 @@ class DriverCore:
     def signed(self) -> bool:
         """Whether a session key is set (only signed frames are taken)."""
         return self._key is not None
+
+    @property
+    def frame_key(self) -> bytes | None:
+        """The session key (read once, at start), for the simulator to sign with; never to be shown."""
+        return self._key
 
     def feed(self, frame: bytes, arrival_ns: int, source: str) -> list[StampedSample]:
         """One received frame (a datagram) from ``source`` (the sender's ``address:port``, the serial
@@ -154,7 +196,8 @@ class DriverCore:
 
     def feed_samples(self, samples: list[DeviceSample], arrival_ns: int, source: str) -> list[StampedSample]:
         """Decoded samples that arrived at ``arrival_ns`` from ``source`` → the samples that go out
-        now. A mapped id is bound to the first source it comes from; from another it is dropped."""
+        now. A mapped id's samples from its bound source go to its stream, others are held (module
+        docstring)."""
         self.frames += 1
         out: list[StampedSample] = []
         for sample in samples:
@@ -165,34 +208,117 @@ class DriverCore:
                     self.notices.say("warn", f"imu_driver: sensor {sample.sensor_id} sends but is not mapped "
                                      "to a segment (add 'ID:SEGMENT' to imu_driver's 'sensors' parameter)")
                 self.unmapped[sample.sensor_id] = n + 1
-                continue
-            if stream.source is None:
-                stream.source = source
-                self.notices.say("info", f"imu_driver: {stream.name} is heard from {source}; samples "
-                                 "claiming its id from elsewhere are dropped")
-            elif source != stream.source:
-                self._foreign(stream, source)
-                continue
-            out.extend(stream.push(sample, arrival_ns, self.frames))
+            elif source == stream.source:
+                pending = self._candidates[stream.sensor_id]
+                if pending:  # the bound source goes on: the others only claimed its id
+                    self._drop_all(stream, pending)
+                out.extend(stream.push(sample, arrival_ns, self.frames))
+            else:
+                out.extend(self._hold(stream, sample, arrival_ns, source))
         return out
 
-    def _foreign(self, stream: SensorStream, source: str) -> None:
-        """A sample for ``stream``'s id from another source than its own: counted, said once."""
+    def _hold(self, stream: SensorStream, sample: DeviceSample, arrival_ns: int,
+              source: str) -> list[StampedSample]:
+        """Hold a sample from a source ``stream`` is not bound to; bind that source if it may take the
+        id now (its chain confirmed; the bound source, if any, silent for ``stale_after``)."""
+        pending = self._candidates[stream.sensor_id]
+        candidate = pending.get(source)
+        if candidate is None:
+            if len(pending) >= MAX_CANDIDATES:  # make room by a source that sent no 2 agreeing samples
+                idle = [s for s, c in pending.items() if c.root is None and c.chains.longest <= 1]
+                if not idle:
+                    self._drop(stream, source, 1)
+                    return []
+                oldest = min(idle, key=lambda s: pending[s].until_ns)
+                self._drop(stream, oldest, len(pending.pop(oldest).held))
+            candidate = pending[source] = _Candidate()
+        candidate.heard(arrival_ns, self.frames)
+        candidate.held.append((sample, arrival_ns, self.frames))
+        if len(candidate.held) > HOLD_SAMPLES:
+            candidate.held.popleft()
+            self._drop(stream, source, 1)
+        if candidate.root is None:
+            chain, _ = candidate.chains.add(sample, arrival_ns, self.frames)
+            if chain is None:
+                return []
+            candidate.root, candidate.period_us = chain[0].sample, chain[-1].period_us
+            candidate.chains.clear()
+        silent_ns = None if stream.last_arrival_ns is None else arrival_ns - stream.last_arrival_ns
+        if stream.source is not None and silent_ns is not None and silent_ns < self._stale_ns:
+            return []
+        return self._bind(stream, source, silent_ns)
+
+    def _bind(self, stream: SensorStream, source: str, silent_ns: int | None) -> list[StampedSample]:
+        """Bind ``stream``'s id to ``source``: its held samples go to the stream in sequence order about
+        its confirmed chain (samples far from it after, as they came); the other sources' are dropped."""
+        pending = self._candidates[stream.sensor_id]
+        candidate = pending.pop(source)
+        if stream.source is None:
+            self.notices.say("info", f"imu_driver: {stream.name} is heard from {source} ({CONFIRM_SAMPLES}+ "
+                             f"agreeing samples in {CONFIRM_FRAMES}+ frames); samples claiming its id from "
+                             "elsewhere are dropped while it sends")
+        else:
+            self.rebinds[stream.sensor_id] += 1
+            silent = "" if silent_ns is None else f" for {silent_ns * 1e-9:.1f} s"
+            self.notices.say("warn", f"imu_driver: sensor {stream.sensor_id} now sends from {source}, "
+                             f"{stream.source} silent{silent}: {stream.segment} is bound to the new source "
+                             "(a sensor that picks a new source port when it boots does this)")
+            stream.lost += stream.foreign.pop(source, 0)  # its samples dropped before: the sensor's, lost
+        stream.source = source
+        self._drop_all(stream, pending)
+        root = candidate.root.sequence
+        near = sorted((h for h in candidate.held if abs(seq_diff(h[0].sequence, root)) <= HOLD_SAMPLES),
+                      key=lambda h: seq_diff(h[0].sequence, root))
+        far = [h for h in candidate.held if abs(seq_diff(h[0].sequence, root)) > HOLD_SAMPLES]
+        out: list[StampedSample] = []
+        for sample, arrival, frame in near + far:
+            out.extend(stream.push(sample, arrival, frame))
+        return out
+
+    def _drop_all(self, stream: SensorStream, pending: dict[str, _Candidate]) -> None:
+        for source, candidate in pending.items():
+            self._drop(stream, source, len(candidate.held))
+        pending.clear()
+
+    def _drop(self, stream: SensorStream, source: str, n: int) -> None:
+        """``n`` held samples from ``source`` dropped: foreign if the id is bound to another source,
+        else unconfirmed (``rejected``)."""
+        if n <= 0:
+            return
+        if stream.source is not None:
+            self._foreign(stream, source, n)
+            return
+        if stream.rejected == 0:
+            self.notices.say("warn", f"imu_driver: {n} sample(s) claiming sensor {stream.sensor_id} from "
+                             f"{source} were dropped: no {CONFIRM_SAMPLES} of them agreed in sequence and "
+                             f"device time over {CONFIRM_FRAMES} frames arriving in real time; further ones "
+                             "are counted on /diagnostics ('rejected')")
+        stream.rejected += n
+
+    def _foreign(self, stream: SensorStream, source: str, n: int = 1) -> None:
+        """``n`` samples for ``stream``'s id from another source than its own: counted, said once."""
         if not stream.foreign:
             self.notices.say("warn", f"imu_driver: sensor {stream.sensor_id} also sent from {source}: two "
-                             f"sources claim one id; {stream.segment} stays bound to {stream.source} (heard "
-                             "first) and the other's samples are dropped and counted on /diagnostics. Give "
-                             "each sensor its own id; restart the driver if the sensor moved")
+                             f"sources claim one id; {stream.segment} stays bound to {stream.source} while "
+                             "it sends, and the other's samples are dropped and counted on /diagnostics. "
+                             "Give each sensor its own id")
         if source in stream.foreign or len(stream.foreign) < MAX_FOREIGN_SOURCES:
-            stream.foreign[source] = stream.foreign.get(source, 0) + 1
+            stream.foreign[source] = stream.foreign.get(source, 0) + n
         else:
-            stream.foreign[OTHER_SOURCES] = stream.foreign.get(OTHER_SOURCES, 0) + 1
+            stream.foreign[OTHER_SOURCES] = stream.foreign.get(OTHER_SOURCES, 0) + n
 
     def expire(self, now_ns: int) -> list[StampedSample]:
-        """Samples whose wait for missing ones has ended (call every few ms)."""
+        """Samples whose wait for missing ones has ended (call every few ms). A source not bound whose
+        samples waited as long as suspects do (:mod:`~gait_biofeedback.core.driver.chain`) is
+        forgotten, its held samples dropped."""
         out: list[StampedSample] = []
-        for stream in self.sensors.values():
+        for sid, stream in self.sensors.items():
             out.extend(stream.expire(now_ns))
+            pending = self._candidates[sid]
+            for candidate in pending.values():
+                candidate.chains.expire(now_ns)
+            for source in [s for s, c in pending.items() if not c.chains and now_ns > c.until_ns]:
+                self._drop(stream, source, len(pending.pop(source).held))
         return out
 
     def reports(self, now_ns: int) -> list[SensorReport]:
@@ -200,13 +326,19 @@ class DriverCore:
         stale_ns = self.params.stale_after * 1e9
         out = []
         for s in self.sensors.values():
+            pending = self._candidates[s.sensor_id]
             values: dict[str, object] = {
                 "sensor_id": s.sensor_id, "received": s.received, "published": s.published,
                 "lost": s.lost, "late": s.late, "duplicates": s.duplicates, "reboots": s.reboots,
                 "clock_resets": s.clock_resets, "stamps_adjusted": s.stamps_adjusted,
                 "rejected": s.rejected, "source": s.source or "",
-                "foreign_samples": sum(s.foreign.values()), "rate_hz": s.rate_hz()}
-            if s.last_arrival_ns is None:
+                "foreign_samples": sum(s.foreign.values()), "rate_hz": s.rate_hz(),
+                "held": sum(len(c.held) for c in pending.values()), "rebinds": self.rebinds[s.sensor_id]}
+            if s.last_arrival_ns is None and pending:
+                level, text = 1, (f"sensor {s.sensor_id} heard from {', '.join(pending)}, not confirmed "
+                                  f"yet: its samples are held until {CONFIRM_SAMPLES} agree in sequence and "
+                                  f"device time over {CONFIRM_FRAMES} frames arriving in real time")
+            elif s.last_arrival_ns is None:
                 level, text = 2, (f"no data from sensor {s.sensor_id}: check that it is on, charged and "
                                   "sending to this computer")
             else:
@@ -224,7 +356,7 @@ class DriverCore:
                     text = f"{s.rate_hz():.1f} Hz, {s.lost} lost ({100 * loss:.2f} %)" + (
                         ", above 1 %: move the receiver closer or reduce interference" if level else "")
                     if s.rejected:
-                        text += f", {s.rejected} unconfirmed restart sample(s) rejected"
+                        text += f", {s.rejected} unconfirmed sample(s) rejected"
             if s.foreign:
                 level = max(level, 1)
                 text += "; " + _foreign_text(s)
@@ -258,4 +390,4 @@ def _foreign_text(s: SensorStream) -> str:
     names = sorted(s.foreign, key=s.foreign.get, reverse=True)
     shown = ", ".join(names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
     return (f"sensor {s.sensor_id} also sent from {shown}: two sources claim one id "
-            f"({sum(s.foreign.values())} samples dropped; bound to {s.source}, heard first)")
+            f"({sum(s.foreign.values())} samples dropped; bound to {s.source})")
