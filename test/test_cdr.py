@@ -132,12 +132,21 @@ def test_pack_imu_checks_the_field_count() -> None:
 
 
 def test_header_stamp_is_read_without_decoding_the_message():
+    """One reader of raw stamps, either byte order (the encapsulation's byte 1), anything else None."""
+    from builtin_interfaces.msg import Time
+
     from gait_biofeedback.wire.cdr import IMU_DOUBLES, header_stamp_ns, pack_imu
 
     data = pack_imu(1_234_567_890_123, "chest_imu", [0.0] * IMU_DOUBLES)
     assert header_stamp_ns(data) == 1_234_567_890_123
-    assert header_stamp_ns(b"\x00\x00\x00\x00" + data[4:]) is None  # not little-endian CDR
-    assert header_stamp_ns(data[:10]) is None
+    msg = random_imu("left_foot_imu", np.random.default_rng(5))
+    stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+    assert header_stamp_ns(serialize_message(msg)) == stamp_ns
+    assert header_stamp_ns(big_endian_imu(msg)) == stamp_ns
+    assert header_stamp_ns(serialize_message(Time(sec=-3, nanosec=7))) == -3 * 1_000_000_000 + 7  # 12 bytes
+    assert header_stamp_ns(data[:11]) is None
+    assert header_stamp_ns(b"\x00\x07\x00\x00" + data[4:]) is None  # XCDR2: not this layout
+    assert header_stamp_ns(b"\x01\x01\x00\x00" + data[4:]) is None
 
 
 @pytest.mark.parametrize("recovering, heading", [(False, True), (True, False)])

@@ -154,12 +154,20 @@ def _doubles(n_doubles: int) -> struct.Struct:
     return s
 
 
+_STAMP_OF = {1: struct.Struct("<iI"), 0: struct.Struct(">iI")}  # encapsulation byte 1 → sec, nanosec
+
+
 def header_stamp_ns(data: bytes) -> int | None:
-    """``header.stamp`` (int ns) of a little-endian message that starts with a std_msgs/Header, None
-    for other bytes: read without decoding the rest."""
-    if len(data) < _HEADER or data[:4] != CDR_LE:
+    """``header.stamp`` (int ns) of a serialized message that starts with a std_msgs/Header (or is a
+    builtin_interfaces/Time), read without decoding the rest: the time right after the XCDR1
+    encapsulation, little endian when its byte 1 is 1, big endian when 0. None for other bytes (another
+    encapsulation, fewer than 12 bytes). The one reader of raw stamps (nodes, ``analyze``, ``info``)."""
+    if len(data) < 12 or data[0]:
         return None
-    sec, nanosec, _ = _HEAD.unpack_from(data, 4)
+    layout = _STAMP_OF.get(data[1])
+    if layout is None:
+        return None
+    sec, nanosec = layout.unpack_from(data, 4)
     return sec * _NS + nanosec
 
 

@@ -21,7 +21,7 @@ from gait_biofeedback.core.joints.angles import segment_orientations
 from gait_biofeedback.core.joints.skeleton import stick_figure
 from gait_biofeedback.core.joints.stream import SyncedAngles
 from gait_biofeedback.core.segments import WORLD_FRAME
-from gait_biofeedback.core.stamps import NS_PER_S
+from gait_biofeedback.wire.cdr import header_stamp_ns
 from gait_biofeedback.wire.padding import CDR_LE
 from gait_biofeedback.wire.stamps import ns_to_stamp, stamp_to_ns
 
@@ -86,9 +86,8 @@ def joint_state_angles(data: bytes) -> tuple[int, dict[str, float]] | None:
     endian, as the project writes them); None for other bytes (another encoding, a velocity or effort,
     a truncated message): decode those with rclpy."""
     try:
-        if data[:2] != CDR_LE[:2]:
+        if data[:2] != CDR_LE[:2] or (stamp_ns := header_stamp_ns(data)) is None:
             return None
-        sec, nanosec = _STAMP.unpack_from(data, 4)
         pos = 8 + 4 + _U32.unpack_from(data, 12)[0]  # past the frame_id
         pos += -pos % 4
         n = _U32.unpack_from(data, 4 + pos)[0]
@@ -115,7 +114,7 @@ def joint_state_angles(data: bytes) -> tuple[int, dict[str, float]] | None:
             return None  # a velocity or an effort: not the project's form
     except (struct.error, UnicodeDecodeError):
         return None
-    return sec * NS_PER_S + nanosec, dict(zip(names, values, strict=True))
+    return stamp_ns, dict(zip(names, values, strict=True))
 
 
 def recovering_of(msg: JointState) -> tuple[str, ...]:
