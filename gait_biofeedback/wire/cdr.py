@@ -24,6 +24,7 @@ from sensor_msgs.msg import Imu, MagneticField
 
 from gait_biofeedback.core.stamps import NS_PER_S
 from gait_biofeedback.wire.padding import CDR_LE, IMU_DOUBLES, MAG_DOUBLES, type_name_of, zero_padding
+from gait_biofeedback.wire.stamps import stamp_to_ns
 
 _NS = NS_PER_S
 _HEADER = 16  # encapsulation, sec, nanosec, string length
@@ -96,7 +97,7 @@ def decode_stamped(
 def decode_with_rclpy(payload: bytes, msg_class: type) -> tuple[int, np.ndarray, str]:
     """(stamp ns, doubles, frame_id) of any encoding rclpy reads (the slow path)."""
     msg = deserialize_message(payload, msg_class)
-    ns = msg.header.stamp.sec * _NS + msg.header.stamp.nanosec
+    ns = stamp_to_ns(msg.header.stamp)
     if msg_class is Imu:
         q, w, a = msg.orientation, msg.angular_velocity, msg.linear_acceleration
         values = [
