@@ -182,18 +182,28 @@ _JOINTS = ["left_hip_flexion", "left_hip_adduction", "left_hip_internal_rotation
     (["genou_flexión", "x"], ("cuisse_gauche",), 123_456_789_000),  # non-ASCII: lengths in bytes
 ])
 def test_joint_state_bytes_are_rclpys_and_read_back(names, recovering, stamp_ns) -> None:
-    """The hand-written JointState codec against rclpy's serializer (padding zeroed, cut to size) and
-    deserializer: every layout the project writes (empty, 1, 6 and 18 angles; marked recovering or not;
-    a stamp before 1970; names of multi-byte characters)."""
+    """The hand-written JointState codec against rclpy's serializer (padding zeroed, cut to size) of the
+    message built field by field, and its deserializer: every layout the project writes (empty, 1, 6 and
+    18 angles; marked recovering or not; a stamp before 1970; names of multi-byte characters), twice
+    (the second time from the layout kept for those names)."""
+    from sensor_msgs.msg import JointState
+
     from gait_biofeedback.wire.joints import angles_of, joint_state_angles, joint_state_bytes, joint_state_msg
+    from gait_biofeedback.wire.stamps import ns_to_stamp
 
     rng = np.random.default_rng(len(names))
-    angles = {name: float(v) for name, v in zip(names, rng.normal(size=len(names)), strict=True)}
-    msg = joint_state_msg(angles, stamp_ns, recovering)
-    data = joint_state_bytes(angles, stamp_ns, recovering)
-    assert data == cdr.serialize(msg)
-    assert joint_state_angles(data) == angles_of(deserialize_message(data, type(msg)))
-    assert joint_state_angles(serialize_message(msg)) == (stamp_ns, angles)  # rclpy's own, longer bytes
+    for k in range(2):
+        angles = {name: float(v) for name, v in zip(names, rng.normal(size=len(names)), strict=True)}
+        stamp = stamp_ns + k
+        reference = JointState(name=list(angles), position=list(angles.values()))
+        reference.header.stamp = ns_to_stamp(stamp)
+        if recovering:
+            reference.header.frame_id = "recovering: " + ",".join(recovering)
+        data = joint_state_bytes(angles, stamp, recovering)
+        assert data == cdr.serialize(reference)
+        assert joint_state_msg(angles, stamp, recovering) == reference
+        assert joint_state_angles(data) == angles_of(deserialize_message(data, JointState)) == (stamp, angles)
+        assert joint_state_angles(serialize_message(reference)) == (stamp, angles)  # rclpy's longer bytes
 
 
 def test_joint_states_of_another_form_are_left_to_rclpy() -> None:
