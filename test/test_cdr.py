@@ -151,21 +151,22 @@ def test_header_stamp_is_read_without_decoding_the_message():
 
 @pytest.mark.parametrize("recovering, heading", [(False, True), (True, False)])
 def test_an_orientation_message_is_its_bytes_decoded(recovering: bool, heading: bool) -> None:
-    """``orientation_message`` hands ``analyze`` the filtered sample without reading its bytes back: the
-    same Stamped that ``decode_imu`` of those bytes gives, and the bytes of ``orientation_payload``
-    (an integer variance from a parameter file included)."""
+    """``orientation_fields`` are both the bytes the node publishes (``pack_imu`` of them) and, for
+    ``analyze``, what ``decode_imu`` of those bytes gives (an integer variance from a parameter file
+    included), and those bytes are what rclpy serializes of the same message."""
     from gait_biofeedback.core.orientation.stream import OrientationSample
-    from gait_biofeedback.wire.imu import orientation_message, orientation_payload
+    from gait_biofeedback.wire.imu import orientation_fields
 
     rng = np.random.default_rng(3)
     raw = cdr.decode_imu(serialize_message(random_imu("left_foot_imu", rng)))
     q = rng.normal(size=4)
     sample = OrientationSample(1_700_000_000_123_456_789, q / np.linalg.norm(q), rng.normal(size=3),
                                rng.normal(size=3), recovering, heading)
-    data, decoded = orientation_message("left_foot", sample, raw, 2)
-    assert data == orientation_payload("left_foot", sample, raw, 2)
-    assert decoded == cdr.decode_imu(data)
-    assert all(type(v) is float for v in decoded.values)
+    fields = orientation_fields("left_foot", sample, raw, 2)
+    data = cdr.pack_imu(*fields)
+    assert cdr.Stamped(*fields) == cdr.decode_imu(data)
+    assert all(type(v) is float for v in fields[2])
+    assert cdr.serialize(deserialize_message(data, Imu)) == data
 
 
 _JOINTS = ["left_hip_flexion", "left_hip_adduction", "left_hip_internal_rotation", "left_knee_flexion",
