@@ -189,7 +189,13 @@ def test_joint_state_bytes_are_rclpys_and_read_back(names, recovering, stamp_ns)
     (the second time from the layout kept for those names)."""
     from sensor_msgs.msg import JointState
 
-    from gait_biofeedback.wire.joints import angles_of, joint_state_angles, joint_state_bytes, joint_state_msg
+    from gait_biofeedback.wire.joints import (
+        angles_of,
+        joint_state_bytes,
+        joint_state_msg,
+        joint_state_of,
+        recovering_of,
+    )
     from gait_biofeedback.wire.stamps import ns_to_stamp
 
     rng = np.random.default_rng(len(names))
@@ -203,21 +209,28 @@ def test_joint_state_bytes_are_rclpys_and_read_back(names, recovering, stamp_ns)
         data = joint_state_bytes(angles, stamp, recovering)
         assert data == cdr.serialize(reference)
         assert joint_state_msg(angles, stamp, recovering) == reference
-        assert joint_state_angles(data) == angles_of(deserialize_message(data, JointState)) == (stamp, angles)
-        assert joint_state_angles(serialize_message(reference)) == (stamp, angles)  # rclpy's longer bytes
+        decoded = deserialize_message(data, JointState)
+        expected = (stamp, angles, tuple(recovering))
+        assert joint_state_of(data) == (*angles_of(decoded), recovering_of(decoded)) == expected
+        assert joint_state_of(serialize_message(reference)) == expected  # rclpy's own, longer bytes
 
 
 def test_joint_states_of_another_form_are_left_to_rclpy() -> None:
-    from gait_biofeedback.wire.joints import joint_state_angles, joint_state_bytes, joint_state_msg
+    from gait_biofeedback.wire.joints import joint_state_bytes, joint_state_msg, joint_state_of
 
     msg = joint_state_msg({"a": 0.5, "b": -0.25}, 10)
     msg.velocity = [1.0, 2.0]
-    assert joint_state_angles(cdr.serialize(msg)) is None  # a velocity: not the project's form
+    assert joint_state_of(cdr.serialize(msg)) is None  # a velocity: not the project's form
     data = joint_state_bytes({"a": 0.5, "b": -0.25}, 10)
-    assert joint_state_angles(b"\x00\x00" + data[2:]) is None  # big endian
-    assert joint_state_angles(data[:30]) is None  # cut inside a name
-    assert joint_state_angles(data[:-6]) is None  # cut inside the sequences' counts
+    assert joint_state_of(b"\x00\x00" + data[2:]) is None  # big endian
+    assert joint_state_of(data[:30]) is None  # cut inside a name
+    assert joint_state_of(data[:-6]) is None  # cut inside the sequences' counts
     # name "a" (length 2: "a", NUL) at byte 24 (encapsulation, stamp, empty frame_id, padding, count)
     assert data[24:30] == b"\x02\x00\x00\x00a\x00"
-    assert joint_state_angles(data[:29] + b"x" + data[30:]) is None  # no NUL: rclpy reads it its way
-    assert joint_state_angles(data[:28] + b"\x00" + data[29:]) is None  # a NUL inside: rclpy cuts there
+    assert joint_state_of(data[:29] + b"x" + data[30:]) is None  # no NUL: rclpy reads it its way
+    assert joint_state_of(data[:28] + b"\x00" + data[29:]) is None  # a NUL inside: rclpy cuts there
+    marked = joint_state_bytes({"a": 0.5}, 10, ("pelvis",))
+    assert joint_state_of(marked) == (10, {"a": 0.5}, ("pelvis",))
+    frame_end = 16 + len("recovering: pelvis")  # the frame_id's NUL
+    assert marked[frame_end] == 0
+    assert joint_state_of(marked[:frame_end] + b"x" + marked[frame_end + 1:]) is None  # frame_id without NUL

@@ -93,26 +93,21 @@ def _string_bytes(text: bytes, pos: int) -> tuple[bytes, int]:
     return head + text + b"\0", pos + len(text) + 1
 
 
-def joint_state_angles(data: bytes) -> tuple[int, dict[str, float]] | None:
-    """:func:`angles_of` read straight from a ``joint_states`` message's CDR bytes (XCDR1 little
-    endian, as the project writes them); None for other bytes (another encoding, a velocity or effort,
-    a truncated message): decode those with rclpy."""
+def joint_state_of(data: bytes) -> tuple[int, dict[str, float], tuple[str, ...]] | None:
+    """(:func:`angles_of`, :func:`recovering_of`) read straight from a ``joint_states`` message's CDR
+    bytes (XCDR1 little endian, as the project writes them); None for other bytes (another encoding, a
+    velocity or effort, a truncated message, a string rclpy reads its own way): decode those with rclpy."""
     try:
         if data[:2] != CDR_LE[:2] or (stamp_ns := header_stamp_ns(data)) is None:
             return None
-        pos = 8 + 4 + _U32.unpack_from(data, 12)[0]  # past the frame_id
+        frame, pos = _read_string(data, 8)
         pos += -pos % 4
         n = _U32.unpack_from(data, 4 + pos)[0]
         pos += 4
         names = []
         for _ in range(n):
-            pos += -pos % 4
-            size = _U32.unpack_from(data, 4 + pos)[0]
-            text = data[8 + pos:8 + pos + size]
-            if not size or len(text) != size or text.find(0) != size - 1:
-                return None  # not one NUL, at the end: rclpy's reading of it
-            names.append(str(text[:-1], "utf-8"))
-            pos += 4 + size
+            name, pos = _read_string(data, pos)
+            names.append(name)
         pos += -pos % 4
         if _U32.unpack_from(data, 4 + pos)[0] != n:
             return None
@@ -124,15 +119,29 @@ def joint_state_angles(data: bytes) -> tuple[int, dict[str, float]] | None:
         pos += -pos % 4
         if _U32.unpack_from(data, 4 + pos)[0] or _U32.unpack_from(data, 8 + pos)[0]:
             return None  # a velocity or an effort: not the project's form
-    except (struct.error, UnicodeDecodeError):
+    except (struct.error, ValueError):  # UnicodeDecodeError is one
         return None
-    return stamp_ns, dict(zip(names, values, strict=True))
+    return stamp_ns, dict(zip(names, values, strict=True)), _recovering(frame)
+
+
+def _read_string(data: bytes, pos: int) -> tuple[str, int]:
+    """The CDR string at offset ``pos`` (after the encapsulation; padded to 4) and the offset after it;
+    ValueError when its bytes do not end in their one NUL (rclpy reads those its own way)."""
+    pos += -pos % 4
+    size = _U32.unpack_from(data, 4 + pos)[0]
+    text = data[8 + pos:8 + pos + size]
+    if not size or len(text) != size or text.find(0) != size - 1:
+        raise ValueError("not one NUL, at the end")
+    return str(text[:-1], "utf-8"), pos + 4 + size
 
 
 def recovering_of(msg: JointState) -> tuple[str, ...]:
     """The segments a ``joint_states`` message is marked as recovering (empty: not marked)."""
-    frame = msg.header.frame_id
-    return tuple(frame[len(RECOVERING):].split(",")) if frame.startswith(RECOVERING) else ()
+    return _recovering(msg.header.frame_id)
+
+
+def _recovering(frame_id: str) -> tuple[str, ...]:
+    return tuple(frame_id[len(RECOVERING):].split(",")) if frame_id.startswith(RECOVERING) else ()
 
 
 def angles_of(msg: JointState) -> tuple[int, dict[str, float]]:
