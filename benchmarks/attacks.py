@@ -126,6 +126,7 @@ def _udp_session(tmp: Path, attack: Callable[[int], None] | None, seconds: float
     from gait_biofeedback.nodes.common import spin_until
     from gait_biofeedback.sim.sensor_link import FrameSchedule, LinkModel, send_udp
     from gait_biofeedback.sim.simulator import SCENARIOS, simulate
+    from gait_biofeedback.wire.stamps import stamp_to_ns
 
     session = simulate(SCENARIOS["walk"](duration=seconds).without_errors())
     driver = {"backend": "udp", "port": 0, "diagnostics_period": 0.2,
@@ -149,7 +150,7 @@ def _udp_session(tmp: Path, attack: Callable[[int], None] | None, seconds: float
     with BagReader(out) as reader:
         for topic, msg, _ in reader.messages([f"/{seg}/imu/data_raw" for seg in ids]):
             stamps, acc = recorded.setdefault(topic.split("/")[1], ([], []))
-            stamps.append(msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
+            stamps.append(stamp_to_ns(msg.header.stamp))
             acc.append((msg.linear_acceleration.x, msg.linear_acceleration.y, msg.linear_acceleration.z))
     return {"recorded": recorded, "reports": reports, "truth": schedule.truth}
 

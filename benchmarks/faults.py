@@ -42,6 +42,7 @@ from gait_biofeedback.batch import (
     write_faulty_bag,
     write_simulated_bag,
 )
+from gait_biofeedback.wire.stamps import stamp_to_ns
 
 FLEXION = ("left_knee_flexion", "right_knee_flexion", "left_ankle_dorsiflexion", "right_ankle_dorsiflexion")
 FAULTS = {
@@ -57,10 +58,6 @@ FAULTS["hole 0.3 s, every sensor"] = [Dropout(60.0, 0.3)]
 CALIBRATE_AT = 36.0
 
 
-def _ns(stamp) -> int:
-    return stamp.sec * 1_000_000_000 + stamp.nanosec
-
-
 def _angles(path: Path) -> tuple[dict[int, dict[str, float]], dict[int, dict[str, float]]]:
     """(estimated, true) flexion angles by stamp."""
     est: dict[int, dict[str, float]] = {}
@@ -68,7 +65,7 @@ def _angles(path: Path) -> tuple[dict[int, dict[str, float]], dict[int, dict[str
     with BagReader(path) as reader:
         for topic, msg, _ in reader.messages(["/joint_states", "/ground_truth/joint_states"]):
             target = est if topic == "/joint_states" else true
-            target[_ns(msg.header.stamp)] = {n: p for n, p in zip(msg.name, msg.position, strict=True)
+            target[stamp_to_ns(msg.header.stamp)] = {n: p for n, p in zip(msg.name, msg.position, strict=True)
                                             if n in FLEXION}
     return est, true
 
@@ -77,7 +74,8 @@ def _plausible_across(path: Path, spans: list[tuple[float, float]], start_ns: in
     count = 0
     with BagReader(path) as reader:
         for _, msg, _ in reader.messages(["/gait/cycles"]):
-            lo, hi = (_ns(msg.start) - start_ns) / 1e9, (_ns(msg.header.stamp) - start_ns) / 1e9
+            lo = (stamp_to_ns(msg.start) - start_ns) / 1e9
+            hi = (stamp_to_ns(msg.header.stamp) - start_ns) / 1e9
             if msg.plausible and any(lo < b and hi > a for a, b in spans if b > a):
                 count += 1
     return count
@@ -88,7 +86,7 @@ def _diagnostics(path: Path, spans: list[tuple[float, float]], start_ns: int) ->
     said: list[str] = []
     with BagReader(path) as reader:
         for _, msg, _ in reader.messages(["/diagnostics"]):
-            t = (_ns(msg.header.stamp) - start_ns) / 1e9
+            t = (stamp_to_ns(msg.header.stamp) - start_ns) / 1e9
             if not any(a <= t <= b + 3.0 for a, b in spans):
                 continue
             for status in msg.status:

@@ -56,6 +56,7 @@ from gait_biofeedback.batch import (
     vertical_calibration,
 )
 from gait_biofeedback.batch import quaternion as quat
+from gait_biofeedback.wire.stamps import stamp_to_ns
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 LEGS = ("left_thigh", "left_shank", "left_foot", "right_thigh", "right_shank", "right_foot", "pelvis")
@@ -294,7 +295,7 @@ def report_qmt_cli(calibrate_at: str = "75:walking") -> None:
         stamps, rows, ics = [], [], {0: [], 1: []}
         with BagReader(out) as reader:
             for topic, msg, _ in reader.messages(["/joint_states", "/gait/events"]):
-                ns = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+                ns = stamp_to_ns(msg.header.stamp)
                 if topic == "/joint_states":
                     stamps.append(ns)
                     rows.append(dict(zip(msg.name, msg.position, strict=True)))

@@ -22,8 +22,8 @@ from gait_biofeedback.core.orientation.stream import OrientationParams, SegmentO
 from gait_biofeedback.core.stamps import NS_PER_S
 from gait_biofeedback.io.bag import BagReader
 from gait_biofeedback.wire import diagnostics, topics
-from gait_biofeedback.wire.cdr import Stamped, decode_imu, decode_mag
-from gait_biofeedback.wire.imu import mag_sample, orientation_message, raw_sample
+from gait_biofeedback.wire.cdr import Stamped, decode_imu, decode_mag, pack_imu
+from gait_biofeedback.wire.imu import mag_sample, orientation_fields, raw_sample
 from gait_biofeedback.wire.stamps import ns_to_stamp
 
 Filtered = list[tuple[bytes, Stamped]]
@@ -125,7 +125,8 @@ class OrientationPass:
 
     def _payloads(self, seg: str, samples: list) -> Filtered:
         raw, variance = self.last_raw[seg], self.params.orientation_variance
-        return [orientation_message(seg, sample, raw, variance) for sample in samples]
+        fields = [orientation_fields(seg, sample, raw, variance) for sample in samples]
+        return [(pack_imu(*f), Stamped(*f)) for f in fields]
 
     def _notices(self) -> list[str]:
         return [n.text for tracker in self.trackers.values() if tracker.notices

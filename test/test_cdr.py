@@ -132,31 +132,41 @@ def test_pack_imu_checks_the_field_count() -> None:
 
 
 def test_header_stamp_is_read_without_decoding_the_message():
+    """One reader of raw stamps, either byte order (the encapsulation's byte 1), anything else None."""
+    from builtin_interfaces.msg import Time
+
     from gait_biofeedback.wire.cdr import IMU_DOUBLES, header_stamp_ns, pack_imu
 
     data = pack_imu(1_234_567_890_123, "chest_imu", [0.0] * IMU_DOUBLES)
     assert header_stamp_ns(data) == 1_234_567_890_123
-    assert header_stamp_ns(b"\x00\x00\x00\x00" + data[4:]) is None  # not little-endian CDR
-    assert header_stamp_ns(data[:10]) is None
+    msg = random_imu("left_foot_imu", np.random.default_rng(5))
+    stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+    assert header_stamp_ns(serialize_message(msg)) == stamp_ns
+    assert header_stamp_ns(big_endian_imu(msg)) == stamp_ns
+    assert header_stamp_ns(serialize_message(Time(sec=-3, nanosec=7))) == -3 * 1_000_000_000 + 7  # 12 bytes
+    assert header_stamp_ns(data[:11]) is None
+    assert header_stamp_ns(b"\x00\x07\x00\x00" + data[4:]) is None  # XCDR2: not this layout
+    assert header_stamp_ns(b"\x01\x01\x00\x00" + data[4:]) is None
 
 
 @pytest.mark.parametrize("recovering, heading", [(False, True), (True, False)])
 def test_an_orientation_message_is_its_bytes_decoded(recovering: bool, heading: bool) -> None:
-    """``orientation_message`` hands ``analyze`` the filtered sample without reading its bytes back: the
-    same Stamped that ``decode_imu`` of those bytes gives, and the bytes of ``orientation_payload``
-    (an integer variance from a parameter file included)."""
+    """``orientation_fields`` are both the bytes the node publishes (``pack_imu`` of them) and, for
+    ``analyze``, what ``decode_imu`` of those bytes gives (an integer variance from a parameter file
+    included), and those bytes are what rclpy serializes of the same message."""
     from gait_biofeedback.core.orientation.stream import OrientationSample
-    from gait_biofeedback.wire.imu import orientation_message, orientation_payload
+    from gait_biofeedback.wire.imu import orientation_fields
 
     rng = np.random.default_rng(3)
     raw = cdr.decode_imu(serialize_message(random_imu("left_foot_imu", rng)))
     q = rng.normal(size=4)
     sample = OrientationSample(1_700_000_000_123_456_789, q / np.linalg.norm(q), rng.normal(size=3),
                                rng.normal(size=3), recovering, heading)
-    data, decoded = orientation_message("left_foot", sample, raw, 2)
-    assert data == orientation_payload("left_foot", sample, raw, 2)
-    assert decoded == cdr.decode_imu(data)
-    assert all(type(v) is float for v in decoded.values)
+    fields = orientation_fields("left_foot", sample, raw, 2)
+    data = cdr.pack_imu(*fields)
+    assert cdr.Stamped(*fields) == cdr.decode_imu(data)
+    assert all(type(v) is float for v in fields[2])
+    assert cdr.serialize(deserialize_message(data, Imu)) == data
 
 
 _JOINTS = ["left_hip_flexion", "left_hip_adduction", "left_hip_internal_rotation", "left_knee_flexion",
@@ -173,31 +183,54 @@ _JOINTS = ["left_hip_flexion", "left_hip_adduction", "left_hip_internal_rotation
     (["genou_flexión", "x"], ("cuisse_gauche",), 123_456_789_000),  # non-ASCII: lengths in bytes
 ])
 def test_joint_state_bytes_are_rclpys_and_read_back(names, recovering, stamp_ns) -> None:
-    """The hand-written JointState codec against rclpy's serializer (padding zeroed, cut to size) and
-    deserializer: every layout the project writes (empty, 1, 6 and 18 angles; marked recovering or not;
-    a stamp before 1970; names of multi-byte characters)."""
-    from gait_biofeedback.wire.joints import angles_of, joint_state_angles, joint_state_bytes, joint_state_msg
+    """The hand-written JointState codec against rclpy's serializer (padding zeroed, cut to size) of the
+    message built field by field, and its deserializer: every layout the project writes (empty, 1, 6 and
+    18 angles; marked recovering or not; a stamp before 1970; names of multi-byte characters), twice
+    (the second time from the layout kept for those names)."""
+    from sensor_msgs.msg import JointState
+
+    from gait_biofeedback.wire.joints import (
+        angles_of,
+        joint_state_bytes,
+        joint_state_msg,
+        joint_state_of,
+        recovering_of,
+    )
+    from gait_biofeedback.wire.stamps import ns_to_stamp
 
     rng = np.random.default_rng(len(names))
-    angles = {name: float(v) for name, v in zip(names, rng.normal(size=len(names)), strict=True)}
-    msg = joint_state_msg(angles, stamp_ns, recovering)
-    data = joint_state_bytes(angles, stamp_ns, recovering)
-    assert data == cdr.serialize(msg)
-    assert joint_state_angles(data) == angles_of(deserialize_message(data, type(msg)))
-    assert joint_state_angles(serialize_message(msg)) == (stamp_ns, angles)  # rclpy's own, longer bytes
+    for k in range(2):
+        angles = {name: float(v) for name, v in zip(names, rng.normal(size=len(names)), strict=True)}
+        stamp = stamp_ns + k
+        reference = JointState(name=list(angles), position=list(angles.values()))
+        reference.header.stamp = ns_to_stamp(stamp)
+        if recovering:
+            reference.header.frame_id = "recovering: " + ",".join(recovering)
+        data = joint_state_bytes(angles, stamp, recovering)
+        assert data == cdr.serialize(reference)
+        assert joint_state_msg(angles, stamp, recovering) == reference
+        decoded = deserialize_message(data, JointState)
+        expected = (stamp, angles, tuple(recovering))
+        assert joint_state_of(data) == (*angles_of(decoded), recovering_of(decoded)) == expected
+        assert joint_state_of(serialize_message(reference)) == expected  # rclpy's own, longer bytes
 
 
 def test_joint_states_of_another_form_are_left_to_rclpy() -> None:
-    from gait_biofeedback.wire.joints import joint_state_angles, joint_state_bytes, joint_state_msg
+    from gait_biofeedback.wire.joints import joint_state_bytes, joint_state_msg, joint_state_of
 
     msg = joint_state_msg({"a": 0.5, "b": -0.25}, 10)
     msg.velocity = [1.0, 2.0]
-    assert joint_state_angles(cdr.serialize(msg)) is None  # a velocity: not the project's form
+    assert joint_state_of(cdr.serialize(msg)) is None  # a velocity: not the project's form
     data = joint_state_bytes({"a": 0.5, "b": -0.25}, 10)
-    assert joint_state_angles(b"\x00\x00" + data[2:]) is None  # big endian
-    assert joint_state_angles(data[:30]) is None  # cut inside a name
-    assert joint_state_angles(data[:-6]) is None  # cut inside the sequences' counts
+    assert joint_state_of(b"\x00\x00" + data[2:]) is None  # big endian
+    assert joint_state_of(data[:30]) is None  # cut inside a name
+    assert joint_state_of(data[:-6]) is None  # cut inside the sequences' counts
     # name "a" (length 2: "a", NUL) at byte 24 (encapsulation, stamp, empty frame_id, padding, count)
     assert data[24:30] == b"\x02\x00\x00\x00a\x00"
-    assert joint_state_angles(data[:29] + b"x" + data[30:]) is None  # no NUL: rclpy reads it its way
-    assert joint_state_angles(data[:28] + b"\x00" + data[29:]) is None  # a NUL inside: rclpy cuts there
+    assert joint_state_of(data[:29] + b"x" + data[30:]) is None  # no NUL: rclpy reads it its way
+    assert joint_state_of(data[:28] + b"\x00" + data[29:]) is None  # a NUL inside: rclpy cuts there
+    marked = joint_state_bytes({"a": 0.5}, 10, ("pelvis",))
+    assert joint_state_of(marked) == (10, {"a": 0.5}, ("pelvis",))
+    frame_end = 16 + len("recovering: pelvis")  # the frame_id's NUL
+    assert marked[frame_end] == 0
+    assert joint_state_of(marked[:frame_end] + b"x" + marked[frame_end + 1:]) is None  # frame_id without NUL

@@ -92,10 +92,11 @@ def _parameters(where: Path, with_report: bool) -> dict[str, Any]:
     from gait_biofeedback.report.build import write_report
     from gait_biofeedback.report.extract import read_session
 
-    data = read_session(where / ANALYSIS)
-    if with_report:
-        analysis = write_report([where / ANALYSIS], where / REPORT, overwrite=True).analyses[-1]
+    if with_report:  # the session read once, for the report and the row
+        files = write_report([where / ANALYSIS], where / REPORT, overwrite=True)
+        data, analysis = files.sessions[-1], files.analyses[-1]
     else:
+        data = read_session(where / ANALYSIS)
         analysis = analyse_session(data, load_targets(default_targets_path()))
     row: dict[str, Any] = {"duration_s": round(data.duration_s, 3), "strides": len(analysis.strides),
                            "strides_used": len(analysis.used)}

@@ -4,7 +4,6 @@ replayed at); and every unreadable chunk with the time range it took away."""
 
 from __future__ import annotations
 
-import struct
 import warnings
 from dataclasses import dataclass
 
@@ -12,8 +11,7 @@ import numpy as np
 
 from gait_biofeedback.io.bag_reader import BagReader, BagRecoveryWarning
 from gait_biofeedback.io.schemas import message_class
-
-_STAMP = {b"\x00\x01": struct.Struct("<iI"), b"\x00\x00": struct.Struct(">iI")}  # CDR LE / BE
+from gait_biofeedback.wire.cdr import header_stamp_ns
 
 
 @dataclass(frozen=True)
@@ -54,10 +52,9 @@ def bag_info(reader: BagReader) -> tuple[list[TopicInfo], list[str]]:
         bad = reader.verify()
         for topic, _, data, log_ns in reader.raw_messages():
             log_times[topic].append(log_ns)
-            layout = _STAMP.get(bytes(data[:2])) if stamped[topic] else None
-            if layout is not None and len(data) >= 12:
-                sec, nsec = layout.unpack_from(data, 4)
-                stamps[topic].append(sec * 1_000_000_000 + nsec)
+            stamp_ns = header_stamp_ns(data) if stamped[topic] else None
+            if stamp_ns is not None:
+                stamps[topic].append(stamp_ns)
     out = []
     for topic in sorted(types):
         from_stamps = len(stamps[topic]) == len(log_times[topic]) > 0

@@ -12,7 +12,6 @@ Parameters: :class:`~gait_biofeedback.io.params.ReplayerParams` (``bag`` is requ
 
 from __future__ import annotations
 
-import struct
 import threading
 import time
 from array import array
@@ -26,10 +25,10 @@ from gait_biofeedback.io.params import ReplayerParams
 from gait_biofeedback.nodes.common import GuardedNode
 from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
 from gait_biofeedback.wire import topics
+from gait_biofeedback.wire.cdr import header_stamp_ns
 from gait_biofeedback.wire.stamps import ns_to_stamp
 
 RAW_SUFFIX = "/imu/data_raw"
-_STAMP_LE, _STAMP_BE = struct.Struct("<iI"), struct.Struct(">iI")
 
 
 class ImuReplayer(GuardedNode):
@@ -135,10 +134,8 @@ class ImuReplayer(GuardedNode):
                 self.published += 1
                 self.published_by_topic[topic] = self.published_by_topic.get(topic, 0) + 1
                 stamps = self.raw_stamps.get(topic)
-                if stamps is not None and len(data) >= 12:
-                    # the header stamp after the 4-byte CDR encapsulation (byte 1: 1 little-endian)
-                    sec, nanosec = (_STAMP_LE if data[1] == 1 else _STAMP_BE).unpack_from(data, 4)
-                    stamps.append(sec * 1_000_000_000 + nanosec)
+                if stamps is not None and (stamp_ns := header_stamp_ns(data)) is not None:
+                    stamps.append(stamp_ns)
                 self.position_ns = log_ns
             self.loops_done += 1
             if not self.loop or first_ns is None:

@@ -12,7 +12,8 @@ first ``offset_window_s`` s after calibration during which every segment is stil
 ``still_gyro`` rad/s) is subtracted from then on.
 
 Publishes ``joint_states`` (sensor_msgs/JointState, names from JOINT_NAMES, rad, stamp = sample stamp)
-(marked in ``header.frame_id`` while a segment recovers from a dropout, :mod:`gait_biofeedback.wire.joints`)
+(marked in ``header.frame_id`` while a segment recovers from a dropout; serialized by
+:func:`~gait_biofeedback.wire.joints.joint_state_bytes`, the bytes ``analyze`` writes)
 and ``skeleton`` (visualization_msgs/MarkerArray, one LINE_LIST in frame "world", pelvis at the origin,
 every ``skeleton_every`` samples), drawn with the body dimensions. Parameters:
 :class:`~gait_biofeedback.core.joints.stream.JointAnglesParams`.
@@ -39,7 +40,7 @@ from gait_biofeedback.wire import diagnostics, topics
 from gait_biofeedback.wire.calibration import rotations
 from gait_biofeedback.wire.cdr import decode_imu
 from gait_biofeedback.wire.imu import has_heading, is_recovering, orientation_sample
-from gait_biofeedback.wire.joints import joint_state_msg, skeleton_msg
+from gait_biofeedback.wire.joints import joint_state_bytes, skeleton_msg
 from gait_biofeedback_msgs.msg import SegmentCalibrationArray
 
 
@@ -92,7 +93,7 @@ class JointAnglesNode(GuardedNode):
     def _publish(self, emitted: list[SyncedAngles]) -> None:
         for synced in emitted:
             if synced.angles:
-                self._joints.publish(joint_state_msg(synced.angles, synced.ns, synced.recovering))
+                self._joints.publish(joint_state_bytes(synced.angles, synced.ns, synced.recovering))
             self.published += 1
             every = self.params.skeleton_every
             if every > 0 and self.published % every == 0:

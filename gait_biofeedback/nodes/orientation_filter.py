@@ -26,8 +26,8 @@ from gait_biofeedback.core.segments import sensor_frame
 from gait_biofeedback.nodes.common import GuardedNode, log_notices, publisher, subscribe
 from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
 from gait_biofeedback.wire import diagnostics, topics
-from gait_biofeedback.wire.cdr import decode_imu, decode_mag
-from gait_biofeedback.wire.imu import mag_sample, orientation_payload, raw_sample
+from gait_biofeedback.wire.cdr import decode_imu, decode_mag, pack_imu
+from gait_biofeedback.wire.imu import mag_sample, orientation_fields, raw_sample
 
 FALLING_BEHIND_S = 0.5
 """A sample processed this long after its stamp (by the node's clock) means the node falls behind."""
@@ -100,7 +100,7 @@ class OrientationFilterNode(GuardedNode):
         log_notices(self.get_logger(), self.trackers[segment].notices.pop())
         publish = self._out[segment].publish
         for sample in samples:
-            publish(orientation_payload(segment, sample, raw, self.orientation_variance))
+            publish(pack_imu(*orientation_fields(segment, sample, raw, self.orientation_variance)))
 
     def _flush_silent(self) -> None:
         """A stream that stopped (a recording ended, a sensor went silent) releases what its reorder

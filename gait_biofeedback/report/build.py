@@ -17,7 +17,6 @@ import csv
 import datetime as dt
 import math
 import re
-import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -25,7 +24,6 @@ import yaml
 
 from gait_biofeedback.core.biofeedback.evaluator import default_targets_path, load_targets
 from gait_biofeedback.core.safe_yaml import describe, load_yaml_file
-from gait_biofeedback.io.bag import BagRecoveryWarning
 from gait_biofeedback.parameters import PATIENT_BLOCK, PATIENT_KEYS, patient_block
 from gait_biofeedback.report import content
 from gait_biofeedback.report.analysis import SessionAnalysis, analyse_session
@@ -35,7 +33,6 @@ from gait_biofeedback.report.html import render_html
 from gait_biofeedback.report.norms import NORMS, load_norms
 from gait_biofeedback.report.pdf import render_pdf
 from gait_biofeedback.report.progress import progress_section
-from gait_biofeedback.report.session import session_report
 
 _ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,31}$")
 KINEMATIC = (
@@ -86,6 +83,7 @@ class ReportFiles:
     joints_csv: Path
     analyses: list[SessionAnalysis]
     damage: list[str]  # what the sessions' damaged files lost, in words (also in the report's Data quality)
+    sessions: list[SessionData]  # what was read of each session (once)
 
 
 def _recorded(data: SessionData) -> str:
@@ -195,9 +193,7 @@ def write_report(
     datas = [read_session(s) for s in sessions]
     analyses = [analyse_session(d, targets) for d in datas]
     data, analysis = datas[-1], analyses[-1]
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", BagRecoveryWarning)  # read_session kept them, said above
-        summary = session_report(data.path)
+    summary = data.summary
     out.mkdir(parents=True, exist_ok=True)
     header = [
         ("patient", patient.id or "not given (--patient-id or a patient: block)"),
@@ -229,4 +225,5 @@ def write_report(
     html.write_text(render_html(doc))
     pdf = render_pdf(doc, out / "report.pdf")
     strides, joints = _write_csvs(out, labels, analyses)
-    return ReportFiles(html, pdf, strides, joints, analyses, [text for d in datas for text in d.damage])
+    return ReportFiles(html, pdf, strides, joints, analyses, [text for d in datas for text in d.damage],
+                       datas)

@@ -1,5 +1,6 @@
 """What a session recording holds for its report: strides, events, joint angles, activity, calibration,
-``/diagnostics`` and the cues, read once (a recording of the graph or what ``analyze`` wrote)."""
+``/diagnostics``, the cues and the summary figures, from one read (a recording of the graph or what
+``analyze`` wrote; :mod:`~gait_biofeedback.report.recording`)."""
 
 from __future__ import annotations
 
@@ -12,10 +13,10 @@ from pathlib import Path
 import numpy as np
 
 from gait_biofeedback.io.bag import BagReader, BagRecoveryWarning
+from gait_biofeedback.report.recording import CALIBRATION, EVENTS, Recording, read_recording
+from gait_biofeedback.report.session import SessionReport, summarise
 from gait_biofeedback.wire import topics
-from gait_biofeedback.wire.activity import add_transition
-from gait_biofeedback.wire.gait import event_of, revised_cycles, stride_of
-from gait_biofeedback.wire.joints import angles_of, recovering_of
+from gait_biofeedback.wire.gait import stride_of
 from gait_biofeedback.wire.stamps import stamp_to_ns
 
 GAIT_CYCLE_FIELDS = (
@@ -103,6 +104,7 @@ class SessionData:
     counts: dict[str, int]
     stride_objects: list = field(default_factory=list)
     damage: list[str] = field(default_factory=list)  # the file was damaged: what was lost, in words
+    summary: SessionReport = field(default_factory=SessionReport)  # its figures, from the same read
 
     def seconds(self, ns: int) -> float:
         return (ns - self.start_ns) / 1e9
@@ -113,12 +115,20 @@ def _level(raw) -> int:
 
 
 def read_session(path: str | Path) -> SessionData:
-    """Read one session; :class:`NotASessionError` (naming what to run) when it holds no graph outputs.
-    A damaged file is read as far as it can be, and what was lost is in :attr:`SessionData.damage`."""
+    """Read one session (once, :func:`~gait_biofeedback.report.recording.read_recording`: its data and
+    its figures, :attr:`SessionData.summary`); :class:`NotASessionError` (naming what to run) when it
+    holds no graph outputs. A damaged file is read as far as it can be, and what was lost is in
+    :attr:`SessionData.damage`."""
     path = Path(path)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", BagRecoveryWarning)  # kept in reader.warnings, and in the report
-        return _read_session(path, BagReader(path))
+        with BagReader(path) as reader:
+            counts = reader.message_counts()
+            outputs = [t.absolute() for t in (topics.GAIT_CYCLES, topics.JOINT_STATES, topics.ACTIVITY)]
+            if not any(t in counts for t in outputs):
+                raise _not_a_session(path, counts, reader)
+            recording = read_recording(reader)
+    return session_data(recording)
 
 
 def _not_a_session(path: Path, counts: dict[str, int], reader: BagReader) -> NotASessionError:
@@ -140,87 +150,50 @@ def _not_a_session(path: Path, counts: dict[str, int], reader: BagReader) -> Not
                             "succeeds (or --calibration FILE)")
 
 
-def _read_session(path: Path, reader: BagReader) -> SessionData:
-    counts = reader.message_counts()
-    outputs = [t.absolute() for t in (topics.GAIT_CYCLES, topics.JOINT_STATES, topics.ACTIVITY)]
-    if not any(t in counts for t in outputs):
-        raise _not_a_session(path, counts, reader)
-    start_ns = reader.start_time_ns
-    strides, stride_objects, events, cues = [], [], [], []
-    joint_t: list[int] = []
-    rows: list[dict[str, float]] = []
-    recovering: list[bool] = []
-    activity, transitions, steps = [], [], 0
+def session_data(recording: Recording) -> SessionData:
+    """The report's data of a session from what :func:`~gait_biofeedback.report.recording.read_recording`
+    read, its figures (:func:`~gait_biofeedback.report.session.summarise`) included."""
+    start_ns = recording.start_ns
     calibration: dict[str, dict] = {}
-    diagnostics: dict[str, StatusSummary] = {}
-    wanted = [
-        t.absolute()
-        for t in (
-            topics.GAIT_CYCLES,
-            topics.STRIDE_SPACE,
-            topics.GAIT_EVENTS,
-            topics.JOINT_STATES,
-            topics.ACTIVITY,
-            topics.CALIBRATION,
-            topics.CUES,
-            topics.DIAGNOSTICS,
-        )
+    for topic, msg, log_ns in recording.calibrations:
+        if topic != CALIBRATION:
+            continue
+        for seg in msg.segments:
+            calibration[seg.segment] = {
+                "valid": bool(seg.valid),
+                "quality": float(seg.quality),
+                "message": seg.message,
+                "at_s": (log_ns - start_ns) / 1e9,
+            }
+    cues = [
+        {
+            "t": (stamp_to_ns(msg.header.stamp) - start_ns) / 1e9,
+            "quantity": msg.quantity,
+            "side": msg.side,
+            "unit": msg.unit,
+            "measured": msg.measured,
+            "error": msg.error,
+            "severity": int(msg.severity),
+            "stride_index": int(msg.stride_index),
+        }
+        for msg in recording.cues
     ]
-    cycle_messages = []
-    for topic, msg, log_ns in reader.messages([t for t in wanted if t in counts]):
-        if topic in (topics.GAIT_CYCLES.absolute(), topics.STRIDE_SPACE.absolute()):
-            cycle_messages.append((topic, msg))
-        elif topic == topics.GAIT_EVENTS.absolute():
-            side, kind, stamp_ns, _ = event_of(msg)
-            events.append((side, kind, (stamp_ns - start_ns) / 1e9))
-        elif topic == topics.JOINT_STATES.absolute():
-            stamp_ns, angles = angles_of(msg)
-            if joint_t and stamp_ns == joint_t[-1]:
-                rows[-1].update(angles)
-            else:
-                joint_t.append(stamp_ns)
-                rows.append(dict(angles))
-                recovering.append(bool(recovering_of(msg)))
-        elif topic == topics.ACTIVITY.absolute():
-            t = (stamp_to_ns(msg.header.stamp) - start_ns) / 1e9
-            activity.append((t, msg.posture, msg.locomotion, msg.step_count, msg.trunk_inclination))
-            steps = max(steps, msg.step_count)
-            add_transition(transitions, msg)
-        elif topic == topics.CALIBRATION.absolute():
-            for seg in msg.segments:
-                calibration[seg.segment] = {
-                    "valid": bool(seg.valid),
-                    "quality": float(seg.quality),
-                    "message": seg.message,
-                    "at_s": (log_ns - start_ns) / 1e9,
-                }
-        elif topic == topics.CUES.absolute():
-            cues.append(
-                {
-                    "t": (stamp_to_ns(msg.header.stamp) - start_ns) / 1e9,
-                    "quantity": msg.quantity,
-                    "side": msg.side,
-                    "unit": msg.unit,
-                    "measured": msg.measured,
-                    "error": msg.error,
-                    "severity": int(msg.severity),
-                    "stride_index": int(msg.stride_index),
-                }
-            )
-        else:
-            for status in msg.status:
-                summary = diagnostics.setdefault(status.name, StatusSummary())
-                level = _level(status.level)
-                summary.worst = max(summary.worst, level)
-                if level:
-                    text, t = f"{LEVELS.get(level, level)}: {status.message}", (log_ns - start_ns) / 1e9
-                    summary.problems.setdefault(text, t)
-                    summary.seen[text] = (t, summary.seen.get(text, (t, 0))[1] + 1)
-                for kv in status.values:
-                    if kv.key in COUNTERS:
-                        with contextlib.suppress(ValueError):
-                            summary.counters[kv.key] = float(kv.value)
-    for msg in revised_cycles(cycle_messages):
+    diagnostics: dict[str, StatusSummary] = {}
+    for msg, log_ns in recording.diagnostics:
+        for status in msg.status:
+            summary = diagnostics.setdefault(status.name, StatusSummary())
+            level = _level(status.level)
+            summary.worst = max(summary.worst, level)
+            if level:
+                text, t = f"{LEVELS.get(level, level)}: {status.message}", (log_ns - start_ns) / 1e9
+                summary.problems.setdefault(text, t)
+                summary.seen[text] = (t, summary.seen.get(text, (t, 0))[1] + 1)
+            for kv in status.values:
+                if kv.key in COUNTERS:
+                    with contextlib.suppress(ValueError):
+                        summary.counters[kv.key] = float(kv.value)
+    strides, stride_objects = [], []
+    for msg in recording.cycles:
         stride = stride_of(msg)
         row = {
             "side": stride.side,
@@ -231,24 +204,26 @@ def _read_session(path: Path, reader: BagReader) -> SessionData:
         row.update({name: getattr(msg, name) for name in GAIT_CYCLE_FIELDS})
         strides.append(row)
         stride_objects.append(stride)
-    names = sorted({n for r in rows for n in r})
-    joints = {n: np.array([r.get(n, math.nan) for r in rows], dtype=float) for n in names}
+    joints = recording.joint_rows()
+    names = sorted({n for r in joints.angles for n in r})
     return SessionData(
-        path=path,
+        path=recording.path,
         start_ns=start_ns,
-        duration_s=reader.duration_ns / 1e9,
+        duration_s=recording.duration_ns / 1e9,
         strides=strides,
-        events=events,
-        joint_t=np.array(joint_t, dtype=np.int64),
-        joints=joints,
-        recovering=np.array(recovering, dtype=bool),
-        activity=activity,
-        transitions=[((stamp_ns - start_ns) / 1e9, kind) for stamp_ns, kind in transitions],
-        steps=steps,
+        events=[(side, kind, (stamp_ns - start_ns) / 1e9)
+                for topic, side, kind, stamp_ns in recording.events if topic == EVENTS],
+        joint_t=np.array(joints.stamps, dtype=np.int64),
+        joints={n: np.array([r.get(n, math.nan) for r in joints.angles], dtype=float) for n in names},
+        recovering=np.array(joints.recovering, dtype=bool),
+        activity=[((stamp_ns - start_ns) / 1e9, *state) for stamp_ns, *state in recording.activity],
+        transitions=[((stamp_ns - start_ns) / 1e9, kind) for stamp_ns, kind in recording.transitions],
+        steps=recording.steps,
         calibration=calibration,
         diagnostics=diagnostics,
         cues=cues,
-        counts=counts,
+        counts=recording.counts,
         stride_objects=stride_objects,
-        damage=list(dict.fromkeys(reader.warnings)),
+        damage=recording.damage,
+        summary=summarise(recording),
     )

@@ -1,8 +1,9 @@
 """What a session produced, and how far it is from the truth when the recording carries one.
 
-Reads a recording of the graph's outputs (``joint_states``, ``gait/events``, ``gait/cycles``,
-``activity/state``, ``calibration/sensor_to_segment``) and, for simulated sessions, the
-``/ground_truth/...`` topics replayed with them (io/session_bag.py), and summarises: the calibration
+From what :func:`~gait_biofeedback.report.recording.read_recording` read of a recording of the graph's
+outputs (``joint_states``, ``gait/events``, ``gait/cycles``, ``activity/state``,
+``calibration/sensor_to_segment``) and, for simulated sessions, of the ``/ground_truth/...`` topics
+replayed with them (io/session_bag.py), :func:`summarise` gives: the calibration
 and its error (helical angle to the true mounting, thesis Eq 19), joint-angle RMSE per joint
 (samples matched by stamp), gait-event sensitivity/precision/timing (thesis Eq 53), stride
 parameters, activity transitions and steps.
@@ -25,16 +26,18 @@ from gait_biofeedback.core.gait.matching import EventScore, match_events
 from gait_biofeedback.core.segments import SIDES
 from gait_biofeedback.core.stamps import NS_PER_S
 from gait_biofeedback.io.bag import BagReader
-from gait_biofeedback.wire import topics
-from gait_biofeedback.wire.activity import add_transition
+from gait_biofeedback.report.recording import (
+    CYCLES,
+    JOINTS,
+    TRUE_CALIBRATION,
+    TRUE_EVENTS,
+    TRUE_JOINTS,
+    Recording,
+    read_recording,
+)
 from gait_biofeedback.wire.calibration import rotation
-from gait_biofeedback.wire.gait import event_of, revised_cycles
-from gait_biofeedback.wire.joints import angles_of, joint_state_angles
 from gait_biofeedback.wire.stamps import stamp_to_ns
 
-CALIBRATION, TRUE_CALIBRATION = topics.CALIBRATION.absolute(), topics.truth(topics.CALIBRATION)
-JOINTS, TRUE_JOINTS = topics.JOINT_STATES.absolute(), topics.truth(topics.JOINT_STATES)
-EVENTS, TRUE_EVENTS = topics.GAIT_EVENTS.absolute(), topics.truth(topics.GAIT_EVENTS)
 REPORTED_JOINTS = ("hip_flexion", "knee_flexion", "ankle_dorsiflexion", "hip_adduction", "knee_adduction",
                    "ankle_inversion")
 
@@ -98,13 +101,12 @@ def _events(times: dict[tuple[bool, str, str], list[float]]) -> dict[str, EventS
     return scores
 
 
-def _cycles(cycle_messages: list[tuple[str, Any]]) -> dict[str, float]:
+def _cycles(messages: list[Any]) -> dict[str, float]:
     """The strides' counts and the medians over the plausible steady straight ones (as in the report: a
     turn, ``turning_angle`` over ``TURN_LIMIT``, and a walk's first and last stride of each foot,
     :func:`~gait_biofeedback.core.gait.cycles.steady_strides`, are left out), from the ``gait/cycles``
-    and ``gait/stride_space`` messages in log order."""
+    messages with their ``gait/stride_space`` revisions (:attr:`Recording.cycles`), in log order."""
     rows, spatial = [], []
-    messages = revised_cycles(cycle_messages)
     steady = steady_strides([(m.side, stamp_to_ns(m.start), stamp_to_ns(m.header.stamp), m.plausible)
                              for m in messages])
     plausible = sum(m.plausible for m in messages)
@@ -134,48 +136,27 @@ def _cycles(cycle_messages: list[tuple[str, Any]]) -> dict[str, float]:
 
 
 def session_report(path: str | Path) -> SessionReport:
-    """Read a session recording (once: its outputs' topics, in log order) and compute its figures."""
+    """Read a session recording (once: the topics the figures need, in log order) and compute its figures."""
     with BagReader(path) as reader:
-        recorded = reader.topics()
-        report = SessionReport(duration=reader.duration_ns / NS_PER_S, counts=reader.message_counts())
-        cycles, space = topics.GAIT_CYCLES.absolute(), topics.STRIDE_SPACE.absolute()
-        activity = topics.ACTIVITY.absolute()
-        wanted = {CALIBRATION, TRUE_CALIBRATION, TRUE_EVENTS, activity}
-        if TRUE_JOINTS in recorded:
-            wanted |= {JOINTS, TRUE_JOINTS}
-        if TRUE_EVENTS in recorded:
-            wanted.add(EVENTS)
-        if cycles in recorded:
-            wanted |= {cycles, space}
-        calibrations: list[tuple[str, Any]] = []
-        measured: dict[int, dict[str, float]] = {}
-        true_angles: dict[int, dict[str, float]] = {}
-        times: dict[tuple[bool, str, str], list[float]] = defaultdict(list)
-        cycle_messages: list[tuple[str, Any]] = []
-        transitions: list[tuple[int, int]] = []
-        for topic, type_name, data, _ in reader.raw_messages([t for t in recorded if t in wanted]):
-            if topic in (JOINTS, TRUE_JOINTS):  # most of them: read without an rclpy message
-                stamp_ns, angles = (joint_state_angles(data)
-                                    or angles_of(reader.decode(topic, type_name, data)))
-                (true_angles if topic == TRUE_JOINTS else measured).setdefault(stamp_ns, {}).update(angles)
-                continue
-            msg = reader.decode(topic, type_name, data)
-            if topic in (CALIBRATION, TRUE_CALIBRATION):
-                calibrations.append((topic, msg))
-            elif topic in (EVENTS, TRUE_EVENTS):
-                side, kind, stamp_ns, _ = event_of(msg)
-                times[(topic == TRUE_EVENTS, side, kind)].append(stamp_ns * 1e-9)
-                report.true_steps += topic == TRUE_EVENTS and kind == INITIAL_CONTACT
-            elif topic in (cycles, space):
-                cycle_messages.append((topic, msg))
-            elif topic == activity:
-                report.steps = max(report.steps, msg.step_count)
-                add_transition(transitions, msg)
-    report.calibration = _calibration(calibrations)
-    report.joint_rmse = _joint_rmse(measured, true_angles)
+        return summarise(read_recording(reader, summary_only=True))
+
+
+def summarise(recording: Recording) -> SessionReport:
+    """The figures of a session from what :func:`~gait_biofeedback.report.recording.read_recording` read."""
+    recorded = recording.recorded
+    report = SessionReport(duration=recording.duration_ns / NS_PER_S, counts=dict(recording.counts),
+                           steps=recording.steps)
+    times: dict[tuple[bool, str, str], list[float]] = defaultdict(list)
+    for topic, side, kind, stamp_ns in recording.events:
+        times[(topic == TRUE_EVENTS, side, kind)].append(stamp_ns * 1e-9)
+        report.true_steps += topic == TRUE_EVENTS and kind == INITIAL_CONTACT
+    report.calibration = _calibration([(topic, msg) for topic, msg, _ in recording.calibrations])
+    if TRUE_JOINTS in recorded:
+        report.joint_rmse = _joint_rmse(recording.joint_rows(JOINTS).by_stamp(),
+                                        recording.joint_rows(TRUE_JOINTS).by_stamp())
     report.events = _events(times) if TRUE_EVENTS in recorded else {}
-    report.cycles = _cycles(cycle_messages) if cycles in recorded else {}
-    report.transitions = [(stamp_ns * 1e-9, kind) for stamp_ns, kind in transitions]
+    report.cycles = _cycles(recording.cycles) if CYCLES in recorded else {}
+    report.transitions = [(stamp_ns * 1e-9, kind) for stamp_ns, kind in recording.transitions]
     return report
 
 

@@ -98,19 +98,15 @@ class ClockStep(_AtOneInstant):
 Fault = Dropout | Reorder | Spike | StampJump | ClockStep
 
 
-def _stamp_ns(data: bytes) -> int:
+def _restamped(data: bytes, shift_ns: int = 0, acc: float | None = None) -> bytes:
+    """The raw Imu ``data`` stamped ``shift_ns`` later, its specific force ``acc`` on every axis if given."""
     imu = unpack_imu(data)
     if imu is None:
         raise ValueError("not a sensor_msgs/Imu in the project's layout")
-    return imu.ns
-
-
-def _restamped(data: bytes, ns: int | None = None, acc: float | None = None) -> bytes:
-    imu = unpack_imu(data)
     values = list(imu.values)
     if acc is not None:
         values[LINEAR_ACCELERATION] = [acc] * 3
-    return pack_imu(imu.ns if ns is None else ns, imu.frame_id, values)
+    return pack_imu(imu.ns + shift_ns, imu.frame_id, values)
 
 
 def inject(messages: Sequence[Message], faults: Iterable[Fault], start_ns: int) -> list[Message]:
@@ -143,8 +139,8 @@ def inject(messages: Sequence[Message], faults: Iterable[Fault], start_ns: int) 
                 out[i] = (out[i][0], out[i][1], _restamped(out[i][2], acc=fault.value), out[i][3])
         else:
             for i in picks if isinstance(fault, ClockStep) else picks[:1]:
-                ns = _stamp_ns(out[i][2]) + round(fault.offset * NS_PER_S)
-                out[i] = (out[i][0], out[i][1], _restamped(out[i][2], ns=ns), out[i][3])
+                shift_ns = round(fault.offset * NS_PER_S)
+                out[i] = (out[i][0], out[i][1], _restamped(out[i][2], shift_ns=shift_ns), out[i][3])
     return sorted(out, key=lambda m: m[3])
 
 

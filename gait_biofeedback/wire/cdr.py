@@ -24,6 +24,7 @@ from sensor_msgs.msg import Imu, MagneticField
 
 from gait_biofeedback.core.stamps import NS_PER_S
 from gait_biofeedback.wire.padding import CDR_LE, IMU_DOUBLES, MAG_DOUBLES, type_name_of, zero_padding
+from gait_biofeedback.wire.stamps import stamp_to_ns
 
 _NS = NS_PER_S
 _HEADER = 16  # encapsulation, sec, nanosec, string length
@@ -96,7 +97,7 @@ def decode_stamped(
 def decode_with_rclpy(payload: bytes, msg_class: type) -> tuple[int, np.ndarray, str]:
     """(stamp ns, doubles, frame_id) of any encoding rclpy reads (the slow path)."""
     msg = deserialize_message(payload, msg_class)
-    ns = msg.header.stamp.sec * _NS + msg.header.stamp.nanosec
+    ns = stamp_to_ns(msg.header.stamp)
     if msg_class is Imu:
         q, w, a = msg.orientation, msg.angular_velocity, msg.linear_acceleration
         values = [
@@ -154,12 +155,20 @@ def _doubles(n_doubles: int) -> struct.Struct:
     return s
 
 
+_STAMP_OF = {1: struct.Struct("<iI"), 0: struct.Struct(">iI")}  # encapsulation byte 1 → sec, nanosec
+
+
 def header_stamp_ns(data: bytes) -> int | None:
-    """``header.stamp`` (int ns) of a little-endian message that starts with a std_msgs/Header, None
-    for other bytes: read without decoding the rest."""
-    if len(data) < _HEADER or data[:4] != CDR_LE:
+    """``header.stamp`` (int ns) of a serialized message that starts with a std_msgs/Header (or is a
+    builtin_interfaces/Time), read without decoding the rest: the time right after the XCDR1
+    encapsulation, little endian when its byte 1 is 1, big endian when 0. None for other bytes (another
+    encapsulation, fewer than 12 bytes). The one reader of raw stamps (nodes, ``analyze``, ``info``)."""
+    if len(data) < 12 or data[0]:
         return None
-    sec, nanosec, _ = _HEAD.unpack_from(data, 4)
+    layout = _STAMP_OF.get(data[1])
+    if layout is None:
+        return None
+    sec, nanosec = layout.unpack_from(data, 4)
     return sec * _NS + nanosec
 
 

@@ -38,7 +38,6 @@ from gait_biofeedback.wire.cdr import (
     ORIENTATION_COV,
     Stamped,
     encode_stamped,
-    pack_imu,
 )
 from gait_biofeedback.wire.stamps import ns_to_stamp
 
@@ -89,25 +88,16 @@ def angular_speed(imu: Stamped) -> float:
     return math.hypot(*imu.values[ANGULAR_VELOCITY])
 
 
-def orientation_payload(segment: str, sample: OrientationSample, raw: Stamped, variance: float) -> bytes:
-    """Serialized ``<segment>/imu/data`` of one filtered sample, as the ``orientation_filter`` node
-    publishes it: the sample's stamp, the sensor frame, q, the bias-corrected gyro, the raw
-    acceleration, a diagonal orientation covariance (``RECOVERING_VARIANCE`` while recovering, yaw
+def orientation_fields(segment: str, sample: OrientationSample, raw: Stamped, variance: float
+                       ) -> tuple[int, str, tuple[float, ...]]:
+    """``<segment>/imu/data`` of one filtered sample as (stamp ns, frame_id, the 37 doubles): its one
+    definition, the fields of :func:`~gait_biofeedback.wire.cdr.pack_imu` (the bytes the
+    ``orientation_filter`` node publishes and ``analyze`` writes) and of :class:`Stamped` (what
+    :func:`~gait_biofeedback.wire.cdr.decode_imu` of those bytes gives: float64 in and out of CDR is
+    exact). The sample's stamp, the sensor frame, q, the bias-corrected gyro, the raw acceleration, a
+    diagonal orientation covariance (``RECOVERING_VARIANCE`` while recovering, yaw
     ``HEADING_UNKNOWN_VARIANCE`` without a magnetometer) and the raw covariances of the message that
     released the sample."""
-    return pack_imu(*_orientation_fields(segment, sample, raw, variance))
-
-
-def orientation_message(segment: str, sample: OrientationSample, raw: Stamped, variance: float
-                        ) -> tuple[bytes, Stamped]:
-    """(:func:`orientation_payload`, the same decoded: what :func:`~gait_biofeedback.wire.cdr.decode_imu`
-    of those bytes gives, without reading them back; float64 in and out of CDR is exact)."""
-    ns, frame, values = _orientation_fields(segment, sample, raw, variance)
-    return pack_imu(ns, frame, values), Stamped(ns, frame, values)
-
-
-def _orientation_fields(segment: str, sample: OrientationSample, raw: Stamped, variance: float
-                        ) -> tuple[int, str, tuple[float, ...]]:
     w, x, y, z = sample.q.tolist()
     v = float(RECOVERING_VARIANCE if sample.recovering else variance)
     yaw = v if sample.heading else float(HEADING_UNKNOWN_VARIANCE)

@@ -13,6 +13,7 @@ import struct
 from collections.abc import Mapping, Sequence
 
 from geometry_msgs.msg import Point
+from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from visualization_msgs.msg import Marker, MarkerArray
 
@@ -22,86 +23,91 @@ from gait_biofeedback.core.joints.skeleton import stick_figure
 from gait_biofeedback.core.joints.stream import SyncedAngles
 from gait_biofeedback.core.segments import WORLD_FRAME
 from gait_biofeedback.core.stamps import NS_PER_S
+from gait_biofeedback.wire.cdr import header_stamp_ns
 from gait_biofeedback.wire.padding import CDR_LE
 from gait_biofeedback.wire.stamps import ns_to_stamp, stamp_to_ns
 
 RECOVERING = "recovering: "
 
 
-def joint_state_msg(angles: Mapping[str, float], stamp_ns: int,
-                    recovering: Sequence[str] = ()) -> JointState:
-    """``joint_states`` of one instant (names from JOINT_NAMES, rad, stamp = the samples' stamp),
-    marked when segments were ``recovering`` (module docstring)."""
-    msg = JointState(name=list(angles), position=[float(v) for v in angles.values()])
-    msg.header.stamp = ns_to_stamp(stamp_ns)
-    if recovering:
-        msg.header.frame_id = RECOVERING + ",".join(recovering)
-    return msg
-
-
 JOINT_STATE_TYPE = "sensor_msgs/msg/JointState"
 _U32 = struct.Struct("<I")
 _STAMP = struct.Struct("<iI")
-
-
-def _string_bytes(text: bytes, pos: int) -> tuple[bytes, int]:
-    """A CDR string at offset ``pos`` (after the encapsulation): padding to 4, length with the NUL,
-    the bytes, the NUL; and the offset after it."""
-    pad = -pos % 4
-    return bytes(pad) + _U32.pack(len(text) + 1) + text + b"\0", pos + pad + 5 + len(text)
+_NO_VELOCITY_NO_EFFORT = bytes(8)  # two empty sequences; the offset is 4-aligned after the positions
+_layouts: dict[tuple[str, tuple[str, ...]], tuple[bytes, struct.Struct]] = {}
 
 
 def joint_state_bytes(angles: Mapping[str, float], stamp_ns: int, recovering: Sequence[str] = ()) -> bytes:
-    """:func:`joint_state_msg` (names without NUL) as XCDR1 little-endian bytes, padding 0, exact size
-    (header, ``name``, ``position``, empty ``velocity`` and ``effort``), written without an rclpy
-    message: ``analyze`` writes one per instant. For one with angles, what
-    :func:`~gait_biofeedback.wire.cdr.serialize` gives (test/test_cdr.py compares them with rclpy's)."""
-    stamp = ns_to_stamp(stamp_ns)
-    frame = (RECOVERING + ",".join(recovering)).encode("utf-8") if recovering else b""
-    parts = [CDR_LE, _STAMP.pack(stamp.sec, stamp.nanosec)]
-    part, pos = _string_bytes(frame, 8)
+    """``joint_states`` of one instant (names from JOINT_NAMES, without NUL; rad; stamp = the samples'
+    stamp), marked when segments were ``recovering`` (module docstring): the message's one definition,
+    as XCDR1 little-endian bytes, padding 0, exact size (header, ``name``, ``position``, empty
+    ``velocity`` and ``effort``). What :func:`~gait_biofeedback.wire.cdr.serialize` gives for the same
+    rclpy message (test/test_cdr.py compares them); the node publishes these bytes, ``analyze`` writes
+    them, :func:`joint_state_msg` decodes them."""
+    frame_id = RECOVERING + ",".join(recovering) if recovering else ""
+    key = (frame_id, tuple(angles))
+    found = _layouts.get(key)
+    if found is None:
+        found = _layout(*key)
+        if len(_layouts) < 1024:
+            _layouts[key] = found
+    middle, positions = found
+    sec, nanosec = divmod(int(stamp_ns), NS_PER_S)
+    return b"".join((CDR_LE, _STAMP.pack(sec, nanosec), middle, positions.pack(*angles.values()),
+                     _NO_VELOCITY_NO_EFFORT))
+
+
+def joint_state_msg(angles: Mapping[str, float], stamp_ns: int,
+                    recovering: Sequence[str] = ()) -> JointState:
+    """:func:`joint_state_bytes` as an rclpy message (simulated ground truth, tests)."""
+    return deserialize_message(joint_state_bytes(angles, stamp_ns, recovering), JointState)
+
+
+def _layout(frame_id: str, names: tuple[str, ...]) -> tuple[bytes, struct.Struct]:
+    """(the bytes of a JointState from ``frame_id`` to the padding before the positions, the positions'
+    Struct) for these names: all but the stamp and the values, the same for every instant."""
+    parts = []
+    part, pos = _string_bytes(frame_id.encode("utf-8"), 8)
     parts.append(part)
-    pad = -pos % 4
-    parts.append(bytes(pad) + _U32.pack(len(angles)))
-    pos += pad + 4
-    for name in angles:
+    part, pos = _u32(len(names), pos)
+    parts.append(part)
+    for name in names:
         part, pos = _string_bytes(name.encode("utf-8"), pos)
         parts.append(part)
+    part, pos = _u32(len(names), pos)  # the positions' count
+    parts.append(part)
+    if names:
+        parts.append(bytes(-pos % 8))
+    return b"".join(parts), struct.Struct(f"<{len(names)}d")
+
+
+def _u32(n: int, pos: int) -> tuple[bytes, int]:
+    """A CDR uint32 at offset ``pos`` (after the encapsulation), padded to 4; and the offset after it."""
     pad = -pos % 4
-    parts.append(bytes(pad) + _U32.pack(len(angles)))
-    pos += pad + 4
-    if angles:
-        pad = -pos % 8
-        parts.append(bytes(pad) + struct.pack(f"<{len(angles)}d", *map(float, angles.values())))
-        pos += pad + 8 * len(angles)
-    for _ in ("velocity", "effort"):
-        pad = -pos % 4
-        parts.append(bytes(pad) + _U32.pack(0))
-        pos += pad + 4
-    return b"".join(parts)
+    return bytes(pad) + _U32.pack(n), pos + pad + 4
 
 
-def joint_state_angles(data: bytes) -> tuple[int, dict[str, float]] | None:
-    """:func:`angles_of` read straight from a ``joint_states`` message's CDR bytes (XCDR1 little
-    endian, as the project writes them); None for other bytes (another encoding, a velocity or effort,
-    a truncated message): decode those with rclpy."""
+def _string_bytes(text: bytes, pos: int) -> tuple[bytes, int]:
+    """A CDR string at offset ``pos``: its length with the NUL, the bytes, the NUL; and the offset after."""
+    head, pos = _u32(len(text) + 1, pos)
+    return head + text + b"\0", pos + len(text) + 1
+
+
+def joint_state_of(data: bytes) -> tuple[int, dict[str, float], tuple[str, ...]] | None:
+    """(:func:`angles_of`, :func:`recovering_of`) read straight from a ``joint_states`` message's CDR
+    bytes (XCDR1 little endian, as the project writes them); None for other bytes (another encoding, a
+    velocity or effort, a truncated message, a string rclpy reads its own way): decode those with rclpy."""
     try:
-        if data[:2] != CDR_LE[:2]:
+        if data[:2] != CDR_LE[:2] or (stamp_ns := header_stamp_ns(data)) is None:
             return None
-        sec, nanosec = _STAMP.unpack_from(data, 4)
-        pos = 8 + 4 + _U32.unpack_from(data, 12)[0]  # past the frame_id
+        frame, pos = _read_string(data, 8)
         pos += -pos % 4
         n = _U32.unpack_from(data, 4 + pos)[0]
         pos += 4
         names = []
         for _ in range(n):
-            pos += -pos % 4
-            size = _U32.unpack_from(data, 4 + pos)[0]
-            text = data[8 + pos:8 + pos + size]
-            if not size or len(text) != size or text.find(0) != size - 1:
-                return None  # not one NUL, at the end: rclpy's reading of it
-            names.append(str(text[:-1], "utf-8"))
-            pos += 4 + size
+            name, pos = _read_string(data, pos)
+            names.append(name)
         pos += -pos % 4
         if _U32.unpack_from(data, 4 + pos)[0] != n:
             return None
@@ -113,15 +119,29 @@ def joint_state_angles(data: bytes) -> tuple[int, dict[str, float]] | None:
         pos += -pos % 4
         if _U32.unpack_from(data, 4 + pos)[0] or _U32.unpack_from(data, 8 + pos)[0]:
             return None  # a velocity or an effort: not the project's form
-    except (struct.error, UnicodeDecodeError):
+    except (struct.error, ValueError):  # UnicodeDecodeError is one
         return None
-    return sec * NS_PER_S + nanosec, dict(zip(names, values, strict=True))
+    return stamp_ns, dict(zip(names, values, strict=True)), _recovering(frame)
+
+
+def _read_string(data: bytes, pos: int) -> tuple[str, int]:
+    """The CDR string at offset ``pos`` (after the encapsulation; padded to 4) and the offset after it;
+    ValueError when its bytes do not end in their one NUL (rclpy reads those its own way)."""
+    pos += -pos % 4
+    size = _U32.unpack_from(data, 4 + pos)[0]
+    text = data[8 + pos:8 + pos + size]
+    if not size or len(text) != size or text.find(0) != size - 1:
+        raise ValueError("not one NUL, at the end")
+    return str(text[:-1], "utf-8"), pos + 4 + size
 
 
 def recovering_of(msg: JointState) -> tuple[str, ...]:
     """The segments a ``joint_states`` message is marked as recovering (empty: not marked)."""
-    frame = msg.header.frame_id
-    return tuple(frame[len(RECOVERING):].split(",")) if frame.startswith(RECOVERING) else ()
+    return _recovering(msg.header.frame_id)
+
+
+def _recovering(frame_id: str) -> tuple[str, ...]:
+    return tuple(frame_id[len(RECOVERING):].split(",")) if frame_id.startswith(RECOVERING) else ()
 
 
 def angles_of(msg: JointState) -> tuple[int, dict[str, float]]:
