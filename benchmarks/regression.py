@@ -13,9 +13,10 @@ same. Five reference recordings:
 
 (the real ones only where ``../shared/data`` is). Each is analysed by REV's code (a temporary git
 worktree, run with this venv) and by this checkout's, each in a fresh process; the output folders'
-files (the ``.mcap``, ``metadata.yaml``, ``calibration.yaml``) and what ``analyze`` printed are
-compared. Prints one row per reference: identical, or which file differs and where; exit 1 if any
-differs. ``--keep DIR`` leaves the inputs and outputs there (an input already in DIR is reused).
+files (the ``.mcap``, ``metadata.yaml``, ``calibration.yaml`` without its save time and digest) and
+what ``analyze`` printed are compared. Prints one row per reference: identical, or which file differs
+and where; exit 1 if any differs. ``--keep DIR`` leaves the inputs and outputs there (an input already
+in DIR is reused).
 """
 
 from __future__ import annotations
@@ -84,15 +85,31 @@ def _worktree(revision: str, where: Path) -> Path:
     return tree
 
 
+def _comparable(path: Path) -> bytes:
+    """A file's bytes, a calibration.yaml's without the lines that hold the wall-clock time it was saved
+    at (``saved_at``) and the digest that covers it."""
+    data = path.read_bytes()
+    if path.name != "calibration.yaml":
+        return data
+    lines = data.splitlines(keepends=True)
+    start = next((i for i, line in enumerate(lines) if line.startswith(b"digest:")), len(lines))
+    end = next((i for i in range(start + 1, len(lines)) if not lines[i].startswith((b" ", b"-"))), len(lines))
+    return b"".join(line for i, line in enumerate(lines)
+                    if not line.startswith(b"saved_at:") and not start <= i < end)
+
+
 def _difference(a: Path, b: Path) -> str | None:
-    """None when the two output folders hold the same files with the same bytes, else what differs."""
+    """None when the two output folders hold the same files with the same bytes (a calibration.yaml
+    but for its save time, :func:`_comparable`), else what differs."""
     names = sorted({p.name for p in a.iterdir()} | {p.name for p in b.iterdir()})
     for name in names:
         fa, fb = a / name, b / name
         if not fa.exists() or not fb.exists():
             return f"{name} only in {'the revision' if fa.exists() else 'this checkout'}"
         if not filecmp.cmp(fa, fb, shallow=False):
-            da, db = fa.read_bytes(), fb.read_bytes()
+            da, db = _comparable(fa), _comparable(fb)
+            if da == db:
+                continue
             at = next((i for i, (x, y) in enumerate(zip(da, db, strict=False)) if x != y),
                       min(len(da), len(db)))
             return f"{name} differs from byte {at} ({len(da)} / {len(db)} bytes)"
@@ -121,7 +138,7 @@ def main() -> int:
                 continue
             outputs = {}
             for side, code_tree in (("rev", tree), ("here", HERE)):
-                out = work / "outputs" / f"{name}_{side}"
+                out = work / "outputs" / side / name  # one folder name: the .mcap is named after it
                 shutil.rmtree(out, ignore_errors=True)
                 run = _cli(code_tree, "analyze", str(bag), "-o", str(out), *calibrate)
                 outputs[side] = (out, run.returncode, run.stdout.replace(str(out), "OUT"),
