@@ -7,7 +7,7 @@ thighs' ``imu/data_raw`` (``thighs``: their inclination tells sitting from stand
 force from the message's stamp), publishes ``activity/state`` (gait_biofeedback_msgs/ActivityState)
 whenever posture, locomotion or the last transition change, and every ``publish_period`` s. The state
 describes the sample ``delay`` s before the newest one
-(:data:`gait_biofeedback.core.activity.monitor.DELAY_S`): the monitor needs that look-ahead to
+(:data:`gait_biofeedback.core.activity.output.DELAY_S`): the monitor needs that look-ahead to
 confirm steps and transitions. Bad input: NaN samples and repeated stamps are skipped and counted;
 a stamp going backwards or a gap > ``max_gap`` s restarts the monitor (after a jump back its upright
 reference is found again, see :mod:`gait_biofeedback.core.activity.reference`; after a gap it is kept).
