@@ -200,7 +200,8 @@ class ActivityMonitor:
         """
         t = stamp_ns / NS_PER_S
         frame, posture = self._frame, self._posture
-        posture.start(t)
+        if posture.start_unconfirmed:
+            posture.start(t)
         ax, ay, az = float(acc[0]), float(acc[1]), float(acc[2])
         if frame.finder is not None:
             self._find_reference(t, ax, ay, az, gyro)
@@ -224,7 +225,7 @@ class ActivityMonitor:
             (f * gf + v * gv + lat * gl) * inv_norm - STANDARD_GRAVITY, gf * inv_norm, gl * inv_norm)
         walking = self._walking
         svm = walking.svm(magnitude)
-        if self._handling.update(t, theta, self._still.static):
+        if self._handling.update(t, theta, self._still):
             self._hold_during_handling(t, theta)
             return self._emit(t, posture.posture, False, theta, stamp_ns, True)
         walking.update(t, svm, theta)

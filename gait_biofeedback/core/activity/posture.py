@@ -79,10 +79,10 @@ class Posture:
         self._still = still
 
     def start(self, t: float) -> None:
-        """Each sample: an upright start at the chest must see a walk within STAND_CONFIRM_S."""
-        if self.start_unconfirmed:
-            self.start_unconfirmed = False
-            self.stand_deadline = t + STAND_CONFIRM_S
+        """The first sample of an upright start at the chest (``start_unconfirmed``): a walk must follow
+        within STAND_CONFIRM_S."""
+        self.start_unconfirmed = False
+        self.stand_deadline = t + STAND_CONFIRM_S
 
     def relabel(self, t_from: float, posture: str) -> None:
         """The samples still in the delay line from ``t_from`` on are in ``posture``."""

@@ -101,8 +101,8 @@ class Stillness:
 
 
 class Handling:
-    """``update(t, θ, static) -> bool``: whether detection is paused because the sensor is being put on
-    or adjusted.
+    """``update(t, θ, stillness) -> bool``: whether detection is paused because the sensor is being put
+    on or adjusted.
 
     Our addition (gait.md §3 has no such state): a worn chest sensor does not turn beyond
     θ = 110° while moving (lying still head-down is allowed); UCI subjects 2, 4, 6, 8, 10, 11,
@@ -116,8 +116,8 @@ class Handling:
         self._until = -math.inf  # detection paused until then
         self.pauses = 0  # how often detection was paused
 
-    def update(self, t: float, theta: float, static: bool) -> bool:
-        if theta > self._rad and not static:
+    def update(self, t: float, theta: float, still: Stillness) -> bool:
+        if theta > self._rad and not still.static:
             self.pauses += t >= self._until
             self._until = t + HANDLING_SETTLE_S
         return t < self._until
