@@ -50,7 +50,11 @@ ANGLES = "gait_biofeedback/core/joints/angles.py"
 CAL = "gait_biofeedback/core/calibration/sensor_to_segment.py"
 KERNEL = "gait_biofeedback/core/orientation/filters/_inertial_kernel.py"
 STARTUP = "gait_biofeedback/core/orientation/filters/startup.py"
-MONITOR = "gait_biofeedback/core/activity/monitor.py"
+WALKING = "gait_biofeedback/core/activity/walking.py"
+MODALITY = "gait_biofeedback/core/activity/modality.py"
+POSTURE = "gait_biofeedback/core/activity/posture.py"
+LYING = "gait_biofeedback/core/activity/lying.py"
+SIT_STAND = "gait_biofeedback/core/activity/sit_stand.py"
 UPRIGHT = "gait_biofeedback/core/activity/reference.py"
 EVAL = "gait_biofeedback/core/biofeedback/evaluator.py"
 GAIN = "gait_biofeedback/core/orientation/gain_regulation.py"
@@ -152,32 +156,32 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant("startup-quiet", STARTUP, "if moving.any() else n", "if moving.any() else 0", (T_FILT,),
            "a window quiet to its end counts as no quiet sample"),
     # --- chest activity monitor
-    Mutant("act-upright", MONITOR, "UPRIGHT_WALKING_RAD = math.radians(30.0)",
+    Mutant("act-upright", WALKING, "UPRIGHT_WALKING_RAD = math.radians(30.0)",
            "UPRIGHT_WALKING_RAD = math.radians(60.0)", (T_ACT,),
            "steps counted with the trunk leaning up to 60°"),
-    Mutant("act-wearer-ratio", MONITOR, "STAIRS_WEARER_RATIO = 1.3  #", "STAIRS_WEARER_RATIO = 1.0  #",
+    Mutant("act-wearer-ratio", MODALITY, "STAIRS_WEARER_RATIO = 1.3  #", "STAIRS_WEARER_RATIO = 1.0  #",
            (T_ACT,), "the wearer's stairs threshold: ratio 1.3 → 1.0"),
-    Mutant("act-wearer-quantile", MONITOR, "usual = ordered[int(DISPLACEMENT_QUANTILE * len(ordered))]",
+    Mutant("act-wearer-quantile", MODALITY, "usual = ordered[int(DISPLACEMENT_QUANTILE * len(ordered))]",
            "usual = ordered[-1]", (T_ACT,), "the wearer's usual walking from the maximum, not the 10th pct"),
-    Mutant("act-referred", MONITOR, "return sigma_d * min(1.0, STAIRS_REFERENCE_RAD_S / omega)",
+    Mutant("act-referred", MODALITY, "return sigma_d * min(1.0, STAIRS_REFERENCE_RAD_S / omega)",
            "return sigma_d", (T_ACT,), "the displacement not referred to 1.6 Hz (brisk walking is stairs)"),
     Mutant("act-worn", UPRIGHT, "return low / band >= WORN_RATIO * self._white",
            "return low / band >= 0.3 * WORN_RATIO * self._white", (T_ACT,),
            "the gyro's white noise passes for a wearer"),
-    Mutant("act-start-rule", MONITOR, "self._start_unconfirmed = initial_posture == \"standing\" and",
-           "self._start_unconfirmed = False and", (T_ACT,), "an upright start is standing without a walk"),
-    Mutant("act-merge-moving", MONITOR, "MERGE_MOVING_S = 10.0  #", "MERGE_MOVING_S = 5.0  #", (T_ACT,),
+    Mutant("act-start-rule", POSTURE, "self.start_unconfirmed = initial_posture == \"standing\" and",
+           "self.start_unconfirmed = False and", (T_ACT,), "an upright start is standing without a walk"),
+    Mutant("act-merge-moving", POSTURE, "MERGE_MOVING_S = 10.0  #", "MERGE_MOVING_S = 5.0  #", (T_ACT,),
            "getting up with a pause on the bed's edge is two events"),
     Mutant("ev-late-tc-edge", EVENTS, "if best is None or best[0] == first or not",
            "if best is None or not", (T_EVENTS,), "a foot that only rose gives a late toe-off"),
-    Mutant("act-up-lean", MONITOR, "if known >= LEVEL_LEAN_MIN_N:", "if known >= 10**6:", (T_ACT,),
+    Mutant("act-up-lean", MODALITY, "if known >= LEVEL_LEAN_MIN_N:", "if known >= 10**6:", (T_ACT,),
            "up vs down never from the lean beyond level walking"),
-    Mutant("act-lying-hysteresis", MONITOR, "LYING_HYSTERESIS_RAD = math.radians(10.0)",
+    Mutant("act-lying-hysteresis", LYING, "LYING_HYSTERESIS_RAD = math.radians(10.0)",
            "LYING_HYSTERESIS_RAD = math.radians(0.0)", (T_ACT,), "no lie-to-sit hysteresis"),
-    Mutant("act-strong", MONITOR, "STRONG_THIGH_FRACTION = 0.7", "STRONG_THIGH_FRACTION = 0.5", (T_ACT,),
+    Mutant("act-strong", SIT_STAND, "STRONG_THIGH_FRACTION = 0.7", "STRONG_THIGH_FRACTION = 0.5", (T_ACT,),
            "strong sit-to-stand height gate = the thesis gate"),
-    Mutant("act-min-peaks", MONITOR, "elif len(self._run) >= MIN_SUCCESSIVE_PEAKS:",
-           "elif len(self._run) >= MIN_SUCCESSIVE_PEAKS - 1:", (T_ACT,), "walking confirmed after 2 peaks"),
+    Mutant("act-min-peaks", WALKING, "elif len(self.run) >= MIN_SUCCESSIVE_PEAKS:",
+           "elif len(self.run) >= MIN_SUCCESSIVE_PEAKS - 1:", (T_ACT,), "walking confirmed after 2 peaks"),
     # --- biofeedback and gain regulation
     Mutant("bf-severity", EVAL, "SEVERITY_MILD if abs(error) < band.width",
            "SEVERITY_MILD if abs(error) < 0.5 * band.width", (T_BF,), "severe from half a band width"),

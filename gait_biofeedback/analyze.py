@@ -16,8 +16,8 @@ same message-conversion helpers, in the same order the nodes use them:
    ``/skeleton``;
 4. gait events and strides: :class:`~gait_biofeedback.core.gait.stream.GaitEventStream` →
    ``/gait/events``, ``/gait/cycles``, ``/gait/stride_space``;
-5. activity on the chest's raw IMU: :class:`~gait_biofeedback.core.activity.stream.ActivityStream`
-   → ``/activity/state``.
+5. activity on the chest's raw IMU: :class:`~gait_biofeedback.core.activity.run.ActivityRun` (the
+   node's stream and publications, the period on recording time) → ``/activity/state``.
 
 Each stage is set up from the same parameters dataclass its node declares
 (:data:`gait_biofeedback.parameters.NODE_PARAMETERS`), checked the same way.
@@ -53,7 +53,9 @@ from typing import Any
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import Imu, JointState
 
-from gait_biofeedback.core.activity.stream import ActivityParams, ActivityStream
+from gait_biofeedback.core.activity.output import ActivityState
+from gait_biofeedback.core.activity.run import ActivityRun
+from gait_biofeedback.core.activity.stream import ActivityParams
 from gait_biofeedback.core.calibration.find import find_calibration
 from gait_biofeedback.core.calibration.protocol import WORDS
 from gait_biofeedback.core.calibration.sensor_to_segment import AUTO, REQUESTS, SessionCalibration
@@ -74,7 +76,7 @@ from gait_biofeedback.core.params import spec_by_name
 from gait_biofeedback.core.rate import TOLERANCE as RATE_TOLERANCE
 from gait_biofeedback.core.rate import RateCheck
 from gait_biofeedback.core.spatial.provisional import SWING_TOLERANCES
-from gait_biofeedback.core.stamps import NS_PER_S, s_to_ns
+from gait_biofeedback.core.stamps import NS_PER_S
 from gait_biofeedback.io.bag import BagReader, BagRecoveryWarning, BagWriter
 from gait_biofeedback.io.bag_writer import check_output
 from gait_biofeedback.io.imu_bag import read_imu_bag
@@ -264,42 +266,6 @@ def resolve_calibrate_at(bag: str | Path, requests: Sequence[tuple[float | None,
     return resolved, notes
 
 
-class _ActivityRun:
-    """The ``activity_monitor`` node offline: the same :class:`ActivityStream`, a state published on
-    every change and every ``publish_period`` s of recording time (the node: of wall-clock time)."""
-
-    def __init__(self, params: ActivityParams) -> None:
-        self.segment = params.segment
-        self.period_ns = s_to_ns(params.publish_period)
-        self.stream = ActivityStream(params)
-        self._next_periodic: int | None = None
-        self._newest_ns = 0
-
-    def update(self, raw: Stamped) -> list[Any]:
-        stamp_ns, gyro, acc = raw_sample(raw)
-        out = []
-        if self._next_periodic is None:
-            self._next_periodic = stamp_ns + self.period_ns
-        elif stamp_ns >= self._next_periodic and self.stream.latest is not None:
-            self._next_periodic = stamp_ns + self.period_ns
-            out.append(activity_msg(self.stream.latest, stamp_ns, self.segment))
-        self._newest_ns = stamp_ns
-        state, changed = self.stream.update(stamp_ns, acc, gyro)
-        if changed:
-            out.append(activity_msg(state, stamp_ns, self.segment))
-        return out
-
-    def finish(self) -> list[Any]:
-        """The end of the recording: the states the stream still held (:meth:`ActivityStream.finish`)."""
-        return [activity_msg(state, self._newest_ns, self.segment) for state in self.stream.finish()]
-
-    def update_thigh(self, segment: str, raw: Stamped) -> list[Any]:
-        """A thigh sample (``ActivityParams.thighs``): the trunk states it released."""
-        stamp_ns, _, acc = raw_sample(raw)
-        state, changed = self.stream.update_thigh(segment, stamp_ns, acc)
-        return [activity_msg(state, self._newest_ns, self.segment)] if changed else []
-
-
 def _raw_topics(reader: BagReader, bag: str | Path) -> tuple[dict[str, str], dict[str, str]]:
     types = reader.topics()
     imu, mag = topics.recorded_imu_topics(types)
@@ -478,7 +444,7 @@ def _analyze(ordered: LogOrderWriter | None, reader: BagReader, run: Orientation
     joints = JointAngleStream(j_params)
     gait = GaitEventStream(stages.get("gait_events") or GaitEventsParams())
     a_params: ActivityParams = stages.get("activity_monitor") or ActivityParams()
-    activity = _ActivityRun(a_params) if a_params.segment in raw_topics else None
+    activity = ActivityRun(a_params) if a_params.segment in raw_topics else None  # on recording time
     if activity is None:
         fix = ("; a lower-back or waist sensor: set activity_monitor segment: pelvis and placement: pelvis"
                if "pelvis" in raw_topics else "")
@@ -575,6 +541,12 @@ def _analyze(ordered: LogOrderWriter | None, reader: BagReader, run: Orientation
             source = f"found by --calibrate-at auto on the data up to {until / NS_PER_S:.1f} s"
             publish_calibration(calibration_msg(ahead.calibration, 0, source), start_ns, ahead.calibration)
 
+    def publish_activity(states: list[ActivityState], log_ns: int) -> None:
+        """The states due as the node publishes them (headed by the newest chest stamp)."""
+        for state in states:
+            msg = activity_msg(state, activity.newest_ns, activity.segment)
+            emit(topics.ACTIVITY.absolute(), msg, log_ns)
+
     def orientations(seg: str, filtered: Filtered, log_ns: int) -> None:
         for data, sample in filtered:
             emit_data(topics.orientation(seg).absolute(), data, log_ns)
@@ -592,11 +564,11 @@ def _analyze(ordered: LogOrderWriter | None, reader: BagReader, run: Orientation
             continue
         seg, log_ns = item.segment, item.log_ns
         if activity is not None and seg == activity.segment:
-            for state in activity.update(item.raw):
-                emit(topics.ACTIVITY.absolute(), state, log_ns)
+            stamp_ns, gyro, acc = raw_sample(item.raw)
+            publish_activity(activity.update(stamp_ns, acc, gyro), log_ns)
         elif activity is not None and seg in activity.stream.thighs.segments:
-            for state in activity.update_thigh(seg, item.raw):
-                emit(topics.ACTIVITY.absolute(), state, log_ns)
+            stamp_ns, _, acc = raw_sample(item.raw)
+            publish_activity(activity.update_thigh(seg, stamp_ns, acc), log_ns)
         if item.filtered is not None:
             orientations(seg, item.filtered, log_ns)
         result.warnings.extend(item.notices)
@@ -613,8 +585,8 @@ def _analyze(ordered: LogOrderWriter | None, reader: BagReader, run: Orientation
     for cycle in gait.finish():
         topic, msg = stride_output(cycle)
         emit(topic.absolute(), msg, reader.end_time_ns)
-    for state in activity.finish() if activity is not None else []:
-        emit(topics.ACTIVITY.absolute(), state, reader.end_time_ns)
+    if activity is not None:
+        publish_activity(activity.finish(), reader.end_time_ns)
     result.warnings[:0] = reader.warnings  # a damaged file, a chunk skipped: the time range lost
     imu_end_ns = max(last_log.values(), default=0)  # a recorder stopped after the sensors is no silence
     for seg, last_ns in last_log.items():

@@ -703,6 +703,33 @@ def test_a_restart_after_a_gap_keeps_an_assumed_posture_assumed() -> None:
     assert [k for _, k in stream.monitor.transitions] == ["stand_to_sit"]
 
 
+def test_run_publishes_changes_and_every_period_on_its_clock() -> None:
+    # recording clock (analyze): besides each change, the latest state once a stamp reaches the period's
+    # end (the first sample starts it); wall clock (the node): only the caller's timer gives it
+    from gait_biofeedback.core.activity.run import ActivityRun
+    from gait_biofeedback.core.activity.stream import ActivityParams
+
+    acc = Template(RATE).hold(4.0, 0.0).walk(12).hold(10.0).acc()
+    stamps = sample_stamps(len(acc), RATE).tolist()
+    params = ActivityParams(rate_hz=RATE, publish_period=2.0)
+    recording, wall = ActivityRun(params), ActivityRun(params, clock="wall")
+    changes, periodic = [], []
+    for stamp_ns, sample in zip(stamps, acc.tolist(), strict=True):
+        got, changed = recording.update(stamp_ns, sample), wall.update(stamp_ns, sample)
+        assert got[len(got) - len(changed):] == changed and len(got) - len(changed) in (0, 1)
+        periodic += [(stamp_ns, state) for state in got[:len(got) - len(changed)]]
+        changes += changed
+        assert recording.newest_ns == wall.newest_ns == stamp_ns
+    assert len({(s.posture, s.locomotion) for s in changes}) > 1  # the walk is a change
+    assert periodic[0][1] == changes[0]  # the first period ended before the first state: it waited
+    gaps = np.diff([ns for ns, _ in periodic]) / 1e9
+    assert len(periodic) >= (stamps[-1] - stamps[0]) / 1e9 / 2.0 - 3
+    assert gaps.min() >= 2.0 and gaps.max() < 2.0 + 1.5 / RATE
+    assert wall.periodic() is wall.stream.latest is not None
+    with pytest.raises(ValueError, match="clock"):
+        ActivityRun(params, clock="cpu")
+
+
 def test_stream_takes_the_forward_axis_from_its_stamp() -> None:
     from gait_biofeedback.core.activity.stream import ActivityParams, ActivityStream
 

@@ -5,9 +5,10 @@ sensor not yet worn from a still wearer when the upright reference is sought), t
 thighs' ``imu/data_raw`` (``thighs``: their inclination tells sitting from standing while they send) and
 ``calibration/sensor_to_segment`` (latched; the chest's rotation gives the trunk's forward axis, in
 force from the message's stamp), publishes ``activity/state`` (gait_biofeedback_msgs/ActivityState)
-whenever posture, locomotion or the last transition change, and every ``publish_period`` s. The state
-describes the sample ``delay`` s before the newest one
-(:data:`gait_biofeedback.core.activity.monitor.DELAY_S`): the monitor needs that look-ahead to
+whenever posture, locomotion or the last transition change, and every ``publish_period`` s of
+wall-clock time (:class:`~gait_biofeedback.core.activity.run.ActivityRun`, which ``analyze`` drives on
+recording time). The state describes the sample ``delay`` s before the newest one
+(:data:`gait_biofeedback.core.activity.output.DELAY_S`): the monitor needs that look-ahead to
 confirm steps and transitions. Bad input: NaN samples and repeated stamps are skipped and counted;
 a stamp going backwards or a gap > ``max_gap`` s restarts the monitor (after a jump back its upright
 reference is found again, see :mod:`gait_biofeedback.core.activity.reference`; after a gap it is kept).
@@ -23,8 +24,9 @@ from functools import partial
 from diagnostic_msgs.msg import DiagnosticStatus
 from rclpy.context import Context
 
-from gait_biofeedback.core.activity.monitor import ActivityState
-from gait_biofeedback.core.activity.stream import ActivityParams, ActivityStream
+from gait_biofeedback.core.activity.output import ActivityState
+from gait_biofeedback.core.activity.run import ActivityRun
+from gait_biofeedback.core.activity.stream import ActivityParams
 from gait_biofeedback.core.segments import sensor_frame
 from gait_biofeedback.nodes.common import GuardedNode, log_notices, publisher, subscribe
 from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
@@ -46,8 +48,8 @@ class ActivityMonitorNode(GuardedNode):
         super().__init__(self.NODE_NAME, context=context, parameter_overrides=node_overrides(overrides))
         self.params: ActivityParams = declare_parameters(self, ActivityParams, params)
         self.segment = self.params.segment
-        self.stream = ActivityStream(self.params)
-        self._newest_ns = 0
+        self.run = ActivityRun(self.params, clock="wall")
+        self.stream = self.run.stream
         self.published = 0
         self._pub = publisher(self, topics.ACTIVITY)
         subscribe(self, topics.raw_imu(self.segment), self._on_imu, raw=True)
@@ -67,30 +69,28 @@ class ActivityMonitorNode(GuardedNode):
 
     def _on_imu(self, data: bytes) -> None:
         stamp_ns, gyro, acc = raw_sample(decode_imu(data))
-        state, changed = self.stream.update(stamp_ns, acc, gyro)
+        states = self.run.update(stamp_ns, acc, gyro)
         log_notices(self.get_logger(), self.stream.notices.pop())
-        self._newest_ns = stamp_ns
-        if changed:
+        for state in states:
             self._publish(state)
 
     def _on_thigh(self, segment: str, data: bytes) -> None:
         stamp_ns, _, acc = raw_sample(decode_imu(data))
-        state, changed = self.stream.update_thigh(segment, stamp_ns, acc)
-        if changed:
+        for state in self.run.update_thigh(segment, stamp_ns, acc):
             self._publish(state)
 
     def finish(self) -> None:
         """The data ended (the end of a replay): the states still held go out, as ``analyze`` publishes
-        them at the end of a file (:meth:`ActivityStream.finish`)."""
-        for state in self.stream.finish():
+        them at the end of a file (:meth:`ActivityRun.finish`)."""
+        for state in self.run.finish():
             self._publish(state)
 
     def _publish(self, state: ActivityState) -> None:
-        self._pub.publish(activity_msg(state, self._newest_ns, self.segment))
+        self._pub.publish(activity_msg(state, self.run.newest_ns, self.segment))
         self.published += 1
 
     def _periodic(self) -> None:
-        latest = self.stream.latest
+        latest = self.run.periodic()
         if latest is not None:
             self._publish(latest)
         level = DiagnosticStatus.OK if latest is not None else DiagnosticStatus.WARN

@@ -228,7 +228,7 @@ class ActivityStream:
             if restart_s:
                 self.thighs.clear()
             out += [self._state(st) for st in previous.flush()]  # its last DELAY_S s, steps included
-            self._steps_before += previous._emitted_steps
+            self._steps_before += previous.emitted_steps
             options = {**self.options, "initial_posture": previous.posture}
             self.monitor = ActivityMonitor(self.rate_hz, **options)
             self._references_said = 0
