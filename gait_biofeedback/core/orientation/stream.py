@@ -60,7 +60,7 @@ from gait_biofeedback.core.orientation.filters import (
     calibrate_from_rest,
     quiet_samples,
 )
-from gait_biofeedback.core.orientation.filters.config import load_tuned, segment_location
+from gait_biofeedback.core.orientation.filters.config import filter_params
 from gait_biofeedback.core.orientation.filters.guo_fkf import KF_SCHEMES
 from gait_biofeedback.core.orientation.reacquire import attitude_after_gap
 from gait_biofeedback.core.params import param, require
@@ -168,8 +168,8 @@ class SegmentOrientationTracker:
             raise ValueError(f"{segment}: orientation algorithm {self.algorithm!r} has no gain scheme; set "
                              "'scheme' to '' or choose madgwick, mahony, guo_fkf or roetenberg_ikf")
         # tuned for this body location (thesis §4.3), else for every sensor; then the scheme and overrides
-        self.params = {**load_tuned(location=segment_location(segment)).get(self.algorithm, {}),
-                       **({"scheme": scheme} if scheme else {}), **(params or {})}
+        self.params = filter_params(self.algorithm, segment, {**({"scheme": scheme} if scheme else {}),
+                                                              **(params or {})})
         self.rate_hz = float(rate_hz)
         self.startup_s = float(startup_s)
         self.max_gap = float(max_gap)
