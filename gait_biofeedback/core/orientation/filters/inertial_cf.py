@@ -46,8 +46,15 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from gait_biofeedback.core.jit import compiled, plain
 from gait_biofeedback.core.orientation.filters import _inertial_kernel as ik
 from gait_biofeedback.core.orientation.filters.base import OrientationFilter
+
+
+def _warmup() -> tuple:
+    s = np.zeros(ik.N_STATE)
+    s[ik.QG] = s[ik.QA] = s[ik.OUT] = s[ik.ACC_NORM] = 1.0
+    return (s, np.ones(len(ik.PARAM_NAMES)), 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, -1.0, True, 0.01)
 
 
 class InertialCF(OrientationFilter):
@@ -96,7 +103,7 @@ class InertialCF(OrientationFilter):
         for k in ("tau_acc", "tau_mag", "tau_rest", "tau_mag_fast", "tau_rest_lp"):
             if not values[k] >= 0.0:
                 raise ValueError(f"{self.name}: {k} must be >= 0, got {values[k]}")
-        kernel = ik.compiled_step() if params["use_numba"] else None
+        kernel = compiled(ik, "step", _warmup()) if params["use_numba"] else None
         self.numba = kernel is not None
         if kernel is not None:
             self._kernel = kernel
@@ -104,7 +111,7 @@ class InertialCF(OrientationFilter):
             self._s = np.zeros(ik.N_STATE)
             self._out = self._out_array
         else:
-            self._kernel = ik.step
+            self._kernel = plain(ik, "step")
             self._p = [values[k] for k in ik.PARAM_NAMES]
             self._s = [0.0] * ik.N_STATE
             self._out = self._out_list
