@@ -79,7 +79,9 @@ def broad_errors(q: np.ndarray, q_ref: np.ndarray, movement: np.ndarray) -> tupl
 
 
 def run_ours(name: str, t: dict[str, np.ndarray], params: dict) -> np.ndarray:
-    return estimate_orientation(t["gyr"], t["acc"], t["mag"], t["rate"], name, startup_s=STARTUP_S, **params)
+    """``name`` with the class's defaults and ``params`` over them (the tuned set when wanted is passed)."""
+    return estimate_orientation(t["gyr"], t["acc"], t["mag"], t["rate"], name, startup_s=STARTUP_S,
+                                tuned=False, **params)
 
 
 def run_vqf(t: dict[str, np.ndarray]) -> np.ndarray:

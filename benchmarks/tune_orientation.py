@@ -6,7 +6,7 @@ Usage: .venv/bin/python benchmarks/tune_orientation.py ALGORITHM [--maxfev 40] [
 
 Optimiser: scipy.optimize.minimize(method="Nelder-Mead") in log-space of the parameters listed in
 SEARCH (a leading "-" marks a negative parameter, searched as log(−value)), started from the class's
-TUNING_START (else its DEFAULTS; constructor keywords such as ``mag_reject_norm`` start from the
+DEFAULTS (the untuned ones; constructor keywords such as ``mag_reject_norm`` start from the
 constructor's default), initial simplex edge ``--step`` in log-space (scipy's default 5 % otherwise),
 box-bounded in log-space (BOUNDS, else ``start`` ÷/× 10³), stopped by ``maxfev`` (and, if given,
 ``--max-seconds``: the best point evaluated so far is kept). Cost: mean total RMSE (degrees) over
@@ -54,10 +54,9 @@ BOUNDS = {
 
 
 def start_value(cls: type, name: str) -> float:
-    """Start of a searched parameter: TUNING_START, DEFAULTS, else the constructor's keyword default."""
-    defaults = getattr(cls, "TUNING_START", cls.DEFAULTS)  # hand-set start when DEFAULTS hold the result
-    if name in defaults:
-        return float(defaults[name])
+    """Start of a searched parameter: DEFAULTS, else the constructor's keyword default."""
+    if name in cls.DEFAULTS:
+        return float(cls.DEFAULTS[name])
     for klass in cls.__mro__:
         if "__init__" in vars(klass):
             par = inspect.signature(klass.__init__).parameters.get(name)

@@ -66,7 +66,7 @@ from gait_biofeedback.core.joints.relative_heading import (
     estimate_relative_orientation,
 )
 from gait_biofeedback.core.orientation.filters import ALGORITHMS, DEFAULT_ALGORITHM, estimate_orientation
-from gait_biofeedback.core.orientation.filters.config import TUNED_PATH, load_tuned
+from gait_biofeedback.core.orientation.filters.config import TUNED_PATH, filter_params, load_tuned
 from gait_biofeedback.core.orientation.stream import SegmentOrientationTracker, track_orientation
 from gait_biofeedback.core.segments import SEGMENTS, SIDES, ImuSeries
 from gait_biofeedback.core.spatial.stream import (
@@ -183,6 +183,7 @@ __all__ = [
     "estimate_relative_heading",
     "estimate_relative_orientation",
     "events_from_signal",
+    "filter_params",
     "find_recordings",
     "find_standing_then_motion",
     "foot_calibration",

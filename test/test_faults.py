@@ -29,7 +29,7 @@ from gait_biofeedback.batch import (
 )
 from gait_biofeedback.core.gait.cycles import GaitCycleTracker
 from gait_biofeedback.core.gait.events import GaitEvent
-from gait_biofeedback.core.rate import RateCheck, StampHoles
+from gait_biofeedback.core.rate import RateCheck, StampHoles, missing_samples
 from gait_biofeedback.core.stamps import NS_PER_S
 from gait_biofeedback.wire.gait import stride_of
 from gait_biofeedback.wire.joints import recovering_of
@@ -369,6 +369,20 @@ def test_stamp_holes_count_missing_samples_after_learning_the_period():
     for t in np.arange(0.0, 10.0, 0.01) + rng.uniform(-0.003, 0.003, 1000):
         jittered.update(round(t * 1e9))
     assert jittered.missing == 0, "a logger's ±30 % jitter is not a hole"
+
+
+def test_the_recorder_and_the_orientation_stream_count_holes_alike():
+    """One rule (issue 46, core.rate.missing_samples): an interval of 1.6 periods (a jittery logger) is
+    no hole for either, one of 2 periods is one missing sample, one of 3.2 periods two."""
+    assert [missing_samples(p) for p in (1.0, 1.6, 1.75, 1.76, 2.0, 3.2)] == [0, 0, 0, 1, 1, 2]
+    stamps = [*np.arange(0.0, 1.0, 0.01), 1.006, 1.026, 1.058]  # 1.6, 2, 3.2 periods
+    tracker = SegmentOrientationTracker("pelvis", startup_s=0.2)
+    _stream(tracker, stamps)
+    tracker.flush(end=True)
+    holes = StampHoles()
+    for t in stamps:
+        holes.update(round(t * 1e9))
+    assert tracker.counts["missing"] == holes.missing == 3
 
 
 def test_the_activity_stream_at_a_measured_rate_equals_the_configured_one():

@@ -18,6 +18,8 @@ from gait_biofeedback.core.orientation.filters import (
     quiet_samples,
 )
 from gait_biofeedback.core.orientation.filters import _full_state as fs
+from gait_biofeedback.core.orientation.filters import _inertial_kernel as ik
+from gait_biofeedback.core.orientation.filters.config import filter_params
 from gait_biofeedback.core.orientation.filters.inertial_cf import InertialCF
 from gait_biofeedback.core.orientation.filters.nazarahari_rekf import NazarahariREKF
 
@@ -80,7 +82,9 @@ def heading_inclination(q_est, q_true):
 
 
 def run(name, gyr, acc, mag, **params):
-    return estimate_orientation(gyr, acc, mag, RATE, name, **params)
+    """The algorithm with its class defaults (the thresholds here were measured with them; the gains
+    tuned on BROAD are for real sensors, see test_batch_runs_the_nodes_gains)."""
+    return estimate_orientation(gyr, acc, mag, RATE, name, tuned=False, **params)
 
 
 @pytest.mark.parametrize(
@@ -319,6 +323,11 @@ def test_default_is_inertial_cf():
     assert DEFAULT_ALGORITHM == "inertial_cf"
 
 
+def shipped_inertial_cf(**params) -> InertialCF:
+    """InertialCF with the shipped tuned values (as the node and the batch functions run it)."""
+    return InertialCF(RATE, **filter_params("inertial_cf", params=params))
+
+
 def test_inertial_cf_numba_and_python_give_the_same_numbers():
     pytest.importorskip("numba")
     gyr, acc, mag, _ = synth(20.0, rotating=True, seed=11)
@@ -345,7 +354,7 @@ def test_inertial_cf_bias_learned_at_rest_then_used_in_motion():
     bias = np.array([0.01, -0.02, 0.015])
     still, acc_s, _, q_s = synth(10.0, rotating=False, bias=bias, seed=13)
     gyr, acc, _, q = synth(30.0, rotating=True, bias=bias, seed=14, q0=q_s[-1])
-    f = InertialCF(RATE)  # no start-up step: the bias is found by rest detection alone
+    f = shipped_inertial_cf()  # no start-up step: the bias is found by rest detection alone
     for k in range(len(still)):
         f.update(still[k], acc_s[k], None)
     assert f.state()["rest"]
@@ -363,7 +372,7 @@ def test_inertial_cf_accelerometer_averaged_in_inertial_frame():
     t = np.arange(len(gyr)) / RATE
     shake_world = np.stack([3.0 * np.sin(2 * np.pi * 2.0 * t), np.zeros_like(t), np.zeros_like(t)], 1)
     acc_shaken = acc + quat.rotate_inverse(q, shake_world)
-    _, incl = heading_inclination(run("inertial_cf", gyr, acc_shaken, mag), q)
+    _, incl = heading_inclination(estimate_orientation(gyr, acc_shaken, mag, RATE, "inertial_cf"), q)
     _, incl_madgwick = heading_inclination(run("madgwick", gyr, acc_shaken, mag), q)
     assert incl.max() < 0.5
     assert incl.max() < incl_madgwick.max()
@@ -373,7 +382,7 @@ def test_inertial_cf_magnet_never_tilts_and_new_field_becomes_reference():
     gyr, acc, mag, q = synth(60.0, rotating=False, seed=16)
     extra = np.array([15e-6, 0.0, 10e-6])
     mag[1000:] += quat.rotate_inverse(q[1000:], extra)  # a new constant world field from 10 s on
-    f = InertialCF(RATE, mag_new_time=20.0)
+    f = shipped_inertial_cf(mag_new_time=20.0)
     flags, outs = [], []
     for k in range(len(gyr)):
         outs.append(f.update(gyr[k], acc[k], mag[k]))
@@ -405,7 +414,7 @@ def test_inertial_cf_rejects_a_dip_change_alone_and_a_norm_change_alone(scale: f
     sl = slice(500, 1500)
     disturbed = _world_field(scale, 40.0, M_DIP - math.radians(dip_change_deg))
     mag[sl] += quat.rotate_inverse(q[sl], disturbed - M_WORLD)
-    f = InertialCF(RATE)
+    f = shipped_inertial_cf()
     est, flags = [], []
     for k in range(len(gyr)):
         est.append(f.update(gyr[k], acc[k], mag[k]))
@@ -423,12 +432,12 @@ def test_inertial_cf_rejection_timeout_then_fast_catch_up():
     back, the magnetometer stays in use (still the timeout) and, undisturbed for mag_accept_time, the
     heading catches up with tau_mag_fast for fast_time, then tau_mag again. The expected error is that
     piecewise first-order response to the hand-made 40° step (documented defaults)."""
-    p = InertialCF.DEFAULTS
+    p = filter_params("inertial_cf")  # the shipped tuned values
     tau, tau_fast = p["tau_mag"], p["tau_mag_fast"]
     gyr, acc, mag, q = synth(30.0, rotating=False, seed=22)
     sl = slice(500, 2000)
     mag[sl] += quat.rotate_inverse(q[sl], _world_field(1.4, 40.0, M_DIP) - M_WORLD)
-    est = run("inertial_cf", gyr, acc, mag, mag_max_reject=4.0, mag_new_time=1000.0)
+    est = estimate_orientation(gyr, acc, mag, RATE, "inertial_cf", mag_max_reject=4.0, mag_new_time=1000.0)
     head, _ = heading_inclination(est, q)
     t = np.arange(len(head)) / RATE
     t_on, t_off = 5.0 + 4.0, 20.0
@@ -445,11 +454,30 @@ def test_inertial_cf_rejection_timeout_then_fast_catch_up():
     assert dev.max() < 0.5, f"{dev.max():.2f} deg from the expected response at t = {t[np.argmax(dev)]:.2f} s"
 
 
-def test_inertial_cf_defaults_are_the_shipped_tuned_values():
+@pytest.mark.parametrize("name", ["inertial_cf", "guo_fkf", "madgwick"])
+def test_batch_runs_the_nodes_gains(name):
+    """estimate_orientation, the node's tracker and analyze give an algorithm the same parameters: the
+    shipped tuned ones over the class's defaults (issue 46); explicit ones still override."""
     from gait_biofeedback.core.orientation.filters.config import load_tuned
+    from gait_biofeedback.core.orientation.stream import SegmentOrientationTracker
 
-    tuned = load_tuned()["inertial_cf"]
-    assert tuned and {k: InertialCF.DEFAULTS[k] for k in tuned} == tuned
+    tuned = load_tuned()[name]
+    assert tuned and filter_params(name) == {**ALGORITHMS[name].DEFAULTS, **tuned}
+    assert SegmentOrientationTracker("left_shank", algorithm=name).params == filter_params(name, "left_shank")
+    assert filter_params(name, tuned=False) == ALGORITHMS[name].DEFAULTS
+    first = next(k for k, v in tuned.items() if isinstance(v, float))
+    assert filter_params(name, params={first: 0.5})[first] == 0.5
+    gyr, acc, mag, _ = synth(3.0, rotating=True, seed=5)
+    np.testing.assert_array_equal(estimate_orientation(gyr, acc, mag, RATE, name),
+                                  run(name, gyr, acc, mag, **tuned))
+
+
+def test_inertial_cf_rest_thresholds_reach_the_kernel():
+    """rest_gyr / rest_acc are also base-class keywords: given, they are the kernel's (they were not)."""
+    f = InertialCF(RATE, rest_gyr=0.01, rest_acc=0.02)
+    assert (f.params["rest_gyr"], f.params["rest_acc"]) == (0.01, 0.02)
+    assert (f._p[ik.P_REST_GYR], f._p[ik.P_REST_ACC]) == (0.01, 0.02)
+    assert InertialCF(RATE).params["rest_gyr"] == InertialCF.DEFAULTS["rest_gyr"]
 
 
 @pytest.mark.parametrize("name", ALL)

@@ -11,7 +11,7 @@ from gait_biofeedback.core import quaternion as quat
 from gait_biofeedback.core.orientation import fuzzy
 from gait_biofeedback.core.orientation.filters import ALGORITHMS, estimate_orientation
 from gait_biofeedback.core.orientation.filters import _guo_kernel as gk
-from gait_biofeedback.core.orientation.filters.config import load_tuned, segment_location
+from gait_biofeedback.core.orientation.filters.config import filter_params, load_tuned, segment_location
 from gait_biofeedback.core.orientation.gain_regulation import FuzzyGainRegulator
 from gait_biofeedback.core.orientation.stream import SegmentOrientationTracker
 from gait_biofeedback.tuning.pso import PsoSettings, particle_swarm
@@ -79,7 +79,7 @@ def test_shared_gain_rules_of_the_thesis():
 @pytest.mark.parametrize("name", ["madgwick", "mahony", "guo_fkf"])
 def test_fuzzy_scheme_tracks_a_rotating_sensor(name):
     gyr, acc, mag, q = synth(30.0, rotating=True)
-    est = estimate_orientation(gyr, acc, mag, RATE, name, scheme="fuzzy")
+    est = estimate_orientation(gyr, acc, mag, RATE, name, scheme="fuzzy", tuned=False)  # the class defaults
     err = np.degrees(quat.angle_between(est, q))
     # about twice what each reaches (measured 0.50, 0.51, 0.10 deg RMS)
     assert np.sqrt(np.mean(err**2)) < {"madgwick": 1.0, "mahony": 1.0, "guo_fkf": 0.2}[name]
@@ -247,7 +247,11 @@ def test_tune_writes_per_location_parameters_that_the_tracker_uses(tmp_path, cap
         SegmentOrientationTracker("right_foot", algorithm="madgwick").params["beta1"]
         == entry["params"]["beta1"]
     )
-    assert "beta1" not in SegmentOrientationTracker("left_shank", algorithm="madgwick").params
+    foot = SegmentOrientationTracker("right_foot", algorithm="madgwick").params
+    assert filter_params("madgwick", "right_foot") == foot
+    # no shank entry and no shared one in this file: the class's default
+    shank = SegmentOrientationTracker("left_shank", algorithm="madgwick").params
+    assert shank["beta1"] == ALGORITHMS["madgwick"].DEFAULTS["beta1"]
     assert segment_location("left_foot") == "foot" and segment_location("pelvis") == "pelvis"
     assert (
         main(

@@ -69,15 +69,28 @@ MISSING_SHARE_MIN = 20
 share: 3 samples missing at the end of a stream read "100 % missing" (ipol_gait 1-1's left foot)."""
 
 HOLE = 1.75
-"""An interval longer than this many sample periods is a hole."""
+"""An interval longer than this many sample periods is a hole (:func:`missing_samples`)."""
+
+
+def missing_samples(periods: float) -> int:
+    """Samples missing in an interval between two stamps ``periods`` sample periods long: none up to
+    ``HOLE``, else the nearest whole number of periods less one.
+
+    The one rule of the recorder (:class:`StampHoles`) and the orientation stream (issue 46; the stream
+    used 1.5 periods). 1.75, not the midpoint 1.5 between no hole (1) and one sample missing (2): a
+    logger's stamps that jitter by ±30 % of the period give intervals up to 1.6 periods, which 1.5
+    counted as lost samples (and the stream bridged); a real hole is still found while the two stamps
+    around it are off by less than 0.25 period together.
+    """
+    return round(periods) - 1 if periods > HOLE else 0
 
 
 class StampHoles:
     """Samples missing from a stream, counted from holes in its stamps (in order; a reordered or
-    repeated stamp is ignored): an interval over ``HOLE`` periods, k periods long, is k - 1 missing
-    samples. The period is the median of the first ``learn`` intervals (a hole early on does not
-    move it). A logger whose stamps jitter by more than 75 % of the period still counts phantom
-    holes; a swapped pair counts one (the recorder sees samples in arrival order)."""
+    repeated stamp is ignored) by :func:`missing_samples`. The period is the median of the first
+    ``learn`` intervals (a hole early on does not move it). A logger whose stamps jitter by more than
+    75 % of the period still counts phantom holes; a swapped pair counts one (the recorder sees
+    samples in arrival order)."""
 
     def __init__(self, learn: int = 20) -> None:
         self.learn = int(learn)
@@ -102,5 +115,4 @@ class StampHoles:
             if len(self._intervals) >= self.learn:
                 self._period = median(self._intervals)
             return
-        if dt > HOLE * self._period:
-            self.missing += round(dt / self._period) - 1
+        self.missing += missing_samples(dt / self._period)

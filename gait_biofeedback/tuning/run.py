@@ -30,9 +30,10 @@ STARTUP_S = 5.0
 
 
 def run_filter(algorithm: str, params: dict[str, Any], rec: ReferenceRecording) -> np.ndarray:
-    """The filter's estimate of a recording (start-up step on its leading quiet samples)."""
+    """The filter's estimate of a recording (start-up step on its leading quiet samples), ``params`` over
+    the class's defaults (not the shipped tuned set: tuning starts from the parameters it is given)."""
     return estimate_orientation(
-        rec.gyr, rec.acc, rec.mag, rec.rate_hz, algorithm, startup_s=STARTUP_S, **params
+        rec.gyr, rec.acc, rec.mag, rec.rate_hz, algorithm, startup_s=STARTUP_S, tuned=False, **params
     )
 
 

@@ -60,11 +60,11 @@ from gait_biofeedback.core.orientation.filters import (
     calibrate_from_rest,
     quiet_samples,
 )
-from gait_biofeedback.core.orientation.filters.config import load_tuned, segment_location
+from gait_biofeedback.core.orientation.filters.config import filter_params
 from gait_biofeedback.core.orientation.filters.guo_fkf import KF_SCHEMES
 from gait_biofeedback.core.orientation.reacquire import attitude_after_gap
 from gait_biofeedback.core.params import param, require
-from gait_biofeedback.core.rate import MISSING_SHARE_MIN, MISSING_WARN, RateCheck
+from gait_biofeedback.core.rate import MISSING_SHARE_MIN, MISSING_WARN, RateCheck, missing_samples
 from gait_biofeedback.core.segments import SEGMENTS, ImuSeries
 from gait_biofeedback.core.sequencer import DROPPED, StreamSequencer
 from gait_biofeedback.core.stamps import NS_PER_S, ns_to_seconds, seconds_to_ns
@@ -168,8 +168,8 @@ class SegmentOrientationTracker:
             raise ValueError(f"{segment}: orientation algorithm {self.algorithm!r} has no gain scheme; set "
                              "'scheme' to '' or choose madgwick, mahony, guo_fkf or roetenberg_ikf")
         # tuned for this body location (thesis §4.3), else for every sensor; then the scheme and overrides
-        self.params = {**load_tuned(location=segment_location(segment)).get(self.algorithm, {}),
-                       **({"scheme": scheme} if scheme else {}), **(params or {})}
+        self.params = filter_params(self.algorithm, segment, {**({"scheme": scheme} if scheme else {}),
+                                                              **(params or {})})
         self.rate_hz = float(rate_hz)
         self.startup_s = float(startup_s)
         self.max_gap = float(max_gap)
@@ -302,8 +302,8 @@ class SegmentOrientationTracker:
                 self._say("warn", f"{dt:.2f} s without data: attitude re-acquired from the next "
                                   f"{self.recover_s:g} s (those samples are marked as recovering)")
                 self._recover = []
-            elif self._startup is None and dt > 1.5 / self.rate_hz:  # the rate is known after start-up
-                missing = round(dt * self.rate_hz) - 1
+            elif self._startup is None and (missing := missing_samples(dt * self.rate_hz)):
+                # the rate is known after start-up
                 self.counts["missing"] += missing
                 if self._recover is None:
                     self._bridge(missing, dt, g, a)

@@ -2,8 +2,8 @@
 
 One source, two runtimes: :func:`step` uses only ``math`` and indexing of two flat float sequences
 (state ``s`` and parameters ``p``), so it runs as plain Python on lists (the fallback) and, unchanged,
-as a numba ``njit`` function on float64 arrays (:func:`compiled_step`, compiled lazily on first use
-with ``cache=True``; ``import gait_biofeedback.core.orientation.filters`` never imports numba).
+as a numba ``njit`` function on float64 arrays (compiled by :func:`gait_biofeedback.core.jit.compiled` on
+first use, with numba's disk cache; ``import gait_biofeedback.core.orientation.filters`` never imports numba).
 Both give the same numbers (test_filters.py checks it to 1e-12).
 
 The algorithm is documented in :mod:`~gait_biofeedback.core.orientation.filters.inertial_cf`; the indices
@@ -13,8 +13,6 @@ below are the state layout. Quaternions (w, x, y, z), Hamilton, sensor → world
 from __future__ import annotations
 
 import math
-import os
-from collections.abc import Callable
 from typing import Any
 
 # ---- state layout (s) ----------------------------------------------------------------------------
@@ -307,29 +305,3 @@ def step(s: Any, p: Any, gx: float, gy: float, gz: float, ax: float, ay: float, 
     s[OUT + 2] = oy * n
     s[OUT + 3] = oz * n
     return 0
-
-
-_COMPILED: dict[str, Callable[..., int] | None] = {}
-
-
-def compiled_step() -> Callable[..., int] | None:
-    """The numba-compiled :func:`step` (compiled on first call, cached on disk), or None.
-
-    None when numba is not installed, when ``GAIT_BIOFEEDBACK_NO_NUMBA`` is set, or when compiling
-    fails for any reason: callers then use the pure-Python :func:`step`.
-    """
-    if "step" not in _COMPILED:
-        fn = None
-        if not os.environ.get("GAIT_BIOFEEDBACK_NO_NUMBA"):
-            try:
-                import numba
-                import numpy as np
-
-                fn = numba.njit(cache=True, nogil=True)(step)
-                s = np.zeros(N_STATE)
-                s[0] = s[4] = s[OUT] = s[ACC_NORM] = 1.0
-                fn(s, np.ones(len(PARAM_NAMES)), 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, -1.0, True, 0.01)
-            except Exception:  # any failure → pure-Python fallback
-                fn = None
-        _COMPILED["step"] = fn
-    return _COMPILED["step"]

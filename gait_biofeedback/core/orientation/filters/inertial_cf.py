@@ -46,46 +46,56 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from gait_biofeedback.core.jit import compiled, plain
 from gait_biofeedback.core.orientation.filters import _inertial_kernel as ik
 from gait_biofeedback.core.orientation.filters.base import OrientationFilter
+
+
+def _warmup() -> tuple:
+    s = np.zeros(ik.N_STATE)
+    s[ik.QG] = s[ik.QA] = s[ik.OUT] = s[ik.ACC_NORM] = 1.0
+    return (s, np.ones(len(ik.PARAM_NAMES)), 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, -1.0, True, 0.01)
 
 
 class InertialCF(OrientationFilter):
     """Complementary filter: inertial-frame accelerometer low-pass, heading-only magnetometer."""
 
     name = "inertial_cf"
-    # hand-set starting point of benchmarks/tune_orientation.py (time constants as in Laidig & Seel 2023's
-    # order of magnitude, thresholds a priori); DEFAULTS below = the tuned values shipped in
+    # the untuned starting point (time constants as in Laidig & Seel 2023's order of magnitude, thresholds
+    # a priori); the tuned values the node and the batch functions use are in
     # config/orientation_filters.yaml (BROAD development trials, Nelder-Mead, see the YAML's record)
-    TUNING_START: ClassVar[dict[str, Any]] = {
-        "tau_acc": 3.0, "tau_mag": 9.0, "tau_rest": 2.0, "rest_gyr": 0.035, "rest_acc": 0.05,
-        "mag_norm_th": 0.1, "mag_dip_th": math.radians(10.0), "mag_new_time": 20.0, "mag_max_reject": 60.0,
-        "tau_mag_fast": 1.0, "fast_time": 3.0, "mag_accept_time": 1.0,
-    }
     DEFAULTS: ClassVar[dict[str, Any]] = {
-        "tau_acc": 2.762,
-        "tau_mag": 9.666,
+        "tau_acc": 3.0,
+        "tau_mag": 9.0,
         "tau_bias": 0.0,  # motion bias integral off: it made BROAD worse (see the report); > 0 enables
-        "tau_rest": 2.042,
-        "rest_gyr": 0.03397,
-        "rest_acc": 0.05578,
+        "tau_rest": 2.0,
+        "rest_gyr": 0.035,
+        "rest_acc": 0.05,
         "rest_time": 1.5,
         "bias_max": 0.035,
-        "mag_norm_th": 0.123,
-        "mag_dip_th": 0.1756,
-        "mag_new_time": 16.67,
-        "mag_max_reject": 63.52,
-        "tau_mag_fast": 1.177,
-        "fast_time": 3.525,
+        "mag_norm_th": 0.1,
+        "mag_dip_th": math.radians(10.0),
+        "mag_new_time": 20.0,
+        "mag_max_reject": 60.0,
+        "tau_mag_fast": 1.0,
+        "fast_time": 3.0,
         "tau_rest_lp": 0.5,
-        "mag_accept_time": 0.7304,
+        "mag_accept_time": 1.0,
         "acc_stages": 2,
         "use_numba": True,
     }
 
+    def __init__(self, rate_hz: float, *, rest_gyr: float | None = None, rest_acc: float | None = None,
+                 **params: Any) -> None:
+        # rest_gyr / rest_acc are keywords of the base class too: taken here, so that they reach the kernel
+        super().__init__(rate_hz, rest_gyr=self.DEFAULTS["rest_gyr"] if rest_gyr is None else rest_gyr,
+                         rest_acc=self.DEFAULTS["rest_acc"] if rest_acc is None else rest_acc, **params)
+
     # ------------------------------------------------------------------ configuration and state
     def _configure(self, params: dict[str, Any]) -> None:
         values = {k: float(params[k]) for k in ik.PARAM_NAMES}
+        params["rest_gyr"], params["rest_acc"] = self.rest_gyr, self.rest_acc
+        values["rest_gyr"], values["rest_acc"] = float(self.rest_gyr), float(self.rest_acc)
         if self.mag_reject_norm is not None:
             values["mag_norm_th"] = float(self.mag_reject_norm)
         if self.mag_reject_dip is not None:
@@ -93,7 +103,7 @@ class InertialCF(OrientationFilter):
         for k in ("tau_acc", "tau_mag", "tau_rest", "tau_mag_fast", "tau_rest_lp"):
             if not values[k] >= 0.0:
                 raise ValueError(f"{self.name}: {k} must be >= 0, got {values[k]}")
-        kernel = ik.compiled_step() if params["use_numba"] else None
+        kernel = compiled(ik, "step", _warmup()) if params["use_numba"] else None
         self.numba = kernel is not None
         if kernel is not None:
             self._kernel = kernel
@@ -101,7 +111,7 @@ class InertialCF(OrientationFilter):
             self._s = np.zeros(ik.N_STATE)
             self._out = self._out_array
         else:
-            self._kernel = ik.step
+            self._kernel = plain(ik, "step")
             self._p = [values[k] for k in ik.PARAM_NAMES]
             self._s = [0.0] * ik.N_STATE
             self._out = self._out_list
