@@ -6,13 +6,13 @@ import time
 
 import numpy as np
 import pytest
+from conftest import simulated_bag, stamp_ns, true_calibration_message
 
 from gait_biofeedback.core.gait.events import GaitEventDetector
 from gait_biofeedback.core.orientation.stream import track_orientation
 from gait_biofeedback.core.stamps import seconds_to_ns
 from gait_biofeedback.io.bag import read_imu_bag
-from gait_biofeedback.sim.recording import write_simulated_bag
-from gait_biofeedback.sim.simulator import SCENARIOS, simulate
+from gait_biofeedback.sim.simulator import SCENARIOS
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(90)]
 FEET = ("left_foot", "right_foot")
@@ -20,22 +20,8 @@ FEET = ("left_foot", "right_foot")
 
 @pytest.fixture(scope="module")
 def walk_bag(tmp_path_factory):
-    config = SCENARIOS["walk"](duration=8.0)
-    config.segments = FEET
-    session = simulate(config)
-    return write_simulated_bag(tmp_path_factory.mktemp("walk") / "in", session), session
-
-
-def _calibration_message(session):
-    from gait_biofeedback_msgs.msg import SegmentCalibration, SegmentCalibrationArray
-
-    msg = SegmentCalibrationArray(protocol="walking")
-    for segment in FEET:
-        w, x, y, z = session.truth.mounting[segment]
-        entry = SegmentCalibration(segment=segment, sensor_frame=f"{segment}_imu", valid=True, quality=1.0)
-        entry.rotation.w, entry.rotation.x, entry.rotation.y, entry.rotation.z = w, x, y, z
-        msg.segments.append(entry)
-    return msg
+    return simulated_bag(tmp_path_factory.mktemp("walk") / "in",
+                         SCENARIOS["walk"](duration=8.0, segments=FEET))
 
 
 def _offline_events(bag, session):
@@ -58,7 +44,6 @@ def test_node_on_replayed_walk_equals_offline_core(ros_context, walk_bag):
     from gait_biofeedback.nodes.gait_events import GaitEventsNode
     from gait_biofeedback.nodes.imu_replayer import ImuReplayer
     from gait_biofeedback.nodes.orientation_filter import OrientationFilterNode
-    from gait_biofeedback.wire.stamps import stamp_to_ns
     from gait_biofeedback.wire.topics import LATCHED_QOS
     from gait_biofeedback_msgs.msg import GaitCycle, GaitEvent, SegmentCalibrationArray
 
@@ -69,7 +54,7 @@ def test_node_on_replayed_walk_equals_offline_core(ros_context, walk_bag):
                                           LATCHED_QOS)
     source.create_subscription(GaitEvent, "gait/events", events.append, 300)
     source.create_subscription(GaitCycle, "gait/cycles", cycles.append, 300)
-    calibration.publish(_calibration_message(session))
+    calibration.publish(true_calibration_message(session, FEET))
     node = GaitEventsNode(ros_context)
     nodes = [source, node, OrientationFilterNode(ros_context, segments=list(FEET))]
     executor = make_executor(ros_context)
@@ -88,7 +73,7 @@ def test_node_on_replayed_walk_equals_offline_core(ros_context, walk_bag):
             n.destroy_node()
         executor.shutdown()
     names = {0: "left", 1: "right"}
-    live = sorted((names[e.side], "ic" if e.type == e.INITIAL_CONTACT else "tc", stamp_to_ns(e.header.stamp))
+    live = sorted((names[e.side], "ic" if e.type == e.INITIAL_CONTACT else "tc", stamp_ns(e.header.stamp))
                   for e in events)
     assert live == _offline_events(bag, session)
     assert len(live) >= 4 * len(session.truth.initial_contacts["left"]) - 4

@@ -16,7 +16,7 @@ import warnings
 
 import numpy as np
 import pytest
-from conftest import REPO, synthetic_imu
+from conftest import REPO, stamp_ns, stamp_s, synthetic_imu
 
 from gait_biofeedback.core.segments import SEGMENTS
 from gait_biofeedback.graph import replay_through_graph
@@ -54,14 +54,13 @@ def _arrival_offsets(tmp_path, ros_context, speed: float) -> tuple[np.ndarray, n
 
     from gait_biofeedback.nodes.common import make_executor, spin_until
     from gait_biofeedback.nodes.imu_replayer import ImuReplayer
-    from gait_biofeedback.wire.stamps import stamp_to_s
     from gait_biofeedback.wire.topics import SENSOR_QOS
 
     bag = write_imu_bag(tmp_path / "in", synthetic_imu(["left_foot"], duration=1.0, with_mag=False))
     arrivals: list[tuple[float, float]] = []
     sink = Node("sink", context=ros_context)
     sink.create_subscription(Imu, "left_foot/imu/data_raw",
-                             lambda m: arrivals.append((stamp_to_s(m.header.stamp), time.perf_counter())),
+                             lambda m: arrivals.append((stamp_s(m.header.stamp), time.perf_counter())),
                              SENSOR_QOS)
     executor = make_executor(ros_context)
     executor.add_node(sink)
@@ -161,7 +160,7 @@ def test_killed_recorder_leaves_a_readable_bag(tmp_path):
         warnings.simplefilter("error", BagRecoveryWarning)  # whole again: no recovery needed
         messages = list(BagReader(out).messages())
     assert len(messages) == recovered
-    stamps = np.array([m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec for _, m, _ in messages])
+    stamps = np.array([stamp_ns(m.header.stamp) for _, m, _ in messages])
     # the replayed samples in order, none missing between the first and the last recovered one
     np.testing.assert_array_equal(np.diff(stamps), 10_000_000)
 
@@ -198,23 +197,22 @@ def test_replayer_start_stop_offsets_loop_and_clock(tmp_path, ros_context):
     from rosgraph_msgs.msg import Clock
     from sensor_msgs.msg import Imu
 
-    from gait_biofeedback.wire.stamps import stamp_to_ns, stamp_to_s
 
     bag = write_imu_bag(tmp_path / "in", synthetic_imu(["pelvis"], duration=1.0, with_mag=False, t0=50.0))
     got = _collect(ros_context, bag, Imu, "pelvis/imu/data_raw", speed=0.0, start_offset=0.2,
                    stop_offset=0.5)
-    stamps = [stamp_to_s(m.header.stamp) for m in got]
+    stamps = [stamp_s(m.header.stamp) for m in got]
     assert len(stamps) == 30 and stamps[0] == pytest.approx(50.2) and stamps[-1] == pytest.approx(50.49)
 
     got = _collect(ros_context, bag, Imu, "pelvis/imu/data_raw", until=lambda g: len(g) >= 150,
                    speed=4.0, loop=True)
-    stamps = np.array([stamp_to_s(m.header.stamp) for m in got])
+    stamps = np.array([stamp_s(m.header.stamp) for m in got])
     assert np.sum(np.diff(stamps) < 0) == 1, "one jump back to the start per loop"
     assert stamps[100] == pytest.approx(50.0)
 
     clock = _collect(ros_context, bag, Clock, "/clock", speed=0.0, publish_clock=True, clock_period=0.02,
                      wait_for_subscribers=1.0)  # nobody subscribes the data topic: a shorter wait
-    ticks = np.array([stamp_to_ns(c.clock) for c in clock])
+    ticks = np.array([stamp_ns(c.clock) for c in clock])
     # the start time while it waits for subscribers, then every 20 ms of recording time (each 2nd sample)
     start = int(np.sum(ticks == 50_000_000_000))
     assert start >= 2 and np.all(np.diff(ticks) >= 0)
@@ -315,8 +313,7 @@ def test_a_replay_recording_has_one_time_base(tmp_path):
     replay_through_graph(bag, out, speed=1.0, nodes=["orientation_filter"], timeout=60)
     reader = BagReader(out)
     assert reader.start_time_ns / 1e9 >= 1000.0 and reader.end_time_ns / 1e9 <= 1003.0
-    stamps = [m.header.stamp.sec + m.header.stamp.nanosec / 1e9
-              for _, m, _ in reader.messages(["/diagnostics"])]
+    stamps = [stamp_s(m.header.stamp) for _, m, _ in reader.messages(["/diagnostics"])]
     assert len(stamps) >= 2 and all(1000.0 <= s <= 1003.0 for s in stamps), stamps
     assert "/clock" not in reader.topics(), "the replayer's clock is not recorded"
 

@@ -5,13 +5,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import simulated_bag, stamp_ns
 
 from gait_biofeedback.core import quaternion as quat
 from gait_biofeedback.core.orientation.stream import SegmentOrientationTracker, track_orientation
 from gait_biofeedback.graph import replay_through_graph
 from gait_biofeedback.io.bag import BagReader, read_imu_bag
-from gait_biofeedback.sim.recording import write_simulated_bag
-from gait_biofeedback.sim.simulator import SCENARIOS, simulate
+from gait_biofeedback.sim.simulator import SCENARIOS
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(90)]
 SEGMENTS = ["left_foot", "pelvis"]
@@ -19,16 +19,14 @@ SEGMENTS = ["left_foot", "pelvis"]
 
 @pytest.fixture(scope="module")
 def walk_bag(tmp_path_factory):
-    config = SCENARIOS["walk"](duration=4.0)
-    config.segments = tuple(SEGMENTS)
-    session = simulate(config)
-    return write_simulated_bag(tmp_path_factory.mktemp("walk") / "in", session), session
+    return simulated_bag(tmp_path_factory.mktemp("walk") / "in",
+                         SCENARIOS["walk"](duration=4.0, segments=tuple(SEGMENTS)))
 
 
 def _recorded_orientations(path, segment):
     stamps, quats = [], []
     for _, msg, _ in BagReader(path).messages([f"/{segment}/imu/data"]):
-        stamps.append(msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
+        stamps.append(stamp_ns(msg.header.stamp))
         o = msg.orientation
         quats.append((o.w, o.x, o.y, o.z))
     return np.array(stamps), np.array(quats)

@@ -18,7 +18,7 @@ import warnings
 
 import numpy as np
 import pytest
-from conftest import synthetic_imu
+from conftest import simulated_bag, synthetic_imu, true_calibration
 
 from gait_biofeedback.graph import replay_through_graph
 from gait_biofeedback.io import bag_writer
@@ -280,21 +280,14 @@ def test_run_stopped_by_sigterm_publishes_the_strides_it_held(tmp_path):
     """A live session ended by SIGTERM: the strides the gait_events node held for their spatial values
     (the last one of each foot, its next stance never came) go out and are recorded, as at the end of
     a replay; before, they were lost. The feet of a simulated walk, calibrated from a saved file."""
-    from gait_biofeedback.core.calibration.sensor_to_segment import (
-        SegmentCalibrationResult,
-        SessionCalibration,
-    )
     from gait_biofeedback.core.calibration.stream import write_calibration_file
-    from gait_biofeedback.sim.recording import write_simulated_bag
-    from gait_biofeedback.sim.simulator import Phase, SimulationConfig, simulate
+    from gait_biofeedback.sim.simulator import Phase, SimulationConfig
 
     feet = ("left_foot", "right_foot")
-    session = simulate(SimulationConfig(seed=4, segments=feet,
-                                        phases=[Phase("stand", 2.0), Phase("walk", 8.0)]))
-    bag = write_simulated_bag(tmp_path / "in", session)
-    results = {s: SegmentCalibrationResult(s, session.truth.mounting[s], True, 1.0, "x", 0.0) for s in feet}
-    write_calibration_file(tmp_path / "session" / "calibration.yaml",
-                           SessionCalibration("walking", results, True, ""), "2026-12-05T10:00:00")
+    bag, session = simulated_bag(tmp_path / "in", SimulationConfig(
+        seed=4, segments=feet, phases=[Phase("stand", 2.0), Phase("walk", 8.0)]))
+    write_calibration_file(tmp_path / "session" / "calibration.yaml", true_calibration(session),
+                           "2026-12-05T10:00:00")
     params = tmp_path / "params.yaml"
     params.write_text(f"orientation_filter:\n  ros__parameters:\n    segments: [{', '.join(feet)}]\n"
                       f"calibration:\n  ros__parameters:\n    segments: [{', '.join(feet)}]\n"
