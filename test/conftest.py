@@ -1,6 +1,7 @@
-"""Shared fixtures and helpers: data locations, a fresh ROS context per test, small synthetic recordings,
-the command line in-process, message stamps, calibrations from the simulator's truth. Test files import
-the helpers by name (``from conftest import run_cli``); each is defined here once."""
+"""Shared fixtures and helpers: data locations, a fresh ROS context per test, nodes spinning in an
+executor, small synthetic recordings, the command line in-process, message stamps, calibrations from
+the simulator's truth. Test files import the helpers by name (``from conftest import run_cli``); each
+is defined here once."""
 
 from __future__ import annotations
 
@@ -127,6 +128,25 @@ def find_chromium() -> str | None:
         if path := shutil.which(name):
             return path
     return None
+
+
+@contextlib.contextmanager
+def spinning(context, *nodes):
+    """The project's executor (``make_executor``) on ``context`` with ``nodes`` added. Leaving the block,
+    whatever happened in it, destroys those nodes in the order given, then any node the block added to
+    the executor itself (a late subscriber, a replayer started later), and shuts the executor down."""
+    from gait_biofeedback.nodes.common import make_executor
+
+    executor = make_executor(context)
+    try:
+        for node in nodes:
+            executor.add_node(node)
+        yield executor
+    finally:
+        added = [n for n in executor.get_nodes() if not any(n is given for given in nodes)]
+        for node in (*nodes, *added):
+            node.destroy_node()
+        executor.shutdown()
 
 
 # ---------------------------------------------------------------- the command line, in this process

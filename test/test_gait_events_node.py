@@ -6,7 +6,7 @@ import time
 
 import numpy as np
 import pytest
-from conftest import simulated_bag, stamp_ns, true_calibration_message
+from conftest import simulated_bag, spinning, stamp_ns, true_calibration_message
 
 from gait_biofeedback.core.gait.events import GaitEventDetector
 from gait_biofeedback.core.orientation.stream import track_orientation
@@ -40,7 +40,7 @@ def _offline_events(bag, session):
 def test_node_on_replayed_walk_equals_offline_core(ros_context, walk_bag):
     from rclpy.node import Node
 
-    from gait_biofeedback.nodes.common import make_executor, spin_until
+    from gait_biofeedback.nodes.common import spin_until
     from gait_biofeedback.nodes.gait_events import GaitEventsNode
     from gait_biofeedback.nodes.imu_replayer import ImuReplayer
     from gait_biofeedback.nodes.orientation_filter import OrientationFilterNode
@@ -56,22 +56,14 @@ def test_node_on_replayed_walk_equals_offline_core(ros_context, walk_bag):
     source.create_subscription(GaitCycle, "gait/cycles", cycles.append, 300)
     calibration.publish(true_calibration_message(session, FEET))
     node = GaitEventsNode(ros_context)
-    nodes = [source, node, OrientationFilterNode(ros_context, segments=list(FEET))]
-    executor = make_executor(ros_context)
-    for n in nodes:
-        executor.add_node(n)
-    try:
+    filters = OrientationFilterNode(ros_context, segments=list(FEET))
+    with spinning(ros_context, filters, node, source) as executor:
         assert spin_until(executor, lambda: all(node.calibrated.values()), timeout=5)
         replayer = ImuReplayer(ros_context, bag=str(bag), speed=4.0, wait_for_subscribers=5.0)
-        nodes.append(replayer)
         executor.add_node(replayer)
         assert spin_until(executor, replayer.finished.is_set, timeout=60)
         settle = time.monotonic() + 0.5
         spin_until(executor, lambda: time.monotonic() > settle)
-    finally:
-        for n in reversed(nodes):
-            n.destroy_node()
-        executor.shutdown()
     names = {0: "left", 1: "right"}
     live = sorted((names[e.side], "ic" if e.type == e.INITIAL_CONTACT else "tc", stamp_ns(e.header.stamp))
                   for e in events)
@@ -93,7 +85,7 @@ def test_stopped_foot_stream_resets_state_and_says_so(ros_context):
     from rclpy.node import Node
     from sensor_msgs.msg import Imu
 
-    from gait_biofeedback.nodes.common import make_executor, spin_until
+    from gait_biofeedback.nodes.common import spin_until
     from gait_biofeedback.nodes.gait_events import GaitEventsNode
     from gait_biofeedback.wire.stamps import s_to_stamp
     from gait_biofeedback.wire.topics import RELIABLE_QOS
@@ -103,10 +95,7 @@ def test_stopped_foot_stream_resets_state_and_says_so(ros_context):
     pub = source.create_publisher(Imu, "left_foot/imu/data", RELIABLE_QOS)
     diagnostics = []
     source.create_subscription(DiagnosticArray, "/diagnostics", diagnostics.append, 50)
-    executor = make_executor(ros_context)
-    executor.add_node(node)
-    executor.add_node(source)
-    try:
+    with spinning(ros_context, node, source) as executor:
         assert spin_until(executor, lambda: pub.get_subscription_count() > 0, timeout=5)
         for k in range(30):
             msg = Imu()
@@ -121,10 +110,6 @@ def test_stopped_foot_stream_resets_state_and_says_so(ros_context):
             return [s for d in diagnostics for s in d.status if s.hardware_id == "left_foot"]
 
         assert spin_until(executor, lambda: any(s.level == b"\x02" for s in left_statuses()), timeout=3)
-    finally:
-        node.destroy_node()
-        source.destroy_node()
-        executor.shutdown()
     left = left_statuses()[-1]
     assert left.level == b"\x02" and "state reset" in left.message
     assert {kv.key: kv.value for kv in left.values}["stream_stops"] == "1"

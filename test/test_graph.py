@@ -16,7 +16,7 @@ import warnings
 
 import numpy as np
 import pytest
-from conftest import REPO, stamp_ns, stamp_s, synthetic_imu
+from conftest import REPO, spinning, stamp_ns, stamp_s, synthetic_imu
 
 from gait_biofeedback.core.segments import SEGMENTS
 from gait_biofeedback.graph import replay_through_graph
@@ -170,26 +170,19 @@ def _collect(ros_context, bag, topic_type, topic, until=None, **params):
     """Run a replayer with ``params`` until it ends (or ``until(received)``); the received messages."""
     from rclpy.node import Node
 
-    from gait_biofeedback.nodes.common import make_executor, spin_until
+    from gait_biofeedback.nodes.common import spin_until
     from gait_biofeedback.nodes.imu_replayer import ImuReplayer
     from gait_biofeedback.wire.topics import SENSOR_QOS
 
     got = []
     sink = Node("sink", context=ros_context)
     sink.create_subscription(topic_type, topic, got.append, SENSOR_QOS)
-    executor = make_executor(ros_context)
-    executor.add_node(sink)
     replayer = ImuReplayer(ros_context, bag=str(bag), **{"wait_for_subscribers": 5.0, **params})
-    executor.add_node(replayer)
-    try:
+    with spinning(ros_context, replayer, sink) as executor:
         done = replayer.finished.is_set if until is None else (lambda: until(got))
         assert spin_until(executor, done, timeout=20)
         if until is None:
             spin_until(executor, lambda: False, timeout=0.3)
-    finally:
-        replayer.destroy_node()
-        sink.destroy_node()
-        executor.shutdown()
     return got
 
 
@@ -236,7 +229,7 @@ def test_recorder_start_and_stop_services_make_one_bag_each(tmp_path, ros_contex
     from std_msgs.msg import String
     from std_srvs.srv import Trigger
 
-    from gait_biofeedback.nodes.common import make_executor, spin_until
+    from gait_biofeedback.nodes.common import spin_until
     from gait_biofeedback.nodes.recorder import Recorder
     from gait_biofeedback.wire.topics import RELIABLE_QOS
 
@@ -246,16 +239,13 @@ def test_recorder_start_and_stop_services_make_one_bag_each(tmp_path, ros_contex
     pub = client_node.create_publisher(String, "/note", RELIABLE_QOS)
     start = client_node.create_client(Trigger, "recorder/start")
     stop = client_node.create_client(Trigger, "recorder/stop")
-    executor = make_executor(ros_context)
-    executor.add_node(recorder)
-    executor.add_node(client_node)
 
     def call(client):
         future = client.call_async(Trigger.Request())
         assert spin_until(executor, future.done, timeout=10)
         return future.result()
 
-    try:
+    with spinning(ros_context, recorder, client_node) as executor:
         assert spin_until(executor, lambda: pub.get_subscription_count() > 0, timeout=5)
         pub.publish(String(data="before start: not recorded"))
         spin_until(executor, lambda: recorder.received >= 1, timeout=5)
@@ -268,10 +258,6 @@ def test_recorder_start_and_stop_services_make_one_bag_each(tmp_path, ros_contex
             reply = call(stop)
             assert reply.success and "saved" in reply.message
         assert not call(stop).success, "stopping twice says it is not recording"
-    finally:
-        recorder.destroy_node()
-        client_node.destroy_node()
-        executor.shutdown()
     assert recorder.dropped_while_stopped == 1
     first = [m.data for _, m, _ in BagReader(tmp_path / "session").messages()]
     second = [m.data for _, m, _ in BagReader(tmp_path / "session_1").messages()]

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import stamp_s, true_calibration
+from conftest import spinning, stamp_s, true_calibration
 
 from gait_biofeedback.core.joints.angles import compute_joint_angles
 from gait_biofeedback.sim.simulator import SCENARIOS, simulate
@@ -21,7 +21,7 @@ def test_joint_angles_node(ros_context):
     from sensor_msgs.msg import Imu, JointState
     from visualization_msgs.msg import MarkerArray
 
-    from gait_biofeedback.nodes.common import make_executor, spin_until
+    from gait_biofeedback.nodes.common import spin_until
     from gait_biofeedback.nodes.joint_angles import JointAnglesNode
     from gait_biofeedback.wire.calibration import segment_messages
     from gait_biofeedback.wire.stamps import s_to_stamp
@@ -41,9 +41,6 @@ def test_joint_angles_node(ros_context):
     source.create_subscription(DiagnosticArray, "/diagnostics",
                                lambda m: diags.extend(s for s in m.status if s.name == "joint_angles"), 50)
     source.create_subscription(MarkerArray, "skeleton", skeletons.append, 100)
-    executor = make_executor(ros_context)
-    executor.add_node(node)
-    executor.add_node(source)
 
     def send(k, segments):
         for s in segments:
@@ -53,7 +50,7 @@ def test_joint_angles_node(ros_context):
             m.orientation.w, m.orientation.x, m.orientation.y, m.orientation.z = (float(v) for v in q)
             pubs[s].publish(m)
 
-    try:
+    with spinning(ros_context, node, source) as executor:
         assert spin_until(executor, lambda: all(p.get_subscription_count() for p in pubs.values()), timeout=5)
         send(0, SEGMENTS)
         assert spin_until(executor, lambda: any("not calibrated" in d.message for d in diags), timeout=5)
@@ -70,10 +67,6 @@ def test_joint_angles_node(ros_context):
         # the missing sample is said once (since the last report), not on every status after it
         assert spin_until(executor, lambda: len(diags) > said + 1, timeout=3)
         assert "missing" not in diags[-1].message and diags[-1].level == b"\x00", diags[-1].message
-    finally:
-        node.destroy_node()
-        source.destroy_node()
-        executor.shutdown()
     batch = compute_joint_angles({s: truth.sensor_orientation[s] for s in SEGMENTS}, cal)
     for msg in joints:
         k = round(stamp_s(msg.header.stamp) * 100)
