@@ -149,6 +149,27 @@ def spinning(context, *nodes):
         executor.shutdown()
 
 
+
+def through_line_noise(frames: list[bytes], damaged: set[int], rng, max_noise: int, cuts: int,
+                       before: bytes = b""):
+    """The driver's serial FrameReader fed ``frames`` as a receiver's line delivers them: before each,
+    0 to ``max_noise`` - 1 random bytes and ``before``; those indexed in ``damaged`` with byte 30
+    flipped; the stream read in pieces cut at ``cuts`` random places. (the frames found, the reader)."""
+    from gait_biofeedback.core.driver.protocol import FrameReader
+
+    stream = b""
+    for i, f in enumerate(frames):
+        if i in damaged:
+            f = f[:30] + bytes([f[30] ^ 0xFF]) + f[31:]
+        stream += rng.bytes(int(rng.integers(0, max_noise))) + before + f
+    reader = FrameReader()
+    got = []
+    ends = np.sort(rng.integers(0, len(stream), cuts))
+    for a, b in zip([0, *ends], [*ends, len(stream)], strict=True):
+        got += reader.feed(stream[a:b])
+    return got, reader
+
+
 # ---------------------------------------------------------------- the command line, in this process
 
 
