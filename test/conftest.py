@@ -1,7 +1,13 @@
-"""Shared fixtures: data locations, a fresh ROS context per test, small synthetic recordings."""
+"""Shared fixtures and helpers: data locations, a fresh ROS context per test, nodes spinning in an
+executor, small synthetic recordings, the command line in-process, message stamps, calibrations from
+the simulator's truth. Test files import the helpers by name (``from conftest import run_cli``); each
+is defined here once."""
 
 from __future__ import annotations
 
+import contextlib
+import csv
+import io
 import os
 import shutil
 from pathlib import Path
@@ -122,3 +128,117 @@ def find_chromium() -> str | None:
         if path := shutil.which(name):
             return path
     return None
+
+
+@contextlib.contextmanager
+def spinning(context, *nodes):
+    """The project's executor (``make_executor``) on ``context`` with ``nodes`` added. Leaving the block,
+    whatever happened in it, destroys those nodes in the order given, then any node the block added to
+    the executor itself (a late subscriber, a replayer started later), and shuts the executor down."""
+    from gait_biofeedback.nodes.common import make_executor
+
+    executor = make_executor(context)
+    try:
+        for node in nodes:
+            executor.add_node(node)
+        yield executor
+    finally:
+        added = [n for n in executor.get_nodes() if not any(n is given for given in nodes)]
+        for node in (*nodes, *added):
+            node.destroy_node()
+        executor.shutdown()
+
+
+
+def through_line_noise(frames: list[bytes], damaged: set[int], rng, max_noise: int, cuts: int,
+                       before: bytes = b""):
+    """The driver's serial FrameReader fed ``frames`` as a receiver's line delivers them: before each,
+    0 to ``max_noise`` - 1 random bytes and ``before``; those indexed in ``damaged`` with byte 30
+    flipped; the stream read in pieces cut at ``cuts`` random places. (the frames found, the reader)."""
+    from gait_biofeedback.core.driver.protocol import FrameReader
+
+    stream = b""
+    for i, f in enumerate(frames):
+        if i in damaged:
+            f = f[:30] + bytes([f[30] ^ 0xFF]) + f[31:]
+        stream += rng.bytes(int(rng.integers(0, max_noise))) + before + f
+    reader = FrameReader()
+    got = []
+    ends = np.sort(rng.integers(0, len(stream), cuts))
+    for a, b in zip([0, *ends], [*ends, len(stream)], strict=True):
+        got += reader.feed(stream[a:b])
+    return got, reader
+
+
+# ---------------------------------------------------------------- the command line, in this process
+
+
+def run_cli(*argv: str) -> tuple[int, str, str]:
+    """``gait-biofeedback ARGV`` run in this process: (exit code, stdout, stderr). For module-scoped
+    fixtures, where pytest's ``capsys`` is not available."""
+    from gait_biofeedback.cli import main
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        rc = main(list(argv))
+    return rc, out.getvalue(), err.getvalue()
+
+
+def csv_rows(path: Path) -> list[dict[str, str]]:
+    """The rows of a CSV file with a header line, as the strings written."""
+    with Path(path).open() as f:
+        return list(csv.DictReader(f))
+
+
+# ---------------------------------------------------------------- message stamps
+
+
+def stamp_ns(stamp) -> int:
+    """A builtin_interfaces/Time (``msg.header.stamp``) in integer nanoseconds. Computed here, not by
+    the package's own conversion, so that a test does not check that code against itself."""
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+
+def stamp_s(stamp) -> float:
+    """A builtin_interfaces/Time in seconds (the float nearest to its exact value)."""
+    return stamp_ns(stamp) / 1e9
+
+
+# ---------------------------------------------------------------- simulated sessions
+
+
+def simulated_bag(folder: Path, config) -> tuple[Path, object]:
+    """Simulate ``config`` and write it as a recording in ``folder``: (the bag, the simulated session)."""
+    from gait_biofeedback.sim.recording import write_simulated_bag
+    from gait_biofeedback.sim.simulator import simulate
+
+    session = simulate(config)
+    return write_simulated_bag(folder, session), session
+
+
+def true_calibration(session, segments=None):
+    """The SessionCalibration ("walking") that puts every sensor of ``segments`` (default: all the
+    session simulated) exactly where the simulator mounted it: quality 1, valid."""
+    from gait_biofeedback.core.calibration.sensor_to_segment import (
+        SegmentCalibrationResult,
+        SessionCalibration,
+    )
+
+    mounting = session.truth.mounting
+    results = {s: SegmentCalibrationResult(s, mounting[s], True, 1.0, "x", 0.0) for s in segments or mounting}
+    return SessionCalibration("walking", results, True, "")
+
+
+def true_calibration_message(session, segments=None):
+    """The SegmentCalibrationArray of :func:`true_calibration`, built field by field here (as a node
+    would receive it on ``calibration/sensor_to_segment``)."""
+    from gait_biofeedback_msgs.msg import SegmentCalibration, SegmentCalibrationArray
+
+    mounting = session.truth.mounting
+    msg = SegmentCalibrationArray(protocol="walking")
+    for segment in segments or mounting:
+        w, x, y, z = mounting[segment]
+        entry = SegmentCalibration(segment=segment, sensor_frame=f"{segment}_imu", valid=True, quality=1.0)
+        entry.rotation.w, entry.rotation.x, entry.rotation.y, entry.rotation.z = w, x, y, z
+        msg.segments.append(entry)
+    return msg

@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 import pytest
+from conftest import simulated_bag, stamp_ns
 
 from gait_biofeedback.core.activity.monitor import classify_activity
 from gait_biofeedback.graph import replay_through_graph
 from gait_biofeedback.io.bag import BagReader
-from gait_biofeedback.sim.recording import write_simulated_bag
-from gait_biofeedback.sim.simulator import SCENARIOS, simulate
+from gait_biofeedback.sim.simulator import SCENARIOS
 from gait_biofeedback.wire.activity import POSTURE_CODES, TRANSITION_CODES
-from gait_biofeedback.wire.stamps import stamp_to_ns
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(120)]
 
@@ -18,15 +17,14 @@ pytestmark = [pytest.mark.ros, pytest.mark.timeout(120)]
 def test_node_reports_the_simulated_transitions(tmp_path):
     config = SCENARIOS["activity"]()
     config.segments = ("chest",)
-    session = simulate(config)
-    bag = write_simulated_bag(tmp_path / "in", session)
+    bag, session = simulated_bag(tmp_path / "in", config)
     out = tmp_path / "out"
     replay_through_graph(bag, out, speed=4.0, nodes=["activity_monitor"], timeout=90)
     states = [m for _, m, _ in BagReader(out).messages(["/activity/state"])]
     assert states, "the node published its state"
     seen = []
     for m in states:
-        ns = stamp_to_ns(m.last_transition_stamp)
+        ns = stamp_ns(m.last_transition_stamp)
         if m.last_transition and (not seen or seen[-1][1] != ns):
             seen.append((m.last_transition, ns))
     kinds = [code for code, _ in seen]

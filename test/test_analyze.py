@@ -9,11 +9,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import simulated_bag, stamp_ns, true_calibration
 
 from gait_biofeedback.core.segments import SEGMENTS
 from gait_biofeedback.io.bag import BagReader
-from gait_biofeedback.sim.recording import write_simulated_bag
-from gait_biofeedback.sim.simulator import Phase, SimulationConfig, simulate
+from gait_biofeedback.sim.simulator import Phase, SimulationConfig
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(180)]
 SESSION_PARAMS = Path(__file__).resolve().parents[1] / "config" / "session.yaml"
@@ -48,13 +48,9 @@ def session_bag(tmp_path_factory):
     config = SimulationConfig(seed=2, phases=[
         Phase("stand", 5.0), Phase("hip_flexion", 24.0, {"side": "both"}), Phase("stand", 5.0),
         Phase("walk", 15.0), Phase("stand", 3.0)])
-    session = simulate(config)
+    bag, session = simulated_bag(tmp_path_factory.mktemp("session") / "in", config)
     assert len(session.imu) == 8
-    return write_simulated_bag(tmp_path_factory.mktemp("session") / "in", session), session
-
-
-def _ns(stamp) -> int:
-    return stamp.sec * 1_000_000_000 + stamp.nanosec
+    return bag, session
 
 
 def _outputs(path):
@@ -66,10 +62,10 @@ def _outputs(path):
               "/calibration/sensor_to_segment"]
     for topic, msg, _ in BagReader(path).messages(topics):
         if topic == "/joint_states":
-            assert _ns(msg.header.stamp) not in joints, "one joint_states message per stamp"
-            joints[_ns(msg.header.stamp)] = dict(zip(msg.name, msg.position, strict=True))
+            assert stamp_ns(msg.header.stamp) not in joints, "one joint_states message per stamp"
+            joints[stamp_ns(msg.header.stamp)] = dict(zip(msg.name, msg.position, strict=True))
         elif topic == "/gait/events":
-            events.append((msg.side, msg.type, _ns(msg.header.stamp), msg.event_index,
+            events.append((msg.side, msg.type, stamp_ns(msg.header.stamp), msg.event_index,
                            msg.detection_latency, msg.signal_value))
         elif topic == "/gait/cycles":
             cycles[(msg.side, msg.stride_index)] = msg
@@ -139,7 +135,8 @@ def test_analyze_gives_the_numbers_of_the_live_graph(session_bag, tmp_path):
 
     # the same calibration message (same window: stamps, not arrival, decide it)
     assert len(live_cal) == len(off_cal) == 1
-    assert _ns(live_cal[0].header.stamp) == _ns(off_cal[0].header.stamp) == start_ns + 32_000_000_000
+    live_ns, offline_ns = stamp_ns(live_cal[0].header.stamp), stamp_ns(off_cal[0].header.stamp)
+    assert live_ns == offline_ns == start_ns + 32_000_000_000
     for a, b in zip(live_cal[0].segments, off_cal[0].segments, strict=True):
         assert (a.segment, a.valid, a.message) == (b.segment, b.valid, b.message)
         assert [a.rotation.w, a.rotation.x, a.rotation.y, a.rotation.z] == pytest.approx(
@@ -171,12 +168,12 @@ def test_analyze_gives_the_numbers_of_the_live_graph(session_bag, tmp_path):
     # the simulator walks 1.2 m/s at 108 steps/min: 1.33 m strides; the stop's last ones are shorter.
     # After the foot's first five strides (two rests of the swing learnt, three estimates checked)
     # they go out with provisional lengths, each revised later.
-    by_time = [c for _, c in sorted(published.items(), key=lambda kv: _ns(kv[1].header.stamp))]
+    by_time = [c for _, c in sorted(published.items(), key=lambda kv: stamp_ns(kv[1].header.stamp))]
     provisional = [c for c in by_time if c.spatial_provisional]
     assert len(provisional) >= len(by_time) - 10
     assert set(revised) == {(c.side, c.stride_index) for c in provisional}
     # a provisional stride goes out within 50 ms of its closing IC's raw sample (log time = its arrival)
-    lags = [log_ns - _ns(m.header.stamp) for _, m, log_ns in BagReader(tmp_path / "offline").messages(
+    lags = [log_ns - stamp_ns(m.header.stamp) for _, m, log_ns in BagReader(tmp_path / "offline").messages(
         ["/gait/cycles"]) if m.spatial_provisional]
     assert len(lags) == len(provisional) and max(lags) <= 50_000_000, sorted(set(lags))
     smoothed = [revised.get((c.side, c.stride_index), c) for c in by_time]
@@ -199,9 +196,9 @@ def test_analyze_gives_the_numbers_of_the_live_graph(session_bag, tmp_path):
         off = off_cycles[key]
         def identity(c, key=key):
             if len(key) == 3:
-                return (c.spatial_flag, _ns(c.header.stamp))
-            return (c.plausible, c.flag, c.spatial_flag, c.spatial_provisional, _ns(c.header.stamp),
-                    _ns(c.start), _ns(c.terminal_contact))
+                return (c.spatial_flag, stamp_ns(c.header.stamp))
+            return (c.plausible, c.flag, c.spatial_flag, c.spatial_provisional, stamp_ns(c.header.stamp),
+                    stamp_ns(c.start), stamp_ns(c.terminal_contact))
 
         names = spatial if len(key) == 3 else fields
         assert identity(live) == identity(off)
@@ -260,8 +257,9 @@ def test_a_recording_without_the_activity_sensor_says_so(tmp_path):
     from gait_biofeedback.analyze import analyze_recording
     from gait_biofeedback.sim.simulator import SCENARIOS
 
-    session = simulate(SCENARIOS["walk"](duration=4.0, seed=1, segments=("pelvis", "left_foot")))
-    result = analyze_recording(write_simulated_bag(tmp_path / "walk", session), None)
+    config = SCENARIOS["walk"](duration=4.0, seed=1, segments=("pelvis", "left_foot"))
+    bag, _ = simulated_bag(tmp_path / "walk", config)
+    result = analyze_recording(bag, None)
     said = [w for w in result.warnings if w.startswith("no chest sensor in the recording")]
     assert said and "set activity_monitor segment: pelvis and placement: pelvis" in said[0]
     assert "/activity/state" not in result.counts
@@ -274,8 +272,8 @@ def test_a_trunk_recording_at_50_hz_needs_no_calibration_and_states_its_rate(tmp
     from gait_biofeedback.cli import main
 
     phases = [Phase("stand", 4.0), Phase("walk", 10.0), Phase("stand", 3.0)]
-    session = simulate(SimulationConfig(seed=3, rate_hz=50.0, segments=("chest",), phases=phases))
-    bag = write_simulated_bag(tmp_path / "chest", session)
+    bag, _ = simulated_bag(tmp_path / "chest", SimulationConfig(seed=3, rate_hz=50.0, segments=("chest",),
+                                                                phases=phases))
     assert main(["analyze", str(bag), "-o", str(tmp_path / "out"), "--calibrate-at", "auto"]) == 0
     captured = capsys.readouterr()
     assert "--calibrate-at auto: no thigh, shank or foot sensor in the recording (chest): nothing to " \
@@ -305,19 +303,12 @@ def test_a_sensor_named_after_no_segment_is_said_not_silently_skipped(tmp_path, 
 
 def test_cli_analyze_with_a_calibration_file(tmp_path, capsys):
     from gait_biofeedback.cli import main
-    from gait_biofeedback.core.calibration.sensor_to_segment import (
-        SegmentCalibrationResult,
-        SessionCalibration,
-    )
     from gait_biofeedback.core.calibration.stream import write_calibration_file
     from gait_biofeedback.sim.simulator import SCENARIOS
 
     config = SCENARIOS["walk"](duration=16.0, seed=5)  # the joints' heading needs 10 s of motion
-    session = simulate(config)
-    bag = write_simulated_bag(tmp_path / "walk", session)
-    cal = SessionCalibration("walking", {s: SegmentCalibrationResult(s, r, True, 1.0, "x", 0.0)
-                                         for s, r in session.truth.mounting.items()}, True, "")
-    write_calibration_file(tmp_path / "calibration.yaml", cal, "2026-12-01T10:00:00")
+    bag, session = simulated_bag(tmp_path / "walk", config)
+    write_calibration_file(tmp_path / "calibration.yaml", true_calibration(session), "2026-12-01T10:00:00")
     assert main(["analyze", str(bag), "-o", str(tmp_path / "out"), "--calibration",
                  str(tmp_path / "calibration.yaml"), "--params", str(SESSION_PARAMS)]) == 0
     captured = capsys.readouterr()

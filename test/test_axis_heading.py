@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import SHARED_DATA
+from conftest import shared_data
 
 from gait_biofeedback.batch import SCENARIOS, simulate
 from gait_biofeedback.batch import quaternion as quat
@@ -133,9 +133,7 @@ def test_qmt_hip_heading_holds_on_a_real_walk():
     45.4–48.4 s, walk 48.4–68.9 s), the hips' axis heading stays within ±15° of its median from 56 s
     to the end (measured: left ±11.7°, right ±4.2°, the 6D filters' drift); the joint-centre one moved
     by 80° there."""
-    path = SHARED_DATA / "qmt_fullbody" / "full_body_example_data.mat"
-    if not path.exists():
-        pytest.skip(f"{path} not found (real data stays outside the repository)")
+    path = shared_data("qmt_fullbody", "full_body_example_data.mat")
     from gait_biofeedback.batch import calibrate_session, import_qmt_fullbody, track_orientation
 
     rec = import_qmt_fullbody(path)

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import rosbags_typestore
+from conftest import rosbags_typestore, stamp_ns
 from mcap.reader import make_reader
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import Imu, MagneticField
@@ -30,8 +30,10 @@ from gait_biofeedback.wire.imu import encode_series, series_messages
 from gait_biofeedback_msgs.msg import GaitEvent, SegmentCalibration, SegmentCalibrationArray
 
 
-def synthetic_imu(with_mag: bool, n: int = 150, seed: int = 1) -> dict[str, ImuSeries]:
-    """8 segments of random samples; times on the 1 ns grid, one segment at epoch scale."""
+def ns_grid_imu(with_mag: bool, n: int = 150, seed: int = 1) -> dict[str, ImuSeries]:
+    """8 segments of random samples; times on the 1 ns grid (jittered steps), one segment at epoch scale.
+    Not conftest's ``synthetic_imu``: its ``t0 + k / rate`` times do not all come back bit for bit from
+    integer ns at epoch scale (t0 = 1.7e9: 3 of 150), and the round trips here are checked to the bit."""
     rng = np.random.default_rng(seed)
     out = {}
     for k, segment in enumerate(SEGMENTS):
@@ -42,10 +44,6 @@ def synthetic_imu(with_mag: bool, n: int = 150, seed: int = 1) -> dict[str, ImuS
         mag = rng.normal(size=(n, 3)) * 5e-5 if with_mag else None
         out[segment] = ImuSeries(segment, t, rng.normal(size=(n, 3)) * 9.81, rng.normal(size=(n, 3)), mag)
     return out
-
-
-def stamp_ns(msg) -> int:
-    return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
 
 
 def gait_event(i: int) -> GaitEvent:
@@ -72,7 +70,7 @@ def string_msg(i: int) -> String:
 
 @pytest.mark.parametrize("with_mag", [True, False])
 def test_imu_series_round_trip_is_exact(tmp_path: Path, with_mag: bool) -> None:
-    imu = synthetic_imu(with_mag)
+    imu = ns_grid_imu(with_mag)
     bag = write_imu_bag(tmp_path / "imu", imu)
     back = read_imu_bag(bag)
     assert set(back) == set(SEGMENTS)
@@ -92,7 +90,7 @@ def test_imu_series_round_trip_is_exact(tmp_path: Path, with_mag: bool) -> None:
 
 
 def test_fast_cdr_matches_rclpy_messages() -> None:
-    series = synthetic_imu(with_mag=True, n=5)["left_foot"]
+    series = ns_grid_imu(with_mag=True, n=5)["left_foot"]
     _, imu_payloads, mag_payloads = encode_series(series)
     messages = list(series_messages(series))
     imu_msgs = [m for topic, m, _ in messages if topic == "/left_foot/imu/data_raw"]
@@ -100,10 +98,10 @@ def test_fast_cdr_matches_rclpy_messages() -> None:
     assert [deserialize_message(p, Imu) for p in imu_payloads] == imu_msgs
     assert [deserialize_message(p, MagneticField) for p in mag_payloads] == mag_msgs
     assert imu_msgs[0].orientation_covariance[0] == -1.0
-    assert all(t == stamp_ns(m) for _, m, t in messages)
+    assert all(t == stamp_ns(m.header.stamp) for _, m, t in messages)
     ns, doubles, frame_id = decode_stamped([serialize_message(m) for m in imu_msgs], Imu, IMU_DOUBLES)
     assert frame_id == "left_foot_imu"
-    assert ns.tolist() == [stamp_ns(m) for m in imu_msgs]
+    assert ns.tolist() == [stamp_ns(m.header.stamp) for m in imu_msgs]
     np.testing.assert_array_equal(doubles[:, 25:28], series.acc)
 
 
@@ -147,7 +145,7 @@ def test_custom_messages_round_trip_in_log_time_order(tmp_path: Path) -> None:
 def test_rosbags_reads_imu_and_custom_messages(tmp_path: Path) -> None:
     from rosbags.highlevel import AnyReader
 
-    imu = {s: v for s, v in synthetic_imu(with_mag=True, n=20).items() if s in ("pelvis", "chest")}
+    imu = {s: v for s, v in ns_grid_imu(with_mag=True, n=20).items() if s in ("pelvis", "chest")}
     bag = write_imu_bag(tmp_path / "interop", imu, extra=[("/gait/events", gait_event(7), 3_100_000_000)])
     typestore = rosbags_typestore()
     with AnyReader([bag], default_typestore=typestore) as reader:

@@ -5,29 +5,19 @@ what failed; `simulate --duration` makes longer training sessions."""
 
 from __future__ import annotations
 
-import contextlib
-import csv
-import io
 import json
 import math
 import shutil
 from pathlib import Path
 
 import pytest
+from conftest import csv_rows, run_cli
 
-from gait_biofeedback.cli import main
 from gait_biofeedback.cohort.sessions import find_recordings
 from gait_biofeedback.sim.recording import write_simulated_bag
 from gait_biofeedback.sim.simulator import Phase, SimulationConfig, simulate, training
 
 pytestmark = pytest.mark.timeout(300)
-
-
-def _cli(*argv: str) -> tuple[int, str, str]:
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        rc = main(list(argv))
-    return rc, out.getvalue(), err.getvalue()
 
 
 def _walk(path: Path, seed: int) -> Path:
@@ -36,13 +26,11 @@ def _walk(path: Path, seed: int) -> Path:
 
 
 def _rows(path: Path) -> dict[str, dict[str, str]]:
-    with path.open() as f:
-        return {r["session"]: r for r in csv.DictReader(f)}
+    return {r["session"]: r for r in csv_rows(path)}
 
 
 def _mean_of_used(strides_csv: Path, name: str, side: str) -> float:
-    with strides_csv.open() as f:
-        values = [float(r[name]) for r in csv.DictReader(f) if r["side"] == side and r["used"] == "True"]
+    values = [float(r[name]) for r in csv_rows(strides_csv) if r["side"] == side and r["used"] == "True"]
     finite = [v for v in values if math.isfinite(v)]
     return sum(finite) / len(finite)
 
@@ -54,7 +42,7 @@ def cohort(tmp_path_factory):
     _walk(root / "in" / "p2" / "raw", 2)
     (root / "in" / "p3").mkdir()
     (root / "in" / "p3" / "raw.mcap").write_bytes(b"not a recording at all")
-    rc, printed, err = _cli("batch", str(root / "in"), "-o", str(root / "out"), "--workers", "2")
+    rc, printed, err = run_cli("batch", str(root / "in"), "-o", str(root / "out"), "--workers", "2")
     return root, rc, printed, err
 
 
@@ -111,7 +99,7 @@ def test_a_rerun_skips_the_done_sessions_and_retries_the_failed_one(cohort):
     shutil.rmtree(out / "p3__raw")
     (root / "in" / "p3" / "raw.mcap").unlink()
     shutil.copytree(root / "in" / "p2" / "raw", root / "in" / "p3" / "raw")  # the recording, made good
-    rc, printed, err = _cli("batch", str(root / "in"), "-o", str(out), "--workers", "1", "--no-report")
+    rc, printed, err = run_cli("batch", str(root / "in"), "-o", str(out), "--workers", "1", "--no-report")
     assert rc == 0, err
     assert "batch: 1 analysed, 2 skipped (done before, same recording), 0 failed" in printed
     assert (out / "p1__raw" / "session.json").stat().st_mtime_ns == before
@@ -144,7 +132,7 @@ def test_recordings_are_found_by_folder_and_glob_and_named_uniquely(tmp_path):
 
 def test_a_bad_batch_request_is_refused_before_any_worker_starts(tmp_path):
     _walk(tmp_path / "in" / "s", 1)
-    rc, _, err = _cli("batch", str(tmp_path / "in"), "-o", str(tmp_path / "out"), "--calibrate-at", "x:y")
+    rc, _, err = run_cli("batch", str(tmp_path / "in"), "-o", str(tmp_path / "out"), "--calibrate-at", "x:y")
     assert rc == 2 and "calibrat" in err
     assert not (tmp_path / "out").exists()
 
@@ -158,5 +146,5 @@ def test_training_sessions_have_the_length_asked_for_in_laps():
     assert sum(p.duration for p in training(100.0).phases) == pytest.approx(100.0)
     with pytest.raises(ValueError, match="at least 60 s"):
         training(30.0)
-    rc, _, err = _cli("simulate", "--scenario", "stairs", "--duration", "100", "-o", "/nonexistent/x")
+    rc, _, err = run_cli("simulate", "--scenario", "stairs", "--duration", "100", "-o", "/nonexistent/x")
     assert rc == 2 and "--duration sets the length" in err

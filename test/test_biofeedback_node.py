@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import threading
 import time
@@ -10,6 +11,7 @@ import urllib.request
 
 import numpy as np
 import pytest
+from conftest import spinning
 
 from gait_biofeedback.sim.simulator import SCENARIOS, simulate
 
@@ -69,7 +71,7 @@ def test_node_cues_frames_and_commands(ros_context, session):
     from sensor_msgs.msg import JointState
 
     from gait_biofeedback.nodes.biofeedback import BiofeedbackNode
-    from gait_biofeedback.nodes.common import make_executor, spin_until
+    from gait_biofeedback.nodes.common import spin_until
     from gait_biofeedback.wire.stamps import s_to_stamp
     from gait_biofeedback.wire.topics import RELIABLE_QOS
     from gait_biofeedback_msgs.msg import BiofeedbackCue, GaitCycle
@@ -90,11 +92,7 @@ def test_node_cues_frames_and_commands(ros_context, session):
         return response
 
     source.create_service(Calibrate, "calibration/calibrate", calibrate)
-    executor = make_executor(ros_context)
-    for n in (node, source):
-        executor.add_node(n)
-    reader = None
-    try:
+    with spinning(ros_context, node, source) as executor, contextlib.ExitStack() as first:
         assert node.port and node.port > 0
         base = f"http://127.0.0.1:{node.port}"
         page = urllib.request.urlopen(base + "/", timeout=5).read().decode()
@@ -105,6 +103,7 @@ def test_node_cues_frames_and_commands(ros_context, session):
             urllib.request.urlopen(base + "/../../setup.py", timeout=5)
 
         reader = _Reader(f"ws://127.0.0.1:{node.port}/ws?token={node.server.token}")
+        first.callback(lambda: reader.ws is not None and reader.ws.close())  # before the nodes go
         reader.start()
         assert reader.opened.wait(5)
         assert spin_until(executor, lambda: reader.of("hello"), timeout=5)
@@ -216,10 +215,4 @@ def test_node_cues_frames_and_commands(ros_context, session):
         rec = replies("record_start")[0]
         assert not rec["success"] and "not available" in rec["message"]
         assert node.feedback == {"side": "left", "joint": "knee"}
-    finally:
-        if reader is not None and reader.ws is not None:
-            reader.ws.close()
-        node.destroy_node()
-        source.destroy_node()
-        executor.shutdown()
     assert node.server is None

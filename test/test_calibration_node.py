@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import spinning
 
 from gait_biofeedback.core import quaternion as quat
 from gait_biofeedback.core.calibration.sensor_to_segment import helical_angle
@@ -38,7 +39,7 @@ def test_service_calibrates_and_latched_result_reaches_late_subscriber(ros_conte
     from sensor_msgs.msg import Imu
 
     from gait_biofeedback.nodes.calibration import CalibrationNode
-    from gait_biofeedback.nodes.common import make_executor, spin_until
+    from gait_biofeedback.nodes.common import spin_until
     from gait_biofeedback.wire.topics import LATCHED_QOS, RELIABLE_QOS
     from gait_biofeedback_msgs.msg import SegmentCalibrationArray
     from gait_biofeedback_msgs.srv import Calibrate
@@ -48,11 +49,7 @@ def test_service_calibrates_and_latched_result_reaches_late_subscriber(ros_conte
     source = Node("source", context=ros_context)
     pubs = {s: source.create_publisher(Imu, f"{s}/imu/data", RELIABLE_QOS) for s in SEGMENTS}
     client = source.create_client(Calibrate, "calibration/calibrate")
-    executor = make_executor(ros_context)
-    executor.add_node(node)
-    executor.add_node(source)
-    late = None
-    try:
+    with spinning(ros_context, node, source) as executor:
         assert spin_until(executor, lambda: all(p.get_subscription_count() for p in pubs.values()), timeout=5)
         msgs = {s: _imu_msgs(session, s) for s in SEGMENTS}
         n = len(session.truth.t)
@@ -95,11 +92,6 @@ def test_service_calibrates_and_latched_result_reaches_late_subscriber(ros_conte
         assert node.current is not None and node.current.success
         spin_until(executor, lambda: len(ours()) > 1, timeout=0.5)
         assert len(ours()) == 1
-    finally:
-        for n in (node, source, late):
-            if n is not None:
-                n.destroy_node()
-        executor.shutdown()
 
     assert ours()[0].source.startswith("computed in this session at ") and ours()[0].computed_at.sec > 0
     # a file in the session folder is not put in force unless asked: it may be another patient's
@@ -154,7 +146,7 @@ def test_a_file_without_some_segments_is_in_force_for_the_others_with_a_warning(
         write_calibration_file,
     )
     from gait_biofeedback.nodes.calibration import CalibrationNode
-    from gait_biofeedback.nodes.common import make_executor, spin_until
+    from gait_biofeedback.nodes.common import spin_until
     from gait_biofeedback.wire import diagnostics
     from gait_biofeedback.wire.topics import LATCHED_QOS, RELIABLE_QOS
     from gait_biofeedback_msgs.msg import SegmentCalibrationArray
@@ -172,12 +164,9 @@ def test_a_file_without_some_segments_is_in_force_for_the_others_with_a_warning(
                                  RELIABLE_QOS)
     listener.create_subscription(SegmentCalibrationArray, "calibration/sensor_to_segment", latched.append,
                                  LATCHED_QOS)
-    executor = make_executor(ros_context)
-    executor.add_node(node)
-    executor.add_node(listener)
     ours = lambda: [s for s in statuses if s.name == "calibration" and str(path) in s.message]  # noqa: E731
     mine = lambda: [m for m in latched if str(path) in m.source]  # noqa: E731
-    try:
+    with spinning(ros_context, node, listener) as executor:
         assert spin_until(executor, lambda: ours() and mine(), timeout=10)
         assert [s for s, r in node.current.segments.items() if r.valid] == list(has)
         # a calibration computed in this session replaces the file: the status says so (the dashboard
@@ -189,10 +178,6 @@ def test_a_file_without_some_segments_is_in_force_for_the_others_with_a_warning(
         assert diagnostics.level_of(node.file_status) == diagnostics.OK
         assert "computed in this session" in node.file_status.message
         assert read_calibration_file(tmp_path / "new" / "calibration.yaml", SEGMENTS)[0].success
-    finally:
-        node.destroy_node()
-        listener.destroy_node()
-        executor.shutdown()
     status = ours()[0]
     assert diagnostics.level_of(status) == diagnostics.WARN
     assert f"{path} has no entry for right_thigh: not calibrated" in status.message

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import shared_data
+from conftest import shared_data, simulated_bag
 
 from gait_biofeedback.batch import track_orientation
 from gait_biofeedback.core.calibration.find import find_calibration
@@ -100,11 +100,9 @@ def test_analyze_auto_takes_a_short_standing_and_says_so(tmp_path, capsys):
     1.03 s with the default 3 s asked, and the calibration says the standing was short; with
     default_standing_duration 0.5 it takes the last half second, and says nothing."""
     from gait_biofeedback.cli import main
-    from gait_biofeedback.sim.recording import write_simulated_bag
 
-    session = simulate(SimulationConfig(seed=3, phases=[Phase("stand", 1.2), Phase("walk", 8.0),
-                                                        Phase("stand", 3.0)]))
-    bag = write_simulated_bag(tmp_path / "walk", session)
+    bag, _ = simulated_bag(tmp_path / "walk", SimulationConfig(seed=3, phases=[
+        Phase("stand", 1.2), Phase("walk", 8.0), Phase("stand", 3.0)]))
     assert main(["analyze", str(bag), "-o", str(tmp_path / "a"), "--calibrate-at", "auto"]) == 0
     out = capsys.readouterr().out
     assert "--calibrate-at auto: quiet standing 0.00-1.03 s, then walking 1.03-" in out

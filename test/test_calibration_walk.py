@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import shared_data
+from conftest import shared_data, stamp_s
 
 from gait_biofeedback.core.calibration.find import find_calibration
 from gait_biofeedback.core.calibration.protocol import leg_cycles
@@ -189,7 +189,7 @@ def test_analyze_auto_gives_the_gait_events_of_a_walk_without_standing(walk_from
         "stance phases, no joint angles), then walking 0.00-" in out
     with BagReader(tmp_path / "out") as reader:
         start = reader.start_time_ns * 1e-9
-        events = [(m.side, m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 - start)
+        events = [(m.side, stamp_s(m.header.stamp) - start)
                   for _, m, _ in reader.messages(["/gait/events"]) if m.type == m.INITIAL_CONTACT]
         angles = sum(1 for _ in reader.messages(["/joint_states"]))
     assert angles == 0  # no joint angles without a standing
@@ -232,7 +232,7 @@ def test_replay_auto_puts_the_walks_calibration_in_force_from_the_start(walk_fro
     with BagReader(bag) as reader:  # the events carry the recording's sample stamps
         start = reader.start_time_ns * 1e-9
     with BagReader(tmp_path / "live") as reader:
-        events = [(m.side, m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 - start)
+        events = [(m.side, stamp_s(m.header.stamp) - start)
                   for _, m, _ in reader.messages(["/gait/events"]) if m.type == m.INITIAL_CONTACT]
     for index, side in enumerate(("left", "right")):
         truth = session.truth.initial_contacts[side]

@@ -6,6 +6,7 @@ import struct
 
 import numpy as np
 import pytest
+from conftest import stamp_ns
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import Imu, MagneticField
 
@@ -51,10 +52,6 @@ def padding_mask(frame_len: int, size: int) -> np.ndarray:
     return keep
 
 
-def ns_of(msg) -> int:
-    return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-
-
 @pytest.mark.parametrize("frame_len", range(10))
 def test_imu_round_trip_matches_rclpy(frame_len: int) -> None:
     rng = np.random.default_rng(frame_len)
@@ -63,7 +60,7 @@ def test_imu_round_trip_matches_rclpy(frame_len: int) -> None:
     data = serialize_message(msg)
     fields = cdr.unpack_imu(data)
     assert fields is not None
-    assert fields.ns == ns_of(msg) and fields.frame_id == frame_id
+    assert fields.ns == stamp_ns(msg.header.stamp) and fields.frame_id == frame_id
     assert fields.values == imu_values(msg)
     packed = cdr.pack_imu(fields.ns, fields.frame_id, fields.values)
     assert len(packed) == len(data)
@@ -80,7 +77,8 @@ def test_magnetic_field_round_trip_matches_rclpy(frame_len: int) -> None:
     msg = random_mag("x" * frame_len, rng)
     data = serialize_message(msg)
     fields = cdr.unpack_mag(data)
-    assert fields is not None and fields.ns == ns_of(msg) and fields.frame_id == "x" * frame_len
+    assert fields is not None and fields.ns == stamp_ns(msg.header.stamp)
+    assert fields.frame_id == "x" * frame_len
     f = msg.magnetic_field
     assert fields.values == (f.x, f.y, f.z, *msg.magnetic_field_covariance)
     packed = cdr.pack_stamped(fields.ns, fields.frame_id, fields.values)
@@ -174,7 +172,7 @@ _JOINTS = ["left_hip_flexion", "left_hip_adduction", "left_hip_internal_rotation
            "left_ankle_inversion", "left_ankle_internal_rotation"]
 
 
-@pytest.mark.parametrize(("names", "recovering", "stamp_ns"), [
+@pytest.mark.parametrize(("names", "recovering", "ns"), [
     ([], (), 0),
     (_JOINTS[:1], (), 1_700_000_000_123_456_789),
     (_JOINTS[:6], ("left_thigh",), 5),
@@ -182,7 +180,7 @@ _JOINTS = ["left_hip_flexion", "left_hip_adduction", "left_hip_internal_rotation
      -1_500_000_001),
     (["genou_flexión", "x"], ("cuisse_gauche",), 123_456_789_000),  # non-ASCII: lengths in bytes
 ])
-def test_joint_state_bytes_are_rclpys_and_read_back(names, recovering, stamp_ns) -> None:
+def test_joint_state_bytes_are_rclpys_and_read_back(names, recovering, ns) -> None:
     """The hand-written JointState codec against rclpy's serializer (padding zeroed, cut to size) of the
     message built field by field, and its deserializer: every layout the project writes (empty, 1, 6 and
     18 angles; marked recovering or not; a stamp before 1970; names of multi-byte characters), twice
@@ -201,7 +199,7 @@ def test_joint_state_bytes_are_rclpys_and_read_back(names, recovering, stamp_ns)
     rng = np.random.default_rng(len(names))
     for k in range(2):
         angles = {name: float(v) for name, v in zip(names, rng.normal(size=len(names)), strict=True)}
-        stamp = stamp_ns + k
+        stamp = ns + k
         reference = JointState(name=list(angles), position=list(angles.values()))
         reference.header.stamp = ns_to_stamp(stamp)
         if recovering:

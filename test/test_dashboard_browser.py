@@ -21,11 +21,10 @@ import urllib.request
 from pathlib import Path
 
 import pytest
-from conftest import find_chromium
+from conftest import find_chromium, simulated_bag, true_calibration_message
 
 from gait_biofeedback.core.segments import SIDES
-from gait_biofeedback.sim.recording import write_simulated_bag
-from gait_biofeedback.sim.simulator import Phase, SimulationConfig, simulate
+from gait_biofeedback.sim.simulator import Phase, SimulationConfig
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(120)]
 ARTIFACTS = Path(__file__).resolve().parents[1] / "test-artifacts"
@@ -113,22 +112,10 @@ class Browser:
         shutil.rmtree(self.profile, ignore_errors=True)
 
 
-def _calibration_message(session):
-    from gait_biofeedback_msgs.msg import SegmentCalibration, SegmentCalibrationArray
-
-    msg = SegmentCalibrationArray(protocol="walking")
-    for segment, (w, x, y, z) in session.truth.mounting.items():
-        entry = SegmentCalibration(segment=segment, sensor_frame=f"{segment}_imu", valid=True, quality=1.0)
-        entry.rotation.w, entry.rotation.x, entry.rotation.y, entry.rotation.z = w, x, y, z
-        msg.segments.append(entry)
-    return msg
-
-
 @pytest.fixture(scope="module")
 def walk_session(tmp_path_factory):
     config = SimulationConfig(phases=[Phase("stand", 5.0), Phase("walk", 16.0), Phase("stand", 2.0)])
-    session = simulate(config)
-    return write_simulated_bag(tmp_path_factory.mktemp("walk") / "in", session), session
+    return simulated_bag(tmp_path_factory.mktemp("walk") / "in", config)
 
 
 @pytest.mark.skipif(find_chromium() is None,
@@ -151,7 +138,7 @@ def test_dashboard_in_headless_chromium(ros_context, walk_session, tmp_path):
     bag, session = walk_session
     source = Node("truth_calibration", context=ros_context)
     source.create_publisher(SegmentCalibrationArray, "calibration/sensor_to_segment",
-                            LATCHED_QOS).publish(_calibration_message(session))
+                            LATCHED_QOS).publish(true_calibration_message(session))
     bio = BiofeedbackNode(ros_context, port=0)
     nodes = [source, bio, OrientationFilterNode(ros_context),
              CalibrationNode(ros_context, session_dir=str(tmp_path)),

@@ -11,6 +11,7 @@ import socket
 import time
 
 import pytest
+from conftest import spinning
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import connect
 
@@ -48,16 +49,10 @@ def test_a_valid_command_passes_with_its_fields_typed():
 @pytest.fixture
 def dashboard(ros_context):
     from gait_biofeedback.nodes.biofeedback import BiofeedbackNode
-    from gait_biofeedback.nodes.common import make_executor
 
     node = BiofeedbackNode(ros_context, port=0)
-    executor = make_executor(ros_context)
-    executor.add_node(node)
-    try:
+    with spinning(ros_context, node) as executor:
         yield node, executor
-    finally:
-        node.destroy_node()
-        executor.shutdown()
 
 
 def _hello(ws) -> dict:

@@ -6,13 +6,13 @@ import struct
 
 import numpy as np
 import pytest
+from conftest import through_line_noise
 
 from gait_biofeedback.core.driver.chain import SUSPECT_MEMORY
 from gait_biofeedback.core.driver.clock import DeviceClock, map_device_time
 from gait_biofeedback.core.driver.protocol import (
     DeviceSample,
     FrameError,
-    FrameReader,
     decode_frame,
     encode_frame,
     frame_size,
@@ -70,16 +70,7 @@ def test_the_serial_reader_finds_every_intact_frame_in_noise_cut_anywhere():
     rng = np.random.default_rng(3)
     frames = [encode_frame([sample(i, 1000 * i, mag=bool(i % 2))]) for i in range(200)]
     damaged = {17, 101}
-    stream = b""
-    for i, f in enumerate(frames):
-        if i in damaged:
-            f = f[:30] + bytes([f[30] ^ 0xFF]) + f[31:]
-        stream += rng.bytes(int(rng.integers(0, 6))) + f  # line noise between frames
-    reader = FrameReader()
-    got = []
-    cuts = np.sort(rng.integers(0, len(stream), 150))
-    for a, b in zip([0, *cuts], [*cuts, len(stream)], strict=True):
-        got += reader.feed(stream[a:b])
+    got, reader = through_line_noise(frames, damaged, rng, max_noise=6, cuts=150)
     seqs = [decode_frame(f)[0].sequence for f in got]
     assert seqs == [i for i in range(200) if i not in damaged]
     assert reader.bad_frames >= len(damaged)

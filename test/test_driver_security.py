@@ -12,11 +12,11 @@ import zlib
 
 import numpy as np
 import pytest
+from conftest import through_line_noise
 
 from gait_biofeedback.core.driver.protocol import (
     DeviceSample,
     FrameError,
-    FrameReader,
     SignatureError,
     decode_frame,
     encode_frame,
@@ -333,16 +333,8 @@ def test_the_serial_reader_finds_signed_frames_in_noise():
     rng = np.random.default_rng(5)
     frames = [encode_frame([genuine(i, 1000 * i)], KEY if i % 3 else None) for i in range(120)]
     damaged = {10, 55}
-    stream = b""
-    for i, f in enumerate(frames):
-        if i in damaged:
-            f = f[:30] + bytes([f[30] ^ 0xFF]) + f[31:]
-        stream += rng.bytes(int(rng.integers(0, 8))) + b"GBI" + f  # noise, with false magic starts
-    reader = FrameReader()
-    got = []
-    cuts = np.sort(rng.integers(0, len(stream), 90))
-    for a, b in zip([0, *cuts], [*cuts, len(stream)], strict=True):
-        got += reader.feed(stream[a:b])
+    # noise, with false magic starts
+    got, _ = through_line_noise(frames, damaged, rng, max_noise=8, cuts=90, before=b"GBI")
     assert [f[:4] for f in got] == [b"GBI2" if i % 3 else b"GBI1" for i in range(120) if i not in damaged]
     seqs = [decode_frame(f, KEY if f[:4] == b"GBI2" else None)[0].sequence for f in got]
     assert seqs == [i for i in range(120) if i not in damaged]

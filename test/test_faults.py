@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import simulated_bag, stamp_ns
 
 from gait_biofeedback.batch import (
     SCENARIOS,
@@ -41,10 +42,6 @@ RECOVER_S = 2.0  # OrientationParams.recover_s
 FLEXION = ("left_knee_flexion", "right_knee_flexion", "left_ankle_dorsiflexion", "right_ankle_dorsiflexion")
 
 
-def _ns(stamp) -> int:
-    return stamp.sec * 1_000_000_000 + stamp.nanosec
-
-
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
     """(clean analysis, faulty analysis, recording start ns) of a 30 s walk, seed 3."""
@@ -64,11 +61,11 @@ def _read(path, topic):
 
 
 def _worst_flexion_error(path, skip: list[tuple[int, int]]) -> float:
-    true = {_ns(m.header.stamp): dict(zip(m.name, m.position, strict=True))
+    true = {stamp_ns(m.header.stamp): dict(zip(m.name, m.position, strict=True))
             for m in _read(path, "/ground_truth/joint_states")}
     worst = 0.0
     for m in _read(path, "/joint_states"):
-        ns = _ns(m.header.stamp)
+        ns = stamp_ns(m.header.stamp)
         if ns not in true or any(a <= ns < b for a, b in skip):
             continue
         for name, value in zip(m.name, m.position, strict=True):
@@ -98,13 +95,13 @@ def test_no_plausible_stride_across_the_dropout_and_recovering_strides_flagged(r
 def test_recovering_angles_and_events_are_marked(runs):
     _, faulty, start = runs
     window = (start + round(DROPOUT.span[1] * 1e9), start + round((DROPOUT.span[1] + RECOVER_S) * 1e9))
-    marked = [_ns(m.header.stamp) for m in _read(faulty.output, "/joint_states") if recovering_of(m)]
+    marked = [stamp_ns(m.header.stamp) for m in _read(faulty.output, "/joint_states") if recovering_of(m)]
     assert marked and min(marked) >= window[0] and max(marked) < window[1] + 20_000_000
     first = next(m for m in _read(faulty.output, "/joint_states") if recovering_of(m))
     assert set(recovering_of(first)) == {"pelvis", "left_thigh", "left_shank", "left_foot", "right_thigh",
                                          "right_shank", "right_foot"}
     events = _read(faulty.output, "/gait/events")
-    flagged = [_ns(e.header.stamp) for e in events if e.flag]
+    flagged = [stamp_ns(e.header.stamp) for e in events if e.flag]
     assert flagged and all(window[0] <= ns < window[1] + 20_000_000 for ns in flagged)
 
 
@@ -135,12 +132,12 @@ def test_a_sensor_clock_that_steps_marks_its_joints_doubtful_and_is_said(runs, t
     said = [w for w in faulty.warnings if "left_thigh's stamps are" in w]
     assert len(said) == 1 and f"{offset:+.2f} s off the other sensors'" in said[0], faulty.warnings
     assert "restart that sensor's driver" in said[0]
-    true = {_ns(m.header.stamp): dict(zip(m.name, m.position, strict=True))
+    true = {stamp_ns(m.header.stamp): dict(zip(m.name, m.position, strict=True))
             for m in _read(clean.output, "/ground_truth/joint_states")}
     step_ns = start_ns + round(20.0 * 1e9)
     unmarked_off, right_marked = 0, 0
     for m in _read(faulty.output, "/joint_states"):
-        ns = _ns(m.header.stamp)
+        ns = stamp_ns(m.header.stamp)
         if ns < step_ns or ns not in true:
             continue
         angles = dict(zip(m.name, m.position, strict=True))
@@ -305,10 +302,9 @@ def test_a_stride_containing_a_doubtful_sample_is_implausible_and_says_why():
 def _events_and_steps(tmp_path, rate_hz):
     config = SCENARIOS["walk"](20.0, seed=2, rate_hz=rate_hz)
     config.segments = ("left_foot", "right_foot", "chest")  # what events and steps are made from
-    session = simulate(config)
-    bag = write_simulated_bag(tmp_path / f"bag_{rate_hz:g}", session)
+    bag, _ = simulated_bag(tmp_path / f"bag_{rate_hz:g}", config)
     result = analyze_recording(bag, tmp_path / f"out_{rate_hz:g}", calibrate_at=[(12.0, "walking")])
-    events = [(m.side, m.type, _ns(m.header.stamp)) for m in _read(result.output, "/gait/events")]
+    events = [(m.side, m.type, stamp_ns(m.header.stamp)) for m in _read(result.output, "/gait/events")]
     return events, session_report(result.output).steps
 
 
@@ -329,8 +325,8 @@ def test_without_magnetometer_hip_flexion_calibrates_the_legs_and_refuses_the_tr
     """6D sensors and the hip-flexion protocol: the legs' calibration is local to each sensor and is
     accepted; the pelvis and chest need a heading that a still pelvis cannot give, so they alone are
     refused, with what to do (issue 14: one refused segment never takes the others down)."""
-    session = simulate(SCENARIOS["calibration_hip_flexion"](seed=4, with_magnetometer=False))
-    bag = write_simulated_bag(tmp_path / "bag", session)
+    bag, _ = simulated_bag(tmp_path / "bag",
+                           SCENARIOS["calibration_hip_flexion"](seed=4, with_magnetometer=False))
     result = analyze_recording(bag, tmp_path / "out", calibrate_at=[(33.0, "hip_flexion")])
     attempt = result.calibrations[0]
     entries = attempt.calibration.segments

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import shared_data
 
 from gait_biofeedback.core import quaternion as quat
 from gait_biofeedback.core.orientation.filters import (
@@ -302,10 +303,7 @@ def test_yi_cf_literal_stability_rule_follows_fqa():
 
 @pytest.mark.realdata
 def test_default_algorithm_accuracy_floor_on_broad():
-    data = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "broad"
-    path = data / "05_undisturbed_slow_rotation_with_breaks_B.mat"
-    if not path.is_file():
-        pytest.skip(f"BROAD trial not found at {path} (shared data absent in this checkout)")
+    path = shared_data("broad", "05_undisturbed_slow_rotation_with_breaks_B.mat")
     import scipy.io
 
     d = scipy.io.loadmat(path, squeeze_me=True)

@@ -6,13 +6,13 @@ import time
 
 import numpy as np
 import pytest
+from conftest import simulated_bag, spinning, stamp_ns, true_calibration_message
 
 from gait_biofeedback.core.gait.events import GaitEventDetector
 from gait_biofeedback.core.orientation.stream import track_orientation
 from gait_biofeedback.core.stamps import seconds_to_ns
 from gait_biofeedback.io.bag import read_imu_bag
-from gait_biofeedback.sim.recording import write_simulated_bag
-from gait_biofeedback.sim.simulator import SCENARIOS, simulate
+from gait_biofeedback.sim.simulator import SCENARIOS
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(90)]
 FEET = ("left_foot", "right_foot")
@@ -20,22 +20,8 @@ FEET = ("left_foot", "right_foot")
 
 @pytest.fixture(scope="module")
 def walk_bag(tmp_path_factory):
-    config = SCENARIOS["walk"](duration=8.0)
-    config.segments = FEET
-    session = simulate(config)
-    return write_simulated_bag(tmp_path_factory.mktemp("walk") / "in", session), session
-
-
-def _calibration_message(session):
-    from gait_biofeedback_msgs.msg import SegmentCalibration, SegmentCalibrationArray
-
-    msg = SegmentCalibrationArray(protocol="walking")
-    for segment in FEET:
-        w, x, y, z = session.truth.mounting[segment]
-        entry = SegmentCalibration(segment=segment, sensor_frame=f"{segment}_imu", valid=True, quality=1.0)
-        entry.rotation.w, entry.rotation.x, entry.rotation.y, entry.rotation.z = w, x, y, z
-        msg.segments.append(entry)
-    return msg
+    return simulated_bag(tmp_path_factory.mktemp("walk") / "in",
+                         SCENARIOS["walk"](duration=8.0, segments=FEET))
 
 
 def _offline_events(bag, session):
@@ -54,11 +40,10 @@ def _offline_events(bag, session):
 def test_node_on_replayed_walk_equals_offline_core(ros_context, walk_bag):
     from rclpy.node import Node
 
-    from gait_biofeedback.nodes.common import make_executor, spin_until
+    from gait_biofeedback.nodes.common import spin_until
     from gait_biofeedback.nodes.gait_events import GaitEventsNode
     from gait_biofeedback.nodes.imu_replayer import ImuReplayer
     from gait_biofeedback.nodes.orientation_filter import OrientationFilterNode
-    from gait_biofeedback.wire.stamps import stamp_to_ns
     from gait_biofeedback.wire.topics import LATCHED_QOS
     from gait_biofeedback_msgs.msg import GaitCycle, GaitEvent, SegmentCalibrationArray
 
@@ -69,26 +54,18 @@ def test_node_on_replayed_walk_equals_offline_core(ros_context, walk_bag):
                                           LATCHED_QOS)
     source.create_subscription(GaitEvent, "gait/events", events.append, 300)
     source.create_subscription(GaitCycle, "gait/cycles", cycles.append, 300)
-    calibration.publish(_calibration_message(session))
+    calibration.publish(true_calibration_message(session, FEET))
     node = GaitEventsNode(ros_context)
-    nodes = [source, node, OrientationFilterNode(ros_context, segments=list(FEET))]
-    executor = make_executor(ros_context)
-    for n in nodes:
-        executor.add_node(n)
-    try:
+    filters = OrientationFilterNode(ros_context, segments=list(FEET))
+    with spinning(ros_context, filters, node, source) as executor:
         assert spin_until(executor, lambda: all(node.calibrated.values()), timeout=5)
         replayer = ImuReplayer(ros_context, bag=str(bag), speed=4.0, wait_for_subscribers=5.0)
-        nodes.append(replayer)
         executor.add_node(replayer)
         assert spin_until(executor, replayer.finished.is_set, timeout=60)
         settle = time.monotonic() + 0.5
         spin_until(executor, lambda: time.monotonic() > settle)
-    finally:
-        for n in reversed(nodes):
-            n.destroy_node()
-        executor.shutdown()
     names = {0: "left", 1: "right"}
-    live = sorted((names[e.side], "ic" if e.type == e.INITIAL_CONTACT else "tc", stamp_to_ns(e.header.stamp))
+    live = sorted((names[e.side], "ic" if e.type == e.INITIAL_CONTACT else "tc", stamp_ns(e.header.stamp))
                   for e in events)
     assert live == _offline_events(bag, session)
     assert len(live) >= 4 * len(session.truth.initial_contacts["left"]) - 4
@@ -108,7 +85,7 @@ def test_stopped_foot_stream_resets_state_and_says_so(ros_context):
     from rclpy.node import Node
     from sensor_msgs.msg import Imu
 
-    from gait_biofeedback.nodes.common import make_executor, spin_until
+    from gait_biofeedback.nodes.common import spin_until
     from gait_biofeedback.nodes.gait_events import GaitEventsNode
     from gait_biofeedback.wire.stamps import s_to_stamp
     from gait_biofeedback.wire.topics import RELIABLE_QOS
@@ -118,10 +95,7 @@ def test_stopped_foot_stream_resets_state_and_says_so(ros_context):
     pub = source.create_publisher(Imu, "left_foot/imu/data", RELIABLE_QOS)
     diagnostics = []
     source.create_subscription(DiagnosticArray, "/diagnostics", diagnostics.append, 50)
-    executor = make_executor(ros_context)
-    executor.add_node(node)
-    executor.add_node(source)
-    try:
+    with spinning(ros_context, node, source) as executor:
         assert spin_until(executor, lambda: pub.get_subscription_count() > 0, timeout=5)
         for k in range(30):
             msg = Imu()
@@ -136,10 +110,6 @@ def test_stopped_foot_stream_resets_state_and_says_so(ros_context):
             return [s for d in diagnostics for s in d.status if s.hardware_id == "left_foot"]
 
         assert spin_until(executor, lambda: any(s.level == b"\x02" for s in left_statuses()), timeout=3)
-    finally:
-        node.destroy_node()
-        source.destroy_node()
-        executor.shutdown()
     left = left_statuses()[-1]
     assert left.level == b"\x02" and "state reset" in left.message
     assert {kv.key: kv.value for kv in left.values}["stream_stops"] == "1"

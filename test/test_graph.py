@@ -16,7 +16,7 @@ import warnings
 
 import numpy as np
 import pytest
-from conftest import REPO, synthetic_imu
+from conftest import REPO, spinning, stamp_ns, stamp_s, synthetic_imu
 
 from gait_biofeedback.core.segments import SEGMENTS
 from gait_biofeedback.graph import replay_through_graph
@@ -54,14 +54,13 @@ def _arrival_offsets(tmp_path, ros_context, speed: float) -> tuple[np.ndarray, n
 
     from gait_biofeedback.nodes.common import make_executor, spin_until
     from gait_biofeedback.nodes.imu_replayer import ImuReplayer
-    from gait_biofeedback.wire.stamps import stamp_to_s
     from gait_biofeedback.wire.topics import SENSOR_QOS
 
     bag = write_imu_bag(tmp_path / "in", synthetic_imu(["left_foot"], duration=1.0, with_mag=False))
     arrivals: list[tuple[float, float]] = []
     sink = Node("sink", context=ros_context)
     sink.create_subscription(Imu, "left_foot/imu/data_raw",
-                             lambda m: arrivals.append((stamp_to_s(m.header.stamp), time.perf_counter())),
+                             lambda m: arrivals.append((stamp_s(m.header.stamp), time.perf_counter())),
                              SENSOR_QOS)
     executor = make_executor(ros_context)
     executor.add_node(sink)
@@ -161,7 +160,7 @@ def test_killed_recorder_leaves_a_readable_bag(tmp_path):
         warnings.simplefilter("error", BagRecoveryWarning)  # whole again: no recovery needed
         messages = list(BagReader(out).messages())
     assert len(messages) == recovered
-    stamps = np.array([m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec for _, m, _ in messages])
+    stamps = np.array([stamp_ns(m.header.stamp) for _, m, _ in messages])
     # the replayed samples in order, none missing between the first and the last recovered one
     np.testing.assert_array_equal(np.diff(stamps), 10_000_000)
 
@@ -171,26 +170,19 @@ def _collect(ros_context, bag, topic_type, topic, until=None, **params):
     """Run a replayer with ``params`` until it ends (or ``until(received)``); the received messages."""
     from rclpy.node import Node
 
-    from gait_biofeedback.nodes.common import make_executor, spin_until
+    from gait_biofeedback.nodes.common import spin_until
     from gait_biofeedback.nodes.imu_replayer import ImuReplayer
     from gait_biofeedback.wire.topics import SENSOR_QOS
 
     got = []
     sink = Node("sink", context=ros_context)
     sink.create_subscription(topic_type, topic, got.append, SENSOR_QOS)
-    executor = make_executor(ros_context)
-    executor.add_node(sink)
     replayer = ImuReplayer(ros_context, bag=str(bag), **{"wait_for_subscribers": 5.0, **params})
-    executor.add_node(replayer)
-    try:
+    with spinning(ros_context, replayer, sink) as executor:
         done = replayer.finished.is_set if until is None else (lambda: until(got))
         assert spin_until(executor, done, timeout=20)
         if until is None:
             spin_until(executor, lambda: False, timeout=0.3)
-    finally:
-        replayer.destroy_node()
-        sink.destroy_node()
-        executor.shutdown()
     return got
 
 
@@ -198,23 +190,22 @@ def test_replayer_start_stop_offsets_loop_and_clock(tmp_path, ros_context):
     from rosgraph_msgs.msg import Clock
     from sensor_msgs.msg import Imu
 
-    from gait_biofeedback.wire.stamps import stamp_to_ns, stamp_to_s
 
     bag = write_imu_bag(tmp_path / "in", synthetic_imu(["pelvis"], duration=1.0, with_mag=False, t0=50.0))
     got = _collect(ros_context, bag, Imu, "pelvis/imu/data_raw", speed=0.0, start_offset=0.2,
                    stop_offset=0.5)
-    stamps = [stamp_to_s(m.header.stamp) for m in got]
+    stamps = [stamp_s(m.header.stamp) for m in got]
     assert len(stamps) == 30 and stamps[0] == pytest.approx(50.2) and stamps[-1] == pytest.approx(50.49)
 
     got = _collect(ros_context, bag, Imu, "pelvis/imu/data_raw", until=lambda g: len(g) >= 150,
                    speed=4.0, loop=True)
-    stamps = np.array([stamp_to_s(m.header.stamp) for m in got])
+    stamps = np.array([stamp_s(m.header.stamp) for m in got])
     assert np.sum(np.diff(stamps) < 0) == 1, "one jump back to the start per loop"
     assert stamps[100] == pytest.approx(50.0)
 
     clock = _collect(ros_context, bag, Clock, "/clock", speed=0.0, publish_clock=True, clock_period=0.02,
                      wait_for_subscribers=1.0)  # nobody subscribes the data topic: a shorter wait
-    ticks = np.array([stamp_to_ns(c.clock) for c in clock])
+    ticks = np.array([stamp_ns(c.clock) for c in clock])
     # the start time while it waits for subscribers, then every 20 ms of recording time (each 2nd sample)
     start = int(np.sum(ticks == 50_000_000_000))
     assert start >= 2 and np.all(np.diff(ticks) >= 0)
@@ -238,7 +229,7 @@ def test_recorder_start_and_stop_services_make_one_bag_each(tmp_path, ros_contex
     from std_msgs.msg import String
     from std_srvs.srv import Trigger
 
-    from gait_biofeedback.nodes.common import make_executor, spin_until
+    from gait_biofeedback.nodes.common import spin_until
     from gait_biofeedback.nodes.recorder import Recorder
     from gait_biofeedback.wire.topics import RELIABLE_QOS
 
@@ -248,16 +239,13 @@ def test_recorder_start_and_stop_services_make_one_bag_each(tmp_path, ros_contex
     pub = client_node.create_publisher(String, "/note", RELIABLE_QOS)
     start = client_node.create_client(Trigger, "recorder/start")
     stop = client_node.create_client(Trigger, "recorder/stop")
-    executor = make_executor(ros_context)
-    executor.add_node(recorder)
-    executor.add_node(client_node)
 
     def call(client):
         future = client.call_async(Trigger.Request())
         assert spin_until(executor, future.done, timeout=10)
         return future.result()
 
-    try:
+    with spinning(ros_context, recorder, client_node) as executor:
         assert spin_until(executor, lambda: pub.get_subscription_count() > 0, timeout=5)
         pub.publish(String(data="before start: not recorded"))
         spin_until(executor, lambda: recorder.received >= 1, timeout=5)
@@ -270,10 +258,6 @@ def test_recorder_start_and_stop_services_make_one_bag_each(tmp_path, ros_contex
             reply = call(stop)
             assert reply.success and "saved" in reply.message
         assert not call(stop).success, "stopping twice says it is not recording"
-    finally:
-        recorder.destroy_node()
-        client_node.destroy_node()
-        executor.shutdown()
     assert recorder.dropped_while_stopped == 1
     first = [m.data for _, m, _ in BagReader(tmp_path / "session").messages()]
     second = [m.data for _, m, _ in BagReader(tmp_path / "session_1").messages()]
@@ -315,8 +299,7 @@ def test_a_replay_recording_has_one_time_base(tmp_path):
     replay_through_graph(bag, out, speed=1.0, nodes=["orientation_filter"], timeout=60)
     reader = BagReader(out)
     assert reader.start_time_ns / 1e9 >= 1000.0 and reader.end_time_ns / 1e9 <= 1003.0
-    stamps = [m.header.stamp.sec + m.header.stamp.nanosec / 1e9
-              for _, m, _ in reader.messages(["/diagnostics"])]
+    stamps = [stamp_s(m.header.stamp) for _, m, _ in reader.messages(["/diagnostics"])]
     assert len(stamps) >= 2 and all(1000.0 <= s <= 1003.0 for s in stamps), stamps
     assert "/clock" not in reader.topics(), "the replayer's clock is not recorded"
 

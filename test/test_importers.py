@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import shared_data
 
 from gait_biofeedback.core.segments import GRAVITY, SEGMENTS, ImuSeries
 from gait_biofeedback.io.importers import (
@@ -20,8 +21,6 @@ from gait_biofeedback.io.importers import (
     import_recording,
     load_gaitmap_events,
 )
-
-DATA_DIR = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 
 LEFT_FOOT_MAPPING = {
     "left_foot": {
@@ -203,13 +202,6 @@ def test_detect_kind_from_file_names(tmp_path: Path, small_csv: Path) -> None:
 # ---------------------------------------------------------------- real data (../shared/data)
 
 
-def _real_file(*parts: str) -> Path:
-    path = DATA_DIR.joinpath(*parts)
-    if not path.exists():
-        pytest.skip(f"real recording {path} absent (the shared data folder is not part of a fresh clone)")
-    return path
-
-
 def _static_acc_norm(acc: np.ndarray, gyr: np.ndarray) -> float:
     """Median |acc| over the quietest 5 % of samples (by |gyr|): ≈ g when acc is in m/s²."""
     gyr_norm = np.linalg.norm(gyr, axis=1)
@@ -219,17 +211,17 @@ def _static_acc_norm(acc: np.ndarray, gyr: np.ndarray) -> float:
 
 @pytest.fixture(scope="module")
 def qmt_recording() -> Recording:
-    return import_qmt_fullbody(_real_file("qmt_fullbody", "full_body_example_data.mat"))
+    return import_qmt_fullbody(shared_data("qmt_fullbody", "full_body_example_data.mat"))
 
 
 @pytest.fixture(scope="module")
 def gaitmap_recording() -> Recording:
-    return import_gaitmap(_real_file("gaitmap_example", "imu_sample.csv"))
+    return import_gaitmap(shared_data("gaitmap_example", "imu_sample.csv"))
 
 
 @pytest.fixture(scope="module")
 def broad_recording() -> Recording:
-    return import_broad(_real_file("broad", "01_undisturbed_slow_rotation_A.mat"))
+    return import_broad(shared_data("broad", "01_undisturbed_slow_rotation_A.mat"))
 
 
 @pytest.mark.realdata
@@ -255,7 +247,7 @@ def test_qmt_fullbody_has_the_eight_segments_at_100_hz_in_si(qmt_recording: Reco
 @pytest.mark.realdata
 def test_qmt_fullbody_keeps_other_sensors_only_when_asked(qmt_recording: Recording) -> None:
     assert "head" not in qmt_recording.imu
-    everything = import_qmt_fullbody(_real_file("qmt_fullbody", "full_body_example_data.mat"),
+    everything = import_qmt_fullbody(shared_data("qmt_fullbody", "full_body_example_data.mat"),
                                      include_unmapped=True)
     assert {"head", "lower_back", "hand_left"} <= set(everything.imu)
     assert len(everything.imu) == 16
@@ -276,21 +268,21 @@ def test_gaitmap_feet_at_204_8_hz_with_gyr_in_rad_s(gaitmap_recording: Recording
 
 @pytest.mark.realdata
 def test_gaitmap_not_rotated_is_the_same_motion_in_other_axes(gaitmap_recording: Recording) -> None:
-    raw = import_gaitmap(_real_file("gaitmap_example", "imu_sample.csv"), rotated=False)
+    raw = import_gaitmap(shared_data("gaitmap_example", "imu_sample.csv"), rotated=False)
     assert raw.reference["frame"] == "sensor"
     rotated_foot, raw_foot = gaitmap_recording.imu["left_foot"], raw.imu["left_foot"]
     np.testing.assert_allclose(np.linalg.norm(raw_foot.gyr, axis=1), np.linalg.norm(rotated_foot.gyr, axis=1),
                                rtol=1e-6, atol=1e-9)
     assert not np.allclose(raw_foot.acc, rotated_foot.acc)
     # the not-rotated file given by name (as `import gaitmap FILE` does) is read in its own axes
-    by_name = import_gaitmap(_real_file("gaitmap_example", "imu_sample_not_rotated.csv"))
+    by_name = import_gaitmap(shared_data("gaitmap_example", "imu_sample_not_rotated.csv"))
     assert by_name.reference["frame"] == "sensor"
     np.testing.assert_array_equal(by_name.imu["left_foot"].acc, raw_foot.acc)
 
 
 @pytest.mark.realdata
 def test_gaitmap_events_in_seconds_inside_their_strides(gaitmap_recording: Recording) -> None:
-    events = load_gaitmap_events(_real_file("gaitmap_example", "stride_events_sample.csv"))
+    events = load_gaitmap_events(shared_data("gaitmap_example", "stride_events_sample.csv"))
     assert set(events) == {"left", "right"}
     assert len(events["left"]["ic"]) + len(events["right"]["ic"]) == 57  # README: 57 strides
     duration = gaitmap_recording.imu["left_foot"].t[-1]
@@ -325,10 +317,10 @@ def test_broad_board_at_285_7_hz_with_mag_in_tesla(broad_recording: Recording) -
 
 
 @pytest.mark.realdata
-def test_auto_kind_reads_each_real_file() -> None:
-    qmt = _real_file("qmt_fullbody", "full_body_example_data.mat")
-    broad = _real_file("broad", "01_undisturbed_slow_rotation_A.mat")
-    gaitmap = _real_file("gaitmap_example")
+def test_auto_kind_reads_eachshared_data() -> None:
+    qmt = shared_data("qmt_fullbody", "full_body_example_data.mat")
+    broad = shared_data("broad", "01_undisturbed_slow_rotation_A.mat")
+    gaitmap = shared_data("gaitmap_example")
     assert detect_kind(qmt) == "qmt_fullbody"
     assert detect_kind(broad) == "broad"
     assert detect_kind(gaitmap) == "gaitmap"

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
@@ -12,7 +13,7 @@ import time
 
 import numpy as np
 import pytest
-from conftest import synthetic_imu
+from conftest import spinning, stamp_ns, stamp_s, synthetic_imu
 
 from gait_biofeedback.sim.sensor_link import FrameSchedule, LinkModel, send_udp
 
@@ -50,23 +51,23 @@ class Listener:
         return {kv.key: kv.value for kv in self.diagnostics[name].values}
 
 
+@contextlib.contextmanager
 def _graph(context, **params):
-    from gait_biofeedback.nodes.common import make_executor
+    """The driver (``params``) and a :class:`Listener` spinning, the driver started once its raw topics
+    are matched: (driver, listener, executor); both nodes destroyed on leaving."""
     from gait_biofeedback.nodes.imu_driver import ImuDriverNode
 
     listener = Listener(context)
     driver = ImuDriverNode(context, start=False, sensors=SENSORS, **params)
-    executor = make_executor(context)
-    executor.add_node(driver)
-    executor.add_node(listener.node)
-    deadline = time.monotonic() + 5
-    while time.monotonic() < deadline and not all(p.get_subscription_count() for p in driver.publishers
-                                                  if p.topic_name.endswith("data_raw")):
-        executor.spin_once(timeout_sec=0.05)
-    for _ in range(10):
-        executor.spin_once(timeout_sec=0.02)
-    driver.start()
-    return driver, listener, executor
+    with spinning(context, driver, listener.node) as executor:
+        deadline = time.monotonic() + 5
+        while time.monotonic() < deadline and not all(p.get_subscription_count() for p in driver.publishers
+                                                      if p.topic_name.endswith("data_raw")):
+            executor.spin_once(timeout_sec=0.05)
+        for _ in range(10):
+            executor.spin_once(timeout_sec=0.02)
+        driver.start()
+        yield driver, listener, executor
 
 
 def _check_exact(schedule, listener, series):
@@ -74,7 +75,7 @@ def _check_exact(schedule, listener, series):
         kept = ~schedule.truth[seg].dropped
         got = listener.imu[seg]
         assert len(got) == int(kept.sum()), f"{seg}: every sample not dropped by the link, once"
-        stamps = np.array([m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for m in got])
+        stamps = np.array([stamp_ns(m.header.stamp) for m in got])
         assert (np.diff(stamps) > 0).all()
         acc = np.array([[m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z]
                         for m in got])
@@ -91,8 +92,7 @@ def test_udp_sensors_with_loss_reordering_and_drifting_clocks_come_out_exactly(r
     series = synthetic_imu(list(SEGMENTS), duration=3.0, rate_hz=100.0)
     link = LinkModel(offset_s=7.0, drift_ppm=200.0, jitter_ms=4.0, loss=0.03, reorder=0.05, seed=4)
     schedule = FrameSchedule(series, IDS, link)
-    driver, listener, executor = _graph(ros_context, port=0)
-    try:
+    with _graph(ros_context, port=0) as (driver, listener, executor):
         sent = {}
         thread = threading.Thread(target=lambda: sent.update(
             r=send_udp(schedule, "127.0.0.1", driver.link.port)), daemon=True)
@@ -125,10 +125,6 @@ def test_udp_sensors_with_loss_reordering_and_drifting_clocks_come_out_exactly(r
             assert int(values["duplicates"]) == 0
             assert float(values["rate_hz"]) == pytest.approx(100.0, rel=0.01)
         assert "cpu_fraction" in listener.values("imu_driver: receiving")
-    finally:
-        driver.destroy_node()
-        listener.node.destroy_node()
-        executor.shutdown()
 
 
 def test_unmapped_and_missing_sensors_are_named_on_diagnostics_and_the_dashboard(ros_context, tmp_path):
@@ -138,11 +134,10 @@ def test_unmapped_and_missing_sensors_are_named_on_diagnostics_and_the_dashboard
     from gait_biofeedback.nodes.biofeedback import BiofeedbackNode
     from gait_biofeedback.nodes.common import spin_until
 
-    driver, listener, executor = _graph(ros_context, port=0)
-    dashboard = BiofeedbackNode(ros_context, port=0)
-    executor.add_node(dashboard)
-    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    try:
+    with _graph(ros_context, port=0) as (driver, listener, executor), \
+            socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        dashboard = BiofeedbackNode(ros_context, port=0)
+        executor.add_node(dashboard)  # destroyed with the graph's nodes
         for k in range(20):  # in real time: a source is bound once its samples came as they were taken
             frame = encode_frame([DeviceSample(sid, k, 10_000 * k, (0.0, 0.0, 9.8), (0.0, 0.0, 0.0))
                                   for sid in (3, 11)])
@@ -160,12 +155,6 @@ def test_unmapped_and_missing_sensors_are_named_on_diagnostics_and_the_dashboard
         spin_until(executor, lambda: "imu_driver: sensor 11" in dashboard._diag, timeout=5)
         assert dashboard._diag["imu_driver: right_foot"]["level"] == 2
         assert "no data from sensor 6" in dashboard._diag["imu_driver: right_foot"]["message"]
-    finally:
-        sock.close()
-        dashboard.destroy_node()
-        driver.destroy_node()
-        listener.node.destroy_node()
-        executor.shutdown()
 
 
 def _send_genuine_and_forged(port, key=None, forged_frames=()):
@@ -216,7 +205,7 @@ def _send_while_spinning(executor, *args):
 def _genuine_only(listener, sent):
     got = listener.imu["left_foot"]
     assert [m.linear_acceleration.x for m in got] == [float(k) for k in range(100)]
-    stamps = np.array([m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for m in got])
+    stamps = np.array([stamp_ns(m.header.stamp) for m in got])
     assert (np.diff(stamps) > 0).all()
     assert np.abs(stamps - sent).max() < 50e6  # a forged sample taken would move them seconds
 
@@ -224,8 +213,7 @@ def _genuine_only(listener, sent):
 def test_udp_a_second_sender_claiming_a_sensors_id_is_dropped_and_named(ros_context):
     from gait_biofeedback.nodes.common import spin_until
 
-    driver, listener, executor = _graph(ros_context, port=0, diagnostics_period=0.2)
-    try:
+    with _graph(ros_context, port=0, diagnostics_period=0.2) as (driver, listener, executor):
         # the hostile probe: sequence 123 at device time 1 µs, then a stream of its own (a second sensor 3)
         forged = [_forged(123, 1)] + [_forged(k, 5_000 * k) for k in range(50)]
         sent, forger_port = _send_while_spinning(executor, driver.link.port, None, forged)
@@ -239,10 +227,6 @@ def test_udp_a_second_sender_claiming_a_sensors_id_is_dropped_and_named(ros_cont
         status = listener.diagnostics[name]
         assert status.level == b"\x01"
         assert f"sensor 3 also sent from 127.0.0.1:{forger_port}: two sources claim one id" in status.message
-    finally:
-        driver.destroy_node()
-        listener.node.destroy_node()
-        executor.shutdown()
 
 
 def test_udp_with_a_session_key_only_signed_frames_are_taken(ros_context, tmp_path):
@@ -252,9 +236,8 @@ def test_udp_with_a_session_key_only_signed_frames_are_taken(ros_context, tmp_pa
     key_file = tmp_path / "frame.key"
     key_file.write_bytes(key + b"\n")
     key_file.chmod(0o600)
-    driver, listener, executor = _graph(ros_context, port=0, diagnostics_period=0.2,
-                                        frame_key_file=str(key_file))
-    try:
+    with _graph(ros_context, port=0, diagnostics_period=0.2,
+                frame_key_file=str(key_file)) as (driver, listener, executor):
         forged = [_forged(7000 + k, 1, None) for k in range(20)]  # unsigned, with sequences ahead
         forged += [_forged(7100 + k, 1, b"guessed key 0123456789") for k in range(10)]
         sent, _ = _send_while_spinning(executor, driver.link.port, key, forged)
@@ -265,10 +248,6 @@ def test_udp_with_a_session_key_only_signed_frames_are_taken(ros_context, tmp_pa
         assert listener.values(name)["unsigned_frames"] == "20"
         assert "30 frames refused: not signed with the session key" in listener.diagnostics[name].message
         assert listener.values("imu_driver: left_foot")["foreign_samples"] == "0"  # refused, not foreign
-    finally:
-        driver.destroy_node()
-        listener.node.destroy_node()
-        executor.shutdown()
 
 
 def _pty():
@@ -290,7 +269,6 @@ def test_serial_sensors_with_line_noise_and_a_receiver_plugged_out_and_in(ros_co
     device = tmp_path / "ttyIMU"  # a stable name, as udev gives a receiver
     master, slave = _pty()
     os.symlink(os.ttyname(slave), device)
-    driver, listener, executor = _graph(ros_context, backend="serial", device=str(device), baud=115200)
     rng = np.random.default_rng(0)
     opened = [master, slave]
 
@@ -306,28 +284,27 @@ def test_serial_sensors_with_line_noise_and_a_receiver_plugged_out_and_in(ros_co
         return lambda: not thread.is_alive()
 
     try:
-        done = written(range(0, half), master)
-        first = sum(len(decode_frame(f)) for f in frames[:half])
-        spin_until(executor, lambda: done() and sum(map(len, listener.imu.values())) >= first, timeout=10)
-        os.close(opened.pop(0))  # plugged out: reading the device fails
-        spin_until(executor, lambda: driver.link.problem is not None, timeout=5)
-        assert "went away" in driver.link.problem
-        master, slave = _pty()
-        opened += [master, slave]
-        device.unlink()
-        device.symlink_to(os.ttyname(slave))  # plugged in again
-        spin_until(executor, lambda: driver.link.reconnects == 1, timeout=5)
-        done = written(range(half, len(frames)), master)
-        spin_until(executor, done, timeout=10)
-        spin_until(executor, lambda: sum(map(len, listener.imu.values())) >= schedule.samples, timeout=10)
-        _check_exact(schedule, listener, series)
-        name = "imu_driver: receiving"
-        assert spin_until(executor, lambda: name in listener.diagnostics
-                          and listener.values(name)["reconnects"] == "1", timeout=5)
+        with _graph(ros_context, backend="serial", device=str(device),
+                    baud=115200) as (driver, listener, executor):
+            done = written(range(0, half), master)
+            first = sum(len(decode_frame(f)) for f in frames[:half])
+            spin_until(executor, lambda: done() and sum(map(len, listener.imu.values())) >= first, timeout=10)
+            os.close(opened.pop(0))  # plugged out: reading the device fails
+            spin_until(executor, lambda: driver.link.problem is not None, timeout=5)
+            assert "went away" in driver.link.problem
+            master, slave = _pty()
+            opened += [master, slave]
+            device.unlink()
+            device.symlink_to(os.ttyname(slave))  # plugged in again
+            spin_until(executor, lambda: driver.link.reconnects == 1, timeout=5)
+            done = written(range(half, len(frames)), master)
+            spin_until(executor, done, timeout=10)
+            spin_until(executor, lambda: sum(map(len, listener.imu.values())) >= schedule.samples, timeout=10)
+            _check_exact(schedule, listener, series)
+            name = "imu_driver: receiving"
+            assert spin_until(executor, lambda: name in listener.diagnostics
+                              and listener.values(name)["reconnects"] == "1", timeout=5)
     finally:
-        driver.destroy_node()
-        listener.node.destroy_node()
-        executor.shutdown()
         for fd in opened:
             os.close(fd)
 
@@ -337,14 +314,10 @@ def test_simulated_sensors_run_live_at_their_rate(ros_context):
     from gait_biofeedback.nodes.common import spin_until
 
     listener = Listener(ros_context, ALL)
-    from gait_biofeedback.nodes.common import make_executor
     from gait_biofeedback.nodes.imu_driver import ImuDriverNode
 
     driver = ImuDriverNode(ros_context, backend="simulated", scenario="walk")
-    executor = make_executor(ros_context)
-    executor.add_node(driver)
-    executor.add_node(listener.node)
-    try:
+    with spinning(ros_context, driver, listener.node) as executor:
         spin_until(executor, lambda: len(listener.imu["chest"]) > 0, timeout=20)
         t0 = time.monotonic()
         n0 = len(listener.imu["chest"])
@@ -352,12 +325,7 @@ def test_simulated_sensors_run_live_at_their_rate(ros_context):
         rate = (len(listener.imu["chest"]) - n0) / (time.monotonic() - t0)
         assert rate == pytest.approx(100.0, rel=0.15)
         assert all(len(listener.imu[s]) > 0 for s in ALL)
-        stamp = listener.imu["chest"][-1].header.stamp
-        assert abs(stamp.sec + stamp.nanosec * 1e-9 - time.time()) < 0.5  # live: ROS time, now
-    finally:
-        driver.destroy_node()
-        listener.node.destroy_node()
-        executor.shutdown()
+        assert abs(stamp_s(listener.imu["chest"][-1].header.stamp) - time.time()) < 0.5  # live: ROS time, now
 
 
 def test_simulated_sensors_sign_with_the_key_the_driver_read_once(ros_context, tmp_path, monkeypatch):

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import spinning, stamp_s, true_calibration
 
 from gait_biofeedback.core.joints.angles import compute_joint_angles
 from gait_biofeedback.sim.simulator import SCENARIOS, simulate
@@ -20,11 +21,7 @@ def test_joint_angles_node(ros_context):
     from sensor_msgs.msg import Imu, JointState
     from visualization_msgs.msg import MarkerArray
 
-    from gait_biofeedback.core.calibration.sensor_to_segment import (
-        SegmentCalibrationResult,
-        SessionCalibration,
-    )
-    from gait_biofeedback.nodes.common import make_executor, spin_until
+    from gait_biofeedback.nodes.common import spin_until
     from gait_biofeedback.nodes.joint_angles import JointAnglesNode
     from gait_biofeedback.wire.calibration import segment_messages
     from gait_biofeedback.wire.stamps import s_to_stamp
@@ -33,8 +30,7 @@ def test_joint_angles_node(ros_context):
 
     session = simulate(SCENARIOS["walk"](duration=4.0, seed=3))
     truth = session.truth
-    results = {s: SegmentCalibrationResult(s, truth.mounting[s], True, 1.0, "x", 0.0) for s in SEGMENTS}
-    cal = SessionCalibration("walking", results, True, "")
+    cal = true_calibration(session, SEGMENTS)
     node = JointAnglesNode(ros_context, remove_standing_offset=False, diagnostics_period=0.2, max_wait=0.05,
                            heading="filters")  # true orientations: one world already
     source = Node("source", context=ros_context)
@@ -45,9 +41,6 @@ def test_joint_angles_node(ros_context):
     source.create_subscription(DiagnosticArray, "/diagnostics",
                                lambda m: diags.extend(s for s in m.status if s.name == "joint_angles"), 50)
     source.create_subscription(MarkerArray, "skeleton", skeletons.append, 100)
-    executor = make_executor(ros_context)
-    executor.add_node(node)
-    executor.add_node(source)
 
     def send(k, segments):
         for s in segments:
@@ -57,7 +50,7 @@ def test_joint_angles_node(ros_context):
             m.orientation.w, m.orientation.x, m.orientation.y, m.orientation.z = (float(v) for v in q)
             pubs[s].publish(m)
 
-    try:
+    with spinning(ros_context, node, source) as executor:
         assert spin_until(executor, lambda: all(p.get_subscription_count() for p in pubs.values()), timeout=5)
         send(0, SEGMENTS)
         assert spin_until(executor, lambda: any("not calibrated" in d.message for d in diags), timeout=5)
@@ -74,13 +67,9 @@ def test_joint_angles_node(ros_context):
         # the missing sample is said once (since the last report), not on every status after it
         assert spin_until(executor, lambda: len(diags) > said + 1, timeout=3)
         assert "missing" not in diags[-1].message and diags[-1].level == b"\x00", diags[-1].message
-    finally:
-        node.destroy_node()
-        source.destroy_node()
-        executor.shutdown()
     batch = compute_joint_angles({s: truth.sensor_orientation[s] for s in SEGMENTS}, cal)
     for msg in joints:
-        k = round((msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9) * 100)
+        k = round(stamp_s(msg.header.stamp) * 100)
         assert set(msg.name) == ({"left_hip_flexion", "left_hip_adduction", "left_hip_internal_rotation",
                                   "right_hip_flexion", "right_hip_adduction", "right_hip_internal_rotation"}
                                  | (set() if k == 30 else {"left_knee_flexion", "left_knee_adduction",

@@ -5,13 +5,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import simulated_bag, spinning, stamp_ns
 
 from gait_biofeedback.core import quaternion as quat
 from gait_biofeedback.core.orientation.stream import SegmentOrientationTracker, track_orientation
 from gait_biofeedback.graph import replay_through_graph
 from gait_biofeedback.io.bag import BagReader, read_imu_bag
-from gait_biofeedback.sim.recording import write_simulated_bag
-from gait_biofeedback.sim.simulator import SCENARIOS, simulate
+from gait_biofeedback.sim.simulator import SCENARIOS
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(90)]
 SEGMENTS = ["left_foot", "pelvis"]
@@ -19,16 +19,14 @@ SEGMENTS = ["left_foot", "pelvis"]
 
 @pytest.fixture(scope="module")
 def walk_bag(tmp_path_factory):
-    config = SCENARIOS["walk"](duration=4.0)
-    config.segments = tuple(SEGMENTS)
-    session = simulate(config)
-    return write_simulated_bag(tmp_path_factory.mktemp("walk") / "in", session), session
+    return simulated_bag(tmp_path_factory.mktemp("walk") / "in",
+                         SCENARIOS["walk"](duration=4.0, segments=tuple(SEGMENTS)))
 
 
 def _recorded_orientations(path, segment):
     stamps, quats = [], []
     for _, msg, _ in BagReader(path).messages([f"/{segment}/imu/data"]):
-        stamps.append(msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
+        stamps.append(stamp_ns(msg.header.stamp))
         o = msg.orientation
         quats.append((o.w, o.x, o.y, o.z))
     return np.array(stamps), np.array(quats)
@@ -91,7 +89,7 @@ def test_node_counts_bad_samples_and_reports_them(ros_context):
     from rclpy.node import Node
     from sensor_msgs.msg import Imu
 
-    from gait_biofeedback.nodes.common import make_executor, spin_until
+    from gait_biofeedback.nodes.common import spin_until
     from gait_biofeedback.nodes.orientation_filter import OrientationFilterNode
     from gait_biofeedback.wire.stamps import s_to_stamp
     from gait_biofeedback.wire.topics import SENSOR_QOS
@@ -105,10 +103,7 @@ def test_node_counts_bad_samples_and_reports_them(ros_context):
     from diagnostic_msgs.msg import DiagnosticArray
 
     source.create_subscription(DiagnosticArray, "/diagnostics", diagnostics.append, 10)
-    executor = make_executor(ros_context)
-    executor.add_node(node)
-    executor.add_node(source)
-    try:
+    with spinning(ros_context, node, source) as executor:
         assert spin_until(executor, lambda: pub.get_subscription_count() > 0, timeout=5)
         stamps = [100.0 + k * 0.01 for k in range(60)] + [50.0 + k * 0.01 for k in range(30)]
         for k, t in enumerate(stamps):
@@ -120,10 +115,6 @@ def test_node_counts_bad_samples_and_reports_them(ros_context):
             executor.spin_once(timeout_sec=0.002)
         assert spin_until(executor, lambda: len(outputs) >= 89, timeout=5)
         spin_until(executor, lambda: len(diagnostics) >= 2, timeout=3)
-    finally:
-        node.destroy_node()
-        source.destroy_node()
-        executor.shutdown()
     counts = node.trackers["chest"].counts
     assert counts["nan_skipped"] == 1 and counts["time_resets"] == 1
     assert len(outputs) == 89
@@ -139,7 +130,7 @@ def test_node_names_a_dropout_and_a_glitch_on_diagnostics(ros_context):
     from rclpy.node import Node
     from sensor_msgs.msg import Imu
 
-    from gait_biofeedback.nodes.common import make_executor, spin_until
+    from gait_biofeedback.nodes.common import spin_until
     from gait_biofeedback.nodes.orientation_filter import OrientationFilterNode
     from gait_biofeedback.wire.stamps import s_to_stamp
     from gait_biofeedback.wire.topics import SENSOR_QOS
@@ -151,10 +142,7 @@ def test_node_names_a_dropout_and_a_glitch_on_diagnostics(ros_context):
     said: list[str] = []
     source.create_subscription(DiagnosticArray, "/diagnostics",
                                lambda m: said.extend(s.message for s in m.status), 10)
-    executor = make_executor(ros_context)
-    executor.add_node(node)
-    executor.add_node(source)
-    try:
+    with spinning(ros_context, node, source) as executor:
         assert spin_until(executor, lambda: pub.get_subscription_count() > 0, timeout=5)
         stamps = [k * 0.01 for k in range(100)] + [2.0 + k * 0.01 for k in range(100)]
         for k, t in enumerate(stamps):
@@ -167,10 +155,6 @@ def test_node_names_a_dropout_and_a_glitch_on_diagnostics(ros_context):
             if k == 99 or k == 160:
                 spin_until(executor, lambda: False, timeout=0.25)  # a report or two
         spin_until(executor, lambda: any("out of range" in s for s in said), timeout=3)
-    finally:
-        node.destroy_node()
-        source.destroy_node()
-        executor.shutdown()
     text = " | ".join(said)
     assert "sensor dropout: 1.01 s without data (attitude re-acquired)" in text or (
         "sensor dropout: re-acquiring the attitude" in text), text

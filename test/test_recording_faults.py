@@ -18,7 +18,7 @@ import warnings
 
 import numpy as np
 import pytest
-from conftest import synthetic_imu
+from conftest import simulated_bag, spinning, synthetic_imu, true_calibration
 
 from gait_biofeedback.graph import replay_through_graph
 from gait_biofeedback.io import bag_writer
@@ -101,7 +101,7 @@ def test_record_again_after_a_write_error_opens_a_new_folder(tmp_path, monkeypat
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from std_msgs.msg import String
 
-    from gait_biofeedback.nodes.common import init_ros, make_executor, spin_until
+    from gait_biofeedback.nodes.common import init_ros, spin_until
     from gait_biofeedback.nodes.recorder import Recorder
 
     context = Context()
@@ -116,27 +116,22 @@ def test_record_again_after_a_write_error_opens_a_new_folder(tmp_path, monkeypat
     calibration.publish(String(data="calibration in force"))
     recorder = Recorder(context, output=str(tmp_path / "session"), flush_period=0.05,
                         topics=["/calibration_note", "/note"])
-    executor = make_executor(context)
-    for node in (source, recorder):
-        executor.add_node(node)
     try:
-        assert spin_until(executor, lambda: recorder.received >= 1, timeout=10)
-        k = 0
-        while recorder.write_error is None and k < 2000:
-            notes.publish(String(data=f"note {k} " + "x" * 200))
-            k += 1
-            spin_until(executor, lambda: False, timeout=0.002)
-        assert recorder.write_error is not None, "the budget ran out"
-        monkeypatch.undo()
-        recorder.start()
-        for j in range(3):
-            notes.publish(String(data=f"after {j}"))
-        assert spin_until(executor, lambda: recorder.writer is not None
-                          and recorder.writer.message_count >= 4, timeout=10)
+        with spinning(context, recorder, source) as executor:
+            assert spin_until(executor, lambda: recorder.received >= 1, timeout=10)
+            k = 0
+            while recorder.write_error is None and k < 2000:
+                notes.publish(String(data=f"note {k} " + "x" * 200))
+                k += 1
+                spin_until(executor, lambda: False, timeout=0.002)
+            assert recorder.write_error is not None, "the budget ran out"
+            monkeypatch.undo()
+            recorder.start()
+            for j in range(3):
+                notes.publish(String(data=f"after {j}"))
+            assert spin_until(executor, lambda: recorder.writer is not None
+                              and recorder.writer.message_count >= 4, timeout=10)
     finally:
-        recorder.destroy_node()
-        source.destroy_node()
-        executor.shutdown()
         context.try_shutdown()
     assert recorder.sessions == [tmp_path / "session", tmp_path / "session_1"]
     second = [m.data for _, m, _ in BagReader(tmp_path / "session_1").messages()]
@@ -236,7 +231,7 @@ def test_a_recording_that_cannot_start_leaves_nothing_and_can_be_retried(tmp_pat
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from std_msgs.msg import String
 
-    from gait_biofeedback.nodes.common import init_ros, make_executor, spin_until
+    from gait_biofeedback.nodes.common import init_ros, spin_until
     from gait_biofeedback.nodes.recorder import Recorder
 
     context = Context()
@@ -247,22 +242,17 @@ def test_a_recording_that_cannot_start_leaves_nothing_and_can_be_retried(tmp_pat
     source.create_publisher(String, "/calibration_note", latched).publish(String(data="in force"))
     recorder = Recorder(context, output=str(tmp_path / "session"), autostart=False,
                         topics=["/calibration_note"])
-    executor = make_executor(context)
-    for node in (source, recorder):
-        executor.add_node(node)
     try:
-        assert spin_until(executor, lambda: recorder.received >= 1, timeout=10)
-        monkeypatch.setattr(bag_writer, "open", SmallDisk(0).open, raising=False)
-        response = recorder._on_start(None, type("R", (), {})())
-        assert not response.success and "could not start recording" in response.message
-        assert not (tmp_path / "session").exists() and recorder.sessions == []
-        monkeypatch.undo()
-        assert recorder.start() == tmp_path / "session"
-        assert spin_until(executor, lambda: recorder.written >= 1, timeout=10)
+        with spinning(context, recorder, source) as executor:
+            assert spin_until(executor, lambda: recorder.received >= 1, timeout=10)
+            monkeypatch.setattr(bag_writer, "open", SmallDisk(0).open, raising=False)
+            response = recorder._on_start(None, type("R", (), {})())
+            assert not response.success and "could not start recording" in response.message
+            assert not (tmp_path / "session").exists() and recorder.sessions == []
+            monkeypatch.undo()
+            assert recorder.start() == tmp_path / "session"
+            assert spin_until(executor, lambda: recorder.written >= 1, timeout=10)
     finally:
-        recorder.destroy_node()
-        source.destroy_node()
-        executor.shutdown()
         context.try_shutdown()
     assert [m.data for _, m, _ in BagReader(tmp_path / "session").messages()] == ["in force"]
 
@@ -280,21 +270,14 @@ def test_run_stopped_by_sigterm_publishes_the_strides_it_held(tmp_path):
     """A live session ended by SIGTERM: the strides the gait_events node held for their spatial values
     (the last one of each foot, its next stance never came) go out and are recorded, as at the end of
     a replay; before, they were lost. The feet of a simulated walk, calibrated from a saved file."""
-    from gait_biofeedback.core.calibration.sensor_to_segment import (
-        SegmentCalibrationResult,
-        SessionCalibration,
-    )
     from gait_biofeedback.core.calibration.stream import write_calibration_file
-    from gait_biofeedback.sim.recording import write_simulated_bag
-    from gait_biofeedback.sim.simulator import Phase, SimulationConfig, simulate
+    from gait_biofeedback.sim.simulator import Phase, SimulationConfig
 
     feet = ("left_foot", "right_foot")
-    session = simulate(SimulationConfig(seed=4, segments=feet,
-                                        phases=[Phase("stand", 2.0), Phase("walk", 8.0)]))
-    bag = write_simulated_bag(tmp_path / "in", session)
-    results = {s: SegmentCalibrationResult(s, session.truth.mounting[s], True, 1.0, "x", 0.0) for s in feet}
-    write_calibration_file(tmp_path / "session" / "calibration.yaml",
-                           SessionCalibration("walking", results, True, ""), "2026-12-05T10:00:00")
+    bag, session = simulated_bag(tmp_path / "in", SimulationConfig(
+        seed=4, segments=feet, phases=[Phase("stand", 2.0), Phase("walk", 8.0)]))
+    write_calibration_file(tmp_path / "session" / "calibration.yaml", true_calibration(session),
+                           "2026-12-05T10:00:00")
     params = tmp_path / "params.yaml"
     params.write_text(f"orientation_filter:\n  ros__parameters:\n    segments: [{', '.join(feet)}]\n"
                       f"calibration:\n  ros__parameters:\n    segments: [{', '.join(feet)}]\n"

@@ -7,9 +7,6 @@ PDF's pages and text are read back with pypdf.
 
 from __future__ import annotations
 
-import contextlib
-import csv
-import io
 import math
 import re
 import subprocess
@@ -18,17 +15,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import find_chromium
+from conftest import csv_rows, find_chromium, run_cli, simulated_bag
 
-from gait_biofeedback.cli import main
 from gait_biofeedback.parameters import load_params_file
 from gait_biofeedback.report.analysis import gait_profile_score, gait_variable_score
 from gait_biofeedback.report.build import Patient, patient_from_params
 from gait_biofeedback.report.extract import read_session
 from gait_biofeedback.report.norms import load_norms
 from gait_biofeedback.report.progress import progress_section
-from gait_biofeedback.sim.recording import write_simulated_bag
-from gait_biofeedback.sim.simulator import Phase, SimulationConfig, simulate
+from gait_biofeedback.sim.simulator import Phase, SimulationConfig
 
 REPO = Path(__file__).resolve().parents[1]
 ARTIFACTS = REPO / "test-artifacts"
@@ -36,28 +31,19 @@ PATIENT_BLOCK = 'patient:\n  ros__parameters:\n    id: P017\n    session: "2026-
 NUMBER = r"(-?\d+(?:\.\d+)?)"
 
 
-def _cli(*argv: str) -> tuple[int, str, str]:
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        rc = main(list(argv))
-    return rc, out.getvalue(), err.getvalue()
-
-
 @pytest.fixture(scope="module")
 def reported(tmp_path_factory):
     """A 28 s walk (stand, walk 20 s, stand), analyzed and reported through the CLI."""
     root = tmp_path_factory.mktemp("report")
-    session = simulate(
-        SimulationConfig(seed=5, phases=[Phase("stand", 5.0), Phase("walk", 20.0), Phase("stand", 3.0)])
-    )
-    raw = write_simulated_bag(root / "walk", session)
-    rc, analyzed, err = _cli(
+    config = SimulationConfig(seed=5, phases=[Phase("stand", 5.0), Phase("walk", 20.0), Phase("stand", 3.0)])
+    raw, session = simulated_bag(root / "walk", config)
+    rc, analyzed, err = run_cli(
         "analyze", str(raw), "-o", str(root / "analyzed"), "--calibrate-at", "12:walking"
     )
     assert rc == 0, err
     params = root / "session.yaml"
     params.write_text(PATIENT_BLOCK + (REPO / "config" / "session.yaml").read_text())
-    rc, printed, err = _cli(
+    rc, printed, err = run_cli(
         "report", str(root / "analyzed"), "-o", str(root / "report"), "--params", str(params)
     )
     assert rc == 0, err
@@ -69,11 +55,6 @@ def reported(tmp_path_factory):
         "printed": printed,
         "out": root / "report",
     }
-
-
-def _rows(path: Path) -> list[dict[str, str]]:
-    with path.open() as f:
-        return list(csv.DictReader(f))
 
 
 def _pdf_pages(path: Path) -> list[str]:
@@ -104,7 +85,7 @@ def test_strides_csv_holds_every_stride_message_field_and_the_count_analyze_wrot
         for kind, name in declared
         if "=" not in name and name not in ("header", "side")
     ]
-    rows = _rows(reported["out"] / "strides.csv")
+    rows = csv_rows(reported["out"] / "strides.csv")
     assert set(fields) <= set(rows[0]), f"missing: {set(fields) - set(rows[0])}"
     assert {"side", "used", "start_s", "session"} <= set(rows[0])
     written = int(re.search(r"/gait/cycles (\d+)", reported["analyzed"]).group(1))
@@ -125,7 +106,7 @@ def test_strides_csv_holds_every_stride_message_field_and_the_count_analyze_wrot
 def test_report_numbers_equal_analyze_s(reported):
     """The used strides give the medians `analyze` printed (its rounding); the table shows their per-side
     mean ± SD (n)."""
-    rows = [r for r in _rows(reported["out"] / "strides.csv") if r["used"] == "True"]
+    rows = [r for r in csv_rows(reported["out"] / "strides.csv") if r["used"] == "True"]
     stride = re.search(rf"stride length {NUMBER} m, gait speed {NUMBER} m/s", reported["analyzed"])
     temporal = re.search(
         rf"stride {NUMBER} s, cadence {NUMBER} steps/min, stance {NUMBER} %", reported["analyzed"]
@@ -148,7 +129,7 @@ def test_report_numbers_equal_analyze_s(reported):
 
 def test_stride_time_and_cadence_per_side_match_the_simulator(reported):
     truth = reported["session"].truth
-    rows = [r for r in _rows(reported["out"] / "strides.csv") if r["used"] == "True"]
+    rows = [r for r in csv_rows(reported["out"] / "strides.csv") if r["used"] == "True"]
     for side in ("left", "right"):
         ics = truth.initial_contacts[side]
         errors, true_times = [], []
@@ -167,7 +148,7 @@ def test_stride_time_and_cadence_per_side_match_the_simulator(reported):
 
 
 def test_joints_csv_has_each_side_s_angles_and_consistent_values(reported):
-    rows = _rows(reported["out"] / "joints.csv")
+    rows = csv_rows(reported["out"] / "joints.csv")
     assert rows and all(not r["angle"].startswith(("left_", "right_")) for r in rows)
     knee = [r for r in rows if r["angle"] == "knee_flexion"]
     assert {r["side"] for r in knee} == {"left", "right"}
@@ -254,7 +235,7 @@ def test_progress_flags_a_gait_speed_change_beyond_its_mcid(reported):
 
 
 def test_a_raw_recording_is_refused_with_the_analyze_command(reported, tmp_path):
-    rc, _, err = _cli("report", str(reported["raw"]), "-o", str(tmp_path / "r"))
+    rc, _, err = run_cli("report", str(reported["raw"]), "-o", str(tmp_path / "r"))
     assert rc == 2 and "raw recording" in err and "gait-biofeedback analyze" in err
     assert not (tmp_path / "r").exists()
 
@@ -266,7 +247,7 @@ def test_a_damaged_recording_is_reported_as_damaged(reported, tmp_path):
     data = mcap.read_bytes()
     cut = tmp_path / "cut.mcap"
     cut.write_bytes(data[: int(0.6 * len(data))])
-    rc, _, err = _cli("report", str(cut), "-o", str(tmp_path / "r"))
+    rc, _, err = run_cli("report", str(cut), "-o", str(tmp_path / "r"))
     assert rc == 0, err
     assert err.count("warning: DAMAGED RECORDING: ") == 1 and "recovered" in err, err
     html = (tmp_path / "r" / "report.html").read_text()
@@ -274,7 +255,7 @@ def test_a_damaged_recording_is_reported_as_damaged(reported, tmp_path):
     assert "DAMAGED RECORDING: " in html.split("Data quality", 1)[1]
     empty = tmp_path / "empty.mcap"
     empty.write_bytes(data[:40])
-    rc, _, err = _cli("report", str(empty), "-o", str(tmp_path / "e"))
+    rc, _, err = run_cli("report", str(empty), "-o", str(tmp_path / "e"))
     assert rc == 2 and "no message could be read" in err and "gait-biofeedback info" in err, err
 
 
@@ -283,14 +264,14 @@ def test_an_existing_report_is_replaced_only_when_asked(reported, tmp_path):
     --overwrite; a session given twice is refused."""
     analyzed = str(reported["root"] / "analyzed")
     before = (reported["out"] / "report.html").stat().st_mtime_ns
-    rc, _, err = _cli("report", analyzed, "-o", str(reported["out"]))
+    rc, _, err = run_cli("report", analyzed, "-o", str(reported["out"]))
     assert rc == 2 and "already holds a report (report.html" in err and "--overwrite" in err
     assert (reported["out"] / "report.html").stat().st_mtime_ns == before
-    rc, _, err = _cli("report", analyzed, analyzed, "-o", str(tmp_path / "twice"))
+    rc, _, err = run_cli("report", analyzed, analyzed, "-o", str(tmp_path / "twice"))
     assert rc == 2 and "given twice" in err and not (tmp_path / "twice").exists()
-    rc, _, err = _cli("report", analyzed, "-o", str(tmp_path / "again"))
+    rc, _, err = run_cli("report", analyzed, "-o", str(tmp_path / "again"))
     assert rc == 0, err
-    rc, _, err = _cli("report", analyzed, "-o", str(tmp_path / "again"), "--overwrite")
+    rc, _, err = run_cli("report", analyzed, "-o", str(tmp_path / "again"), "--overwrite")
     assert rc == 0, err
 
 
@@ -340,7 +321,7 @@ def test_a_bad_norms_file_is_refused(tmp_path, text, match):
 def test_a_norms_file_replaces_a_band_and_names_its_source(tmp_path, reported):
     path = tmp_path / "norms.yaml"
     path.write_text("gait_speed: {low: 0.40, high: 0.80, source: 'Clinic cohort 2026'}\n")
-    rc, _, err = _cli(
+    rc, _, err = run_cli(
         "report", str(reported["root"] / "analyzed"), "-o", str(tmp_path / "r"), "--norms", str(path)
     )
     assert rc == 0, err
@@ -408,11 +389,11 @@ def test_turning_strides_are_left_out_of_the_summaries(tmp_path):
     from gait_biofeedback.report.build import default_targets_path
     from gait_biofeedback.report.session import session_report
 
-    session = simulate(SimulationConfig(seed=3, phases=[
+    raw, _ = simulated_bag(tmp_path / "turn", SimulationConfig(seed=3, phases=[
         Phase("stand", 5.0), Phase("walk", 8.0), Phase("turn", 3.0, {"angle": math.pi}), Phase("walk", 8.0),
         Phase("stand", 3.0)]))
-    raw = write_simulated_bag(tmp_path / "turn", session)
-    rc, _, err = _cli("analyze", str(raw), "-o", str(tmp_path / "analyzed"), "--calibrate-at", "12:walking")
+    rc, _, err = run_cli("analyze", str(raw), "-o", str(tmp_path / "analyzed"),
+                         "--calibrate-at", "12:walking")
     assert rc == 0, err
     data = read_session(tmp_path / "analyzed")
     analysis = analyse_session(data, load_targets(default_targets_path()))

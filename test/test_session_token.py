@@ -9,6 +9,7 @@ import time
 from pathlib import Path
 
 import pytest
+from conftest import spinning
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(60)]
 
@@ -19,7 +20,7 @@ def test_the_token_is_on_the_terminal_and_in_an_owner_only_file_never_on_rosout(
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
     from gait_biofeedback.nodes.biofeedback import BiofeedbackNode
-    from gait_biofeedback.nodes.common import make_executor, spin_until
+    from gait_biofeedback.nodes.common import spin_until
 
     listener = Node("rosout_listener", context=ros_context)
     heard: list[str] = []
@@ -28,10 +29,7 @@ def test_the_token_is_on_the_terminal_and_in_an_owner_only_file_never_on_rosout(
     listener.create_subscription(Log, "/rosout", lambda m: heard.append(m.msg), qos)
     started = time.time()
     node = BiofeedbackNode(ros_context, port=0, session_dir=str(tmp_path / "session"))
-    executor = make_executor(ros_context)
-    for n in (node, listener):
-        executor.add_node(n)
-    try:
+    with spinning(ros_context, node, listener) as executor:
         token = node.server.token
         assert len(token) >= 20
         assert spin_until(executor, lambda: any("dashboard:" in m for m in heard), timeout=10), heard
@@ -44,10 +42,6 @@ def test_the_token_is_on_the_terminal_and_in_an_owner_only_file_never_on_rosout(
         link = tmp_path / "session" / "dashboard_url.txt"
         assert link.read_text().strip() == f"http://127.0.0.1:{node.port}/?token={token}"
         assert stat.S_IMODE(link.stat().st_mode) == 0o600
-    finally:
-        node.destroy_node()
-        listener.destroy_node()
-        executor.shutdown()
     assert not (tmp_path / "session" / "dashboard_url.txt").exists(), "the dead token's file is removed"
     home = Path(os.environ.get("ROS_HOME", "~/.ros")).expanduser()
     log_dir = Path(os.environ.get("ROS_LOG_DIR") or home / "log")
