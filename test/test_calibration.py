@@ -211,6 +211,38 @@ def test_trunk_refused_when_orientation_and_accelerometer_disagree_on_the_vertic
     assert res.message == "pelvis: sensor orientation and accelerometer disagree on the vertical"
 
 
+def _pelvis_walking(seconds: float = 10.0, rate: float = 100.0):
+    """The pelvis sensor of ``_PELVIS_STANDING`` (x east, y up) walking east at 2 steps/s: along y 1.5
+    m/s² and along x (anteroposterior) 1 m/s² at the step frequency, nothing sideways. Its walking axis
+    is ±x (the first principal axis of the horizontal acceleration, no second one)."""
+    t = np.arange(round(seconds * rate)) / rate
+    step = np.sin(2 * np.pi * 2.0 * t)
+    acc = np.column_stack([1.0 * step, 9.81 + 1.5 * step, np.zeros_like(t)])
+    series = ImuSeries("pelvis", t, acc, np.zeros((len(t), 3)))
+    return series, np.tile(_PELVIS_STANDING, (len(t), 1)), (0.0, seconds)
+
+
+def test_trunk_refused_when_its_forward_directions_cancel_out():
+    """Two forward directions (the hips' kinematic headings) 178° apart, at +1° and 179° from the
+    sensor's x: their sum (0, 0, -2 sin 1°) has length 0.035 < 0.3, so no forward direction is known
+    and the trunk is refused. Averaged anyway, x would be the sensor's -z (sideways) and the walking axis
+    ±x, 1° from one of the two, would be accepted with a sign nothing decided."""
+    standing_acc, standing_gyr = np.tile([0.0, 9.81, 0.0], (100, 1)), np.zeros((100, 3))
+
+    def heading(deg: float) -> np.ndarray:  # in the pelvis sensor: (cos, 0, -sin), as the thighs' above
+        return np.array([np.cos(deg * DEG), 0.0, -np.sin(deg * DEG)])
+
+    apart = calibrate_trunk("pelvis", standing_acc, standing_gyr, _PELVIS_STANDING, [],
+                            forward=[heading(1.0), heading(179.0)], walking=_pelvis_walking())
+    assert not apart.valid
+    assert apart.message == "pelvis: the directions it would average point apart; repeat the calibration"
+    # the same walk with the two directions 2° apart (+1°, -1°): forward is the walking axis, signed east
+    along = calibrate_trunk("pelvis", standing_acc, standing_gyr, _PELVIS_STANDING, [],
+                            forward=[heading(1.0), heading(-1.0)], walking=_pelvis_walking())
+    assert along.valid, along.message
+    np.testing.assert_allclose(quat.rotate(along.rotation, [1.0, 0.0, 0.0]), [1.0, 0.0, 0.0], atol=1e-6)
+
+
 def test_refuses_recording_without_motion_and_says_why():
     still = simulate(SCENARIOS["walk"](duration=4.0, seed=1))  # only used for its standing samples
     s = still.imu["left_shank"]

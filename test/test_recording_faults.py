@@ -172,16 +172,26 @@ def test_a_replay_stopped_and_started_lists_every_folder_and_keeps_the_calibrati
 
 def _stopped_by(sig: int, command: list[str], bag, speed: float = 1.0) -> tuple[int, str, str]:
     """Start ``gait-biofeedback COMMAND``, replay ``bag`` to it from another process, send ``sig``;
-    (exit status, stdout, stderr)."""
+    (exit status, stdout, stderr). A ``run`` is replayed to once it says it runs: its nodes subscribe
+    before the replayer, which starts at its first subscriber, matches them (on a busy machine the
+    recorder's subscriptions were matched first and the filter lost the first 5-156 of 200 samples)."""
     process = subprocess.Popen([sys.executable, "-m", "gait_biofeedback.cli", *command],
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               env=dict(os.environ, PYTHONUNBUFFERED="1"))  # its lines as it prints them
+    said = []
     try:
+        if command[0] == "run":
+            for line in process.stdout:
+                said.append(line)
+                if "Ctrl-C stops" in line:
+                    break
         subprocess.run([sys.executable, "-m", "gait_biofeedback.nodes.imu_replayer", "--ros-args",
                         "-p", f"bag:={bag}", "-p", f"speed:={speed}", "-p", "wait_for_subscribers:=10.0"],
                        timeout=30, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=True)
         time.sleep(0.5)
         process.send_signal(sig)
         stdout, stderr = process.communicate(timeout=20)
+        stdout = "".join(said) + stdout
     finally:
         if process.poll() is None:
             process.kill()

@@ -1,6 +1,5 @@
 """Physical consistency and ground truth of core/simulator.py."""
 
-import time
 from dataclasses import replace
 
 import numpy as np
@@ -236,12 +235,12 @@ def test_hip_flexion_calibration_moves():
         assert np.max(np.abs(tr.joint_angles[f"{other}_hip_flexion"][m])) < 2 * DEG
 
 
-def test_demo_duration_turn_and_speed_of_simulation():
-    start = time.perf_counter()
+def test_demo_duration_and_turn():
+    # how fast the demo is simulated (0.5 s here, the former bound 5 s) is a figure of the machine and
+    # its load: benchmarks/timing.py
     s = simulate(SCENARIOS["demo"]())
-    elapsed = time.perf_counter() - start
     tr = s.truth
-    assert 90.0 <= tr.t[-1] <= 120.0 and elapsed < 5.0
+    assert 90.0 <= tr.t[-1] <= 120.0
     fwd = quat.rotate(tr.segment_orientation["pelvis"], [1.0, 0.0, 0.0])
     heading = np.unwrap(np.arctan2(fwd[:, 1], fwd[:, 0]))
     assert heading[_idx(tr, 70.0)] - heading[_idx(tr, 40.0)] == pytest.approx(np.pi, abs=0.15)
