@@ -68,8 +68,12 @@ def string_msg(i: int) -> String:
     return String(data=f"message {i:05d} " + "x" * 40)
 
 
-@pytest.mark.parametrize("with_mag", [True, False])
-def test_imu_series_round_trip_is_exact(tmp_path: Path, with_mag: bool) -> None:
+@pytest.mark.parametrize(("with_mag", "block"), [(True, None), (False, None), (True, 7)])
+def test_imu_series_round_trip_is_exact(tmp_path: Path, with_mag: bool, block: int | None,
+                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Also when the reader decodes a few messages at a time (an hour is read in blocks)."""
+    if block is not None:
+        monkeypatch.setattr("gait_biofeedback.io.imu_bag.DECODE_BLOCK", block)
     imu = ns_grid_imu(with_mag)
     bag = write_imu_bag(tmp_path / "imu", imu)
     back = read_imu_bag(bag)

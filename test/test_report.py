@@ -430,3 +430,24 @@ def test_a_condition_said_with_other_numbers_is_one_line_with_their_range():
         "ERROR: losing samples: 3 of 3 missing (the link) (at 30.4 s)",
         "ERROR: losing samples: 2 of 10 missing (the link) (at 31.0 s)",
     ]
+
+
+def test_joint_rows_merge_one_stamp_s_messages_and_leave_absent_angles_nan():
+    """The report's columns of a joint_states topic: consecutive messages of a stamp are one row,
+    a joint a row does not give is NaN, and by_stamp merges a stamp seen again later (last wins)."""
+    from gait_biofeedback.report.recording import JointRows
+
+    rows = JointRows()
+    rows.add(10, {"left_knee": 0.1}, False)
+    rows.add(10, {"left_hip": 0.2}, True)  # same stamp: merged, the first message's flag kept
+    rows.add(20, {"left_knee": 0.3}, True)
+    rows.add(30, {"right_ankle": -0.4}, False)  # a joint first seen here: NaN before
+    rows.add(10, {"left_knee": 0.5}, False)  # the stamp again, not consecutive: a row of its own
+    columns = rows.columns()
+    assert list(columns) == ["left_hip", "left_knee", "right_ankle"]
+    assert list(rows.stamps) == [10, 20, 30, 10] and list(rows.recovering) == [0, 1, 0, 0]
+    np.testing.assert_array_equal(columns["left_knee"], [0.1, 0.3, np.nan, 0.5])
+    np.testing.assert_array_equal(columns["left_hip"], [0.2, np.nan, np.nan, np.nan])
+    np.testing.assert_array_equal(columns["right_ankle"], [np.nan, np.nan, -0.4, np.nan])
+    assert rows.by_stamp("left_knee") == {10: 0.5, 20: 0.3} and list(rows.by_stamp("left_knee")) == [10, 20]
+    assert rows.by_stamp("head") == {}

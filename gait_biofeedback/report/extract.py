@@ -205,7 +205,6 @@ def session_data(recording: Recording) -> SessionData:
         strides.append(row)
         stride_objects.append(stride)
     joints = recording.joint_rows()
-    names = sorted({n for r in joints.angles for n in r})
     return SessionData(
         path=recording.path,
         start_ns=start_ns,
@@ -214,7 +213,7 @@ def session_data(recording: Recording) -> SessionData:
         events=[(side, kind, (stamp_ns - start_ns) / 1e9)
                 for topic, side, kind, stamp_ns in recording.events if topic == EVENTS],
         joint_t=np.array(joints.stamps, dtype=np.int64),
-        joints={n: np.array([r.get(n, math.nan) for r in joints.angles], dtype=float) for n in names},
+        joints=joints.columns(),
         recovering=np.array(joints.recovering, dtype=bool),
         activity=[((stamp_ns - start_ns) / 1e9, *state) for stamp_ns, *state in recording.activity],
         transitions=[((stamp_ns - start_ns) / 1e9, kind) for stamp_ns, kind in recording.transitions],

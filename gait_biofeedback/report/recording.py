@@ -9,9 +9,13 @@ for a simulated session, its ``/ground_truth/...`` topics, read once in log orde
 
 from __future__ import annotations
 
+import math
+from array import array
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from gait_biofeedback.io.bag import BagReader
 from gait_biofeedback.wire import topics
@@ -28,29 +32,43 @@ ACTIVITY, CUES = topics.ACTIVITY.absolute(), topics.CUES.absolute()
 DIAGNOSTICS = topics.DIAGNOSTICS.absolute()
 
 
-@dataclass
 class JointRows:
-    """One ``joint_states`` topic: per stamp (consecutive messages of one stamp merged) the angles (rad)
-    and whether its first message was marked recovering."""
+    """One ``joint_states`` topic as columns: per stamp (consecutive messages of one stamp merged) the
+    angles (rad; NaN where a row has no value for a joint) and whether its first message was marked
+    recovering. Columns of machine numbers, not a dict per row: an hour holds 360,000 stamps."""
 
-    stamps: list[int] = field(default_factory=list)
-    angles: list[dict[str, float]] = field(default_factory=list)
-    recovering: list[bool] = field(default_factory=list)
+    def __init__(self) -> None:
+        self.stamps = array("q")
+        self.recovering = array("b")
+        self._columns: dict[str, array] = {}
 
     def add(self, stamp_ns: int, angles: dict[str, float], recovering: bool) -> None:
         """One message, in log order."""
-        if self.stamps and stamp_ns == self.stamps[-1]:
-            self.angles[-1].update(angles)
-        else:
+        if not (self.stamps and stamp_ns == self.stamps[-1]):
             self.stamps.append(stamp_ns)
-            self.angles.append(dict(angles))
-            self.recovering.append(recovering)
+            self.recovering.append(bool(recovering))
+            for column in self._columns.values():
+                column.append(math.nan)
+        rows = len(self.stamps)
+        for name, value in angles.items():
+            column = self._columns.get(name)
+            if column is None:
+                column = self._columns[name] = array("d", [math.nan]) * rows
+            column[-1] = value
 
-    def by_stamp(self) -> dict[int, dict[str, float]]:
-        """Stamp → angles, every message of a stamp merged in log order (also ones not consecutive)."""
-        out: dict[int, dict[str, float]] = {}
-        for stamp_ns, angles in zip(self.stamps, self.angles, strict=True):
-            out.setdefault(stamp_ns, {}).update(angles)
+    def columns(self) -> dict[str, np.ndarray]:
+        """Joint name → its angle per stamp (rad, NaN where absent), names sorted."""
+        return {name: np.array(self._columns[name], dtype=float) for name in sorted(self._columns)}
+
+    def by_stamp(self, name: str) -> dict[int, float]:
+        """Stamp → the angle ``name``, every message of a stamp merged in log order (also ones not
+        consecutive: the last value given wins); stamps in the order first seen."""
+        out: dict[int, float] = {}
+        column = self._columns.get(name)
+        if column is not None:
+            for stamp_ns, value in zip(self.stamps, column, strict=True):
+                if not math.isnan(value):
+                    out[stamp_ns] = value
         return out
 
 

@@ -32,6 +32,7 @@ from gait_biofeedback.report.recording import (
     TRUE_CALIBRATION,
     TRUE_EVENTS,
     TRUE_JOINTS,
+    JointRows,
     Recording,
     read_recording,
 )
@@ -73,14 +74,15 @@ def _calibration(messages: list[tuple[str, Any]]) -> dict[str, dict]:
     return found
 
 
-def _joint_rmse(measured: dict[int, dict[str, float]], truth: dict[int, dict[str, float]]
-                ) -> dict[str, float]:
-    errors: dict[str, list[float]] = defaultdict(list)
-    for stamp, angles in measured.items():
-        for name, value in angles.items():
-            if stamp in truth and name in truth[stamp]:
-                errors[name].append(value - truth[stamp][name])
-    return {name: float(np.sqrt(np.mean(np.square(e)))) for name, e in errors.items()}
+def _joint_rmse(measured: JointRows, truth: JointRows) -> dict[str, float]:
+    """RMS of (measured - true) angle per joint, over the stamps both have (rad)."""
+    rmse = {}
+    for name in measured.columns():
+        true = truth.by_stamp(name)
+        errors = [value - true[stamp] for stamp, value in measured.by_stamp(name).items() if stamp in true]
+        if errors:
+            rmse[name] = float(np.sqrt(np.mean(np.square(errors))))
+    return rmse
 
 
 def _events(times: dict[tuple[bool, str, str], list[float]]) -> dict[str, EventScore]:
@@ -152,8 +154,7 @@ def summarise(recording: Recording) -> SessionReport:
         report.true_steps += topic == TRUE_EVENTS and kind == INITIAL_CONTACT
     report.calibration = _calibration([(topic, msg) for topic, msg, _ in recording.calibrations])
     if TRUE_JOINTS in recorded:
-        report.joint_rmse = _joint_rmse(recording.joint_rows(JOINTS).by_stamp(),
-                                        recording.joint_rows(TRUE_JOINTS).by_stamp())
+        report.joint_rmse = _joint_rmse(recording.joint_rows(JOINTS), recording.joint_rows(TRUE_JOINTS))
     report.events = _events(times) if TRUE_EVENTS in recorded else {}
     report.cycles = _cycles(recording.cycles) if CYCLES in recorded else {}
     report.transitions = [(stamp_ns * 1e-9, kind) for stamp_ns, kind in recording.transitions]
