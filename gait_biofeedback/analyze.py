@@ -333,7 +333,7 @@ def analyze_recording(
         notes.append("--calibrate-at auto: that calibration is in force from the start of the recording "
                      "(offline, as a calibration file would be; replay presses Calibrate at that instant, "
                      "or, for a calibration made of the walk itself, puts it in force from the start too)")
-    result.notes = notes
+    result.notes[:0] = notes  # before what the analysis noted
     result.requested = len(calibrate_at)
     return result
 
@@ -615,22 +615,22 @@ def _analyze(ordered: LogOrderWriter | None, reader: BagReader, run: Orientation
     for text, segments in said_by.items():
         who = segments[0] if len(segments) == 1 else f"{', '.join(segments)} ({len(segments)} sensors)"
         result.warnings.append(f"{who}: over the session: {text}")
-    for side, foot in gait.feet.items():
+    for side, foot in gait.feet.items():  # what the live graph would have held back: information here
         swing = {k: a.withheld for k, a in foot.swing_agreement.values.items() if a.withheld}
         if swing:
-            result.warnings.append(
-                f"{side} foot: provisional "
+            result.notes.append(
+                f"{side} foot, live only: provisional "
                 + ", ".join(f"{SWING_WORDS[k]} withheld {n} times" for k, n in swing.items())
                 + " (their last estimates differed from the smoothed ones by more than "
                 + ", ".join(SWING_TOLERANCE_TEXT[k] for k in swing)
-                + " RMS; those strides got theirs with the smoothed values)")
+                + " RMS); offline every stride has its smoothed values")
         rest = foot.rest_of_swing
         if rest.withheld:
-            result.warnings.append(
-                f"{side} foot: {rest.withheld} provisional stride lengths withheld (live, those strides wait "
-                f"for their smoothed values) while their last estimates differed from the smoothed ones by "
-                f"more than provisional_tolerance, {100 * rest.tolerance:g} cm RMS (at the end of the "
-                f"recording {100 * rest.spread:.1f} cm)")
+            result.notes.append(
+                f"{side} foot, live only: {rest.withheld} provisional stride lengths withheld (those strides "
+                f"wait for their smoothed values) while their last estimates differed from the smoothed ones "
+                f"by more than provisional_tolerance, {100 * rest.tolerance:g} cm RMS (at the end of the "
+                f"recording {100 * rest.spread:.1f} cm); offline every stride has its smoothed values")
     for until_ns, protocol in buffer.scheduled:
         at = (until_ns - start_ns) / NS_PER_S
         result.warnings.append(f"calibration ({protocol}) at {at:.2f} s never ran: "

@@ -437,3 +437,28 @@ def test_a_hole_of_lost_samples_is_filled_before_algorithm1_counts_them(monkeypa
     monkeypatch.setattr(events, "MAX_FILL_S", 0.05)  # the same hole, not filled: the toe-off is missed,
     # and found only late, at the heel strike, with the flag that makes its stride doubtful
     assert _events_with_stamps(s, keep) == [("tc", 49, LATE_TC_FLAG), ("ic", 69, "")]
+
+
+def test_flagged_strides_are_counted_by_their_reason():
+    """A leg lifted and set down while the other stands (a calibration's hip flexion) and a pause in
+    the walk are flagged; their reasons are counted by kind (analyze's one summary line, not a warning
+    a stride), a clause the kinds do not know by its text up to a colon."""
+    from gait_biofeedback.core.gait.cycles import FLAG_KINDS, flag_kinds
+    from gait_biofeedback.core.gait.events import INITIAL_CONTACT, TERMINAL_CONTACT, GaitEvent
+
+    tracker = GaitCycleTracker()
+    tracker.tracking.update({"left", "right"})
+
+    def event(kind: str, t: float) -> GaitEvent:
+        ns = round(t * 1e9)
+        return GaitEvent("left", kind, ns, ns, 0.0, 0)
+
+    cycles = [tracker.add(event(kind, t)) for kind, t in
+              ((INITIAL_CONTACT, 1.0), (TERMINAL_CONTACT, 1.6), (INITIAL_CONTACT, 2.1),  # no right step
+               (TERMINAL_CONTACT, 2.7), (INITIAL_CONTACT, 9.0))]  # and 6.9 s: a pause
+    first, second = cycles[2], cycles[4]
+    no_step, too_long = FLAG_KINDS[0][1], FLAG_KINDS[1][1]
+    assert flag_kinds(first.flag) == [no_step]
+    assert flag_kinds(second.flag) == [too_long, no_step]
+    assert flag_kinds("sensor dropout: 0.30 s without data; " + first.flag) == ["sensor dropout", no_step]
+    assert flag_kinds("") == []

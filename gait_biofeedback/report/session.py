@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from gait_biofeedback.core import quaternion as quat
-from gait_biofeedback.core.gait.cycles import TURN_LIMIT, steady_strides
+from gait_biofeedback.core.gait.cycles import TURN_LIMIT, flag_kinds, steady_strides
 from gait_biofeedback.core.gait.events import INITIAL_CONTACT, TERMINAL_CONTACT
 from gait_biofeedback.core.gait.matching import EventScore, match_events
 from gait_biofeedback.core.segments import SIDES
@@ -53,6 +53,8 @@ class SessionReport:
     joint_rmse: dict[str, float] = field(default_factory=dict)
     events: dict[str, EventScore] = field(default_factory=dict)
     cycles: dict[str, float] = field(default_factory=dict)
+    flagged: dict[str, int] = field(default_factory=dict)
+    """Implausible strides by their first reason (:func:`~gait_biofeedback.core.gait.cycles.flag_kinds`)."""
     transitions: list[tuple[float, int]] = field(default_factory=list)
     steps: int = 0
     true_steps: int = 0
@@ -157,6 +159,10 @@ def summarise(recording: Recording) -> SessionReport:
         report.joint_rmse = _joint_rmse(recording.joint_rows(JOINTS), recording.joint_rows(TRUE_JOINTS))
     report.events = _events(times) if TRUE_EVENTS in recorded else {}
     report.cycles = _cycles(recording.cycles) if CYCLES in recorded else {}
+    for m in recording.cycles:
+        if not m.plausible:
+            kind = (flag_kinds(m.flag) or ["no reason given"])[0]
+            report.flagged[kind] = report.flagged.get(kind, 0) + 1
     report.transitions = [(stamp_ns * 1e-9, kind) for stamp_ns, kind in recording.transitions]
     return report
 
@@ -212,6 +218,9 @@ def format_report(report: SessionReport) -> list[str]:
         lines.append(f"spatial: {c['spatial']} of {used} plausible steady straight strides with values"
                      + (f"; stride length {c['stride_length']:.2f} m, gait speed {c['gait_speed']:.2f} m/s"
                         if c["spatial"] else " (the others are flagged in gait/cycles spatial_flag)"))
+    if report.flagged:
+        lines.append("flagged strides, left out: " + "; ".join(
+            f"{n} {kind}" for kind, n in sorted(report.flagged.items(), key=lambda item: -item[1])))
     if report.transitions or report.steps:
         lines.append(f"activity: {len(report.transitions)} transitions, {report.steps} steps counted"
                      + (f" ({report.true_steps} true)" if report.true_steps else ""))

@@ -28,6 +28,25 @@ from gait_biofeedback.core.stamps import NS_PER_S, s_to_ns
 
 MIN_STRIDE_S = 0.4
 MAX_STRIDE_S = 3.0
+NO_STEP = "no step of the {other} foot detected in this stride (not walking, or its step missed)"
+TOE_OFFS = "{count} terminal contacts between the initial contacts (expected 1)"
+STRIDE_TIME = "stride time {stride:.2f} s outside {low:g}-{high:g} s"
+FLAG_KINDS = (("no step of the ", "no step of the other foot (not walking, or a step missed)"),
+              ("stride time ", "stride time outside the plausible range (a pause, or not walking)"),
+              ("terminal contacts between", "not one toe-off between the heel strikes"))
+"""A flag's clauses by what they start with (the others: their text up to a colon), for counting
+strides by why they were left out."""
+
+
+def flag_kinds(flag: str) -> list[str]:
+    """The kinds of the clauses of a stride's ``flag`` (:data:`FLAG_KINDS`), in order, each once."""
+    kinds = []
+    for clause in filter(None, flag.split("; ")):
+        start = clause.lstrip("0123456789 ")
+        kind = next((k for prefix, k in FLAG_KINDS if start.startswith(prefix)), clause.split(":")[0])
+        if kind not in kinds:
+            kinds.append(kind)
+    return kinds
 TURN_LIMIT = math.radians(20.0)
 """rad: a stride whose foot's heading changed more is a turn, left out of the summaries (EXT)."""
 
@@ -154,14 +173,13 @@ class GaitCycleTracker:
         own_tcs = [e for e in self._tcs[side] if start < e.t < end]
         flags = [doubt[1]] if doubt is not None and doubt[0] >= opening.stamp_ns else []
         if not self.min_stride_s <= stride <= self.max_stride_s:
-            flags.append(f"stride time {stride:.2f} s outside {self.min_stride_s:g}-{self.max_stride_s:g} s")
+            flags.append(STRIDE_TIME.format(stride=stride, low=self.min_stride_s, high=self.max_stride_s))
         if len(own_tcs) != 1:
-            flags.append(f"{len(own_tcs)} terminal contacts between the initial contacts (expected 1)")
+            flags.append(TOE_OFFS.format(count=len(own_tcs)))
         tc = own_tcs[0].t if own_tcs else math.nan
         other_ics = [e.t for e in self._ics[other] if start < e.t < end]
         if not other_ics and (other in self.tracking or self._ics[other] or self._tcs[other]):
-            flags.append(f"no step of the {other} foot detected in this stride (not walking, or its step "
-                         "missed)")
+            flags.append(NO_STEP.format(other=other))
         step = end - other_ics[-1] if other_ics else math.nan
         other_tc_after_start = [e.t for e in self._tcs[other] if start < e.t < tc]
         other_ic_before_tc = [t for t in other_ics if t < tc]

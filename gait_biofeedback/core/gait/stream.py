@@ -323,6 +323,8 @@ class GaitEventStream:
             counts["strides"] += 1
             if not cycle.plausible:
                 counts["implausible_strides"] += 1
-                self.notices.say("warn", f"{cycle.side} stride {cycle.index} flagged: {cycle.flag}")
+                # information: strides of a calibration's leg movements or across a pause are flagged as a
+                # rule; the summaries count them by reason (report.session) and /diagnostics counts them
+                self.notices.say("info", f"{cycle.side} stride {cycle.index} flagged: {cycle.flag}")
             self.pairing[side].add_cycle(cycle)
         return event
