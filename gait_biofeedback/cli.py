@@ -25,6 +25,7 @@ Wearable-IMU gait biofeedback (ROS 2 Jazzy). Typical use:
                                                run a recording through the node graph, record outputs
   gait-biofeedback analyze bags/mine -o output/mine_offline --calibrate-at 36:hip_flexion
                                                the same processing offline, straight from the file
+                                               (and its tables: output/mine_offline/tables/*.parquet)
   gait-biofeedback run --driver udp:5600 --record output/today
                                                live sensors (README: Connecting sensors) through the graph
   gait-biofeedback stream-sim bags/demo_walk --to udp:127.0.0.1:5600
@@ -344,6 +345,8 @@ def cmd_tables(args: argparse.Namespace) -> int:
     from gait_biofeedback.report.tables import write_tables
 
     files = write_tables(args.bag, args.output)
+    for text in files.damage:
+        print(f"warning: DAMAGED RECORDING: {text}; the tables hold only what could be read", file=sys.stderr)
     print(f"wrote {files.folder}: {files.summary()}")
     return 0
 

@@ -129,6 +129,7 @@ class TableFiles:
 
     folder: Path
     rows: dict[str, int] = field(default_factory=dict)
+    damage: list[str] = field(default_factory=list)  # the bag was damaged: what was lost, in words
 
     def summary(self) -> str:
         """``strides.parquet 40 rows, ...`` in the order written."""
@@ -365,14 +366,18 @@ ROW_GROUP_ROWS = 100_000
 
 def write_tables(bag: str | Path, folder: str | Path | None = None) -> TableFiles:
     """Read ``bag`` once (:func:`read_tables`) and write :data:`TABLE_FILES` into ``folder`` (default
-    ``BAG/tables``; created, the files replaced): the module docstring says what they hold."""
+    ``BAG/tables``, beside it for a bare .mcap file; created, the files replaced): the module docstring
+    says what they hold."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    folder = Path(bag) / TABLES_FOLDER if folder is None else Path(folder)
+    bag = Path(bag)
+    if folder is None:
+        folder = (bag if bag.is_dir() else bag.parent) / TABLES_FOLDER
+    folder = Path(folder)
     tables = read_tables(bag)
     folder.mkdir(parents=True, exist_ok=True)
-    out = TableFiles(folder)
+    out = TableFiles(folder, damage=tables.damage)
     metadata = {START_KEY: str(tables.start_ns).encode()}
     for name, build in TABLES.items():
         table = pa.table(build(tables)).replace_schema_metadata(metadata)
