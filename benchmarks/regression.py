@@ -14,9 +14,10 @@ same. Five reference recordings:
 (the real ones only where ``../shared/data`` is). Each is analysed by REV's code (a temporary git
 worktree, run with this venv) and by this checkout's, each in a fresh process; the output folders'
 files (the ``.mcap``, ``metadata.yaml``, ``calibration.yaml`` without its save time and digest) and
-what ``analyze`` printed are compared. Prints one row per reference: identical, or which file differs
-and where; exit 1 if any differs. ``--keep DIR`` leaves the inputs and outputs there (an input already
-in DIR is reused).
+what ``analyze`` printed are compared; its Parquet tables (``tables/``, issue 46) and the line saying
+so only when both sides wrote them (a revision before them has none). Prints one row per reference:
+identical, or which file differs and where; exit 1 if any differs. ``--keep DIR`` leaves the inputs
+and outputs there (an input already in DIR is reused).
 """
 
 from __future__ import annotations
@@ -98,12 +99,32 @@ def _comparable(path: Path) -> bytes:
                     if not line.startswith(b"saved_at:") and not start <= i < end)
 
 
+TABLES = "tables"
+"""``analyze``'s folder of Parquet tables (issue 46): compared when both sides have it."""
+
+
+def _both_have_tables(a: Path, b: Path) -> bool:
+    return (a / TABLES).is_dir() and (b / TABLES).is_dir()
+
+
+def _without_tables_line(printed: str) -> str:
+    lines = printed.splitlines(keepends=True)
+    return "".join(line for line in lines if not line.startswith(f"wrote OUT/{TABLES}"))
+
+
 def _difference(a: Path, b: Path) -> str | None:
     """None when the two output folders hold the same files with the same bytes (a calibration.yaml
-    but for its save time, :func:`_comparable`), else what differs."""
+    but for its save time, :func:`_comparable`; the tables folder's files too when both have it), else
+    what differs."""
     names = sorted({p.name for p in a.iterdir()} | {p.name for p in b.iterdir()})
     for name in names:
         fa, fb = a / name, b / name
+        if name == TABLES and not _both_have_tables(a, b):
+            continue
+        if fa.is_dir() and fb.is_dir():
+            if (inner := _difference(fa, fb)) is not None:
+                return f"{name}/{inner}"
+            continue
         if not fa.exists() or not fb.exists():
             return f"{name} only in {'the revision' if fa.exists() else 'this checkout'}"
         if not filecmp.cmp(fa, fb, shallow=False):
@@ -144,6 +165,8 @@ def main() -> int:
                 outputs[side] = (out, run.returncode, run.stdout.replace(str(out), "OUT"),
                                  run.stderr.replace(str(out), "OUT"))
             (a, ca, oa, ea), (b, cb, ob, eb) = outputs["rev"], outputs["here"]
+            if not _both_have_tables(a, b):
+                oa, ob = _without_tables_line(oa), _without_tables_line(ob)
             if (ca, oa, ea) != (cb, ob, eb):
                 verdict = f"printed differently (exit {ca} / {cb})"
             elif ca != 0:

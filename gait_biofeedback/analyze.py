@@ -407,7 +407,10 @@ def _analyze_into(output: str | Path | None, overwrite: bool, *args: Any) -> Ana
             ordered.close()
         if overwrite and output.is_dir():
             for old in output.iterdir():
-                old.unlink()
+                if old.is_dir():  # the tables of an earlier analysis (check_output let nothing else by)
+                    shutil.rmtree(old)
+                else:
+                    old.unlink()
         output.mkdir(parents=True, exist_ok=True)
         for done in writer.path.iterdir():
             os.replace(done, output / done.name)

@@ -25,6 +25,7 @@ Wearable-IMU gait biofeedback (ROS 2 Jazzy). Typical use:
                                                run a recording through the node graph, record outputs
   gait-biofeedback analyze bags/mine -o output/mine_offline --calibrate-at 36:hip_flexion
                                                the same processing offline, straight from the file
+                                               (and its tables: output/mine_offline/tables/*.parquet)
   gait-biofeedback run --driver udp:5600 --record output/today
                                                live sensors (README: Connecting sensors) through the graph
   gait-biofeedback stream-sim bags/demo_walk --to udp:127.0.0.1:5600
@@ -324,6 +325,11 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     outputs = ", ".join(f"{t} {n}" for t, n in sorted(result.counts.items()) if "/imu/" not in t)
     oriented = any("/imu/" in t for t in result.counts)
     print(f"wrote {result.output}: {outputs or ('orientations only' if oriented else 'no output')}")
+    if not args.no_tables:
+        from gait_biofeedback.report.tables import write_tables
+
+        files = write_tables(result.output)
+        print(f"wrote {files.folder}: {files.summary()} (Parquet; README: Tables for analysis)")
     if result.calibration_file is not None:
         print(f"calibration in force saved as {result.calibration_file}")
     print("\n".join(format_report(session_report(result.output))))
@@ -332,6 +338,16 @@ def cmd_analyze(args: argparse.Namespace) -> int:
               "are no joint angles and no calibrated gait outputs; change the --calibrate-at request, or "
               "pass --calibration FILE", file=sys.stderr)
         return 1
+    return 0
+
+
+def cmd_tables(args: argparse.Namespace) -> int:
+    from gait_biofeedback.report.tables import write_tables
+
+    files = write_tables(args.bag, args.output)
+    for text in files.damage:
+        print(f"warning: DAMAGED RECORDING: {text}; the tables hold only what could be read", file=sys.stderr)
+    print(f"wrote {files.folder}: {files.summary()}")
     return 0
 
 
@@ -562,7 +578,18 @@ def build_parser() -> argparse.ArgumentParser:
     _calibration_arguments(p)
     p.add_argument("--params", default=None, help="ROS 2 parameter file, e.g. config/session.yaml")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output")
+    p.add_argument("--no-tables", action="store_true", help="do not write the Parquet tables (strides, "
+                   "joint angles, events, activity) into OUTPUT/tables")
     p.set_defaults(func=cmd_analyze)
+
+    p = sub.add_parser(
+        "tables", help="a session's strides, joint angles, events and activity as Parquet tables",
+        description="Write strides.parquet, joint_angles.parquet, events.parquet and activity.parquet "
+        "(README: Tables for analysis) of a recording of the graph or an analyze output (analyze writes "
+        "them itself unless --no-tables).")
+    p.add_argument("bag", help="recording of the graph or analyze output")
+    p.add_argument("-o", "--output", default=None, help="folder for the tables [BAG/tables]")
+    p.set_defaults(func=cmd_tables)
 
     p = sub.add_parser(
         "report", help="clinician's report of one or more sessions: report.html, report.pdf, strides.csv, "

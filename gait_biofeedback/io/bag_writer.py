@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import shutil
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -38,6 +39,9 @@ from gait_biofeedback.wire.padding import zero_padding
 SESSION_FILES = (CALIBRATION_FILE, DASHBOARD_LINK_FILE)
 """Files of a session that may be in its bag folder before the bag (a graph that crashed leaves the
 dashboard's link)."""
+TABLES_FOLDER = "tables"
+"""The folder of Parquet tables ``analyze`` writes into its output bag folder
+(:mod:`gait_biofeedback.report.tables`): part of the output, replaced with it."""
 COMPRESSIONS = dict(zip(COMPRESSION_NAMES, ("zstd", "lz4", ""), strict=True))
 LIBRARY = "gait_biofeedback"
 
@@ -74,6 +78,8 @@ def check_output(path: str | Path, overwrite: bool = False) -> None:
 
 
 def _bag_part(path: Path) -> bool:
+    if path.is_dir():
+        return path.name == TABLES_FOLDER
     return path.suffix == ".mcap" or path.name in ("metadata.yaml", *SESSION_FILES)
 
 
@@ -150,7 +156,10 @@ class BagWriter:
         check_output(self.path, overwrite)
         if self.path.is_dir() and overwrite:
             for p in self.path.iterdir():
-                p.unlink()
+                if p.is_dir():  # the tables of an analysis (check_output let nothing else by)
+                    shutil.rmtree(p)
+                else:
+                    p.unlink()
         self.path.mkdir(parents=True, exist_ok=True)
 
     def _open_part(self) -> _McapPart:

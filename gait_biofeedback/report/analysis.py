@@ -108,22 +108,59 @@ NO_CURVES = {
 
 def walking_bouts(data: SessionData) -> list[tuple[float, float]] | None:
     """(start, end) s of the activity monitor's locomotion bouts; None without ``activity/state``."""
-    if not data.activity:
+    return locomotion_bouts([(t, locomotion) for t, _posture, locomotion, *_ in data.activity])
+
+
+def locomotion_bouts(states: list[tuple[float, int]]) -> list[tuple[float, float]] | None:
+    """(start, end) s of the locomotion bouts among ``activity/state`` (s, locomotion code) in order;
+    None without any state."""
+    if not states:
         return None
     bouts, start = [], None
-    for t, _posture, locomotion, _steps, _incl in data.activity:
+    for t, locomotion in states:
         if locomotion and start is None:
             start = t
         elif not locomotion and start is not None:
             bouts.append((start, t))
             start = None
     if start is not None:
-        bouts.append((start, data.activity[-1][0]))
+        bouts.append((start, states[-1][0]))
     return bouts
 
 
 def _inside(row: dict, bouts: list[tuple[float, float]]) -> bool:
     return any(row["start_s"] >= a - BOUT_LEAD_S and row["end_s"] <= b + BOUT_TAIL_S for a, b in bouts)
+
+
+LEFT_OUT = {
+    "implausible": "the stride is not plausible (its flag says why)",
+    "outside_walking": f"outside every walking bout of the activity monitor ({BOUT_LEAD_S:g} s before, "
+                       f"{BOUT_TAIL_S:g} s after)",
+    "turning": f"the foot's heading changed by more than {math.degrees(TURN_LIMIT):.0f}° (turning_angle)",
+    "walk_start_or_end": "the foot's first or last stride of a walk (gait initiation, the stop)",
+}
+"""Why a stride is left out of the summaries (:func:`left_out`), checked in this order."""
+
+
+def left_out(strides: list[dict], stride_objects: list[Stride],
+             bouts: list[tuple[float, float]] | None) -> list[str]:
+    """Per stride (the report's rows and the evaluator's strides, in the same order): why it is left
+    out of the summaries, a :data:`LEFT_OUT` key, or "" when it is used (module docstring, Strides
+    used). ``bouts``: :func:`walking_bouts` (None: no activity monitor, every plausible stride walks)."""
+    steady = steady_strides([(s.side, s.start_ns, s.end_ns, s.plausible) for s in stride_objects])
+    reasons = []
+    for row, keep in zip(strides, steady, strict=True):
+        if not row["plausible"]:
+            reasons.append("implausible")
+        elif bouts is not None and not _inside(row, bouts):
+            reasons.append("outside_walking")
+        elif abs(row["turning_angle"]) > TURN_LIMIT:
+            reasons.append("turning")
+        elif not keep:
+            reasons.append("walk_start_or_end")
+        else:
+            reasons.append("")
+    return reasons
 
 
 def mean_sd_n(values: list[float]) -> tuple[float, float, int]:
@@ -134,12 +171,17 @@ def mean_sd_n(values: list[float]) -> tuple[float, float, int]:
     return float(v.mean()), float(v.std(ddof=1)) if len(v) > 1 else math.nan, len(v)
 
 
-def _discrete(data: SessionData, row: dict, t: np.ndarray) -> list[dict]:
-    """joints.csv rows of one stride: the values (rad) of its side's joint angles over it, if covered."""
+def discrete_values(joints: dict[str, np.ndarray], recovering: np.ndarray, row: dict,
+                    t: np.ndarray) -> list[dict]:
+    """joints.csv rows of one stride (``row``: the report's, :func:`~gait_biofeedback.report.extract.
+    stride_row`): the values (rad) of its side's joint angles over it, if covered: ``at_ic``,
+    ``at_tc``, ``min``, ``max``, ``range_of_motion``, ``peak_swing`` (the largest from TC to the closing
+    IC), each ``angle`` named without the side. ``joints``: name → angles (rad, NaN: none) at the
+    times ``t`` (s from the session's start, as the row's); samples ``recovering`` left out."""
     t0, t1, tc = row["start_s"], row["end_s"], row["terminal_contact_s"]
-    inside = (t >= t0 - 0.02) & (t <= t1 + 0.02) & ~data.recovering
+    inside = (t >= t0 - 0.02) & (t <= t1 + 0.02) & ~recovering
     out = []
-    for name, values in data.joints.items():
+    for name, values in joints.items():
         if any(name.startswith(f"{other}_") for other in SIDES if other != row["side"]):
             continue
         keep = inside & np.isfinite(values)
@@ -227,14 +269,12 @@ def analyse_session(data: SessionData, targets: Targets) -> SessionAnalysis:
     """The report's figures of ``data`` (module docstring); ``targets`` give the offline cues when the
     recording has none."""
     bouts = walking_bouts(data)
+    reasons = left_out(data.strides, data.stride_objects, bouts)
     plausible = [
         (row, s) for row, s in zip(data.strides, data.stride_objects, strict=True) if row["plausible"]
     ]
-    walking = [(row, s) for row, s in plausible if bouts is None or _inside(row, bouts)]
-    straight = [(row, s) for row, s in walking if not abs(row["turning_angle"]) > TURN_LIMIT]
-    steady = steady_strides([(s.side, s.start_ns, s.end_ns, s.plausible) for s in data.stride_objects])
-    kept = {id(s) for s, keep in zip(data.stride_objects, steady, strict=True) if keep}
-    chosen = [(row, s) for row, s in straight if id(s) in kept]
+    chosen = [(row, s) for row, s, why in zip(data.strides, data.stride_objects, reasons, strict=True)
+              if not why]
     notes = []
     if bouts is None:
         notes.append("no activity/state in the recording: every plausible stride is used")
@@ -270,7 +310,7 @@ def analyse_session(data: SessionData, targets: Targets) -> SessionAnalysis:
         else:
             reason = _why_no_curves(data, names[stride.side], stride)
             without[reason] = without.get(reason, 0) + 1
-        discrete.extend(_discrete(data, row, t))
+        discrete.extend(discrete_values(data.joints, data.recovering, row, t))
         offline_cues.extend(
             {
                 "quantity": c.quantity,
@@ -316,9 +356,9 @@ def analyse_session(data: SessionData, targets: Targets) -> SessionAnalysis:
     return SessionAnalysis(
         strides=[dict(r) for r in data.strides],
         used=used,
-        left_out_outside_walking=len(plausible) - len(walking),
-        left_out_turning=len(walking) - len(straight),
-        left_out_ends=len(straight) - len(chosen),
+        left_out_outside_walking=reasons.count("outside_walking"),
+        left_out_turning=reasons.count("turning"),
+        left_out_ends=reasons.count("walk_start_or_end"),
         walking_bouts=bouts,
         curves=stacked,
         percent=percent,

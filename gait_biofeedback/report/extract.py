@@ -9,9 +9,11 @@ import math
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from gait_biofeedback.core.biofeedback.evaluator import Stride
 from gait_biofeedback.io.bag import BagReader, BagRecoveryWarning
 from gait_biofeedback.report.recording import CALIBRATION, EVENTS, Recording, read_recording
 from gait_biofeedback.report.session import SessionReport, summarise
@@ -150,6 +152,22 @@ def _not_a_session(path: Path, counts: dict[str, int], reader: BagReader) -> Not
                             "succeeds (or --calibration FILE)")
 
 
+def stride_row(msg: Any, start_ns: int) -> tuple[dict[str, Any], Stride]:
+    """(the report's row of a ``gait/cycles`` message: ``side``, ``start_s`` (its opening IC),
+    ``terminal_contact_s`` (NaN without one), ``end_s`` (its closing IC), s from ``start_ns``, and every
+    :data:`GAIT_CYCLE_FIELDS` as on the wire; the evaluator's view of it,
+    :func:`~gait_biofeedback.wire.gait.stride_of`)."""
+    stride = stride_of(msg)
+    row = {
+        "side": stride.side,
+        "start_s": (stride.start_ns - start_ns) / 1e9,
+        "terminal_contact_s": (math.nan if stride.tc_ns is None else (stride.tc_ns - start_ns) / 1e9),
+        "end_s": (stride.end_ns - start_ns) / 1e9,
+    }
+    row.update({name: getattr(msg, name) for name in GAIT_CYCLE_FIELDS})
+    return row, stride
+
+
 def session_data(recording: Recording) -> SessionData:
     """The report's data of a session from what :func:`~gait_biofeedback.report.recording.read_recording`
     read, its figures (:func:`~gait_biofeedback.report.session.summarise`) included."""
@@ -194,14 +212,7 @@ def session_data(recording: Recording) -> SessionData:
                         summary.counters[kv.key] = float(kv.value)
     strides, stride_objects = [], []
     for msg in recording.cycles:
-        stride = stride_of(msg)
-        row = {
-            "side": stride.side,
-            "start_s": (stride.start_ns - start_ns) / 1e9,
-            "terminal_contact_s": (math.nan if stride.tc_ns is None else (stride.tc_ns - start_ns) / 1e9),
-            "end_s": (stride.end_ns - start_ns) / 1e9,
-        }
-        row.update({name: getattr(msg, name) for name in GAIT_CYCLE_FIELDS})
+        row, stride = stride_row(msg, start_ns)
         strides.append(row)
         stride_objects.append(stride)
     joints = recording.joint_rows()
