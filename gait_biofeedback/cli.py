@@ -309,7 +309,8 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
 def cmd_analyze(args: argparse.Namespace) -> int:
     from gait_biofeedback.analyze import analyze_recording
-    from gait_biofeedback.report.session import format_report, session_report
+    from gait_biofeedback.report.session import format_report, summarise
+    from gait_biofeedback.report.tables import read_whole, write_tables
 
     params = _session_parameters(args.params)
     requests = _calibration_options(args, params)
@@ -325,14 +326,13 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     outputs = ", ".join(f"{t} {n}" for t, n in sorted(result.counts.items()) if "/imu/" not in t)
     oriented = any("/imu/" in t for t in result.counts)
     print(f"wrote {result.output}: {outputs or ('orientations only' if oriented else 'no output')}")
+    recording = read_whole(result.output)  # once, for the tables and the summary
     if not args.no_tables:
-        from gait_biofeedback.report.tables import write_tables
-
-        files = write_tables(result.output)
+        files = write_tables(result.output, recording=recording)
         print(f"wrote {files.folder}: {files.summary()} (Parquet; README: Tables for analysis)")
     if result.calibration_file is not None:
         print(f"calibration in force saved as {result.calibration_file}")
-    print("\n".join(format_report(session_report(result.output))))
+    print("\n".join(format_report(summarise(recording))))
     if result.requested and not any(a.success for a in result.calibrations):
         print("analyze: no calibration took effect (see the REFUSED or 'never ran' lines above), so there "
               "are no joint angles and no calibrated gait outputs; change the --calibrate-at request, or "

@@ -438,14 +438,15 @@ def test_joint_rows_merge_one_stamp_s_messages_and_leave_absent_angles_nan():
     from gait_biofeedback.report.recording import JointRows
 
     rows = JointRows()
-    rows.add(10, {"left_knee": 0.1}, False)
-    rows.add(10, {"left_hip": 0.2}, True)  # same stamp: merged, the first message's flag kept
-    rows.add(20, {"left_knee": 0.3}, True)
-    rows.add(30, {"right_ankle": -0.4}, False)  # a joint first seen here: NaN before
-    rows.add(10, {"left_knee": 0.5}, False)  # the stamp again, not consecutive: a row of its own
+    rows.add(10, {"left_knee": 0.1}, ())
+    rows.add(10, {"left_hip": 0.2}, ("left_thigh",))  # same stamp: merged, the first message's flag kept
+    rows.add(20, {"left_knee": 0.3}, ("left_thigh", "left_shank"))
+    rows.add(30, {"right_ankle": -0.4}, ())  # a joint first seen here: NaN before
+    rows.add(10, {"left_knee": 0.5}, ())  # the stamp again, not consecutive: a row of its own
     columns = rows.columns()
     assert list(columns) == ["left_hip", "left_knee", "right_ankle"]
     assert list(rows.stamps) == [10, 20, 30, 10] and list(rows.recovering) == [0, 1, 0, 0]
+    assert rows.recovering_segments == ["", "left_thigh,left_shank", "", ""]
     np.testing.assert_array_equal(columns["left_knee"], [0.1, 0.3, np.nan, 0.5])
     np.testing.assert_array_equal(columns["left_hip"], [0.2, np.nan, np.nan, np.nan])
     np.testing.assert_array_equal(columns["right_ankle"], [np.nan, np.nan, -0.4, np.nan])

@@ -1,5 +1,5 @@
 """The Parquet tables `analyze` writes into OUT/tables (gait_biofeedback/report/tables.py): read back
-with pyarrow (and pandas where installed), against the output bag's messages decoded by the PyPI
+with pyarrow, against the output bag's messages decoded by the PyPI
 ``rosbags`` reader (not the package's own decoders) and against the simulator's truth.
 
 A 28 s walk (stand 5 s, walk 20 s, stand 3 s), calibrated at 12 s (the walking protocol), as
@@ -160,14 +160,6 @@ def test_the_tables_command_writes_the_same_tables_from_the_bag(analysed, tmp_pa
     assert printed.startswith(f"wrote {tmp_path / 'again'}: strides.parquet")
     for name in TABLES:
         assert pq.read_table(tmp_path / "again" / f"{name}.parquet").equals(analysed["tables"][name]), name
-
-
-def test_pandas_reads_them(analysed):
-    pd = pytest.importorskip("pandas")
-    strides = pd.read_parquet(analysed["out"] / "tables" / "strides.parquet")
-    used = strides[strides.used]
-    assert len(strides) == analysed["tables"]["strides"].num_rows
-    assert used.groupby("side").stride_length_m.mean().between(1.3, 1.37).all()
 
 
 def test_no_tables_and_an_overwrite_of_an_output_that_has_them(analysed, tmp_path):

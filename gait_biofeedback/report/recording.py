@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from array import array
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -35,18 +36,21 @@ DIAGNOSTICS = topics.DIAGNOSTICS.absolute()
 class JointRows:
     """One ``joint_states`` topic as columns: per stamp (consecutive messages of one stamp merged) the
     angles (rad; NaN where a row has no value for a joint) and whether its first message was marked
-    recovering. Columns of machine numbers, not a dict per row: an hour holds 360,000 stamps."""
+    recovering (``recovering``) and which segments it named (``recovering_segments``, comma-separated).
+    Columns of machine numbers, not a dict per row: an hour holds 360,000 stamps."""
 
     def __init__(self) -> None:
         self.stamps = array("q")
         self.recovering = array("b")
+        self.recovering_segments: list[str] = []
         self._columns: dict[str, array] = {}
 
-    def add(self, stamp_ns: int, angles: dict[str, float], recovering: bool) -> None:
-        """One message, in log order."""
+    def add(self, stamp_ns: int, angles: dict[str, float], recovering: Sequence[str]) -> None:
+        """One message, in log order (``recovering``: the segments it marks)."""
         if not (self.stamps and stamp_ns == self.stamps[-1]):
             self.stamps.append(stamp_ns)
             self.recovering.append(bool(recovering))
+            self.recovering_segments.append(",".join(recovering))
             for column in self._columns.values():
                 column.append(math.nan)
         rows = len(self.stamps)
@@ -81,7 +85,9 @@ class Recording:
     kind, stamp) of the detected and true gait events; ``joints``: topic → rows (detected and true);
     ``activity``: (stamp, posture, locomotion, step count, trunk inclination) of each state and
     ``transitions`` (stamp, code), ``steps`` the most counted; ``calibrations``: (topic, message, log
-    time), estimated and true; ``cues``: the messages; ``diagnostics``: (message, log time)."""
+    time), estimated and true; ``cues``: the messages; ``diagnostics``: (message, log time);
+    ``event_messages``, ``activity_messages``: the detected events' and the activity states' messages
+    (the tables, :mod:`~gait_biofeedback.report.tables`)."""
 
     path: Path
     start_ns: int
@@ -98,6 +104,8 @@ class Recording:
     calibrations: list[tuple[str, Any, int]] = field(default_factory=list)
     cues: list[Any] = field(default_factory=list)
     diagnostics: list[tuple[Any, int]] = field(default_factory=list)
+    event_messages: list[Any] = field(default_factory=list)
+    activity_messages: list[Any] = field(default_factory=list)
 
     def joint_rows(self, topic: str = JOINTS) -> JointRows:
         """The rows of ``topic`` (empty when it was not recorded or not read)."""
@@ -139,7 +147,7 @@ def read_recording(reader: BagReader, summary_only: bool = False) -> Recording:
             rows = rec.joints.get(topic)
             if rows is None:
                 rows = rec.joints[topic] = JointRows()
-            rows.add(stamp_ns, angles, bool(recovering))
+            rows.add(stamp_ns, angles, recovering)
             continue
         msg = reader.decode(topic, type_name, data)
         if topic in (CYCLES, SPACE):
@@ -147,7 +155,10 @@ def read_recording(reader: BagReader, summary_only: bool = False) -> Recording:
         elif topic in (EVENTS, TRUE_EVENTS):
             side, kind, stamp_ns, _ = event_of(msg)
             rec.events.append((topic, side, kind, stamp_ns))
+            if topic == EVENTS:
+                rec.event_messages.append(msg)
         elif topic == ACTIVITY:
+            rec.activity_messages.append(msg)
             rec.activity.append((stamp_to_ns(msg.header.stamp), msg.posture, msg.locomotion, msg.step_count,
                                  msg.trunk_inclination))
             rec.steps = max(rec.steps, msg.step_count)

@@ -42,11 +42,12 @@ that foot), in log order, with the smoothed spatial values of its ``gait/stride_
   ``<angle>_range_of_motion_rad`` and ``<angle>_peak_swing_rad`` (largest from toe-off to the next IC,
   e.g. the knee flexion peak in swing); null when not covered.
 
-``joint_angles.parquet``: one row per ``joint_states`` message, in log order: ``time_s``, ``stamp_ns``,
-``recovering`` (the message was marked: the orientation of ``recovering_segments``, comma-separated,
-was being re-acquired after a sensor dropout; no biofeedback is computed from it), and one column per
-joint angle in the recording, ``<name>_rad`` (e.g. ``left_knee_flexion_rad``; the names of
-``gait_biofeedback.core.joints.angles.JOINT_NAMES``), null where that message did not carry it.
+``joint_angles.parquet``: one row per stamp of the ``joint_states`` messages, in log order (messages of
+one stamp that follow each other are one row): ``time_s``, ``stamp_ns``, ``recovering`` (the message
+was marked: the orientation of ``recovering_segments``, comma-separated, was being re-acquired after a
+sensor dropout; no biofeedback is computed from it), and one column per joint angle in the recording,
+``<name>_rad`` (e.g. ``left_knee_flexion_rad``; the names of
+``gait_biofeedback.core.joints.angles.JOINT_NAMES``), null where that row has no value for it.
 
 ``events.parquet``: one row per ``gait/events`` message, in log order: ``side``, ``kind`` (``ic``
 initial contact, ``tc`` terminal contact/toe-off), ``event_index`` (running count of that side's
@@ -59,16 +60,17 @@ events of that kind), ``time_s``, ``stamp_ns`` (the sample at which it happened)
 ``last_transition`` (e.g. ``sit_to_stand``; null before the first) and ``last_transition_s``/``_ns``,
 ``delay_s`` (how far the state lags the newest sample).
 
-Memory: the joint angles are kept as one array of numbers per column while the bag is read (about 100
-bytes a message: 36 MB for an hour of 100 Hz), never as a Python object per message; the strides,
-events and activity states are a few per second.
+The recording is read once, by :func:`~gait_biofeedback.report.recording.read_recording` (``analyze``
+reads it once for its printed summary and these tables). Memory: the joint angles are columns of
+numbers (:class:`~gait_biofeedback.report.recording.JointRows`, about 100 bytes a stamp: 36 MB for an
+hour at 100 Hz), never a Python object per message; the strides, events and activity states are a few
+per second.
 """
 
 from __future__ import annotations
 
 import math
 import warnings
-from array import array
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -82,11 +84,9 @@ from gait_biofeedback.io.bag import BagReader, BagRecoveryWarning
 from gait_biofeedback.io.bag_writer import TABLES_FOLDER
 from gait_biofeedback.report.analysis import discrete_values, left_out, locomotion_bouts
 from gait_biofeedback.report.extract import stride_row
-from gait_biofeedback.report.recording import ACTIVITY, CYCLES, EVENTS, JOINTS, SPACE
+from gait_biofeedback.report.recording import JointRows, Recording, read_recording
 from gait_biofeedback.wire.activity import state_of
-from gait_biofeedback.wire.gait import event_of, revised_cycles
-from gait_biofeedback.wire.joints import angles_of, joint_state_of, recovering_of
-from gait_biofeedback.wire.stamps import stamp_to_ns
+from gait_biofeedback.wire.gait import event_of
 
 STRIDES, JOINT_ANGLES, EVENTS_TABLE, ACTIVITY_TABLE = (
     "strides.parquet", "joint_angles.parquet", "events.parquet", "activity.parquet")
@@ -136,88 +136,6 @@ class TableFiles:
         return ", ".join(f"{name} {n} rows" for name, n in self.rows.items())
 
 
-class JointColumns:
-    """The ``joint_states`` messages as columns: one typed array per column, grown message by message
-    (a joint first seen later is null before it)."""
-
-    def __init__(self) -> None:
-        self.stamps = array("q")
-        self.recovering = array("b")
-        self.recovering_segments: list[str] = []
-        self.angles: dict[str, array] = {}
-
-    def __len__(self) -> int:
-        return len(self.stamps)
-
-    def add(self, stamp_ns: int, angles: dict[str, float], recovering: Sequence[str]) -> None:
-        """One message, in log order: its stamp, name → angle (rad) and the segments it marks recovering."""
-        n = len(self.stamps)
-        for name in angles:
-            if name not in self.angles:
-                self.angles[name] = array("d", [math.nan]) * n
-        for name, column in self.angles.items():
-            column.append(angles.get(name, math.nan))
-        self.stamps.append(stamp_ns)
-        self.recovering.append(bool(recovering))
-        self.recovering_segments.append(",".join(recovering))
-
-    def names(self) -> list[str]:
-        """The joint angles seen, in ``JOINT_NAMES`` order, then any other in the order first seen."""
-        known = [n for n in JOINT_NAMES if n in self.angles]
-        return known + [n for n in self.angles if n not in JOINT_NAMES]
-
-    def arrays(self) -> tuple[np.ndarray, dict[str, np.ndarray], np.ndarray]:
-        """(stamps ns, name → angles rad (NaN: none), recovering) as numpy views of the columns."""
-        stamps = np.frombuffer(self.stamps, dtype=np.int64) if self.stamps else np.zeros(0, np.int64)
-        angles = {n: np.frombuffer(self.angles[n], dtype=float) if len(self.angles[n]) else np.zeros(0)
-                  for n in self.names()}
-        recovering = np.frombuffer(self.recovering, dtype=np.int8).astype(bool) if self.recovering else (
-            np.zeros(0, bool))
-        return stamps, angles, recovering
-
-
-@dataclass
-class SessionTables:
-    """What :func:`read_tables` kept of a recording for its tables."""
-
-    start_ns: int
-    cycles: list[Any] = field(default_factory=list)  # the gait/cycles messages, revised
-    joints: JointColumns = field(default_factory=JointColumns)
-    events: list[Any] = field(default_factory=list)  # the gait/events messages
-    activity: list[Any] = field(default_factory=list)  # the activity/state messages
-    damage: list[str] = field(default_factory=list)
-
-
-def read_tables(bag: str | Path) -> SessionTables:
-    """One read of ``bag``'s ``joint_states``, ``gait/events``, ``gait/cycles``, ``gait/stride_space`` and
-    ``activity/state``. A damaged file is read as far as it can be; what was lost is in ``damage``."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", BagRecoveryWarning)  # kept in reader.warnings
-        with BagReader(bag) as reader:
-            out = SessionTables(reader.start_time_ns)
-            recorded = reader.topics()
-            cycles: list[tuple[str, Any]] = []
-            wanted = [t for t in (JOINTS, EVENTS, CYCLES, SPACE, ACTIVITY) if t in recorded]
-            for topic, type_name, data, _ in reader.raw_messages(wanted):
-                if topic == JOINTS:  # most of them: read without an rclpy message
-                    fields = joint_state_of(data)
-                    if fields is None:
-                        msg = reader.decode(topic, type_name, data)
-                        fields = (*angles_of(msg), recovering_of(msg))
-                    out.joints.add(*fields)
-                    continue
-                msg = reader.decode(topic, type_name, data)
-                if topic in (CYCLES, SPACE):
-                    cycles.append((topic, msg))
-                elif topic == EVENTS:
-                    out.events.append(msg)
-                else:
-                    out.activity.append(msg)
-            out.cycles = revised_cycles(cycles)
-            out.damage = list(dict.fromkeys(reader.warnings))
-    return out
-
-
 def _without_side(name: str) -> str:
     side, _, rest = name.partition("_")
     return rest if side in SIDES and rest else name
@@ -258,17 +176,17 @@ def _counts(values: Sequence[int]) -> Any:
     return pa.array(np.asarray(values, dtype=np.int64), type=pa.int64())
 
 
-def strides_table(tables: SessionTables) -> dict[str, Any]:
+def strides_table(recording: Recording) -> dict[str, Any]:
     """The columns of ``strides.parquet`` (module docstring)."""
-    start_ns = tables.start_ns
+    start_ns = recording.start_ns
     rows, strides = [], []
-    for msg in tables.cycles:
+    for msg in recording.cycles:
         row, stride = stride_row(msg, start_ns)
         rows.append(row)
         strides.append(stride)
-    states = [((stamp_to_ns(m.header.stamp) - start_ns) / 1e9, m.locomotion) for m in tables.activity]
+    states = [((stamp_ns - start_ns) / 1e9, locomotion) for stamp_ns, _, locomotion, *_ in recording.activity]
     reasons = left_out(rows, strides, locomotion_bouts(states))
-    stamps, angles, recovering = tables.joints.arrays()
+    stamps, angles, recovering = _joint_columns(recording.joint_rows())
     t = _seconds(stamps, start_ns)
     order = np.argsort(t, kind="stable")  # log order is stamp order, but a live recording may differ
     t_sorted = t[order]
@@ -307,55 +225,55 @@ def strides_table(tables: SessionTables) -> dict[str, Any]:
     return columns
 
 
-def joint_angles_table(tables: SessionTables) -> dict[str, Any]:
+def joint_angles_table(recording: Recording) -> dict[str, Any]:
     """The columns of ``joint_angles.parquet`` (module docstring)."""
-    stamps, angles, recovering = tables.joints.arrays()
+    stamps, angles, recovering = _joint_columns(recording.joint_rows())
     columns: dict[str, Any] = {
-        "time_s": _numbers(_seconds(stamps, tables.start_ns)),
+        "time_s": _numbers(_seconds(stamps, recording.start_ns)),
         "stamp_ns": _counts(stamps),
         "recovering": _flags(recovering),
-        "recovering_segments": _text(tables.joints.recovering_segments),
+        "recovering_segments": _text(recording.joint_rows().recovering_segments),
     }
     columns.update({f"{name}_rad": _numbers(values) for name, values in angles.items()})
     return columns
 
 
-def events_table(tables: SessionTables) -> dict[str, Any]:
+def events_table(recording: Recording) -> dict[str, Any]:
     """The columns of ``events.parquet`` (module docstring)."""
-    events = [event_of(msg) for msg in tables.events]
+    events = [event_of(msg) for msg in recording.event_messages]
     stamps = [stamp_ns for _, _, stamp_ns, _ in events]
     return {
         "side": _text([side for side, *_ in events]),
         "kind": _text([kind for _, kind, *_ in events]),
         "event_index": _counts([index for *_, index in events]),
-        "time_s": _numbers(_seconds(np.array(stamps, dtype=np.int64), tables.start_ns)),
+        "time_s": _numbers(_seconds(np.array(stamps, dtype=np.int64), recording.start_ns)),
         "stamp_ns": _stamps(stamps),
-        "detection_latency_s": _numbers([msg.detection_latency for msg in tables.events]),
-        "flag": _text([msg.flag for msg in tables.events]),
+        "detection_latency_s": _numbers([msg.detection_latency for msg in recording.event_messages]),
+        "flag": _text([msg.flag for msg in recording.event_messages]),
     }
 
 
-def activity_table(tables: SessionTables) -> dict[str, Any]:
+def activity_table(recording: Recording) -> dict[str, Any]:
     """The columns of ``activity.parquet`` (module docstring)."""
-    states = [state_of(msg) for msg in tables.activity]
+    states = [state_of(msg) for msg in recording.activity_messages]
     stamps = np.array([s["stamp_ns"] for s in states], dtype=np.int64)
     transition_ns = [s["last_transition_ns"] if s["last_transition"] else None for s in states]
     return {
-        "time_s": _numbers(_seconds(stamps, tables.start_ns)),
+        "time_s": _numbers(_seconds(stamps, recording.start_ns)),
         "stamp_ns": _counts(stamps),
         "posture": _text([s["posture"] for s in states]),
         "locomotion": _text([s["locomotion"] for s in states]),
         "step_count": _counts([s["step_count"] for s in states]),
         "trunk_inclination_rad": _numbers([s["trunk_inclination"] for s in states]),
         "last_transition": _text([s["last_transition"] for s in states]),
-        "last_transition_s": _numbers([math.nan if ns is None else (ns - tables.start_ns) / 1e9
+        "last_transition_s": _numbers([math.nan if ns is None else (ns - recording.start_ns) / 1e9
                                        for ns in transition_ns]),
         "last_transition_ns": _stamps(transition_ns),
-        "delay_s": _numbers([msg.delay for msg in tables.activity]),
+        "delay_s": _numbers([msg.delay for msg in recording.activity_messages]),
     }
 
 
-TABLES: dict[str, Callable[[SessionTables], dict[str, Any]]] = {
+TABLES: dict[str, Callable[[Recording], dict[str, Any]]] = {
     STRIDES: strides_table, JOINT_ANGLES: joint_angles_table, EVENTS_TABLE: events_table,
     ACTIVITY_TABLE: activity_table}
 
@@ -364,10 +282,11 @@ ROW_GROUP_ROWS = 100_000
 """Rows per Parquet row group (the joint angles of an hour: four)."""
 
 
-def write_tables(bag: str | Path, folder: str | Path | None = None) -> TableFiles:
-    """Read ``bag`` once (:func:`read_tables`) and write :data:`TABLE_FILES` into ``folder`` (default
-    ``BAG/tables``, beside it for a bare .mcap file; created, the files replaced): the module docstring
-    says what they hold."""
+def write_tables(bag: str | Path, folder: str | Path | None = None,
+                 recording: Recording | None = None) -> TableFiles:
+    """Write :data:`TABLE_FILES` of ``bag`` into ``folder`` (default ``BAG/tables``, beside it for a bare
+    .mcap file; created, the files replaced): the module docstring says what they hold. ``recording``:
+    ``bag`` as :func:`~gait_biofeedback.report.recording.read_recording` read it (else read here, once)."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
@@ -375,12 +294,13 @@ def write_tables(bag: str | Path, folder: str | Path | None = None) -> TableFile
     if folder is None:
         folder = (bag if bag.is_dir() else bag.parent) / TABLES_FOLDER
     folder = Path(folder)
-    tables = read_tables(bag)
+    if recording is None:
+        recording = read_whole(bag)
     folder.mkdir(parents=True, exist_ok=True)
-    out = TableFiles(folder, damage=tables.damage)
-    metadata = {START_KEY: str(tables.start_ns).encode()}
+    out = TableFiles(folder, damage=recording.damage)
+    metadata = {START_KEY: str(recording.start_ns).encode()}
     for name, build in TABLES.items():
-        table = pa.table(build(tables)).replace_schema_metadata(metadata)
+        table = pa.table(build(recording)).replace_schema_metadata(metadata)
         staging = folder / f".{name}.writing"  # a file is whole or not there
         try:
             pq.write_table(table, staging, row_group_size=ROW_GROUP_ROWS)
@@ -390,3 +310,19 @@ def write_tables(bag: str | Path, folder: str | Path | None = None) -> TableFile
         out.rows[name] = table.num_rows
     return out
 
+
+def read_whole(bag: str | Path) -> Recording:
+    """Every topic the report and the tables use, one read; a damaged file is read as far as it can be
+    (what was lost: :attr:`Recording.damage`)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", BagRecoveryWarning)  # kept in reader.warnings
+        with BagReader(bag) as reader:
+            return read_recording(reader)
+
+
+def _joint_columns(rows: JointRows) -> tuple[np.ndarray, dict[str, np.ndarray], np.ndarray]:
+    """(stamps ns, name → angles rad (NaN: none) in ``JOINT_NAMES`` order then any other, recovering)."""
+    columns = rows.columns()
+    names = [n for n in JOINT_NAMES if n in columns] + [n for n in columns if n not in JOINT_NAMES]
+    return (np.array(rows.stamps, dtype=np.int64), {n: columns[n] for n in names},
+            np.array(rows.recovering, dtype=bool))
