@@ -71,7 +71,7 @@ from gait_biofeedback.core.gait.stream import GaitEventsParams, GaitEventStream
 from gait_biofeedback.core.joints.alignment import said as stamps_off
 from gait_biofeedback.core.joints.angles import segment_pair
 from gait_biofeedback.core.joints.stream import STREAM_SEGMENTS, JointAnglesParams, JointAngleStream
-from gait_biofeedback.core.orientation.stream import OrientationParams
+from gait_biofeedback.core.orientation.stream import INFORMATION, OrientationParams
 from gait_biofeedback.core.params import spec_by_name
 from gait_biofeedback.core.rate import TOLERANCE as RATE_TOLERANCE
 from gait_biofeedback.core.rate import RateCheck
@@ -178,6 +178,9 @@ def drop_needless_auto(segments: Sequence[str], requests: list[tuple[float | Non
         "nothing to calibrate (the activity monitor finds its own upright reference); analysed without one"]
 
 
+TRUNK_FALLBACK = "pelvis"
+"""The activity monitor's sensor in a kit without a chest sensor (a lower-back or waist sensor is
+imported as the pelvis), with ``placement: pelvis``."""
 RATE_STAGES = {"orientation_filter": None, "gait_events": ("left_foot", "right_foot"),
                "activity_monitor": "segment"}
 """The stages with a ``rate_hz`` and the segments whose rate it is (None: every sensor; "segment": the
@@ -205,13 +208,22 @@ def recording_rates(bag: str | Path) -> dict[str, float]:
 
 def with_recording_rate(rates: dict[str, float], params: dict[str, dict] | None
                         ) -> tuple[dict[str, dict], list[str]]:
-    """(``params`` with each stage's ``rate_hz`` set to the recording's (``rates``:
-    :func:`recording_rates`), where the parameters do not give one and the stage's sensors share a rate
-    more than 10 % from the default; what was set, in words). The stage would switch to that rate after
-    its first stamps anyway, with a warning meant for a live sensor set to the wrong rate; a recording
-    states its rate. ``replay`` gives the graph the same."""
+    """(``params`` fitted to the recording, what was set, in words): each stage's ``rate_hz`` set to the
+    recording's (``rates``: :func:`recording_rates`), where the parameters do not give one and the
+    stage's sensors share a rate more than 10 % from the default; and the activity monitor on the
+    :data:`TRUNK_FALLBACK` sensor where the kit has no chest sensor and the parameters name no
+    ``segment`` or ``placement``. The stage would switch to that rate after its first stamps anyway, with
+    a warning meant for a live sensor set to the wrong rate; a recording states its rate. ``replay``
+    gives the graph the same."""
     params = {node: values.copy() for node, values in (params or {}).items()}
     notes = []
+    activity = params.setdefault("activity_monitor", {})
+    if "segment" not in activity and "placement" not in activity:
+        chosen = stage_parameters("activity_monitor", activity).segment
+        if chosen not in rates and TRUNK_FALLBACK in rates:
+            activity.update(segment=TRUNK_FALLBACK, placement=TRUNK_FALLBACK)
+            notes.append(f"activity_monitor: the {TRUNK_FALLBACK} sensor (this kit has no {chosen} sensor): "
+                         "posture from the pelvis tilt, walking and steps from the lower back")
     for node, which in RATE_STAGES.items():
         values = params.setdefault(node, {})
         if "rate_hz" in values:
@@ -448,9 +460,12 @@ def _analyze(ordered: LogOrderWriter | None, reader: BagReader, run: Orientation
     gait = GaitEventStream(stages.get("gait_events") or GaitEventsParams())
     a_params: ActivityParams = stages.get("activity_monitor") or ActivityParams()
     activity = ActivityRun(a_params) if a_params.segment in raw_topics else None  # on recording time
-    if activity is None:
+    if activity is None and not {a_params.segment, TRUNK_FALLBACK} & set(raw_topics):
+        result.notes.append("no chest or pelvis sensor in this kit: no activity monitor (posture, "
+                            "transitions, walking bouts)")
+    elif activity is None:  # the parameters chose a sensor the recording does not have
         fix = ("; a lower-back or waist sensor: set activity_monitor segment: pelvis and placement: pelvis"
-               if "pelvis" in raw_topics else "")
+               if TRUNK_FALLBACK in raw_topics else "")
         result.warnings.append(f"no {a_params.segment} sensor in the recording: the activity monitor "
                                f"(posture, transitions, walking bouts) did not run{fix}")
     streams = [gait, *([activity.stream] if activity is not None else [])]  # the trackers': ``run``
@@ -617,7 +632,7 @@ def _analyze(ordered: LogOrderWriter | None, reader: BagReader, run: Orientation
                 said_by.setdefault(text, []).append(seg)
     for text, segments in said_by.items():
         who = segments[0] if len(segments) == 1 else f"{', '.join(segments)} ({len(segments)} sensors)"
-        result.warnings.append(f"{who}: over the session: {text}")
+        (result.notes if text in INFORMATION else result.warnings).append(f"{who}: over the session: {text}")
     for side, foot in gait.feet.items():  # what the live graph would have held back: information here
         swing = {k: a.withheld for k, a in foot.swing_agreement.values.items() if a.withheld}
         if swing:

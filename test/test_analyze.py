@@ -251,18 +251,32 @@ def test_analyze_refuses_a_bag_without_imu_topics(tmp_path, capsys):
     assert "SECONDS:PROTOCOL" in capsys.readouterr().err
 
 
-def test_a_recording_without_the_activity_sensor_says_so(tmp_path):
-    """Feet and a lower-back sensor (ipol_gait): the monitor watches the chest, so it does not run, said
-    with the parameters that make it watch the lower back."""
+def test_the_activity_monitor_takes_the_trunk_sensor_the_kit_has(tmp_path):
+    """Feet and a lower-back sensor (ipol_gait, hapt): without a params file the monitor watches the
+    pelvis (placement pelvis), said once as information; a parameter that names the chest is obeyed and
+    the warning says how to watch the lower back; a feet-only kit has no monitor, said as information."""
     from gait_biofeedback.analyze import analyze_recording
     from gait_biofeedback.sim.simulator import SCENARIOS
 
     config = SCENARIOS["walk"](duration=4.0, seed=1, segments=("pelvis", "left_foot"))
     bag, _ = simulated_bag(tmp_path / "walk", config)
     result = analyze_recording(bag, None)
-    said = [w for w in result.warnings if w.startswith("no chest sensor in the recording")]
+    assert result.counts.get("/activity/state", 0) > 0
+    assert "activity_monitor: the pelvis sensor (this kit has no chest sensor): posture from the pelvis " \
+        "tilt, walking and steps from the lower back" in result.notes
+    assert not any("activity" in w for w in result.warnings), result.warnings
+
+    asked = analyze_recording(bag, None, params={"activity_monitor": {"segment": "chest"}})
+    said = [w for w in asked.warnings if w.startswith("no chest sensor in the recording")]
     assert said and "set activity_monitor segment: pelvis and placement: pelvis" in said[0]
-    assert "/activity/state" not in result.counts
+    assert "/activity/state" not in asked.counts
+
+    feet_only = SCENARIOS["walk"](duration=4.0, seed=1, segments=("left_foot",))
+    feet, _ = simulated_bag(tmp_path / "feet", feet_only)
+    only_feet = analyze_recording(feet, None)
+    assert "no chest or pelvis sensor in this kit: no activity monitor (posture, transitions, walking " \
+        "bouts)" in only_feet.notes
+    assert not any("activity" in w for w in only_feet.warnings), only_feet.warnings
 
 
 def test_a_trunk_recording_at_50_hz_needs_no_calibration_and_states_its_rate(tmp_path, capsys):

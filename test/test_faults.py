@@ -272,6 +272,21 @@ def test_each_fault_is_named_in_the_diagnostics_conditions():
     assert tracker.conditions(before)[0] == "sensor dropout: 1.95 s without data (attitude re-acquired)"
 
 
+def test_a_kit_without_magnetometers_is_information_not_a_warning():
+    """/diagnostics of a 6D sensor that tracks well is OK, naming the 6D mode; a fault beside it is WARN."""
+    from diagnostic_msgs.msg import DiagnosticStatus
+
+    from gait_biofeedback.wire.diagnostics import orientation_status
+
+    tracker = SegmentOrientationTracker("pelvis", startup_s=0.2)
+    _stream(tracker, np.arange(0.0, 1.0, 0.01))
+    quiet = orientation_status("pelvis", tracker)
+    assert quiet.level == DiagnosticStatus.OK and "6D (no magnetometer)" in quiet.message
+    tracker.update(round(1.0e9), (0.0, 0.0, 0.0), (1e6, 0.0, 0.0))
+    glitch = orientation_status("pelvis", tracker)
+    assert glitch.level == DiagnosticStatus.WARN and "out of range" in glitch.message
+
+
 @pytest.mark.parametrize("rate_hz", [50.0, 200.0, 400.0])
 def test_a_rate_other_than_configured_is_measured_and_used(rate_hz):
     tracker = SegmentOrientationTracker("pelvis", rate_hz=100.0, startup_s=0.5)

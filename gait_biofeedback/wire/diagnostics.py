@@ -7,7 +7,7 @@ from collections.abc import Sequence
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
-from gait_biofeedback.core.orientation.stream import SegmentOrientationTracker
+from gait_biofeedback.core.orientation.stream import INFORMATION, SegmentOrientationTracker
 from gait_biofeedback.core.segments import sensor_frame
 
 OK, WARN, ERROR, STALE = (int.from_bytes(level, "little") for level in (
@@ -56,7 +56,8 @@ def orientation_status(segment: str, tracker: SegmentOrientationTracker,
     """``orientation_filter: <segment>``, as the node and ``analyze`` publish it: ``problem`` (level,
     text) when the stream itself is missing (no data, stale: only the node knows), else the filter's
     state, with ``extra`` texts and the tracker's :meth:`~SegmentOrientationTracker.report` (what
-    happened since its last status) appended (WARN)."""
+    happened since its last status) appended (WARN; OK when they are all the kit's normal state,
+    :data:`~gait_biofeedback.core.orientation.stream.INFORMATION`)."""
     conditions = tracker.report()
     info = {**tracker.diagnostics(), **(values or {})}
     if problem is not None:
@@ -69,5 +70,6 @@ def orientation_status(segment: str, tracker: SegmentOrientationTracker,
             texts.insert(0, "magnetic disturbance: heading from gyro only")
         if info["startup_quiet"] is False:
             texts.append("moved during start-up: gyro bias not removed")
-        level, message = (WARN, "; ".join(texts)) if texts else (OK, "tracking")
+        level = WARN if any(t not in INFORMATION for t in texts) else OK  # a 6D kit is not a fault
+        message = "; ".join(texts) or "tracking"
     return status(f"orientation_filter: {segment}", level, message, sensor_frame(segment), info)

@@ -75,6 +75,10 @@ RANGE_MARGIN = 1.1
 ±16 g accelerometer reads up to 158 m/s² on gaitmap's example) is clipped, not glitching."""
 UNITS_SUSPECT = 100
 """This many samples beyond the range among the first 2 × as many: the units are wrong, not a glitch."""
+SIX_D = "6D (no magnetometer): heading from the gyro only, it drifts"
+INFORMATION = (SIX_D,)
+"""Conditions that are a kit's normal state, not a fault (a kit without magnetometers): said, at level
+OK on /diagnostics and as a note by ``analyze``, never as a warning."""
 STARTUP_GAP_S = 1.0
 """During start-up the rate is not known yet: a gap there is a silence of over this long."""
 
@@ -428,7 +432,7 @@ class SegmentOrientationTracker:
             out.append(f"rate {self.rate.measured_hz:.1f} Hz measured, {self.rate.configured_hz:g} "
                        "configured: using the measured rate")
         if self.startup_quiet is not None and not self.counts["mag_samples"]:
-            out.append("6D (no magnetometer): heading from the gyro only, it drifts")
+            out.append(SIX_D)
         return out
 
     def report(self) -> list[str]:
