@@ -92,6 +92,8 @@ def cmd_import(args: argparse.Namespace) -> int:
         options["units"] = dict(u.split("=", 1) for u in args.units)
     if args.rate:
         options["rate_hz"] = args.rate
+    if args.trust_units:
+        options["trust_units"] = True
     try:  # a CSV is streamed (bounded memory); whatever fails ends in one line (main)
         path, segments = import_to_bag(args.kind, args.path, args.output, **options,
                                        warn=lambda text: print(f"warning: {text}", file=sys.stderr))
@@ -553,6 +555,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--mapping", help="csv: YAML file mapping segments to columns")
     p.add_argument("--units", nargs="*", help="csv: e.g. acc=g gyr=deg/s mag=uT time=ms")
     p.add_argument("--rate", type=float, help="csv without a time column: sampling rate, Hz")
+    p.add_argument("--trust-units", action="store_true", help="csv: import data that contradict their "
+                   "units (resting acceleration, gyro range, Earth's field) with a warning instead of "
+                   "refusing them")
     p.set_defaults(func=cmd_import)
 
     p = sub.add_parser("replay", help="run a recording through the node graph in this process")

@@ -134,13 +134,14 @@ def test_info_takes_rates_from_the_stamps_and_reports_going_back(tmp_path, capsy
     assert " 100.0 Hz" in line and "1 stamps not after the one before" in line
 
 
-def _walk_csv(tmp_path, gyr_factor=1.0, time_factor=1.0, bom=False):
-    """A simulated walk's left foot as a CSV (acc m/s², gyr rad/s × gyr_factor, t s × time_factor)."""
+def _walk_csv(tmp_path, gyr_factor=1.0, time_factor=1.0, bom=False, acc_factor=1.0):
+    """A simulated walk's left foot as a CSV (acc m/s² × acc_factor, gyr rad/s × gyr_factor, t s ×
+    time_factor)."""
     from gait_biofeedback.sim.simulator import SCENARIOS, simulate
 
     foot = simulate(SCENARIOS["walk"](duration=8.0, seed=3)).imu["left_foot"]
     rows = ["time,ax,ay,az,gx,gy,gz"] + [
-        ",".join(f"{v:.6g}" for v in (t * time_factor, *a, *(g * gyr_factor)))
+        ",".join(f"{v:.6g}" for v in (t * time_factor, *(a * acc_factor), *(g * gyr_factor)))
         for t, a, g in zip(foot.t, foot.acc, foot.gyr, strict=True)]
     csv = tmp_path / "walk.csv"
     csv.write_text(("\ufeff" if bom else "") + "\n".join(rows) + "\n", encoding="utf-8")
@@ -164,11 +165,18 @@ def test_import_csv_reads_a_bom_and_refuses_ms_declared_as_s(tmp_path, capsys):
                  "-o", str(tmp_path / "b")]) == 0
 
 
-def test_import_csv_warns_of_deg_per_s_declared_as_rad_per_s(tmp_path, capsys):
+def test_import_csv_refuses_deg_per_s_declared_as_rad_per_s(tmp_path, capsys):
+    """A gyro in deg/s declared rad/s contradicts any body's rates: refused (exit 2, nothing written)
+    naming the flag that fixes it; --trust-units imports it with a warning. The other way round (rad/s
+    declared deg/s) is only a doubt: a warning."""
     csv, mapping, _ = _walk_csv(tmp_path, gyr_factor=np.degrees(1.0))
-    assert main(["import", "csv", str(csv), "--mapping", str(mapping), "-o", str(tmp_path / "a")]) == 0
+    assert main(["import", "csv", str(csv), "--mapping", str(mapping), "-o", str(tmp_path / "a")]) == 2
     err = capsys.readouterr().err
-    assert "left_foot: 99th percentile |gyr|" in err and "--units gyr=deg/s" in err
+    assert "the data contradict the declared units: left_foot: 99th percentile |gyr|" in err
+    assert "--units gyr=deg/s" in err and "--trust-units" in err and not (tmp_path / "a").exists()
+    assert main(["import", "csv", str(csv), "--mapping", str(mapping), "--trust-units",
+                 "-o", str(tmp_path / "a")]) == 0
+    assert "warning: left_foot: 99th percentile |gyr|" in capsys.readouterr().err
     assert main(["import", "csv", str(csv), "--mapping", str(mapping), "--units", "gyr=deg/s",
                  "-o", str(tmp_path / "b")]) == 0
     assert capsys.readouterr().err == ""
@@ -188,10 +196,16 @@ def test_import_csv_refuses_unknown_segments_and_malformed_units(tmp_path, capsy
     assert main(["import", "csv", str(csv), "--mapping", str(mapping), "--units", "acc:g",
                  "-o", str(tmp_path / "a")]) == 2
     assert "--units acc:g: expected QUANTITY=UNIT pairs, e.g. --units acc=g" in capsys.readouterr().err
-    # the file's acc is in m/s²; declared as g, its median |acc| is about 10 g
+    # the file's acc is in m/s²; declared as g, its median |acc| is about 10 g: refused
     assert main(["import", "csv", str(csv), "--mapping", str(mapping), "--units", "acc=g",
-                 "-o", str(tmp_path / "b")]) == 0
+                 "-o", str(tmp_path / "b")]) == 2
     assert "if the file is in m/s², say so with --units acc=m/s2" in capsys.readouterr().err
+    assert not (tmp_path / "b").exists()
+    # and in g declared as m/s²: about 1 m/s² at rest
+    g_csv, g_mapping, _ = _walk_csv(tmp_path, acc_factor=1 / 9.80665)
+    assert main(["import", "csv", str(g_csv), "--mapping", str(g_mapping), "-o", str(tmp_path / "c")]) == 2
+    err = capsys.readouterr().err
+    assert "(gravity alone is 9.81); if the file is in g, say so with --units acc=g" in err
 
 
 def test_analyze_exits_1_when_no_calibration_took_effect(tmp_path, capsys):

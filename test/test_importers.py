@@ -107,11 +107,11 @@ def test_an_accelerometer_alone_is_imported_with_an_unknown_rate_and_said(small_
                       np.full((len(t), 3), np.nan))
     import warnings
 
-    from gait_biofeedback.io.importers import _unit_plausibility_warnings
+    from gait_biofeedback.io.importers import unit_contradictions
 
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # its rest blocks have no gyro: no numpy "All-NaN slice" for the user
-        assert _unit_plausibility_warnings(still, CSV_UNITS) == []
+        assert unit_contradictions(still, CSV_UNITS) == ([], [])
     bag = write_imu_bag(tmp_path / "chest", {"chest": still})
     assert main(["analyze", str(bag), "-o", str(tmp_path / "out")]) == 0
     captured = capsys.readouterr()
@@ -168,12 +168,19 @@ def test_generic_csv_time_that_goes_back_is_an_error(tmp_path: Path) -> None:
         import_generic_csv(path, mapping)
 
 
-def test_generic_csv_warns_when_acc_looks_like_g(tmp_path: Path) -> None:
+def test_generic_csv_refuses_acc_in_g_declared_as_m_per_s2(tmp_path: Path) -> None:
+    """1 at rest with the acc unit m/s² contradicts gravity: refused with the flag that fixes it;
+    trusted, the same text is a warning; declared in g, nothing is said."""
+    from gait_biofeedback.io.importers import UnitsError
+
     path = tmp_path / "g.csv"
     path.write_text("t,ax,ay,az,gx,gy,gz\n0.0,0,0,1,0,0,0\n0.01,0,0,1,0,0,0\n")
     mapping = {"chest": {"acc": ["ax", "ay", "az"], "gyr": ["gx", "gy", "gz"]}}
-    recording = import_generic_csv(path, mapping)
-    assert any("'g'" in w for w in recording.warnings)
+    with pytest.raises(UnitsError, match=r"chest: median \|acc\| is 1 m/s² .* say so with --units acc=g"):
+        import_generic_csv(path, mapping)
+    trusted = import_generic_csv(path, mapping, trust_units=True)
+    assert any("say so with --units acc=g" in w for w in trusted.warnings)
+    assert import_generic_csv(path, mapping, units={"acc": "g"}).warnings == []
 
 
 # ---------------------------------------------------------------- dispatch

@@ -330,6 +330,7 @@ def import_generic_csv(
     mapping: Mapping[str, Any] | str | Path,
     units: Mapping[str, str] | None = None,
     rate_hz: float | None = None,
+    trust_units: bool = False,
 ) -> Recording:
     """Read a CSV (one header row; ``,`` ``;`` or tab separated) with a time column and IMU columns.
 
@@ -356,7 +357,9 @@ def import_generic_csv(
     Times are kept as in the file (converted to s; absolute stamps stay absolute) and must increase
     strictly. Rows with NaN/empty IMU values are kept (downstream filters skip them) and counted in
     ``warnings``. Raises ValueError naming a missing column (and listing the file's columns) or an
-    unknown unit (and listing the allowed ones).
+    unknown unit (and listing the allowed ones), UnitsError when the data contradict the units
+    (:func:`unit_contradictions`: resting acceleration, gyro range, Earth's field; with ``trust_units``
+    a warning instead).
 
     The whole recording is held in memory; :func:`import_csv_to_bag` writes a bag of any size in
     bounded memory (the same messages).
@@ -370,7 +373,8 @@ def import_generic_csv(
     _check_sample_rate(layout.path, next(iter(imu.values())).t, layout.time_unit)
     warnings: list[str] = []
     for segment, series in imu.items():
-        warnings += _csv_warnings(layout, series, _nan_count(series, layout.has_gyro(segment)), len(series))
+        warnings += _csv_warnings(layout, series, _nan_count(series, layout.has_gyro(segment)), len(series),
+                                  trust_units)
     return Recording(imu=imu, source=f"csv:{layout.path}", reference={}, warnings=warnings)
 
 
@@ -598,9 +602,10 @@ def _joined(parts: list[ImuSeries]) -> ImuSeries:
                      first.frame_id)
 
 
-def _csv_warnings(layout: CsvLayout, series: ImuSeries, nan_count: int | None, total: int) -> list[str]:
+def _csv_warnings(layout: CsvLayout, series: ImuSeries, nan_count: int | None, total: int,
+                  trust_units: bool = False) -> list[str]:
     """A CSV segment's warnings, as :func:`import_generic_csv` gives them (``nan_count`` None: left
-    out), the units judged on ``series``."""
+    out), the units judged on ``series`` (UnitsError: they contradict it, :func:`_units_checked`)."""
     segment = series.segment
     out = []
     if not layout.has_gyro(segment):
@@ -609,7 +614,7 @@ def _csv_warnings(layout: CsvLayout, series: ImuSeries, nan_count: int | None, t
                    "uses its accelerometer alone")
     if nan_count is not None:
         out += _nan_text(segment, nan_count, total)
-    return out + _unit_plausibility_warnings(series, layout.units)
+    return out + _units_checked(layout, series, trust_units)
 
 
 def _load_mapping(mapping: Mapping[str, Any] | str | Path) -> dict[str, Any]:
@@ -702,27 +707,37 @@ def _rest_blocks(series: ImuSeries) -> np.ndarray:
     return np.concatenate(keep) if keep else np.zeros(0, dtype=int)
 
 
-def _unit_plausibility_warnings(series: ImuSeries, units: Mapping[str, str]) -> list[str]:
-    """Warn when magnitudes suggest a wrong unit: median |acc| far from 1 g, gyro rates beyond any
-    body segment's or moving while the accelerometer is at rest (deg/s read as rad/s), or barely
-    moving while the accelerometer moves (rad/s read as deg/s), |mag| far from Earth's field.
-    Silent when unsure."""
-    warnings: list[str] = []
+class UnitsError(ValueError):
+    """The data contradict the units they were declared in (:func:`unit_contradictions`)."""
+
+
+TRUST_UNITS = "if these units are right after all, import with --trust-units (Python: trust_units=True)"
+
+
+def unit_contradictions(series: ImuSeries, units: Mapping[str, str]) -> tuple[list[str], list[str]]:
+    """(contradictions, doubts) of ``series`` with the units it was declared in. Contradictions: a
+    median |acc| far from 1 g (below 0.3 g or above 3 g: gravity is in every accelerometer reading), gyro
+    rates beyond any body segment's or moving while the accelerometer is at rest (deg/s read as rad/s),
+    a median |mag| outside 1 µT-1 mT (Earth's field: 25-65 µT). Doubts: the gyro barely turns while the
+    accelerometer moves (rad/s read as deg/s, or a segment that translates). Each names the ``--units``
+    flag that fixes it. Silent when unsure."""
+    contradictions: list[str] = []
+    doubts: list[str] = []
     name = series.segment
 
     def unit_hint(quantity: str, unit: str) -> str:
         return f"say so with --units {quantity}={unit} (Python: units={{'{quantity}': '{unit}'}})"
 
     if not len(series):
-        return warnings
+        return contradictions, doubts
     acc_norm = np.linalg.norm(series.acc, axis=1)
     acc_median = np.nanmedian(acc_norm)
     if np.isfinite(acc_median) and acc_median < 0.3 * GRAVITY:
-        warnings.append(f"{name}: median |acc| is {acc_median:.3g} m/s² with acc unit '{units['acc']}'; "
-                        f"if the file is in g, {unit_hint('acc', 'g')}")
+        contradictions.append(f"{name}: median |acc| is {acc_median:.3g} m/s² with acc unit '{units['acc']}' "
+                              f"(gravity alone is 9.81); if the file is in g, {unit_hint('acc', 'g')}")
     elif np.isfinite(acc_median) and acc_median > 3.0 * GRAVITY:
-        warnings.append(f"{name}: median |acc| is {acc_median:.3g} m/s² with acc unit '{units['acc']}'; "
-                        f"if the file is in m/s², {unit_hint('acc', 'm/s2')}")
+        contradictions.append(f"{name}: median |acc| is {acc_median:.3g} m/s² with acc unit '{units['acc']}' "
+                              f"(gravity alone is 9.81); if the file is in m/s², {unit_hint('acc', 'm/s2')}")
     gyr_norm = np.linalg.norm(series.gyr, axis=1)
     rest = _rest_blocks(series)
     at_rest = float(np.nanmedian(gyr_norm[rest])) if np.isfinite(gyr_norm[rest]).any() else math.nan
@@ -730,19 +745,29 @@ def _unit_plausibility_warnings(series: ImuSeries, units: Mapping[str, str]) -> 
     if fastest > GYRO_RANGE or at_rest > REST_GYRO:
         what = (f"99th percentile |gyr| {fastest:.3g} rad/s" if fastest > GYRO_RANGE
                 else f"median |gyr| {at_rest:.3g} rad/s while the accelerometer is at rest")
-        warnings.append(f"{name}: {what} with gyr unit '{units['gyr']}'; if the file is in deg/s, "
-                        f"{unit_hint('gyr', 'deg/s')}")
+        contradictions.append(f"{name}: {what} with gyr unit '{units['gyr']}'; if the file is in deg/s, "
+                              f"{unit_hint('gyr', 'deg/s')}")
     elif (units["gyr"] != "rad/s" and (shaking := np.nanstd(acc_norm)) > 0.05 * GRAVITY
           and fastest < TURN_PER_SHAKE * shaking):
-        warnings.append(f"{name}: the gyro barely turns (99th percentile {fastest:.3g} rad/s) while the "
-                        f"accelerometer moves, with gyr unit '{units['gyr']}'; if the file is in rad/s, "
-                        f"{unit_hint('gyr', 'rad/s')}")
+        doubts.append(f"{name}: the gyro barely turns (99th percentile {fastest:.3g} rad/s) while the "
+                      f"accelerometer moves, with gyr unit '{units['gyr']}'; if the file is in rad/s, "
+                      f"{unit_hint('gyr', 'rad/s')}")
     if series.mag is not None:
         mag_norm = np.nanmedian(np.linalg.norm(series.mag, axis=1))
         if np.isfinite(mag_norm) and not 1e-6 <= mag_norm <= 1e-3:
-            warnings.append(f"{name}: median |mag| is {mag_norm:.3g} T with mag unit '{units['mag']}' "
-                            "(Earth: 25-65 µT); check it (--units mag=uT, mag=gauss or mag=T)")
-    return warnings
+            contradictions.append(f"{name}: median |mag| is {mag_norm:.3g} T with mag unit '{units['mag']}' "
+                                  "(Earth: 25-65 µT); say which with --units mag=uT, mag=gauss or mag=T")
+    return contradictions, doubts
+
+
+def _units_checked(layout: CsvLayout, series: ImuSeries, trust_units: bool) -> list[str]:
+    """The doubts about ``series``' units; UnitsError for a contradiction (unless ``trust_units``: then
+    it is a warning too)."""
+    contradictions, doubts = unit_contradictions(series, layout.units)
+    if contradictions and not trust_units:
+        raise UnitsError(f"{layout.path}: the data contradict the declared units: "
+                         + "; ".join(contradictions) + f"; nothing written ({TRUST_UNITS})")
+    return contradictions + doubts
 
 
 # --------------------------------------------------------------------------------------------------
@@ -903,6 +928,7 @@ def import_csv_to_bag(
     units: Mapping[str, str] | None = None,
     rate_hz: float | None = None,
     *,
+    trust_units: bool = False,
     warn: Callable[[str], None] | None = None,
     block_chars: int = CSV_BLOCK_CHARS,
     window_bytes: int = CSV_WINDOW_BYTES,
@@ -912,10 +938,11 @@ def import_csv_to_bag(
     ``write_imu_bag(output, import_generic_csv(...).imu)`` writes, byte for byte.
 
     The time base and the units are judged on the first rows (``window_bytes`` of samples: the whole
-    file up to about 800 000 rows of one sensor); their warnings go to ``warn`` before anything is
-    written, the NaN counts when the file has been read (before writing too, for a file within the
-    window). A file the free disk cannot hold (estimated from the rows read so far and the file's size)
-    is refused before writing; a refusal further on (a ragged row, a time going back) removes what was
+    file up to about 800 000 rows of one sensor): data that contradict their units are refused
+    (UnitsError, unless ``trust_units``), the warnings go to ``warn`` before anything is written, the
+    NaN counts when the file has been read (before writing too, for a file within the window). A file
+    the free disk cannot hold (estimated from the rows read so far and the file's size) is refused
+    before writing; a refusal further on (a ragged row, a time going back) removes what was
     written."""
     from gait_biofeedback.io.bag_writer import BagWriter
 
@@ -938,7 +965,8 @@ def import_csv_to_bag(
         window = {s: _joined([c.imu[s] for c in held]) for s in segments}
         _check_sample_rate(layout.path, window[segments[0]].t, layout.time_unit)
         for segment in segments:
-            for text in _csv_warnings(layout, window[segment], nans[segment] if complete else None, rows):
+            for text in _csv_warnings(layout, window[segment], nans[segment] if complete else None, rows,
+                                      trust_units):
                 warn(text)
         del window
         streams = sum(1 if layout.columns[s]["mag"] is None else 2 for s in segments)
