@@ -185,7 +185,10 @@ def test_calibrate_at_auto_is_parsed_and_given_once():
 
 def test_a_pelvis_without_thighs_is_refused_naming_the_thighs_not_the_protocol():
     """Feet and a lower-back sensor (ipol_gait, a waist phone) walking: the pelvis' forward direction
-    comes from the thighs, so its refusal says to put them on, not to walk (it did walk)."""
+    comes from the thighs, so its refusal says they are not in this kit, not to walk (it did walk); the
+    summaries show what the kit lacks, not a refusal."""
+    from gait_biofeedback.report.session import calibration_outcome
+
     segments = ("pelvis", "left_foot", "right_foot")
     session = simulate(SCENARIOS["calibration_walking"](seed=4, segments=segments))
     ori = {s: track_orientation(session.imu[s])[1] for s in segments}
@@ -193,9 +196,11 @@ def test_a_pelvis_without_thighs_is_refused_naming_the_thighs_not_the_protocol()
     cal = calibrate_session(session.imu, standing, motion, "walking", orientations=ori)
     pelvis = cal.segments["pelvis"]
     assert cal.segments["left_foot"].valid and not pelvis.valid
-    assert ("(no thigh sensors): its forward direction comes from the thighs, so put those sensors on"
-            in pelvis.message)
+    assert ("(no thigh sensors): its forward direction comes from the thighs, not in this kit (its joints "
+            "need them: wear those sensors and calibrate again" in pelvis.message)
     assert "walking protocol" not in pelvis.message
+    assert calibration_outcome(pelvis.valid, pelvis.message) == "needs sensors not in this kit"
+    assert calibration_outcome(False, "pelvis: moved during the standing") == "REFUSED"
 
 
 def test_a_request_at_the_first_sample_says_there_is_no_data_before_it():

@@ -18,7 +18,7 @@ from gait_biofeedback.report.analysis import GPS_MISSING, NO_CURVES, TABLE, Sess
 from gait_biofeedback.report.document import Bullets, Figure, Paragraph, Section, Table
 from gait_biofeedback.report.extract import LEVELS, SessionData
 from gait_biofeedback.report.norms import BAKER_2009, BAKER_2012, MCID, NormBand
-from gait_biofeedback.report.session import SessionReport, format_report
+from gait_biofeedback.report.session import SessionReport, calibration_outcome, format_report
 
 # parameter → (label, display factor from SI, display unit, decimals)
 DISPLAY: dict[str, tuple[str, float, str, int]] = {
@@ -292,7 +292,8 @@ def calibration_section(data: SessionData, report: SessionReport) -> Section:
         rows.append(
             [
                 seg.replace("_", " "),
-                ("ok", "in") if entry["valid"] else ("REFUSED", "bad"),
+                (outcome := calibration_outcome(entry["valid"], entry["message"] or ""),
+                 "in" if entry["valid"] else "bad" if outcome == "REFUSED" else ""),
                 f"{entry['quality']:.3f}",
                 entry["message"] or "",
                 f"{math.degrees(error):.1f}" if error is not None else "–",

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from gait_biofeedback.core import quaternion as quat
+from gait_biofeedback.core.calibration.sensor_to_segment import NOT_IN_KIT
 from gait_biofeedback.core.gait.cycles import TURN_LIMIT, flag_kinds, steady_strides
 from gait_biofeedback.core.gait.events import INITIAL_CONTACT, TERMINAL_CONTACT
 from gait_biofeedback.core.gait.matching import EventScore, match_events
@@ -171,13 +172,19 @@ def _deg(x: float) -> str:
     return f"{np.degrees(x):5.1f}"
 
 
+def calibration_outcome(valid: bool, message: str) -> str:
+    """``ok``, ``REFUSED``, or, for a segment whose calibration needs sensors the kit does not have,
+    ``needs sensors not in this kit`` (what the kit lacks is no refusal)."""
+    return "ok" if valid else "needs sensors not in this kit" if NOT_IN_KIT in message else "REFUSED"
+
+
 def format_report(report: SessionReport) -> list[str]:
     """Human-readable lines (degrees, ms, %) of a SessionReport."""
     lines: list[str] = []
     if report.calibration:
         estimated = {s: e for s, e in report.calibration.items() if "estimate" in e}
         if estimated:
-            parts = [f"{s} {'ok' if e['valid'] else 'REFUSED'}"
+            parts = [f"{s} {calibration_outcome(e['valid'], e['message'])}"
                      + (f" {_deg(e['error']).strip()}°" if "error" in e else "")
                      for s, e in estimated.items()]
             truth = any("error" in e for e in estimated.values())

@@ -79,6 +79,10 @@ from gait_biofeedback.core.calibration.trunk import forward_in_proximal, walking
 from gait_biofeedback.core.calibration.windows import rms_about_mean
 from gait_biofeedback.core.segments import GRAVITY, SIDES, ImuSeries
 
+NOT_IN_KIT = "not in this kit"
+"""Said of a segment whose calibration needs sensors the kit does not have (a pelvis without thighs):
+the summaries show it as what the kit lacks, not as a refusal."""
+
 PROTOCOLS: tuple[str, ...] = ("hip_flexion", "walking")
 AUTO = "auto"  # a request's protocol: the one the movement shows (:mod:`.protocol`)
 REQUESTS: tuple[str, ...] = (AUTO, *PROTOCOLS)
@@ -443,8 +447,8 @@ def calibrate_trunk(segment: str, standing_acc: np.ndarray, standing_gyr: np.nda
             via = "the thighs" if segment == "pelvis" else "a calibrated pelvis"
             why = "; ".join(why_no_forward or [])
             if any(w in ("no thigh sensors", "no pelvis sensor") for w in why_no_forward or []):
-                advice = (f": its forward direction comes from {via}, so put those sensors on and calibrate "
-                          "again; the other segments do not need it")
+                advice = (f": its forward direction comes from {via}, {NOT_IN_KIT} (its joints need them: "
+                          "wear those sensors and calibrate again; the other segments do not need it)")
             else:
                 advice = (": a still pelvis, as in hip flexion, does not show it"
                           + (", and the sensors have no shared magnetometer heading" if not common_heading
