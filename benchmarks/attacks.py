@@ -129,7 +129,7 @@ def _udp_session(tmp: Path, attack: Callable[[int], None] | None, seconds: float
     from gait_biofeedback.wire.stamps import stamp_to_ns
 
     session = simulate(SCENARIOS["walk"](duration=seconds).without_errors())
-    driver = {"backend": "udp", "port": 0, "diagnostics_period": 0.2,
+    driver = {"backend": "udp", "port": 0, "diagnostics_period_s": 0.2,
               **({"frame_key_file": str(key_file)} if key_file else {})}
     key = load_frame_key(key_file) if key_file else None
     out = tmp / f"session_{len(list(tmp.iterdir()))}"

@@ -95,7 +95,7 @@ def main() -> int:
     reader.start()
     for n in nodes:
         executor.add_node(n)
-    replayer = ImuReplayer(context, bag=str(bag), speed=args.speed, wait_for_subscribers=5.0)
+    replayer = ImuReplayer(context, bag=str(bag), speed=args.speed, wait_for_subscribers_s=5.0)
     executor.add_node(replayer)
     t_start = time.monotonic()
     asked = False

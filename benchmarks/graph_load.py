@@ -67,7 +67,7 @@ def run_rows(bag: Path, stages: list[list[str]], start: float, stop: float, spee
         with tempfile.TemporaryDirectory() as tmp:
             out = Path(tmp) / "out"
             before = cpu_seconds()
-            replay_through_graph(bag, out, speed=speed, nodes=stage, start_offset=start, stop_offset=stop,
+            replay_through_graph(bag, out, speed=speed, nodes=stage, start_offset_s=start, stop_offset_s=stop,
                                  node_parameters={"calibration": {"session_dir": str(session_dir or
                                                                                      Path(tmp) / "s"),
                                                                   "reload_calibration": True},

@@ -21,7 +21,7 @@ the batch entry point ``estimate_foot_trajectory``. It prints three tables.
      - ``no valley``: the default without the valley rule (``valley=False``: the fixed thresholds only);
      - ``no shock``: the default without the accelerometer's shock noise (``acc_shock=1000``);
      - ``shock always``: the shock noise in every swing, also after running's short stances
-       (``shock_stance=0``, the default before it);
+       (``shock_stance_s=0``, the default before it);
      - ``gaitmap``: gaitmap 2.6's ``RtsKalman``, default parameters;
      - ``oracle``: the file's ``best_error``, the best of five detectors each at its per-trial
        optimal threshold;
@@ -147,7 +147,7 @@ def pyshoe(python: Path | None) -> None:
              "oracle", "oracle (IMU)", "suh@oracle-zv"]
     options = {"suh": {}, "rts": {"smoother": "rts"}, "ekf": {"smoother": "none"},
                "no valley": {"valley": False}, "no shock": {"acc_shock": 1000.0},
-               "shock always": {"shock_stance": 0.0}}
+               "shock always": {"shock_stance_s": 0.0}}
     print(f"\n## pyshoe_vicon: ARMSE (m) of {len(files)} trials\n")
     print("| trial | " + " | ".join(names) + " | strides |")
     print("|---" * (len(names) + 2) + "|")
@@ -476,19 +476,19 @@ def _swing_against_record(published: list, of_record: list) -> str:
     return "; ".join(cells) or "no provisional swing values"
 
 
-def through_the_command_line(provisional_after: float | None = None) -> None:
+def through_the_command_line(provisional_after_s: float | None = None) -> None:
     """The user's path: ``import`` → ``analyze`` → the ``gait/cycles`` messages' spatial values, as
     published (provisional ones included) and as of record (``gait/stride_space`` applied), with the
-    provisional values' trust check (``provisional_tolerance``), and with 1 m instead."""
+    provisional values' trust check (``provisional_tolerance_m``), and with 1 m instead."""
     print("\n## through the command line (import → analyze → /gait/cycles, /gait/stride_space)\n")
     folder = DATA / "gaitmap_example"
-    untested = "    provisional_tolerance: 1.0\n"
+    untested = "    provisional_tolerance_m: 1.0\n"
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         if folder.exists():
             params = f"    use_standing_reference: true\n    rate_hz: {GAITMAP_RATE_HZ}\n"
-            if provisional_after is not None:
-                params += f"    provisional_after: {provisional_after}\n"
+            if provisional_after_s is not None:
+                params += f"    provisional_after_s: {provisional_after_s}\n"
             _cli("import", "gaitmap", str(folder), "-o", str(tmp / "gm"))
             print("| values | strides | without values | stride length: mean ± SD | mean abs | gait speed: "
                   "mean ± SD | mean abs | published after the closing IC: median (range) |")
@@ -568,7 +568,7 @@ def main() -> None:
                         "zero-velocity threshold per trial (about 5 min)")
     parser.add_argument("--pyshoe-only", action="store_true", help="only the pyshoe_vicon table (with "
                         "--no-gaitmap: about 3 min)")
-    parser.add_argument("--provisional-after", type=float, help="gait_events provisional_after (s) for the "
+    parser.add_argument("--provisional-after-s", type=float, help="gait_events provisional_after_s for the "
                         "command-line table (default: the parameter's)")
     args = parser.parse_args()
     t0 = time.monotonic()
@@ -576,7 +576,7 @@ def main() -> None:
         lost_samples()
         return
     if args.cli_only:
-        through_the_command_line(args.provisional_after)
+        through_the_command_line(args.provisional_after_s)
         return
     if args.gyro_limit_grid:
         gyro_limit_grid()
@@ -585,7 +585,7 @@ def main() -> None:
     if args.pyshoe_only:
         pyshoe(python)
         return
-    through_the_command_line(args.provisional_after)
+    through_the_command_line(args.provisional_after_s)
     simulator()
     gaitmap_example(python)
     pyshoe(python)

@@ -48,7 +48,7 @@ def pacing_errors_ms(context, bag: Path, speed: float) -> np.ndarray:
         Imu, "left_foot/imu/data_raw",
         lambda m: arrivals.append((m.header.stamp.sec + m.header.stamp.nanosec * 1e-9, time.perf_counter())),
         SENSOR_QOS)
-    replayer = ImuReplayer(context, bag=str(bag), speed=speed, wait_for_subscribers=5.0)
+    replayer = ImuReplayer(context, bag=str(bag), speed=speed, wait_for_subscribers_s=5.0)
     executor = make_executor(context)
     executor.add_node(sink)
     executor.add_node(replayer)

@@ -22,13 +22,13 @@ same message-conversion helpers, in the same order the nodes use them:
 Each stage is set up from the same parameters dataclass its node declares
 (:data:`gait_biofeedback.parameters.NODE_PARAMETERS`), checked the same way.
 
-A calibration takes effect at the sample stamp in its message header (``apply_delay`` after the
+A calibration takes effect at the sample stamp in its message header (``apply_delay_s`` after the
 window it was computed from), in the graph and here, so both paths switch at the same sample and give
 the same numbers (test/test_analyze.py). ``/diagnostics`` carries the orientation streams' statuses
 (what the ``orientation_filter`` node says of each sensor: dropouts, glitches, dropped samples, rate,
-6D), every ``diagnostics_period`` s of recording time. What only exists live is left out: the other
+6D), every ``diagnostics_period_s`` s of recording time. What only exists live is left out: the other
 nodes' statuses and the wall-clock rules (a stream that stops, the joint-angle sync timeout, the
-activity monitor's periodic re-publication, here every ``publish_period`` s of recording time
+activity monitor's periodic re-publication, here every ``publish_period_s`` s of recording time
 instead).
 
 The output bag carries the input's raw IMU and ``/ground_truth/...`` topics too, as a recording of
@@ -242,12 +242,12 @@ def with_recording_rate(rates: dict[str, float], params: dict[str, dict] | None
 
 
 def resolve_calibrate_at(bag: str | Path, requests: Sequence[tuple[float | None, str]],
-                         standing_duration: float = CalibrationParams.default_standing_duration
+                         standing_duration: float = CalibrationParams.default_standing_duration_s
                          ) -> tuple[list[tuple[float, str]], list[str]]:
     """(requests with every ``auto`` time found, what was found in words). An ``auto`` time is the
     end (+ 0.5 s) of the first calibration in the recording's raw IMU data
     (:func:`~gait_biofeedback.core.calibration.find.find_calibration`: a quiet standing of
-    ``standing_duration`` s, the calibration stage's ``default_standing_duration``, then movement that
+    ``standing_duration`` s, the calibration stage's ``default_standing_duration_s``, then movement that
     looks like a protocol; without one, a walk); with protocol ``auto`` the protocol it looks like.
     ValueError (saying what was looked for) when there is none. The calibration node runs an ``auto``
     time with :data:`AUTO_OPTIONS`."""
@@ -321,7 +321,7 @@ def analyze_recording(
         for _t, protocol in calibrate_at or []:
             if protocol not in REQUESTS:
                 raise ValueError(f"unknown calibration protocol {protocol!r}; use one of {list(REQUESTS)}")
-        standing_s = (stages.get("calibration") or CalibrationParams()).default_standing_duration
+        standing_s = (stages.get("calibration") or CalibrationParams()).default_standing_duration_s
         calibrate_at, notes = drop_needless_auto(list(rates), list(calibrate_at or []))
         requests, found_notes = resolve_calibrate_at(bag, calibrate_at, standing_s)
         notes += rate_notes + found_notes
@@ -413,7 +413,7 @@ def _analyze_into(output: str | Path | None, overwrite: bool, *args: Any) -> Ana
     staging = output.parent / f".{output.name}.analyzing"
     shutil.rmtree(staging, ignore_errors=True)  # left by a run that was killed
     try:
-        with BagWriter(staging / output.name, flush_period=None) as writer:
+        with BagWriter(staging / output.name, flush_period_s=None) as writer:
             ordered = LogOrderWriter(writer)
             result = _analyze(ordered, *args)
             ordered.close()
@@ -609,7 +609,7 @@ def _analyze(ordered: LogOrderWriter | None, reader: BagReader, run: Orientation
     imu_end_ns = max(last_log.values(), default=0)  # a recorder stopped after the sensors is no silence
     for seg, last_ns in last_log.items():
         silent = (imu_end_ns - last_ns) / NS_PER_S
-        if silent > o_params.stale_after:
+        if silent > o_params.stale_after_s:
             since = (last_ns - start_ns) / NS_PER_S
             result.warnings.append(f"{seg}: no data from {since:.1f} s on, {silent:.1f} s before the other "
                                    "sensors' last: check the sensor, its battery and the link; its joints "
@@ -647,7 +647,7 @@ def _analyze(ordered: LogOrderWriter | None, reader: BagReader, run: Orientation
             result.notes.append(
                 f"{side} foot, live only: {rest.withheld} provisional stride lengths withheld (those strides "
                 f"wait for their smoothed values) while their last estimates differed from the smoothed ones "
-                f"by more than provisional_tolerance, {100 * rest.tolerance:g} cm RMS (at the end of the "
+                f"by more than provisional_tolerance_m, {100 * rest.tolerance:g} cm RMS (at the end of the "
                 f"recording {100 * rest.spread:.1f} cm); offline every stride has its smoothed values")
     for until_ns, protocol in buffer.scheduled:
         at = (until_ns - start_ns) / NS_PER_S

@@ -265,7 +265,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
     calibration = stage_parameters("calibration", params.get("calibration", {}))
     asked, dropped = drop_needless_auto(list(rates), _calibration_options(args, params))
     notes += dropped
-    requests, found = resolve_calibrate_at(args.bag, asked, calibration.default_standing_duration)
+    requests, found = resolve_calibrate_at(args.bag, asked, calibration.default_standing_duration_s)
     notes += found
     for note in notes:
         print(note)
@@ -283,8 +283,8 @@ def cmd_replay(args: argparse.Namespace) -> int:
         with BagReader(args.bag) as reader:
             total = reader.message_count
         with _progress(total, "replay") as bar:
-            result = replay_through_graph(args.bag, args.record, speed=args.speed, start_offset=args.start,
-                                          stop_offset=args.stop, progress=bar.update,
+            result = replay_through_graph(args.bag, args.record, speed=args.speed, start_offset_s=args.start,
+                                          stop_offset_s=args.stop, progress=bar.update,
                                           nodes=_node_list(args.nodes), node_parameters=params,
                                           calibrate_at=pressed)
         walk_file = Path(folder) / "calibration_from_the_walk.yaml"

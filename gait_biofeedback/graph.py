@@ -241,8 +241,8 @@ def replay_through_graph(
     output: str | Path | None = None,
     speed: float = 1.0,
     nodes: Sequence[str] | None = None,
-    start_offset: float = 0.0,
-    stop_offset: float = 0.0,
+    start_offset_s: float = 0.0,
+    stop_offset_s: float = 0.0,
     timeout: float | None = None,
     progress: Callable[[int], None] | None = None,
     node_parameters: dict[str, dict] | None = None,
@@ -267,8 +267,8 @@ def replay_through_graph(
         actions = [*actions, (t, press)]
     with running_graph(nodes, output, node_parameters, use_sim_time=True) as graph:
         replayer = graph.add(ImuReplayer(
-            graph.context, bag=str(bag), speed=float(speed), start_offset=float(start_offset),
-            stop_offset=float(stop_offset), wait_for_subscribers=5.0, publish_clock=True,
+            graph.context, bag=str(bag), speed=float(speed), start_offset_s=float(start_offset_s),
+            stop_offset_s=float(stop_offset_s), wait_for_subscribers_s=5.0, publish_clock=True,
             use_sim_time=True))
         last = 0
         pending = sorted(actions, key=lambda a: a[0])

@@ -2,7 +2,7 @@
 
 The ``orientation_filter`` node's work offline: each raw IMU message, in log order, through its
 segment's :class:`~gait_biofeedback.core.orientation.stream.SegmentOrientationTracker`, the samples it
-releases serialised as the node publishes them, ``/diagnostics`` every ``diagnostics_period`` s of
+releases serialised as the node publishes them, ``/diagnostics`` every ``diagnostics_period_s`` s of
 recording time and the trackers' notices. An ``auto`` calibration looks ahead along this pass up to
 the instant it finds (:func:`gait_biofeedback.analyze.calibration_ahead`) and keeps what it read; the
 analysis then runs on those kept items and the rest of the same pass. Before, the look-ahead ran its
@@ -81,7 +81,7 @@ class OrientationPass:
         self.newest_ns: int | None = None  # log time of the newest raw sample of a tracked segment
         self._segment_of = {topic: seg for seg, topic in raw_topics.items()}
         self._mag_of = {topic: seg for seg, topic in mag_topics.items()}
-        self._period_ns = round(params.diagnostics_period * NS_PER_S)
+        self._period_ns = round(params.diagnostics_period_s * NS_PER_S)
         self._next_status_ns = self.start_ns + self._period_ns
         self._items = self._run(reader.raw_messages([*self._segment_of, *self._mag_of, *truth]))
         self._end: PassEnd | None = None
@@ -134,7 +134,7 @@ class OrientationPass:
 
     def _status(self, log_ns: int) -> Any:
         statuses = [diagnostics.orientation_status(seg, tracker, diagnostics.no_data(
-                        (log_ns - self.last_log[seg]) / NS_PER_S, self.params.stale_after))
+                        (log_ns - self.last_log[seg]) / NS_PER_S, self.params.stale_after_s))
                     for seg, tracker in self.trackers.items() if seg in self.last_raw]
         self._next_status_ns = log_ns + self._period_ns
         return diagnostics.array(ns_to_stamp(log_ns), statuses)

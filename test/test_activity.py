@@ -711,7 +711,7 @@ def test_run_publishes_changes_and_every_period_on_its_clock() -> None:
 
     acc = Template(RATE).hold(4.0, 0.0).walk(12).hold(10.0).acc()
     stamps = sample_stamps(len(acc), RATE).tolist()
-    params = ActivityParams(rate_hz=RATE, publish_period=2.0)
+    params = ActivityParams(rate_hz=RATE, publish_period_s=2.0)
     recording, wall = ActivityRun(params), ActivityRun(params, clock="wall")
     changes, periodic = [], []
     for stamp_ns, sample in zip(stamps, acc.tolist(), strict=True):
@@ -889,7 +889,7 @@ def test_stream_with_thighs_equals_batch_and_a_silent_thigh_is_not_waited_for() 
     thighs = {"left_thigh": _thigh_acc(inclination), "right_thigh": _thigh_acc(inclination, seed=2)}
     acc = tpl.acc()
     batch = classify_activity(acc, RATE, thighs=thighs)
-    stream = ActivityStream(ActivityParams(rate_hz=RATE, reorder_window=0.0))
+    stream = ActivityStream(ActivityParams(rate_hz=RATE, reorder_window_s=0.0))
     stamps = sample_stamps(len(acc), RATE).tolist()
     for k, stamp_ns in enumerate(stamps):  # the right thigh's sample arrives after the chest's: it waits
         stream.update_thigh("left_thigh", stamp_ns, thighs["left_thigh"][k].tolist())

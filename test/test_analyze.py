@@ -26,9 +26,9 @@ CALIBRATE_AT = 30.0  # s: 1 s after the hip flexion moves end (stand 5 s + moves
 # reaches joint_angles and gait_events before that sample does.
 PARAMS = {
     "orientation_filter": {"algorithm": "madgwick"},
-    "calibration": {"apply_delay": 2.0},
-    "joint_angles": {"max_wait": 2.0},
-    "gait_events": {"stale_after": 5.0},
+    "calibration": {"apply_delay_s": 2.0},
+    "joint_angles": {"max_wait_s": 2.0},
+    "gait_events": {"stale_after_s": 5.0},
 }
 # The live graph of the comparison, and what its recorder leaves out, to keep the load of one Python
 # process low enough that the best-effort raw topics lose nothing at 2x (activity is not compared).
@@ -90,13 +90,13 @@ def _run_live_graph(bag, output, params, calibrate_at_ns, expected_joint_states,
     counts = BagReader(bag).message_counts()
     n_raw = counts["/left_foot/imu/data_raw"]
     # sensors only, plus one topic nobody subscribes to: the replayer then waits its full
-    # wait_for_subscribers before the first sample, time for every reader to match its writer on a
+    # wait_for_subscribers_s before the first sample, time for every reader to match its writer on a
     # loaded machine (its own wait, "all matched + 0.25 s", lost the first samples here)
     topics = [t for t in counts if t.endswith(("/imu/data_raw", "/imu/mag"))] + [UNHEARD_TOPIC]
     with running_graph(LIVE_NODES, output, params) as graph:
         graph.nodes["calibration"].calibrate_at(calibrate_at_ns, "hip_flexion")
         replayer = graph.add(ImuReplayer(graph.context, bag=str(bag), speed=speed, topics=topics,
-                                         wait_for_subscribers=3.0))
+                                         wait_for_subscribers_s=3.0))
         assert spin_until(graph.executor, replayer.finished.is_set, timeout=120)
         trackers = graph.nodes["orientation_filter"].trackers
         joints = graph.nodes["joint_angles"]

@@ -181,11 +181,11 @@ def write_in_flushed_batches(folder: Path, batches: int = 4, per_batch: int = 30
 
 def test_open_chunk_reaches_disk_on_flush(tmp_path: Path) -> None:
     """The crash-safety point: a flush writes the open chunk and hands the file to the OS."""
-    writer = BagWriter(tmp_path / "open", flush_period=0.05)
+    writer = BagWriter(tmp_path / "open", flush_period_s=0.05)
     for i in range(10):
         writer.write("/chatter", string_msg(i), i)
     time.sleep(0.06)
-    writer.maybe_flush()  # flush_period has passed
+    writer.maybe_flush()  # flush_period_s has passed
     copy = tmp_path / "copy.mcap"
     shutil.copy(writer.files[0], copy)  # what a kill -9 now would leave
     with pytest.warns(BagRecoveryWarning, match=r"copy\.mcap.*recovered 10 messages"):
@@ -257,7 +257,8 @@ def test_repair_of_crashed_bag_folder_rebuilds_metadata(tmp_path: Path) -> None:
 def test_split_by_size_reads_back_in_order(tmp_path: Path) -> None:
     from rosbags.highlevel import AnyReader
 
-    with BagWriter(tmp_path / "split", split_size=20_000, chunk_size=4_000, compression="lz4") as writer:
+    with BagWriter(tmp_path / "split", split_size_bytes=20_000, chunk_size=4_000,
+                   compression="lz4") as writer:
         for i in range(1500):
             writer.write("/chatter", string_msg(i), 1_000_000 + i)
     assert len(writer.files) >= 3
@@ -272,7 +273,7 @@ def test_split_by_size_reads_back_in_order(tmp_path: Path) -> None:
 
 
 def test_split_by_duration(tmp_path: Path) -> None:
-    with BagWriter(tmp_path / "minutes", split_duration=1.0) as writer:
+    with BagWriter(tmp_path / "minutes", split_duration_s=1.0) as writer:
         for i in range(30):
             writer.write("/chatter", string_msg(i), i * 100_000_000)  # 3 s of log time
     assert [f.name for f in writer.files] == [f"minutes_{k}.mcap" for k in range(3)]
@@ -308,7 +309,7 @@ CHILD_WRITER = """
 import sys, time
 from std_msgs.msg import String
 from gait_biofeedback.io.bag import BagWriter
-writer = BagWriter(sys.argv[1], flush_period=0.1)
+writer = BagWriter(sys.argv[1], flush_period_s=0.1)
 i = 0
 while True:
     writer.write("/chatter", String(data=f"message {i:05d} " + "x" * 40), 1000 + i)
@@ -331,7 +332,7 @@ def test_bag_survives_kill_9(tmp_path: Path) -> None:
     )
     try:
         flushed = [int(child.stdout.readline()) for _ in range(3)]
-        time.sleep(0.15)  # more messages, some flushed by flush_period only
+        time.sleep(0.15)  # more messages, some flushed by flush_period_s only
     finally:
         child.send_signal(signal.SIGKILL)
         child.wait(timeout=10)

@@ -159,7 +159,7 @@ def test_sagittal_stick_figure_geometry():
             (("hip", ("flexion", "adduction", "internal_rotation")),
              ("knee", ("flexion", "adduction", "internal_rotation")),
              ("ankle", ("dorsiflexion", "inversion", "internal_rotation"))) for k in kinds}
-    body = BodyDimensions(thigh_length=0.43)
+    body = BodyDimensions(thigh_length_m=0.43)
     lines = {(seg, k): v for k, (seg, *v) in enumerate(sagittal_stick_figure(zero, body))}
     segs = [seg for seg, _ in lines]
     assert segs.count("pelvis") == 2 and {"left_thigh", "right_shank", "right_foot"} <= set(segs)

@@ -78,7 +78,7 @@ def test_node_cues_frames_and_commands(ros_context, session):
     from gait_biofeedback_msgs.srv import Calibrate
 
     truth = session.truth
-    node = BiofeedbackNode(ros_context, port=0, frame_rate=50.0)
+    node = BiofeedbackNode(ros_context, port=0, frame_rate_hz=50.0)
     source = Node("sim_source", context=ros_context)
     joints = source.create_publisher(JointState, "joint_states", RELIABLE_QOS)
     cycles = source.create_publisher(GaitCycle, "gait/cycles", RELIABLE_QOS)

@@ -97,7 +97,7 @@ def test_an_alias_bomb_is_refused_before_it_expands(tmp_path):
 
 
 def test_the_cli_refuses_an_alias_bomb_in_one_line_in_bounded_memory(tmp_path):
-    ok = _params(tmp_path, "/**/orientation_filter:\n  ros__parameters:\n    max_gap: 1.0\n", "ok.yaml")
+    ok = _params(tmp_path, "/**/orientation_filter:\n  ros__parameters:\n    max_gap_s: 1.0\n", "ok.yaml")
     code, _, err, ok_seconds, baseline = _cli_child("params", "--check", str(ok))
     assert code == 0 and err == ""
     bomb = _params(tmp_path, _alias_bomb() + "/**/imu_replayer:\n  ros__parameters:\n    topics: *i\n")

@@ -98,7 +98,7 @@ def test_analyze_auto_takes_a_short_standing_and_says_so(tmp_path, capsys):
     """A recording that starts walking after 1.2 s of standing (gaitmap's example has about 0.7 s): the
     still run ends at 1.23 s; its quietest end (windows.standing_window) is 1.03 s. Auto takes those
     1.03 s with the default 3 s asked, and the calibration says the standing was short; with
-    default_standing_duration 0.5 it takes the last half second, and says nothing."""
+    default_standing_duration_s 0.5 it takes the last half second, and says nothing."""
     from gait_biofeedback.cli import main
 
     bag, _ = simulated_bag(tmp_path / "walk", SimulationConfig(seed=3, phases=[
@@ -110,7 +110,7 @@ def test_analyze_auto_takes_a_short_standing_and_says_so(tmp_path, capsys):
     saved = (tmp_path / "a" / "calibration.yaml").read_text()  # the file and the report say it too
     assert saved.count("the quiet standing lasted only 1.03 s (asked 3 s)") == 8  # each segment's entry
     params = tmp_path / "short.yaml"
-    params.write_text("calibration:\n  ros__parameters:\n    default_standing_duration: 0.5\n")
+    params.write_text("calibration:\n  ros__parameters:\n    default_standing_duration_s: 0.5\n")
     assert main(["analyze", str(bag), "-o", str(tmp_path / "b"), "--calibrate-at", "auto", "--params",
                  str(params)]) == 0
     out = capsys.readouterr().out

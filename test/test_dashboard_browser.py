@@ -152,7 +152,7 @@ def test_dashboard_in_headless_chromium(ros_context, walk_session, tmp_path):
     browser = None
     try:
         browser = Browser(bio.server.url)
-        replayer = ImuReplayer(ros_context, bag=str(bag), speed=1.0, wait_for_subscribers=5.0)
+        replayer = ImuReplayer(ros_context, bag=str(bag), speed=1.0, wait_for_subscribers_s=5.0)
         nodes.append(replayer)
         executor.add_node(replayer)
         spinner.start()

@@ -10,7 +10,7 @@ from gait_biofeedback.io.bag import BagReader, BagWriter, write_imu_bag
 
 
 def _recorded(source, output, keep):
-    with BagReader(source) as reader, BagWriter(output, flush_period=None) as writer:
+    with BagReader(source) as reader, BagWriter(output, flush_period_s=None) as writer:
         for i, (topic, type_name, data, log_ns) in enumerate(reader.raw_messages()):
             if keep(i, topic):
                 writer.write_serialized(topic, type_name, data, log_ns)

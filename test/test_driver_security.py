@@ -462,7 +462,7 @@ def test_a_sensor_back_from_a_new_source_port_takes_its_id_once_the_old_one_is_s
 
 
 def test_while_its_source_sends_no_other_source_takes_the_id_even_across_a_short_pause():
-    # sensor 4 is out of range for 0.8 s (under stale_after, 1 s) while another source streams a sequence
+    # sensor 4 is out of range for 0.8 s (under stale_after_s, 1 s) while another source streams a sequence
     # of its own, in real time, from 0.9 s to 2.5 s
     sensors = ("4:right_thigh",)
     events = [e for k, e in enumerate(link_events(300, sid=4)) if not 100 <= k < 180]

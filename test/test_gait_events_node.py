@@ -59,7 +59,7 @@ def test_node_on_replayed_walk_equals_offline_core(ros_context, walk_bag):
     filters = OrientationFilterNode(ros_context, segments=list(FEET))
     with spinning(ros_context, filters, node, source) as executor:
         assert spin_until(executor, lambda: all(node.calibrated.values()), timeout=5)
-        replayer = ImuReplayer(ros_context, bag=str(bag), speed=4.0, wait_for_subscribers=5.0)
+        replayer = ImuReplayer(ros_context, bag=str(bag), speed=4.0, wait_for_subscribers_s=5.0)
         executor.add_node(replayer)
         assert spin_until(executor, replayer.finished.is_set, timeout=60)
         settle = time.monotonic() + 0.5
@@ -90,7 +90,8 @@ def test_stopped_foot_stream_resets_state_and_says_so(ros_context):
     from gait_biofeedback.wire.stamps import s_to_stamp
     from gait_biofeedback.wire.topics import RELIABLE_QOS
 
-    node = GaitEventsNode(ros_context, use_standing_reference=True, stale_after=0.3, diagnostics_period=0.1)
+    node = GaitEventsNode(ros_context, use_standing_reference=True, stale_after_s=0.3,
+                          diagnostics_period_s=0.1)
     source = Node("source", context=ros_context)
     pub = source.create_publisher(Imu, "left_foot/imu/data", RELIABLE_QOS)
     diagnostics = []

@@ -64,7 +64,7 @@ def _arrival_offsets(tmp_path, ros_context, speed: float) -> tuple[np.ndarray, n
                              SENSOR_QOS)
     executor = make_executor(ros_context)
     executor.add_node(sink)
-    replayer = ImuReplayer(ros_context, bag=str(bag), speed=speed, wait_for_subscribers=5.0)
+    replayer = ImuReplayer(ros_context, bag=str(bag), speed=speed, wait_for_subscribers_s=5.0)
     executor.add_node(replayer)
     # the objects the earlier tests left are frozen: a full collection of them (tens of ms late in
     # the suite) would stall the replayer thread, which is not what this measures
@@ -133,11 +133,11 @@ def test_killed_recorder_leaves_a_readable_bag(tmp_path):
     namespace = ["-r", "__ns:=/killed_recorder_test"]
     recorder = subprocess.Popen(
         [sys.executable, "-m", "gait_biofeedback.nodes.recorder", "--ros-args", *namespace,
-         "-p", f"output:={out}", "-p", "flush_period:=0.3", "-p", "topics:=[/chest/imu/data_raw]"],
+         "-p", f"output:={out}", "-p", "flush_period_s:=0.3", "-p", "topics:=[/chest/imu/data_raw]"],
         env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     replayer = subprocess.Popen(
         [sys.executable, "-m", "gait_biofeedback.nodes.imu_replayer", "--ros-args",
-         "-p", f"bag:={bag}", "-p", "wait_for_subscribers:=10.0"],
+         "-p", f"bag:={bag}", "-p", "wait_for_subscribers_s:=10.0"],
         env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         deadline = time.monotonic() + 20
@@ -159,7 +159,7 @@ def test_killed_recorder_leaves_a_readable_bag(tmp_path):
         log_ns = [log for *_, log in BagReader(out).raw_messages()]
     recovered = len(log_ns)
     assert recovered >= 100, f"only {recovered} messages survived the kill"
-    # readable up to its last second: what the recorder had received up to flush_period (0.3 s) plus
+    # readable up to its last second: what the recorder had received up to flush_period_s (0.3 s) plus
     # the writer's batching before the kill is in the file (log time = receive time, wall clock; 0.11-0.18
     # s were lost beside two busy processes, so 1 s holds on a loaded machine)
     assert killed_ns - max(log_ns) < 1_000_000_000, f"lost {(killed_ns - max(log_ns)) / 1e9:.2f} s"
@@ -188,7 +188,7 @@ def _collect(ros_context, bag, topic_type, topic, until=None, **params):
     got = []
     sink = Node("sink", context=ros_context)
     sink.create_subscription(topic_type, topic, got.append, SENSOR_QOS)
-    replayer = ImuReplayer(ros_context, bag=str(bag), **{"wait_for_subscribers": 5.0, **params})
+    replayer = ImuReplayer(ros_context, bag=str(bag), **{"wait_for_subscribers_s": 5.0, **params})
     with spinning(ros_context, replayer, sink) as executor:
         done = replayer.finished.is_set if until is None else (lambda: until(got))
         assert spin_until(executor, done, timeout=20)
@@ -203,8 +203,8 @@ def test_replayer_start_stop_offsets_loop_and_clock(tmp_path, ros_context):
 
 
     bag = write_imu_bag(tmp_path / "in", synthetic_imu(["pelvis"], duration=1.0, with_mag=False, t0=50.0))
-    got = _collect(ros_context, bag, Imu, "pelvis/imu/data_raw", speed=0.0, start_offset=0.2,
-                   stop_offset=0.5)
+    got = _collect(ros_context, bag, Imu, "pelvis/imu/data_raw", speed=0.0, start_offset_s=0.2,
+                   stop_offset_s=0.5)
     stamps = [stamp_s(m.header.stamp) for m in got]
     assert len(stamps) == 30 and stamps[0] == pytest.approx(50.2) and stamps[-1] == pytest.approx(50.49)
 
@@ -214,8 +214,8 @@ def test_replayer_start_stop_offsets_loop_and_clock(tmp_path, ros_context):
     assert np.sum(np.diff(stamps) < 0) == 1, "one jump back to the start per loop"
     assert stamps[100] == pytest.approx(50.0)
 
-    clock = _collect(ros_context, bag, Clock, "/clock", speed=0.0, publish_clock=True, clock_period=0.02,
-                     wait_for_subscribers=1.0)  # nobody subscribes the data topic: a shorter wait
+    clock = _collect(ros_context, bag, Clock, "/clock", speed=0.0, publish_clock=True, clock_period_s=0.02,
+                     wait_for_subscribers_s=1.0)  # nobody subscribes the data topic: a shorter wait
     ticks = np.array([stamp_ns(c.clock) for c in clock])
     # the start time while it waits for subscribers, then every 20 ms of recording time (each 2nd sample)
     start = int(np.sum(ticks == 50_000_000_000))
@@ -228,7 +228,7 @@ def test_recorder_splits_by_duration_and_keeps_every_message(tmp_path):
     bag = write_imu_bag(tmp_path / "in", imu)
     out = tmp_path / "out"
     replay_through_graph(bag, out, speed=1.0, nodes=[], timeout=30,
-                         node_parameters={"recorder": {"split_duration": 0.6}})
+                         node_parameters={"recorder": {"split_duration_s": 0.6}})
     files = sorted(out.glob("*.mcap"))
     assert len(files) >= 3, files
     assert BagReader(out).message_counts()["/left_shank/imu/data_raw"] == 200

@@ -220,7 +220,7 @@ def _genuine_only(listener, sent):
 def test_udp_a_second_sender_claiming_a_sensors_id_is_dropped_and_named(ros_context):
     from gait_biofeedback.nodes.common import spin_until
 
-    with _graph(ros_context, port=0, diagnostics_period=0.2) as (driver, listener, executor):
+    with _graph(ros_context, port=0, diagnostics_period_s=0.2) as (driver, listener, executor):
         # the hostile probe: sequence 123 at device time 1 µs, then a stream of its own (a second sensor 3)
         forged = [_forged(123, 1)] + [_forged(k, 5_000 * k) for k in range(50)]
         sent, forger_port = _send_while_spinning(executor, driver.link.port, None, forged)
@@ -243,7 +243,7 @@ def test_udp_with_a_session_key_only_signed_frames_are_taken(ros_context, tmp_pa
     key_file = tmp_path / "frame.key"
     key_file.write_bytes(key + b"\n")
     key_file.chmod(0o600)
-    with _graph(ros_context, port=0, diagnostics_period=0.2,
+    with _graph(ros_context, port=0, diagnostics_period_s=0.2,
                 frame_key_file=str(key_file)) as (driver, listener, executor):
         forged = [_forged(7000 + k, 1, None) for k in range(20)]  # unsigned, with sequences ahead
         forged += [_forged(7100 + k, 1, b"guessed key 0123456789") for k in range(10)]

@@ -130,8 +130,8 @@ def test_the_streams_float_path_gives_the_numbers_of_compute_joint_angles_bit_fo
 
 
 def test_stick_figure_of_standing_pose():
-    body = BodyDimensions(thigh_length=0.45, shank_length=0.41, hip_width=0.2, foot_length=0.15,
-                          ankle_height=0.07)
+    body = BodyDimensions(thigh_length_m=0.45, shank_length_m=0.41, hip_width_m=0.2, foot_length_m=0.15,
+                          ankle_height_m=0.07)
     lines = stick_figure({s: UPRIGHT for s in MOUNTS}, body)
     ends = {seg: end for seg, _start, end in lines}
     np.testing.assert_allclose(ends["right_foot"], [0.15, -0.10, -0.45 - 0.41 - 0.07], atol=1e-12)

@@ -31,8 +31,8 @@ def test_joint_angles_node(ros_context):
     session = simulate(SCENARIOS["walk"](duration=4.0, seed=3))
     truth = session.truth
     cal = true_calibration(session, SEGMENTS)
-    node = JointAnglesNode(ros_context, remove_standing_offset=False, diagnostics_period=0.2, max_wait=0.05,
-                           heading="filters")  # true orientations: one world already
+    node = JointAnglesNode(ros_context, remove_standing_offset=False, diagnostics_period_s=0.2,
+                           max_wait_s=0.05, heading="filters")  # true orientations: one world already
     source = Node("source", context=ros_context)
     pubs = {s: source.create_publisher(Imu, f"{s}/imu/data", RELIABLE_QOS) for s in SEGMENTS}
     cal_pub = source.create_publisher(SegmentCalibrationArray, "calibration/sensor_to_segment", LATCHED_QOS)

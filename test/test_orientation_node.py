@@ -94,7 +94,7 @@ def test_node_counts_bad_samples_and_reports_them(ros_context):
     from gait_biofeedback.wire.stamps import s_to_stamp
     from gait_biofeedback.wire.topics import SENSOR_QOS
 
-    node = OrientationFilterNode(ros_context, segments=["chest"], startup_s=0.2, diagnostics_period=0.2,
+    node = OrientationFilterNode(ros_context, segments=["chest"], startup_s=0.2, diagnostics_period_s=0.2,
                                  recover_s=0.2)  # the 0.3 s after the restart re-acquire the attitude
     source = Node("source", context=ros_context)
     pub = source.create_publisher(Imu, "chest/imu/data_raw", SENSOR_QOS)
@@ -135,7 +135,7 @@ def test_node_names_a_dropout_and_a_glitch_on_diagnostics(ros_context):
     from gait_biofeedback.wire.stamps import s_to_stamp
     from gait_biofeedback.wire.topics import SENSOR_QOS
 
-    node = OrientationFilterNode(ros_context, segments=["chest"], startup_s=0.2, diagnostics_period=0.1,
+    node = OrientationFilterNode(ros_context, segments=["chest"], startup_s=0.2, diagnostics_period_s=0.1,
                                  recover_s=0.3)
     source = Node("source", context=ros_context)
     pub = source.create_publisher(Imu, "chest/imu/data_raw", SENSOR_QOS)

@@ -153,14 +153,14 @@ def _write_joint_states(path, **options) -> bytes:
 
 
 def test_an_offline_writer_gives_the_same_file_whatever_the_wall_clock(tmp_path, monkeypatch) -> None:
-    """``flush_period=None`` closes chunks by size only; the live default closes one each wall-clock
+    """``flush_period_s=None`` closes chunks by size only; the live default closes one each wall-clock
     second, so a slow run (here a clock that jumps 0.5 s per reading) splits the same messages
     differently."""
-    quick = _write_joint_states(tmp_path / "quick", flush_period=None)
+    quick = _write_joint_states(tmp_path / "quick", flush_period_s=None)
     live_quick = _write_joint_states(tmp_path / "live_quick")
     ticks = iter(range(10**6))
     monkeypatch.setattr(bag_writer.time, "monotonic", lambda: 0.5 * next(ticks))
-    assert _write_joint_states(tmp_path / "slow", flush_period=None) == quick
+    assert _write_joint_states(tmp_path / "slow", flush_period_s=None) == quick
     assert _write_joint_states(tmp_path / "live_slow") != live_quick
 
 

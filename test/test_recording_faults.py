@@ -61,7 +61,7 @@ def test_full_disk_stops_recording_once_and_processing_goes_on(tmp_path, monkeyp
         seen.update(nodes)
 
     result = replay_through_graph(bag, out, speed=1.0, nodes=["orientation_filter", "biofeedback"],
-                                  timeout=60, node_parameters={"recorder": {"flush_period": 0.2}},
+                                  timeout=60, node_parameters={"recorder": {"flush_period_s": 0.2}},
                                   actions=[(3.9, keep_nodes)])
     assert result.published == 4 * 400, "the replay and the processing went on to the end"
     assert result.write_error is not None
@@ -114,7 +114,7 @@ def test_record_again_after_a_write_error_opens_a_new_folder(tmp_path, monkeypat
     calibration = source.create_publisher(String, "/calibration_note", latched)
     notes = source.create_publisher(String, "/note", 300)
     calibration.publish(String(data="calibration in force"))
-    recorder = Recorder(context, output=str(tmp_path / "session"), flush_period=0.05,
+    recorder = Recorder(context, output=str(tmp_path / "session"), flush_period_s=0.05,
                         topics=["/calibration_note", "/note"])
     try:
         with spinning(context, recorder, source) as executor:
@@ -186,7 +186,7 @@ def _stopped_by(sig: int, command: list[str], bag, speed: float = 1.0) -> tuple[
                 if "Ctrl-C stops" in line:
                     break
         subprocess.run([sys.executable, "-m", "gait_biofeedback.nodes.imu_replayer", "--ros-args",
-                        "-p", f"bag:={bag}", "-p", f"speed:={speed}", "-p", "wait_for_subscribers:=10.0"],
+                        "-p", f"bag:={bag}", "-p", f"speed:={speed}", "-p", "wait_for_subscribers_s:=10.0"],
                        timeout=30, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=True)
         time.sleep(0.5)
         process.send_signal(sig)

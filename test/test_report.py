@@ -285,9 +285,9 @@ def test_the_patient_block_is_read_checked_and_accepted_by_ros(tmp_path):
     from rclpy.context import Context
 
     good = tmp_path / "good.yaml"
-    good.write_text(PATIENT_BLOCK + "/**:\n  ros__parameters:\n    thigh_length: 0.40\n")
+    good.write_text(PATIENT_BLOCK + "/**:\n  ros__parameters:\n    thigh_length_m: 0.40\n")
     assert patient_from_params(good) == Patient("P017", "2026-12-03")
-    assert load_params_file(good)["activity_monitor"]["thigh_length"] == 0.40
+    assert load_params_file(good)["activity_monitor"]["thigh_length_m"] == 0.40
     context = Context()
     context.init(["--ros-args", "--params-file", str(good)])  # rcl parses the same file
     context.try_shutdown()

@@ -150,14 +150,14 @@ def _shock_after_stance(stance_samples: int, noise: KalmanNoise) -> float:
 
 
 def test_the_shock_noise_needs_a_stance_long_enough():
-    """shock_stance (EXT, kalman.py): after a 30 ms stance (running) the shock leaves R_a as it is,
+    """shock_stance_s (EXT, kalman.py): after a 30 ms stance (running) the shock leaves R_a as it is,
     Q_vv = R_a T = 1e-4 m²/s² to first order (hand number); after 100 ms it is 5 R_a T (gain
-    1 + (4 / 2)²); with shock_stance 0 also after the short one."""
-    noise = KalmanNoise(gyro=1e-12, acc=1e-2, acc_shock=30.0, shock_stance=0.05)
+    1 + (4 / 2)²); with shock_stance_s 0 also after the short one."""
+    noise = KalmanNoise(gyro=1e-12, acc=1e-2, acc_shock=30.0, shock_stance_s=0.05)
     short, long = _shock_after_stance(3, noise), _shock_after_stance(10, noise)
     assert short == pytest.approx(1e-4, rel=0.01)
     assert long == pytest.approx(5e-4, rel=0.01)
-    always = KalmanNoise(gyro=1e-12, acc=1e-2, acc_shock=30.0, shock_stance=0.0)
+    always = KalmanNoise(gyro=1e-12, acc=1e-2, acc_shock=30.0, shock_stance_s=0.0)
     assert _shock_after_stance(3, always) == pytest.approx(5e-4, rel=0.01)
 
 
@@ -225,7 +225,7 @@ def test_toe_clearance_with_a_lever_arm(walk):
     later = rs[500].T @ (toe[500] - truth.sensor_position["left_foot"][500])
     np.testing.assert_allclose(later, lever, atol=1e-9)
     imu = walk.imu["left_foot"]
-    strides = estimate_foot_trajectory(imu.gyr, imu.acc, 100.0, toe_lever_arm=tuple(lever))["strides"][1:-1]
+    strides = estimate_foot_trajectory(imu.gyr, imu.acc, 100.0, toe_lever_arm_m=tuple(lever))["strides"][1:-1]
     checked = 0
     for s in strides:
         stance = toe[s["stance_start"]:s["foot_off"] + 1, 2].mean()
@@ -338,16 +338,16 @@ def test_a_long_swing_gives_no_numbers():
 
 
 def test_parameters_are_checked():
-    with pytest.raises(ParameterError, match="toe_lever_arm"):
-        FootTrajectoryParams(toe_lever_arm=(0.1, 0.0))
+    with pytest.raises(ParameterError, match="toe_lever_arm_m"):
+        FootTrajectoryParams(toe_lever_arm_m=(0.1, 0.0))
     with pytest.raises(ParameterError, match="gyro_limt"):
         from_mapping(FootTrajectoryParams, {"gyro_limt": 0.3})
     with pytest.raises(ValueError, match="detector"):
         ZeroVelocityDetector(100.0, detector="magic")
     with pytest.raises(ParameterError, match="gyro_limt"):
         estimate_foot_trajectory(np.zeros((10, 3)), np.zeros((10, 3)), 100.0, gyro_limt=0.3)
-    with pytest.raises(ParameterError, match="window"):
-        estimate_foot_trajectory(np.zeros((10, 3)), np.zeros((10, 3)), 100.0, window=5.0)
+    with pytest.raises(ParameterError, match="window_s"):
+        estimate_foot_trajectory(np.zeros((10, 3)), np.zeros((10, 3)), 100.0, window_s=5.0)
 
 
 def _pyshoe_score(estimate, vicon):
@@ -391,16 +391,16 @@ def test_pyshoe_running_trial_needs_the_valley_rule():
 
 @pytest.mark.realdata
 def test_pyshoe_running_trial_without_shock_noise_after_short_stances():
-    """shock_stance: the running trial 2017-11-27-11-11-53 measured 0.033 m ARMSE with the default
-    (0.05 s), 0.118 m with the shock noise in every swing (shock_stance 0)."""
+    """shock_stance_s: the running trial 2017-11-27-11-11-53 measured 0.033 m ARMSE with the default
+    (0.05 s), 0.118 m with the shock noise in every swing (shock_stance_s 0)."""
     path = shared_data("pyshoe_vicon", "2017-11-27-11-11-53.mat")
     d = sio.loadmat(path, squeeze_me=True)
     scores = {}
-    for shock_stance in (0.05, 0.0):
+    for shock_stance_s in (0.05, 0.0):
         p = estimate_foot_trajectory(d["imu"][:, 3:6], d["imu"][:, :3], 200.0,
-                                     shock_stance=shock_stance)["position"]
+                                     shock_stance_s=shock_stance_s)["position"]
         ok = np.isfinite(p[:, 0])
-        scores[shock_stance] = _pyshoe_score(p[ok], d["gt"][ok])
+        scores[shock_stance_s] = _pyshoe_score(p[ok], d["gt"][ok])
     assert scores[0.05] <= 0.066 and scores[0.0] >= 0.08, scores
 
 

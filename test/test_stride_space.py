@@ -123,7 +123,7 @@ def test_without_a_provisional_value_of_its_own_swing_a_stride_waits_for_the_smo
 
 
 def test_step_length_by_hand():
-    legs = BodyDimensions(thigh_length=0.4, shank_length=0.45)
+    legs = BodyDimensions(thigh_length_m=0.4, shank_length_m=0.45)
     assert ankle_ahead(30 * DEG, 0.0, legs) == pytest.approx(0.85 * 0.5)
     assert ankle_ahead(30 * DEG, 30 * DEG, legs) == pytest.approx(0.2)  # the shank vertical
     assert step_length(1.4, 0.8, 0.6) == pytest.approx(0.8)

@@ -1,7 +1,7 @@
 """Values waiting for the sample stamp from which they are in force.
 
 A calibration message names the sample stamp from which it holds (``calibration_windows``: the end
-of its window + ``apply_delay``), so every consumer, live or offline, switches at the same sample
+of its window + ``apply_delay_s``), so every consumer, live or offline, switches at the same sample
 whenever the message arrived. The streams that consume one (joint angles, gait events, the activity
 monitor's trunk axis) keep what has arrived early in an :class:`InForceQueue` and take it when their
 samples reach its stamp.

@@ -5,7 +5,8 @@ a one-line description, and the allowed (inclusive) range or choices. From that 
 
 * the nodes declare their ROS parameters with descriptors (:mod:`gait_biofeedback.nodes.parameters`);
 * the offline path and the params-file check build the same dataclass with :func:`from_mapping`,
-  which refuses an unknown name, a wrong type or a value out of range with one line that names it.
+  which refuses an unknown name, a wrong type or a value out of range with one line that names it
+  (a name renamed to say its unit, :data:`RENAMED`, with its new name).
 
 Types: ``bool``, ``int``, ``float`` (an int is accepted and converted), ``str``, ``tuple[str, ...]``,
 ``tuple[float, ...]``, and ``dict[str, str]`` for one string per key (``keys``), whose ROS names are
@@ -182,11 +183,41 @@ def _range_problem(spec: Spec, value: float) -> str:
     return ""
 
 
+_SECONDS = (
+    "reorder_window", "clock_bin", "clock_window", "stale_after", "diagnostics_period",  # imu_driver
+    "start_offset", "stop_offset", "clock_period", "wait_for_subscribers",  # imu_replayer
+    "max_gap", "mag_max_age",  # orientation_filter (and reorder_window, stale_after, diagnostics_period)
+    "default_standing_duration", "apply_delay",  # calibration
+    "max_wait", "heading_time_constant", "heading_position_window",  # joint_angles
+    "dropout_gap", "spatial_wait", "provisional_after", "bias_rest", "close_after", "min_swing",
+    "max_swing",  # gait_events
+    "publish_period",  # activity_monitor
+    "stride_wait",  # biofeedback
+    "split_duration", "flush_period", "discovery_period",  # recorder
+)
+RENAMED: dict[str, str] = {
+    **{old: f"{old}_s" for old in _SECONDS},
+    "sim_rate": "sim_rate_hz", "frame_rate": "frame_rate_hz", "split_size": "split_size_bytes",
+    "standing_max_tilt": "standing_max_tilt_rad", "toe_lever_arm": "toe_lever_arm_m",
+    "provisional_tolerance": "provisional_tolerance_m",
+    **{old: f"{old}_m" for old in ("thigh_length", "shank_length", "hip_width", "foot_length",
+                                   "ankle_height")},
+}
+"""Node parameters renamed to say their unit (issue 46), old name → new name: one in a params file or
+a ROS override is refused naming the new one (:func:`unknown_name`), never ignored."""
+_UNIT_WORDS = {"_s": "seconds", "_hz": "Hz", "_bytes": "bytes", "_rad": "radians", "_m": "metres"}
+
+
 def unknown_name(name: str, known: Sequence[str], where: str) -> ParameterError:
-    """The refusal of a parameter (or node) name nobody declares, with the nearest known names."""
+    """The refusal of a parameter (or node) name nobody declares: the new name of a renamed one
+    (:data:`RENAMED`), else the nearest known names."""
+    prefix = f"{where}: " if where else ""
+    new = RENAMED.get(name)
+    if new is not None:
+        unit = next(word for suffix, word in _UNIT_WORDS.items() if new.endswith(suffix))
+        return ParameterError(f"{prefix}parameter {shown(name)} was renamed {shown(new)} ({unit})")
     close = difflib.get_close_matches(name, known, n=3, cutoff=0.6)
     hint = f"; did you mean {', '.join(repr(c) for c in close)}?" if close else ""
-    prefix = f"{where}: " if where else ""
     return ParameterError(f"{prefix}unknown parameter {shown(name)}{hint} "
                           f"(known: {', '.join(sorted(known))})")
 

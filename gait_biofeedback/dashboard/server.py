@@ -4,7 +4,7 @@ One port serves both: plain HTTP GETs of the static files (``gait_biofeedback/da
 ``process_request`` hook of the ``websockets`` library, and the websocket endpoint ``/ws``. The ROS side
 never waits on it: it hands over two callables,
 
-* ``build_frame() -> dict | None``: called in the server thread at ``frame_rate`` Hz while a page is
+* ``build_frame() -> dict | None``: called in the server thread at ``frame_rate_hz`` Hz while a page is
   connected; it must only read/drain thread-safe structures (the node's latest-state references and
   deques) and return the JSON-able frame (None: nothing new);
 * ``on_message(dict)``: called in the server thread for each command from a page allowed to send
@@ -93,7 +93,7 @@ class DashboardServer:
 
     def __init__(self, build_frame: Callable[[], dict | None], on_message: Callable[[dict], None],
                  hello: Callable[[], dict], host: str = "127.0.0.1", port: int = 8080,
-                 frame_rate: float = 30.0, static_dir: Path = STATIC_DIR, max_buffer: int = 1 << 20,
+                 frame_rate_hz: float = 30.0, static_dir: Path = STATIC_DIR, max_buffer: int = 1 << 20,
                  logger: Any = None, token: str | None = None, allowed_hosts: Sequence[str] = (),
                  max_clients: int = MAX_CLIENTS) -> None:
         self.build_frame = build_frame
@@ -102,7 +102,7 @@ class DashboardServer:
         self.host = host
         self.extra_hosts = tuple(allowed_hosts)
         self.requested_port = int(port)
-        self.period = 1.0 / max(float(frame_rate), 1.0)
+        self.period = 1.0 / max(float(frame_rate_hz), 1.0)
         self.static_dir = Path(static_dir).resolve()
         self.max_buffer = int(max_buffer)
         self.max_clients = int(max_clients)

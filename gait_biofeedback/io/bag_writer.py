@@ -2,7 +2,7 @@
 
 Each file is an MCAP file with profile ``ros2``: schema encoding ``ros2msg`` (full .msg text with
 dependencies), message encoding ``cdr``. The open chunk is written out and the file flushed to the
-OS at least every ``flush_period`` seconds of wall-clock time, so after a kill -9 the file is
+OS at least every ``flush_period_s`` seconds of wall-clock time, so after a kill -9 the file is
 readable (and :func:`gait_biofeedback.io.bag.repair`-able) up to its last complete chunk. Flushing
 does not fsync: data survive a process crash, not a power cut. After a write error (a full disk)
 :meth:`BagWriter.abandon` cuts the open file back to its last complete chunk, so what is on disk reads
@@ -106,9 +106,9 @@ class BagWriter:
     """Write ROS 2 messages to a rosbag2 bag folder (MCAP storage).
 
     ``path`` is the bag folder; files are ``<path>/<path.name>_0.mcap``, ``_1.mcap`` … (a new one
-    when ``split_size`` bytes or ``split_duration`` seconds of log time are exceeded).
-    ``flush_period`` (s, wall clock) bounds how much a crash can lose; call :meth:`maybe_flush` from
-    a timer when messages may stop arriving. ``flush_period=None`` (offline writers: ``analyze``,
+    when ``split_size_bytes`` bytes or ``split_duration_s`` seconds of log time are exceeded).
+    ``flush_period_s`` (s, wall clock) bounds how much a crash can lose; call :meth:`maybe_flush` from
+    a timer when messages may stop arriving. ``flush_period_s=None`` (offline writers: ``analyze``,
     ``import``, ``simulate``, fault injection) closes chunks by size only, so that the same messages
     give the same file byte for byte. Use as a context manager or call :meth:`close`.
     Not thread-safe: call it from one thread.
@@ -119,21 +119,21 @@ class BagWriter:
         path: str | Path,
         *,
         compression: str = "zstd",
-        flush_period: float | None = 1.0,
-        split_size: int | None = None,
-        split_duration: float | None = None,
+        flush_period_s: float | None = 1.0,
+        split_size_bytes: int | None = None,
+        split_duration_s: float | None = None,
         overwrite: bool = False,
         chunk_size: int = 1024 * 1024,
     ) -> None:
         if compression not in COMPRESSIONS:
             raise ValueError(f"compression {compression!r} unknown; use one of {sorted(COMPRESSIONS)}")
-        if flush_period is not None and flush_period <= 0:
-            raise ValueError(f"flush_period must be > 0 s, got {flush_period}")
+        if flush_period_s is not None and flush_period_s <= 0:
+            raise ValueError(f"flush_period_s must be > 0 s, got {flush_period_s}")
         self.path = Path(path)
         self._compression = COMPRESSIONS[compression]
-        self._flush_period = flush_period
-        self._split_size = split_size
-        self._split_ns = None if split_duration is None else round(split_duration * 1e9)
+        self._flush_period = flush_period_s
+        self._split_size = split_size_bytes
+        self._split_ns = None if split_duration_s is None else round(split_duration_s * 1e9)
         self._chunk_size = chunk_size
         self._topics: dict[str, TopicRecord] = {}
         self._sequence: dict[str, int] = {}
@@ -281,7 +281,7 @@ class BagWriter:
         self._last_flush = time.monotonic()
 
     def maybe_flush(self) -> None:
-        """:meth:`flush` if ``flush_period`` seconds have passed since the last flush."""
+        """:meth:`flush` if ``flush_period_s`` seconds have passed since the last flush."""
         if self._flush_period is not None and time.monotonic() - self._last_flush >= self._flush_period:
             self.flush()
 

@@ -975,7 +975,7 @@ def import_csv_to_bag(
 
         out = Path(output)
         created = [p for p in (out, *out.parents) if not p.exists()]
-        writer = BagWriter(out, flush_period=None)
+        writer = BagWriter(out, flush_period_s=None)
         try:
             while held:
                 _write_series(writer, held.pop(0).imu)

@@ -51,7 +51,7 @@ def write_imu_bag(
             raise ValueError(f"imu[{key!r}] holds the series of segment {series.segment!r}; keys must match")
     extra_streams = [(topic, type_name_of(msg), np.array([int(t)], dtype=np.int64), [serialize(msg)])
                      for topic, msg, t in extra]
-    with BagWriter(path, **{"flush_period": None, **writer_options}) as writer:
+    with BagWriter(path, **{"flush_period_s": None, **writer_options}) as writer:
         write_series(writer, imu, extra_streams)
     return writer.path
 

@@ -9,7 +9,7 @@ not tesla, so it is not imported (the recording is 6D). The lower back becomes `
 The wireless sensors lose packets (up to 18 % of a trial in the development subjects, holes of up to
 0.1 s): the sample times come from the packet counter (unwrapped), not from the row number; the
 reference events are on that time base (with row numbers as time, one trial's strides came out 16 %
-short of the reference's). The holes stay holes (the graph bridges short ones, ``max_gap``); the import
+short of the reference's). The holes stay holes (the graph bridges short ones, ``max_gap_s``); the import
 says how many samples are missing.
 """
 

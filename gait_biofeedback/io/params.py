@@ -17,22 +17,22 @@ class ReplayerParams:
     bag: str = param("", "the recording to replay (rosbag2 folder or .mcap file)")
     speed: float = param(1.0, "replay speed factor (0 = as fast as possible)", "1", low=0.0, high=1000.0)
     loop: bool = param(False, "start again at the end (the stamps then jump back: downstream resets)")
-    start_offset: float = param(0.0, "start this far into the recording", "s", low=0.0,
-                                high=604800.0)
-    stop_offset: float = param(0.0, "stop this far into the recording (0 = at its end)", "s",
-                               low=0.0, high=604800.0)
+    start_offset_s: float = param(0.0, "start this far into the recording", "s", low=0.0,
+                                  high=604800.0)
+    stop_offset_s: float = param(0.0, "stop this far into the recording (0 = at its end)", "s",
+                                 low=0.0, high=604800.0)
     publish_clock: bool = param(False, "publish /clock with the recording's log time (for nodes with "
                                 "use_sim_time: their stamps and the recorder's log times then follow it)")
-    clock_period: float = param(0.01, "publish /clock at least this often in recording time (and at the "
-                                "start time while waiting for subscribers)", "s", low=0.001, high=1.0)
+    clock_period_s: float = param(0.01, "publish /clock at least this often in recording time (and at the "
+                                  "start time while waiting for subscribers)", "s", low=0.001, high=1.0)
     topics: tuple[str, ...] = param((), "topics to replay (empty = all)")
-    wait_for_subscribers: float = param(0.0, "wait this long for every topic to have a subscriber before "
-                                        "starting (0 = start at once)", "s", low=0.0, high=600.0)
+    wait_for_subscribers_s: float = param(0.0, "wait this long for every topic to have a subscriber before "
+                                          "starting (0 = start at once)", "s", low=0.0, high=600.0)
 
     def __post_init__(self) -> None:
-        require(self.stop_offset == 0.0 or self.stop_offset > self.start_offset,
-                f"parameter 'stop_offset' ({self.stop_offset:g} s) must be 0 or after 'start_offset' "
-                f"({self.start_offset:g} s)")
+        require(self.stop_offset_s == 0.0 or self.stop_offset_s > self.start_offset_s,
+                f"parameter 'stop_offset_s' ({self.stop_offset_s:g} s) must be 0 or after 'start_offset_s' "
+                f"({self.start_offset_s:g} s)")
 
 
 @dataclass(frozen=True)
@@ -42,11 +42,12 @@ class RecorderParams:
     output: str = param("", "bag folder to write ('' = recordings/session_<time>)")
     topics: tuple[str, ...] = param((), "topics to record (empty = every topic, discovered as it appears)")
     exclude: tuple[str, ...] = param((), "topics never recorded")
-    split_size: int = param(0, "start a new file after this many bytes (0 = never)", "B", low=0, high=10**12)
-    split_duration: float = param(0.0, "start a new file after this long (0 = never)", "s",
-                                  low=0.0, high=604800.0)
-    flush_period: float = param(1.0, "longest time before written messages are closed into a chunk (what a "
-                                "crash can lose)", "s", low=0.05, high=60.0)
+    split_size_bytes: int = param(0, "start a new file after this many bytes (0 = never)", "B",
+                                  low=0, high=10**12)
+    split_duration_s: float = param(0.0, "start a new file after this long (0 = never)", "s",
+                                    low=0.0, high=604800.0)
+    flush_period_s: float = param(1.0, "longest time before written messages are closed into a chunk (what a "
+                                  "crash can lose)", "s", low=0.05, high=60.0)
     compression: str = param("zstd", "chunk compression", choices=COMPRESSIONS)
-    discovery_period: float = param(0.5, "how often new topics are looked for", "s", low=0.05, high=60.0)
+    discovery_period_s: float = param(0.5, "how often new topics are looked for", "s", low=0.05, high=60.0)
     autostart: bool = param(True, "record from the start (else wait for recorder/start)")

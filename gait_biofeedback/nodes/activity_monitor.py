@@ -5,12 +5,12 @@ sensor not yet worn from a still wearer when the upright reference is sought), t
 thighs' ``imu/data_raw`` (``thighs``: their inclination tells sitting from standing while they send) and
 ``calibration/sensor_to_segment`` (latched; the chest's rotation gives the trunk's forward axis, in
 force from the message's stamp), publishes ``activity/state`` (gait_biofeedback_msgs/ActivityState)
-whenever posture, locomotion or the last transition change, and every ``publish_period`` s of
+whenever posture, locomotion or the last transition change, and every ``publish_period_s`` s of
 wall-clock time (:class:`~gait_biofeedback.core.activity.run.ActivityRun`, which ``analyze`` drives on
 recording time). The state describes the sample ``delay`` s before the newest one
 (:data:`gait_biofeedback.core.activity.output.DELAY_S`): the monitor needs that look-ahead to
 confirm steps and transitions. Bad input: NaN samples and repeated stamps are skipped and counted;
-a stamp going backwards or a gap > ``max_gap`` s restarts the monitor (after a jump back its upright
+a stamp going backwards or a gap > ``max_gap_s`` s restarts the monitor (after a jump back its upright
 reference is found again, see :mod:`gait_biofeedback.core.activity.reference`; after a gap it is kept).
 
 Parameters: :class:`~gait_biofeedback.core.activity.stream.ActivityParams` (``forward_axis`` only decides
@@ -56,7 +56,7 @@ class ActivityMonitorNode(GuardedNode):
         for thigh in self.stream.thighs.segments:
             subscribe(self, topics.raw_imu(thigh), partial(self._on_thigh, thigh), raw=True)
         subscribe(self, topics.CALIBRATION, self._on_calibration)
-        self.create_timer(self.params.publish_period, self._periodic)
+        self.create_timer(self.params.publish_period_s, self._periodic)
 
     @property
     def counts(self) -> dict[str, int]:

@@ -6,14 +6,14 @@ and the prescriptive layer (measured vs targeted pattern → visual and auditory
 
 Subscribes ``joint_states`` (sensor_msgs/JointState, rad), ``gait/cycles`` (GaitCycle), ``gait/events``
 (GaitEvent), ``activity/state`` (ActivityState) and ``/diagnostics``. At each plausible stride it waits
-until the joint angles reach the closing IC (at most ``stride_wait`` s, then the kinematic quantities are
+until the joint angles reach the closing IC (at most ``stride_wait_s`` s, then the kinematic quantities are
 left out) and publishes one ``biofeedback/cues`` (BiofeedbackCue) per targeted quantity, in band or not.
 Joint states marked as recovering from a sensor dropout (:mod:`gait_biofeedback.wire.joints`) are
 shown, marked, but never evaluated: a stride that contains them gets no kinematic cue.
 
 Dashboard (``serve_dashboard``): :class:`~gait_biofeedback.dashboard.server.DashboardServer` on
 ``host``:``port`` (127.0.0.1:8080; port 0 = a free port, see :attr:`BiofeedbackNode.port`), page at
-``/``, websocket at ``/ws``, frames at ``frame_rate`` Hz built from the latest state. ROS callbacks only
+``/``, websocket at ``/ws``, frames at ``frame_rate_hz`` Hz built from the latest state. ROS callbacks only
 replace references and append to bounded deques; the server thread only reads/drains them. Page → node
 messages (queued, handled by a ROS timer, services called with ``call_async``, never blocking):
 ``{"action": "calibrate", "protocol": "auto"|"hip_flexion"|"walking"}`` (default auto: the one the movement
@@ -114,7 +114,7 @@ class BiofeedbackNode(GuardedNode):
         p = self.params
         self.targets = load_targets(p.targets_file or str(default_targets_path()))
         self.targets_json = self.targets.to_json()
-        self.stride_wait = p.stride_wait
+        self.stride_wait_s = p.stride_wait_s
         self.curve_strides = p.curve_strides
         self.feedback = {"side": p.feedback_side, "joint": p.feedback_joint}
         self.lengths = p.body
@@ -156,7 +156,7 @@ class BiofeedbackNode(GuardedNode):
         self._record = {"record_start": self.create_client(Trigger, topics.RECORDER_START_SERVICE),
                         "record_stop": self.create_client(Trigger, topics.RECORDER_STOP_SERVICE)}
         self.create_timer(0.05, self._tick)
-        self.create_timer(p.diagnostics_period, self._publish_diagnostics)
+        self.create_timer(p.diagnostics_period_s, self._publish_diagnostics)
 
         self.server = None
         self.port: int | None = None
@@ -165,8 +165,8 @@ class BiofeedbackNode(GuardedNode):
             from gait_biofeedback.dashboard.server import DashboardServer
 
             self.server = DashboardServer(self.build_frame, self._commands.append, self.hello, host=p.host,
-                                          port=p.port, frame_rate=p.frame_rate, logger=self.get_logger(),
-                                          allowed_hosts=p.allowed_hosts)
+                                          port=p.port, frame_rate_hz=p.frame_rate_hz,
+                                          logger=self.get_logger(), allowed_hosts=p.allowed_hosts)
             self.port = self.server.start()
             self.url_file = write_private_link(self.server.url, p.session_dir)
             # the token goes to the terminal and an owner-only file, never to rclpy's log (/rosout, log files)
@@ -263,7 +263,7 @@ class BiofeedbackNode(GuardedNode):
         now = time.monotonic()
         keep = []
         for stride, arrived in self._pending:
-            if self.evaluator.covers(stride) or now - arrived > self.stride_wait:
+            if self.evaluator.covers(stride) or now - arrived > self.stride_wait_s:
                 self._evaluate(stride)
             else:
                 keep.append((stride, arrived))

@@ -16,7 +16,7 @@ complete, unedited, every value valid); otherwise it says the file is there and 
 reason). A file without entries for some of ``segments`` is put in force for the others, those named in
 a WARN status ``calibration`` on ``/diagnostics`` (every second; OK once a calibration computed in this
 session replaces it), in the message's source and as invalid entries (the dashboard counts them).
-The message's header.stamp is the sample stamp from which the calibration is in force: ``apply_delay``
+The message's header.stamp is the sample stamp from which the calibration is in force: ``apply_delay_s``
 s after the newest sample used (0 for a reloaded file: at once), so joint_angles and gait_events
 switch at the same sample whenever the message reaches them within that delay. A refused calibration
 keeps the previous one in force and publishes nothing.
@@ -179,7 +179,7 @@ class CalibrationNode(GuardedNode):
     def calibrate(self, protocol: str, standing_duration: float = 0.0, motion_duration: float = 0.0,
                   segments: list[str] | None = None) -> tuple[bool, str, SessionCalibration | None]:
         """Run the calibration on the buffer now (the service body, callable in-process); the result
-        is in force from ``apply_delay`` s after the newest sample used. The protocol the movement
+        is in force from ``apply_delay_s`` s after the newest sample used. The protocol the movement
         looked like is in :attr:`last_attempt`."""
         attempt = self.core.calibrate(protocol, standing_duration, motion_duration, segments)
         self._accept(attempt)

@@ -6,18 +6,18 @@ sensor). Publishes ``gait/events`` (GaitEvent, one sample after the event: stamp
 stamp, ``detection_latency`` = to the confirming sample) and ``gait/cycles`` (GaitCycle of each stride,
 IC to IC; an implausible stride, < ``min_stride_s`` or > ``max_stride_s`` or without exactly one
 TC, is published with ``plausible = false`` and its ``flag``; its spatial values come from the foot's
-trajectory, :mod:`~gait_biofeedback.core.gait.spatial`: it is published ``provisional_after`` (15 ms)
+trajectory, :mod:`~gait_biofeedback.core.gait.spatial`: it is published ``provisional_after_s`` (15 ms)
 after the closing IC with a provisional stride length, speed and swing values (foot height and
 clearance, foot and turning angles, lateral excursion), whose smoothed values follow on
 ``gait/stride_space`` (StrideSpace) once the next stance closes the trajectory; without a provisional
-value it waits for the smoothed ones, at most ``spatial_wait`` s after the
+value it waits for the smoothed ones, at most ``spatial_wait_s`` s after the
 closing IC), plus ``/diagnostics``. The detection is
 :class:`~gait_biofeedback.core.gait.events.GaitEventDetector` (thesis Algorithm 1), the strides
 :class:`~gait_biofeedback.core.gait.cycles.GaitCycleTracker`, the stream rules below
 :class:`~gait_biofeedback.core.gait.stream.GaitEventStream` (a calibration is in force from its header
 stamp, 0 = at once).
 
-Bad input: a foot without data for ``stale_after`` s (wall clock), a stamp gap > ``max_gap`` s or a
+Bad input: a foot without data for ``stale_after_s`` s (wall clock), a stamp gap > ``max_gap_s`` s or a
 stamp going backwards resets that foot's detector and stride state, counted and said on /diagnostics.
 Until a valid calibration of a foot arrives its samples are not used (counted), unless
 ``use_standing_reference``: then the foot's anterior axis is taken from its first orientation sample
@@ -56,7 +56,7 @@ class GaitEventsNode(GuardedNode):
         self.params: GaitEventsParams = declare_parameters(self, GaitEventsParams, params)
         self.stream = GaitEventStream(self.params)
         self.sides = self.stream.sides
-        self.stale_after = self.params.stale_after
+        self.stale_after_s = self.params.stale_after_s
         self._last_arrival: dict[str, float] = {}
         self._stopped: dict[str, bool] = {s: False for s in self.sides}
         self._events = publisher(self, topics.GAIT_EVENTS)
@@ -65,7 +65,7 @@ class GaitEventsNode(GuardedNode):
             subscribe(self, topics.orientation(foot_frame(side)), lambda data, s=side: self._on_imu(s, data),
                       raw=True)
         subscribe(self, topics.CALIBRATION, self._on_calibration)
-        self.create_timer(self.params.diagnostics_period, self._check_streams)
+        self.create_timer(self.params.diagnostics_period_s, self._check_streams)
 
     @property
     def detectors(self) -> dict[str, GaitEventDetector]:
@@ -115,7 +115,7 @@ class GaitEventsNode(GuardedNode):
             level, message = DiagnosticStatus.OK, "detecting"
             if last is None:
                 level, message = DiagnosticStatus.WARN, f"no {side} foot orientation yet"
-            elif now - last > self.stale_after:
+            elif now - last > self.stale_after_s:
                 if not self._stopped[side]:
                     self._stopped[side] = True
                     self.stream.stream_stopped(side, now - last)

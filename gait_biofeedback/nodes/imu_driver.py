@@ -45,8 +45,8 @@ def open_link(p: DriverParams, key: bytes | None = None):
     from gait_biofeedback.sim.sensor_link import simulated_schedules
 
     ids = {segment: sid for sid, segment in p.mapping().items()}
-    return sensor_links.PacedLink(simulated_schedules(p.scenario, p.sim_rate, ids, p.sim_loop, key=key),
-                                  f"simulated sensors ({p.scenario} at {p.sim_rate:g} Hz)")
+    return sensor_links.PacedLink(simulated_schedules(p.scenario, p.sim_rate_hz, ids, p.sim_loop, key=key),
+                                  f"simulated sensors ({p.scenario} at {p.sim_rate_hz:g} Hz)")
 
 
 class ImuDriverNode(GuardedNode):
@@ -75,7 +75,7 @@ class ImuDriverNode(GuardedNode):
         self._thread: threading.Thread | None = None
         self._thread_cpu_s = 0.0
         self._started_at = time.monotonic()
-        self.create_timer(p.diagnostics_period, self._publish_diagnostics)
+        self.create_timer(p.diagnostics_period_s, self._publish_diagnostics)
         self.get_logger().info(f"imu_driver: receiving on {self.link.description}, "
                                f"{len(segments)} sensors mapped")
         if start:

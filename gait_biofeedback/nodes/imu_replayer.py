@@ -46,9 +46,9 @@ class ImuReplayer(GuardedNode):
             raise ValueError(f"imu_replayer: parameter 'bag' must name a recording; got {bag!r}")
         self.speed = p.speed
         self.loop = p.loop
-        self.start_offset = p.start_offset
-        self.stop_offset = p.stop_offset
-        self.wait_for_subscribers = p.wait_for_subscribers
+        self.start_offset_s = p.start_offset_s
+        self.stop_offset_s = p.stop_offset_s
+        self.wait_for_subscribers_s = p.wait_for_subscribers_s
         wanted = [t for t in p.topics if t]
 
         self.reader = BagReader(bag)
@@ -87,7 +87,7 @@ class ImuReplayer(GuardedNode):
     def _wait_for_subscribers(self, first_ns: int) -> None:
         """Wait for subscribers, ticking /clock at the start time meanwhile, so that nodes with
         use_sim_time have the recording's time before its first message."""
-        deadline = time.monotonic() + self.wait_for_subscribers
+        deadline = time.monotonic() + self.wait_for_subscribers_s
         while time.monotonic() < deadline and not self._stop.is_set():
             self._tick(first_ns)
             if all(pub.get_subscription_count() > 0 for pub in self._topic_publishers.values()):
@@ -104,15 +104,15 @@ class ImuReplayer(GuardedNode):
 
     def _window_ns(self) -> tuple[int | None, int | None]:
         first = self.reader.start_time_ns
-        start = first + round(self.start_offset * 1e9) if self.start_offset > 0 else None
-        stop = first + round(self.stop_offset * 1e9) if self.stop_offset > 0 else None
+        start = first + round(self.start_offset_s * 1e9) if self.start_offset_s > 0 else None
+        stop = first + round(self.stop_offset_s * 1e9) if self.stop_offset_s > 0 else None
         return start, stop
 
     def _run(self) -> None:
         start_ns, stop_ns = self._window_ns()
-        if self.wait_for_subscribers > 0:
+        if self.wait_for_subscribers_s > 0:
             self._wait_for_subscribers(start_ns or self.reader.start_time_ns)
-        period_ns = round(self.params.clock_period * 1e9)
+        period_ns = round(self.params.clock_period_s * 1e9)
         next_tick = 0
         while not self._stop.is_set():
             wall0 = time.perf_counter()

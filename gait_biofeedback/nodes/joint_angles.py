@@ -4,7 +4,7 @@ Subscribes ``<segment>/imu/data`` of the pelvis and both legs and ``calibration/
 (latched; in force from its header stamp, 0 = at once). Synchronisation, calibration switching and
 offset removal are :class:`~gait_biofeedback.core.joints.angles.JointAngleStream`: samples are
 synchronised by exact header stamp (the IMUs are sampled together); a stamp is published when every
-calibrated segment has it, when a newer stamp is complete, or ``max_wait`` s after its first sample
+calibrated segment has it, when a newer stamp is complete, or ``max_wait_s`` s after its first sample
 arrived; then with the joints whose two segments are present (the missing segments are counted and
 named on /diagnostics). Until a calibration is in force nothing is published (WARN "not calibrated:
 run calibration"). Standing offset (gait.md §1.9): with ``remove_standing_offset``, the mean of the
@@ -62,8 +62,8 @@ class JointAnglesNode(GuardedNode):
         subscribe(self, topics.CALIBRATION, self._on_calibration)
         self._joints = publisher(self, topics.JOINT_STATES)
         self._skeleton = publisher(self, topics.SKELETON)
-        self.create_timer(max(self.params.max_wait / 2, 0.01), self._flush)
-        self.create_timer(self.params.diagnostics_period, self._publish_diagnostics)
+        self.create_timer(max(self.params.max_wait_s / 2, 0.01), self._flush)
+        self.create_timer(self.params.diagnostics_period_s, self._publish_diagnostics)
 
     @property
     def calculator(self) -> JointAngleCalculator | None:

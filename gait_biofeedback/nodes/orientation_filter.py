@@ -49,7 +49,7 @@ class OrientationFilterNode(GuardedNode):
         super().__init__(self.NODE_NAME, context=context, parameter_overrides=node_overrides(overrides))
         self.params: OrientationParams = declare_parameters(self, OrientationParams, params)
         self.orientation_variance = self.params.orientation_variance
-        self.stale_after = self.params.stale_after
+        self.stale_after_s = self.params.stale_after_s
         self.trackers: dict[str, SegmentOrientationTracker] = {}
         self._out: dict[str, object] = {}
         self._last_arrival: dict[str, float] = {}
@@ -65,7 +65,7 @@ class OrientationFilterNode(GuardedNode):
                       raw=True)
         self._last_raw: dict[str, object] = {}
         self._lag: dict[str, float] = {}  # largest (clock now - sample stamp) since the last /diagnostics
-        self.create_timer(self.params.diagnostics_period, self._publish_diagnostics)
+        self.create_timer(self.params.diagnostics_period_s, self._publish_diagnostics)
         self.create_timer(FLUSH_AFTER / 2, self._flush_silent)
         self.get_logger().info(
             "tracking " + ", ".join(f"{s} ({t.algorithm})" for s, t in self.trackers.items()))
@@ -124,7 +124,7 @@ class OrientationFilterNode(GuardedNode):
             elif lag > FALLING_BEHIND_S:
                 extra.insert(0, f"falling behind: samples processed up to {lag:.2f} s after their stamps")
         last = self._last_arrival.get(segment)
-        problem = diagnostics.no_data(None if last is None else now - last, self.stale_after)
+        problem = diagnostics.no_data(None if last is None else now - last, self.stale_after_s)
         return diagnostics.orientation_status(segment, tracker, problem, extra, values)
 
     def _publish_diagnostics(self) -> None:

@@ -4,7 +4,7 @@ Subscriptions are raw (the CDR bytes, no deserialisation); a callback only appen
 writer thread does all file work, so no message callback ever waits for the disk (the
 ``recorder/stop`` service waits, up to 30 s, for the writer thread to close the bag, so that its
 reply means "saved"). The writer closes a chunk
-at least every ``flush_period`` s, so a killed session still leaves a readable file
+at least every ``flush_period_s`` s, so a killed session still leaves a readable file
 (``gait-biofeedback repair`` restores its index and metadata.yaml).
 
 QoS per topic follows its publishers, as ``ros2 bag record`` does: reliable only if every publisher
@@ -61,9 +61,9 @@ class Recorder(GuardedNode):
         self.excluded = {*ALWAYS_EXCLUDED, *(t for t in p.exclude if t)}
         self._writer_options = {
             "compression": p.compression,
-            "flush_period": p.flush_period,
-            "split_size": p.split_size or None,
-            "split_duration": p.split_duration or None,
+            "flush_period_s": p.flush_period_s,
+            "split_size_bytes": p.split_size_bytes or None,
+            "split_duration_s": p.split_duration_s or None,
         }
         self.writer: BagWriter | None = None
         self.output: Path | None = None
@@ -94,7 +94,7 @@ class Recorder(GuardedNode):
         self.create_service(Trigger, topics.RECORDER_START_SERVICE, self._on_start)
         self.create_service(Trigger, topics.RECORDER_STOP_SERVICE, self._on_stop)
         self._discover()
-        self.create_timer(p.discovery_period, self._discover)
+        self.create_timer(p.discovery_period_s, self._discover)
         self.create_timer(1.0, self._publish_diagnostics)
 
     def _next_output(self) -> Path:

@@ -280,7 +280,7 @@ def analyse_session(data: SessionData, targets: Targets) -> SessionAnalysis:
         notes.append("no activity/state in the recording: every plausible stride is used")
     rate = len(data.joint_t) / max(data.duration_s, 1e-9)
     evaluator = BiofeedbackEvaluator(
-        targets, max_gap=MAX_GAP_S, history_s=data.duration_s + 10.0, rate_hz=max(rate, 1.0)
+        targets, max_gap_s=MAX_GAP_S, history_s=data.duration_s + 10.0, rate_hz=max(rate, 1.0)
     )
     names = {side: [f"{side}_{n}" for n in SAGITTAL] for side in SIDES}
     for side in SIDES:

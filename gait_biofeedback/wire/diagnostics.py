@@ -40,12 +40,12 @@ def level_of(s: DiagnosticStatus) -> int:
     return s.level[0] if isinstance(s.level, bytes) else int(s.level)
 
 
-def no_data(silent_s: float | None, stale_after: float) -> tuple[int, str] | None:
+def no_data(silent_s: float | None, stale_after_s: float) -> tuple[int, str] | None:
     """The ``problem`` of :func:`orientation_status` for a stream silent ``silent_s`` s (None: no sample
     yet): the node's rule, and ``analyze``'s on the recording's time."""
     if silent_s is None:
         return WARN, "no data yet: is the sensor on and publishing?"
-    if silent_s > stale_after:
+    if silent_s > stale_after_s:
         return ERROR, f"no data for {silent_s:.1f} s: check the sensor, its battery and the link"
     return None
 

@@ -2,7 +2,7 @@
 
 An :class:`ActivityRun` drives one :class:`~gait_biofeedback.core.activity.stream.ActivityStream` and
 returns the states due: each released state that changed (posture, locomotion or the last transition),
-the latest state every ``publish_period`` s, and at the end the states the stream still held
+the latest state every ``publish_period_s`` s, and at the end the states the stream still held
 (:meth:`ActivityStream.finish`). The period runs on one of two clocks (docs/conventions.md, Time):
 
 - ``"wall"`` (the live node): the caller's timer calls :meth:`periodic` every period, whatever the
@@ -35,7 +35,7 @@ class ActivityRun:
         p = params or ActivityParams()
         self.segment = p.segment
         self.clock = clock
-        self.period_ns = s_to_ns(p.publish_period)
+        self.period_ns = s_to_ns(p.publish_period_s)
         self.stream = ActivityStream(p)
         self.newest_ns = 0  # stamp of the newest trunk sample (0 before any)
         self._next_periodic: int | None = None  # recording clock: when the period ends

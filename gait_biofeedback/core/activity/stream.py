@@ -2,9 +2,9 @@
 
 Shared by the ``activity_monitor`` node and the offline ``analyze`` path, so both see the same
 states. NaN/inf samples are skipped and counted. Samples pass a
-:class:`~gait_biofeedback.core.sequencer.StreamSequencer` (``reorder_window`` s of re-sequencing;
+:class:`~gait_biofeedback.core.sequencer.StreamSequencer` (``reorder_window_s`` s of re-sequencing;
 duplicates, late samples and single bad stamps dropped and counted); a confirmed jump back or a gap
-longer than ``max_gap`` s restarts the monitor (its upright reference is found again after a jump
+longer than ``max_gap_s`` s restarts the monitor (its upright reference is found again after a jump
 back, kept after a gap; each reference taken is said in the notices), keeping the step count, the
 posture and the wearer's history, so a dropout does not set the count back to 0 (issue 13). A state
 is "changed" when posture, locomotion or the last transition differ from the last changed one. A
@@ -12,7 +12,7 @@ trunk forward axis (from the chest's sensor-to-segment calibration) is handed to
 first sample at or after its "in force" stamp, or at once if that has passed, as the calibration is
 for the other consumers (the monitor applies it to the states it emits from then on, see
 ``ActivityMonitor.set_forward_axis``). A restart keeps the forward axis and the wearer's walking-
-displacement history. The last ``reorder_window`` s of a stream stay held: the monitor labels a sample 3 s
+displacement history. The last ``reorder_window_s`` s of a stream stay held: the monitor labels a sample 3 s
 after it anyway. Warnings go to :attr:`ActivityStream.notices`.
 
 Samples are identified by their stamps (int ns); the stage's parameters are :class:`ActivityParams`.
@@ -73,7 +73,7 @@ class ActivityParams:
     thighs: tuple[str, ...] = param(("left_thigh", "right_thigh"), "segments whose raw accelerometers tell "
                                     "sitting from standing while they send (their inclination; empty: the "
                                     "trunk alone)", choices=SEGMENTS)
-    thigh_length: float = same_as(BodyDimensions, "thigh_length")
+    thigh_length_m: float = same_as(BodyDimensions, "thigh_length_m")
     initial_posture: str = param("auto", "posture until a transition says otherwise (auto: sitting at the "
                                  "chest, which cannot tell a still stand from sitting until the wearer "
                                  "walks; standing at the pelvis, whose tilt tells them)",
@@ -81,11 +81,11 @@ class ActivityParams:
     forward_axis: tuple[float, ...] = param(
         (1.0, 0.0, 0.0), "trunk forward in chest-sensor axes until a calibration gives it (decides upstairs "
         "vs downstairs only, until 10 s of the wearer's level walking are known)", "1", length=3)
-    max_gap: float = param(0.5, "longest stamp gap before the monitor restarts", "s", low=0.01, high=60.0)
-    reorder_window: float = param(0.03, "samples out of order by less than this are re-sequenced (added "
-                                  "latency)", "s", low=0.0, high=1.0)
-    publish_period: float = param(1.0, "the state is also published this often (besides every change)", "s",
-                                  low=0.05, high=60.0)
+    max_gap_s: float = param(0.5, "longest stamp gap before the monitor restarts", "s", low=0.01, high=60.0)
+    reorder_window_s: float = param(0.03, "samples out of order by less than this are re-sequenced (added "
+                                    "latency)", "s", low=0.0, high=1.0)
+    publish_period_s: float = param(1.0, "the state is also published this often (besides every change)", "s",
+                                    low=0.05, high=60.0)
 
     def __post_init__(self) -> None:
         require(not (self.segment == "pelvis" and self.placement == "chest"),
@@ -100,13 +100,13 @@ class ActivityStream:
         p = params or ActivityParams()
         self.params = p
         self.rate_hz = p.rate_hz
-        self.max_gap = p.max_gap
+        self.max_gap_s = p.max_gap_s
         self.options = {"units": p.units, "reference_s": p.reference_s, "reference": p.reference,
-                        "thigh_length_m": p.thigh_length, "initial_posture": p.initial_posture,
+                        "thigh_length_m": p.thigh_length_m, "initial_posture": p.initial_posture,
                         "forward_axis": list(p.forward_axis), "placement": p.placement}
         self._references_said = 0
         self.monitor = ActivityMonitor(self.rate_hz, **self.options)
-        self.sequencer = StreamSequencer(window=p.reorder_window)
+        self.sequencer = StreamSequencer(window=p.reorder_window_s)
         self.rate = RateCheck(p.rate_hz)
         self._every = 1  # keep every this many samples (a sensor faster than MAX_RATE_HZ)
         self._held: list[tuple[int, tuple]] = []  # the first samples, until the rate is known
@@ -216,7 +216,7 @@ class ActivityStream:
         segment = self.params.segment
         out: list[tuple[ActivityState, bool]] = []
         dt = None if self._last_ns is None else (stamp_ns - self._last_ns) / NS_PER_S
-        if restart_s or (dt is not None and dt > self.max_gap):
+        if restart_s or (dt is not None and dt > self.max_gap_s):
             self.counts["restarts"] += 1
             cause = (f"time went back {restart_s:.3f} s and went on from there" if restart_s
                      else f"{dt:.2f} s without data")

@@ -351,8 +351,8 @@ def stride_kinematics(t: np.ndarray, angles: np.ndarray, stride: Stride) -> dict
 
 def ankle_ahead(hip_flexion: float, knee_flexion: float, lengths: BodyDimensions) -> float:
     """Forward distance (m) of the ankle from the hip in the leg's sagittal plane, pelvis level."""
-    return (lengths.thigh_length * math.sin(hip_flexion)
-            + lengths.shank_length * math.sin(hip_flexion - knee_flexion))
+    return (lengths.thigh_length_m * math.sin(hip_flexion)
+            + lengths.shank_length_m * math.sin(hip_flexion - knee_flexion))
 
 
 def step_length(stride_length: float, own_lead: float, other_lead: float) -> float:
@@ -387,24 +387,24 @@ class BiofeedbackParams(StickFigureDimensions):
     session_dir: str = param("", "folder where the link with the command token is written "
                              "(dashboard_url.txt, readable by its owner only); '' = the recording's "
                              "folder when the graph records, else none (the link is printed on the terminal)")
-    frame_rate: float = param(30.0, "dashboard frames per second", "Hz", low=1.0, high=120.0)
-    stride_wait: float = param(0.5, "longest wait for a stride's joint angles before it is evaluated "
-                               "without them", "s", low=0.0, high=10.0)
+    frame_rate_hz: float = param(30.0, "dashboard frames per second", "Hz", low=1.0, high=120.0)
+    stride_wait_s: float = param(0.5, "longest wait for a stride's joint angles before it is evaluated "
+                                 "without them", "s", low=0.0, high=10.0)
     curve_strides: int = param(5, "strides per side a newly opened page receives", "strides", low=0, high=100)
     feedback_side: str = param("both", "side whose errors are sounded", choices=FEEDBACK_SIDES)
     feedback_joint: str = param("all", "joint (or timing) whose errors are sounded", choices=FEEDBACK_JOINTS)
-    diagnostics_period: float = param(1.0, "period of the /diagnostics status", "s", low=0.1, high=60.0)
+    diagnostics_period_s: float = param(1.0, "period of the /diagnostics status", "s", low=0.1, high=60.0)
 
 
 class BiofeedbackEvaluator:
     """Per-stride comparison with the targets (module docstring). Feed it joint angles with
     :meth:`add_angles` and strides with :meth:`evaluate` once :meth:`covers` says the angles are in."""
 
-    def __init__(self, targets: Targets, max_gap: float = 0.1, history_s: float = 15.0,
+    def __init__(self, targets: Targets, max_gap_s: float = 0.1, history_s: float = 15.0,
                  rate_hz: float = 100.0, lengths: BodyDimensions | None = None,
                  symmetry_window: int = 10) -> None:
         self.targets = targets
-        self.max_gap = max_gap
+        self.max_gap_s = max_gap_s
         self.history = {side: AngleHistory(int(history_s * rate_hz)) for side in SIDES}
         self.percent = normative_gait.percent_grid(2.0)
         self.lengths = lengths or BodyDimensions()
@@ -413,10 +413,10 @@ class BiofeedbackEvaluator:
 
     def _lead(self, side: str, t: float) -> float:
         """How far ``side``'s ankle is ahead of the other's at ``t`` (m, leg chain; the angles within
-        ``max_gap / 2`` of ``t``, interpolated, the nearest at an end); NaN without angles."""
+        ``max_gap_s / 2`` of ``t``, interpolated, the nearest at an end); NaN without angles."""
         ahead = []
         for s in (side, SIDES[1 - SIDES.index(side)]):
-            times, angles = self.history[s].window(t, t, margin=self.max_gap / 2)
+            times, angles = self.history[s].window(t, t, margin=self.max_gap_s / 2)
             if not len(times):
                 return math.nan
             hip, knee = (float(np.interp(t, times, angles[:, k])) for k in (0, 1))
@@ -444,7 +444,7 @@ class BiofeedbackEvaluator:
                    doubtful: bool = False) -> None:
         """One instant's sagittal angles (rad) of ``side``. ``doubtful`` ones (computed while a sensor
         recovered from a dropout) are left out of the history: a stride that needs them has a hole
-        longer than ``max_gap`` and gets no kinematic cue."""
+        longer than ``max_gap_s`` and gets no kinematic cue."""
         if not doubtful:
             self.history[side].add(stamp_ns / NS_PER_S, hip, knee, ankle)
 
@@ -459,8 +459,9 @@ class BiofeedbackEvaluator:
         if not stride.plausible:
             return result
         t, angles = self.history[stride.side].window(stride.t_start, stride.t_end, margin=0.02)
-        complete = (len(t) >= 3 and t[0] <= stride.t_start + self.max_gap / 2
-                    and t[-1] >= stride.t_end - self.max_gap / 2 and float(np.diff(t).max()) <= self.max_gap)
+        complete = (len(t) >= 3 and t[0] <= stride.t_start + self.max_gap_s / 2
+                    and t[-1] >= stride.t_end - self.max_gap_s / 2
+                    and float(np.diff(t).max()) <= self.max_gap_s)
         if complete:
             result.kinematics = stride_kinematics(t, angles, stride)
             measured.update(result.kinematics)

@@ -122,4 +122,4 @@ def find_calibration(data: dict[str, ImuSeries], standing_duration: float = 3.0,
                      f"{standing_duration:g} s, then hip flexion or walking for {min_motion:g} s or more)"
                      + (": " + "; ".join(shown) if shown else "")
                      + "; give the instant with --calibrate-at SECONDS:PROTOCOL, or lower the calibration "
-                       "parameter default_standing_duration for a recording with a shorter standing")
+                       "parameter default_standing_duration_s for a recording with a shorter standing")

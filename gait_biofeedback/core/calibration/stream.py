@@ -43,11 +43,11 @@ class CalibrationParams:
                                      "(only when it is this patient's: that is not checked)")
     calibration_file: str = param("", "a calibration.yaml (e.g. this patient's earlier session) in force "
                                   "from the start ('' = none; overrides reload_calibration)")
-    default_standing_duration: float = param(3.0, "quiet standing a request needs when it names none "
-                                             "(offline auto: none that long, the longest of at least 0.5 s, "
-                                             "said in the result)", "s", low=0.2, high=30.0)
-    apply_delay: float = param(0.5, "a result is in force from this long after the newest sample used "
-                               "(time for every consumer to receive it)", "s", low=0.01, high=10.0)
+    default_standing_duration_s: float = param(3.0, "quiet standing a request needs when it names none "
+                                               "(offline auto: none that long, the longest of at least "
+                                               "0.5 s, said in the result)", "s", low=0.2, high=30.0)
+    apply_delay_s: float = param(0.5, "a result is in force from this long after the newest sample used "
+                                 "(time for every consumer to receive it)", "s", low=0.01, high=10.0)
 
     def __post_init__(self) -> None:
         require(bool(self.segments) and len(set(self.segments)) == len(self.segments),
@@ -59,7 +59,7 @@ class CalibrationAttempt:
     """What one calibration request gave: ``success``, a ``message`` a clinician can act on, the
     result (None when refused before the core ran), the stamp ``until_ns`` of the newest sample used
     (None when no data was looked at), and ``applies_from_ns``: the sample stamp from which the new
-    calibration is in force (``until + apply_delay``), so every consumer switches at the same sample;
+    calibration is in force (``until + apply_delay_s``), so every consumer switches at the same sample;
     ``looks_like``: the protocol the movement showed (None: not looked at, or it could not tell), which
     the dashboard proposes after a refusal."""
 
@@ -92,8 +92,8 @@ class CalibrationBuffer:
         self.params = p
         self.segments = list(p.segments)
         self.buffer_s = p.buffer_s
-        self.default_standing = p.default_standing_duration
-        self.apply_delay_ns = s_to_ns(p.apply_delay)
+        self.default_standing = p.default_standing_duration_s
+        self.apply_delay_ns = s_to_ns(p.apply_delay_s)
         self.margin_s = float(margin_s)
         self.buffers: dict[str, deque[tuple[float, ...]]] = {s: deque() for s in self.segments}
         self._newest_ns: dict[str, int] = {}

@@ -124,7 +124,7 @@ def find_standing_then_motion(
                          f"{t[-1] - t[0]:.0f} s (the longest: {longest:.1f} s): "
                          "ask the subject to stand still, then repeat the movements and calibrate (a "
                          "recording with a shorter standing: lower the calibration parameter "
-                         "default_standing_duration)")
+                         "default_standing_duration_s)")
     if not moving_after:
         raise ValueError("no movement after the quiet standing: do the calibration movements "
                          "(hip flexion/extension or straight walking) before pressing Calibrate")

@@ -5,7 +5,7 @@ each the host stamp of its device time (:class:`~gait_biofeedback.core.driver.cl
 
 * the next expected sample goes out at once (no added latency on a clean link);
 * a sample after a gap is held until the missing ones come (reordered on the way) or until the
-  oldest held sample has waited ``reorder_window``; the missing ones are then counted lost, and if
+  oldest held sample has waited ``reorder_window_s``; the missing ones are then counted lost, and if
   one arrives later it is counted ``late`` and dropped (stamps never go back);
 * a sample seen before is counted as a duplicate and dropped;
 * a sample that does not fit the sequence is a *suspect*: a sequence number far behind (more than

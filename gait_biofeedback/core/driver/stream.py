@@ -13,7 +13,7 @@ samples are held (:data:`MAX_CANDIDATES` sources, :data:`HOLD_SAMPLES` samples e
 source's go out in order, the others' are dropped and counted. Samples claiming a bound id from
 another source are held as well, and dropped, counted and named (two sources claim one id) as soon
 as the bound source sends again: while it keeps sending, no other source takes the id. Once it has
-been silent for ``stale_after``, a source that sends a confirmed chain takes the id (re-binding,
+been silent for ``stale_after_s``, a source that sends a confirmed chain takes the id (re-binding,
 with a warning): a sensor that comes back from a new source port after a reboot. With a session key
 (``frame_key_file``) only frames signed with it (GBI2) are taken; unsigned or wrongly signed ones
 are refused and counted, as are signed frames while no key is set.
@@ -62,29 +62,29 @@ class DriverParams:
     device: str = param("/dev/ttyUSB0", "serial: the serial device")
     baud: int = param(921600, "serial: line speed", "Bd", low=1200, high=20_000_000)
     scenario: str = param("demo", "simulated: the simulator's scenario (gait-biofeedback simulate)")
-    sim_rate: float = param(100.0, "simulated: sampling rate", "Hz", low=10.0, high=2000.0)
+    sim_rate_hz: float = param(100.0, "simulated: sampling rate", "Hz", low=10.0, high=2000.0)
     sim_loop: bool = param(True, "simulated: start the scenario again at its end (the sensors reboot)")
     sensors: tuple[str, ...] = param(DEFAULT_SENSORS, "sensor id → segment, as 'ID:SEGMENT' (the ids "
                                      "the sensors send; segments: pelvis, left_thigh, ... chest)")
-    reorder_window: float = param(0.05, "how long a sample after a gap waits for the missing ones "
-                                  "(reordered on the way) before they are counted lost", "s",
-                                  low=0.0, high=1.0)
-    clock_bin: float = param(0.5, "device time → ROS time: the least-delayed sample of each bin this long "
-                             "is fitted", "s", low=0.05, high=10.0)
-    clock_window: float = param(60.0, "device time → ROS time: offset and drift fitted over this long",
-                                "s", low=5.0, high=3600.0)
+    reorder_window_s: float = param(0.05, "how long a sample after a gap waits for the missing ones "
+                                    "(reordered on the way) before they are counted lost", "s",
+                                    low=0.0, high=1.0)
+    clock_bin_s: float = param(0.5, "device time → ROS time: the least-delayed sample of each bin this long "
+                               "is fitted", "s", low=0.05, high=10.0)
+    clock_window_s: float = param(60.0, "device time → ROS time: offset and drift fitted over this long",
+                                  "s", low=5.0, high=3600.0)
     frame_key_file: str = param("", "file holding the session key the sensors sign their frames with "
                                 "(GBI2, README: Frame format; mode 0600); '' = frames are not signed")
-    stale_after: float = param(1.0, "a mapped sensor silent for this long is reported missing, and "
-                               "another source that sends a confirmed chain may then take its id", "s",
-                               low=0.05, high=60.0)
-    diagnostics_period: float = param(1.0, "how often /diagnostics is published", "s", low=0.1, high=60.0)
+    stale_after_s: float = param(1.0, "a mapped sensor silent for this long is reported missing, and "
+                                 "another source that sends a confirmed chain may then take its id", "s",
+                                 low=0.05, high=60.0)
+    diagnostics_period_s: float = param(1.0, "how often /diagnostics is published", "s", low=0.1, high=60.0)
 
     def __post_init__(self) -> None:
         self.mapping()  # refuse a malformed mapping now
-        require(self.clock_bin < self.clock_window,
-                f"parameter 'clock_bin' ({self.clock_bin:g} s) must be shorter than 'clock_window' "
-                f"({self.clock_window:g} s)")
+        require(self.clock_bin_s < self.clock_window_s,
+                f"parameter 'clock_bin_s' ({self.clock_bin_s:g} s) must be shorter than 'clock_window_s' "
+                f"({self.clock_window_s:g} s)")
 
     def mapping(self) -> dict[int, str]:
         """Sensor id → segment; ParameterError for a malformed entry, an unknown segment, or an id or
@@ -144,7 +144,7 @@ class DriverCore:
     def __init__(self, params: DriverParams | None = None) -> None:
         self.params = p = params or DriverParams()
         self.notices = Notices()
-        self.sensors = {sid: SensorStream(sid, segment, p.reorder_window, p.clock_bin, p.clock_window,
+        self.sensors = {sid: SensorStream(sid, segment, p.reorder_window_s, p.clock_bin_s, p.clock_window_s,
                                           self.notices)
                         for sid, segment in p.mapping().items()}
         self.unmapped: dict[int, int] = {}  # sensor id → samples received
@@ -153,7 +153,7 @@ class DriverCore:
         self.refused: dict[str, int] = {"unsigned": 0, "wrong key": 0, "no key": 0}
         self.rebinds = dict.fromkeys(self.sensors, 0)
         self._candidates: dict[int, dict[str, _Candidate]] = {sid: {} for sid in self.sensors}
-        self._stale_ns = round(p.stale_after * 1e9)
+        self._stale_ns = round(p.stale_after_s * 1e9)
         try:
             self._key = load_frame_key(p.frame_key_file) if p.frame_key_file else None
         except ValueError as err:
@@ -220,7 +220,7 @@ class DriverCore:
     def _hold(self, stream: SensorStream, sample: DeviceSample, arrival_ns: int,
               source: str) -> list[StampedSample]:
         """Hold a sample from a source ``stream`` is not bound to; bind that source if it may take the
-        id now (its chain confirmed; the bound source, if any, silent for ``stale_after``)."""
+        id now (its chain confirmed; the bound source, if any, silent for ``stale_after_s``)."""
         pending = self._candidates[stream.sensor_id]
         candidate = pending.get(source)
         if candidate is None:
@@ -323,7 +323,7 @@ class DriverCore:
 
     def reports(self, now_ns: int) -> list[SensorReport]:
         """One report per mapped sensor, one per unmapped sensor id that sent, and one for the link."""
-        stale_ns = self.params.stale_after * 1e9
+        stale_ns = self.params.stale_after_s * 1e9
         out = []
         for s in self.sensors.values():
             pending = self._candidates[s.sensor_id]

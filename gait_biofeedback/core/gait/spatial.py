@@ -4,25 +4,25 @@ The foot trajectory (:class:`~gait_biofeedback.core.spatial.stream.FootTrajector
 walk from stance to stance (zero velocity), the gait events from IC to IC. The trajectory stride
 whose foot-off lies in the IC→IC stride, and whose next stance (foot flat) begins after the closing
 IC (less ``EARLY_FOOT_FLAT_S``, the events' own timing error), is the same stride; the stride's
-message waits for it at most ``wait_s`` (the ``gait_events`` parameter ``spatial_wait``) after the
+message waits for it at most ``wait_s`` (the ``gait_events`` parameter ``spatial_wait_s``) after the
 closing IC. The next stance is needed to close the trajectory stride: the detector finds foot flat
 0.1-0.3 s after IC (about 0.28 s on gaitmap_example's real gait), and the trajectory closes it
-``close_after`` + 25 ms later.
+``close_after_s`` + 25 ms later.
 
 Never silently wrong: without exactly one such trajectory stride the stride gets NaN spatial values
 and a ``spatial_flag``:
 
 - none by the deadline: no stance was found after the closing IC (a missed stance, a shuffle);
-- the trajectory stride carries a problem flag (no stance for longer than ``max_swing``);
+- the trajectory stride carries a problem flag (no stance for longer than ``max_swing_s``);
 - its foot-off is before the opening IC: it spans more than one IC→IC stride (a missed stance).
 
 A flag that only informs (``started from standing``, ``no direction of travel``, ``lost samples
 interpolated``) keeps the values.
 ``gait_speed`` is the stride length over the IC→IC stride time.
 
-Provisional values (``provisional_after``): waiting for the next stance delays the stride's message,
+Provisional values (``provisional_after_s``): waiting for the next stance delays the stride's message,
 temporal values included, by 0.28-0.46 s, longer than a cue may lag. So at the last sample at or
-before ``provisional_after`` past the closing IC, the foot trajectory is asked for a provisional
+before ``provisional_after_s`` past the closing IC, the foot trajectory is asked for a provisional
 stride (:mod:`gait_biofeedback.core.spatial.provisional`) of the swing that left its stance inside the
 IC→IC stride. With one, the stride goes out then with all its spatial values provisional
 (``stride_length`` and ``gait_speed``; ``max_foot_height``, ``min_toe_clearance``, ``foot_angle_ic``,
@@ -30,15 +30,15 @@ IC→IC stride. With one, the stride goes out then with all its spatial values p
 disagree with the smoothed values), and its smoothed values follow as a *revision* once its trajectory
 stride is in, by the rules above (NaN and the flag when there is none by the deadline). Without one
 (the foot's first strides, lost samples, a swing that left before the opening IC, estimates that
-disagreed with their smoothed values: ``provisional_tolerance``), the stride waits for the smoothed
+disagreed with their smoothed values: ``provisional_tolerance_m``), the stride waits for the smoothed
 values as before.
 
 The default 15 ms puts the message 45-50 ms after the IC's raw sample entered the graph: the
-orientation filter's ``reorder_window`` (30 ms) comes before this stage. The foot trajectory, 25 ms
+orientation filter's ``reorder_window_s`` (30 ms) comes before this stage. The foot trajectory, 25 ms
 behind its newest sample, is then at IC - 10 ms. Through ``analyze`` on gaitmap_example
 (``benchmarks/spatial.py --cli-only``): provisional stride length +0.2 ± 3.7 cm (mean abs 2.4 cm)
 on 51 of 61 strides, published 49 ms after the IC; the smoothed values of record −0.2 ± 2.9 cm at
-278-459 ms (README *Latency* for other ``provisional_after``).
+278-459 ms (README *Latency* for other ``provisional_after_s``).
 """
 
 from __future__ import annotations
@@ -111,7 +111,7 @@ class SpatialPairing:
         return out
 
     def _provisional(self, cycle: GaitCycle, now_ns: int, provisional: Provisional) -> StrideSpace | None:
-        """Asked once, at the last sample at or before ``provisional_after`` past the closing IC."""
+        """Asked once, at the last sample at or before ``provisional_after_s`` past the closing IC."""
         if (self._after_ns is None or self._asked == cycle.end_ns
                 or now_ns + self._period_ns <= cycle.end_ns + self._after_ns):
             return None

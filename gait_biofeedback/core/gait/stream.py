@@ -12,22 +12,22 @@
   the same sample); ``from_ns = 0``, or a stamp the foot has already passed, takes effect at once. A
   new calibration resets the foot's detector and strides.
 - Bad input: a non-finite or zero quaternion is skipped; a stamp going backwards or a gap
-  > ``max_gap`` s resets that foot (detector and strides), counted and said (:attr:`notices`).
+  > ``max_gap_s`` s resets that foot (detector and strides), counted and said (:attr:`notices`).
   A stream that stopped (the node's wall-clock check) is reported with :meth:`stream_stopped`.
 - Rate: each foot's rate is measured from its first stamps
   (:class:`~gait_biofeedback.core.rate.RateCheck`); more than 10 % off ``rate_hz``, the detector
   counts its windows at the measured rate, and says so.
 - Sensor dropouts (issue 13): an event detected on a sample whose orientation was being re-acquired
   after a dropout (``recovering``) carries the flag "sensor dropout: orientation recovering"; a
-  stride that contains such a sample, or a stamp gap > ``dropout_gap`` s, is not plausible (flag
+  stride that contains such a sample, or a stamp gap > ``dropout_gap_s`` s, is not plausible (flag
   "sensor dropout: ..."), so no cue is given from it.
 
 - Spatial values (issue 16): with ``spatial``, each foot's angular velocity and specific force also
   feed a :class:`~gait_biofeedback.core.spatial.stream.FootTrajectoryStream`, and a stride closed
   by an IC is held until the trajectory's stride of the same swing is in
-  (:class:`~gait_biofeedback.core.gait.spatial.SpatialPairing`, at most ``spatial_wait`` s); its
+  (:class:`~gait_biofeedback.core.gait.spatial.SpatialPairing`, at most ``spatial_wait_s`` s); its
   values, or NaN and the reason, go with it. With ``spatial_provisional`` it goes out
-  ``provisional_after`` s after the IC with a provisional length, speed and swing values when
+  ``provisional_after_s`` s after the IC with a provisional length, speed and swing values when
   the trajectory has one, and a *revision* (a GaitCycle with ``revision``, the smoothed values)
   follows. A reset of the foot for its stamps (a gap, time going back, a stream that stopped)
   releases the held strides and pending revisions without spatial values; a new calibration does not
@@ -85,9 +85,10 @@ class GaitEventsParams:
                             low=0.01, high=1.0)
     trend_fraction: float = param(TREND_FRACTION, "share of monotone differences the extremum rule needs",
                                   "1", low=0.0, high=1.0)
-    max_gap: float = param(0.5, "longest stamp gap before a foot's state is reset", "s", low=0.01, high=60.0)
-    dropout_gap: float = param(0.1, "a stamp gap longer than this inside a stride makes it implausible "
-                               "(sensor dropout)", "s", low=0.01, high=60.0)
+    max_gap_s: float = param(0.5, "longest stamp gap before a foot's state is reset", "s",
+                             low=0.01, high=60.0)
+    dropout_gap_s: float = param(0.1, "a stamp gap longer than this inside a stride makes it implausible "
+                                 "(sensor dropout)", "s", low=0.01, high=60.0)
     use_standing_reference: bool = param(False, "before a calibration, take the foot's anterior axis from "
                                          "its first orientation (IMU x made horizontal, thesis §6.2.2)")
     symmetry_window: int = param(10, "steps per side in the step-time symmetry index", "steps",
@@ -96,38 +97,38 @@ class GaitEventsParams:
                                 low=0.1, high=10.0)
     max_stride_s: float = param(MAX_STRIDE_S, "longer strides are flagged implausible", "s",
                                 low=0.2, high=30.0)
-    stale_after: float = param(1.0, "time without a foot's data before its state is reset and reported",
-                               "s", low=0.1, high=60.0)
-    diagnostics_period: float = param(1.0, "period of the /diagnostics status", "s", low=0.1, high=60.0)
+    stale_after_s: float = param(1.0, "time without a foot's data before its state is reset and reported",
+                                 "s", low=0.1, high=60.0)
+    diagnostics_period_s: float = param(1.0, "period of the /diagnostics status", "s", low=0.1, high=60.0)
     spatial: bool = param(True, "estimate each foot's trajectory (Suh 2014) for the strides' spatial values")
-    spatial_wait: float = param(0.7, "longest wait after a stride's closing IC for the next stance that "
-                                "closes its trajectory; then it is published without spatial values", "s",
-                                low=0.05, high=2.0)
-    spatial_provisional: bool = param(True, "publish a stride provisional_after its closing IC with a "
-                                      "provisional stride length, speed and swing values; the "
+    spatial_wait_s: float = param(0.7, "longest wait after a stride's closing IC for the next stance that "
+                                  "closes its trajectory; then it is published without spatial values", "s",
+                                  low=0.05, high=2.0)
+    spatial_provisional: bool = param(True, "publish a stride provisional_after_s after its closing IC "
+                                      "with a provisional stride length, speed and swing values; the "
                                       "smoothed values follow on "
                                       "gait/stride_space (core/gait/spatial.py)")
-    provisional_after: float = param(0.015, "how long after the closing IC (its stamp) the provisional "
-                                     "values are taken; the orientation filter's reorder_window comes on top "
-                                     "(core/gait/spatial.py)", "s", low=0.0, high=0.5)
+    provisional_after_s: float = param(0.015, "how long after the closing IC (its stamp) the provisional "
+                                       "values are taken; the orientation filter's reorder_window_s comes on "
+                                       "top (core/gait/spatial.py)", "s", low=0.0, high=0.5)
     detector: str = same_as(FootTrajectoryParams, "detector")
     gyro_limit: float = same_as(FootTrajectoryParams, "gyro_limit")
     jerk_limit: float = same_as(FootTrajectoryParams, "jerk_limit")
     valley: bool = same_as(FootTrajectoryParams, "valley")
     flat_floor: bool = same_as(FootTrajectoryParams, "flat_floor")
-    bias_rest: float = same_as(FootTrajectoryParams, "bias_rest")
-    close_after: float = same_as(FootTrajectoryParams, "close_after")
-    min_swing: float = same_as(FootTrajectoryParams, "min_swing")
-    max_swing: float = same_as(FootTrajectoryParams, "max_swing")
-    toe_lever_arm: tuple[float, ...] = same_as(FootTrajectoryParams, "toe_lever_arm")
-    provisional_tolerance: float = same_as(FootTrajectoryParams, "provisional_tolerance")
+    bias_rest_s: float = same_as(FootTrajectoryParams, "bias_rest_s")
+    close_after_s: float = same_as(FootTrajectoryParams, "close_after_s")
+    min_swing_s: float = same_as(FootTrajectoryParams, "min_swing_s")
+    max_swing_s: float = same_as(FootTrajectoryParams, "max_swing_s")
+    toe_lever_arm_m: tuple[float, ...] = same_as(FootTrajectoryParams, "toe_lever_arm_m")
+    provisional_tolerance_m: float = same_as(FootTrajectoryParams, "provisional_tolerance_m")
 
     @property
     def foot_trajectory(self) -> FootTrajectoryParams:
         """The foot-trajectory stage's parameters (the rest at their defaults)."""
         return FootTrajectoryParams(**{f: getattr(self, f) for f in (
-            "detector", "gyro_limit", "jerk_limit", "valley", "flat_floor", "bias_rest", "close_after",
-            "min_swing", "max_swing", "toe_lever_arm", "provisional_tolerance")})
+            "detector", "gyro_limit", "jerk_limit", "valley", "flat_floor", "bias_rest_s", "close_after_s",
+            "min_swing_s", "max_swing_s", "toe_lever_arm_m", "provisional_tolerance_m")})
 
     def __post_init__(self) -> None:
         require(bool(self.sides) and len(set(self.sides)) == len(self.sides),
@@ -156,7 +157,7 @@ class GaitEventStream:
         p = params or GaitEventsParams()
         self.params = p
         self.sides = list(p.sides)
-        self.max_gap = p.max_gap
+        self.max_gap_s = p.max_gap_s
         self.use_standing_reference = p.use_standing_reference
         self.tracker = GaitCycleTracker(symmetry_window=p.symmetry_window, min_stride_s=p.min_stride_s,
                                         max_stride_s=p.max_stride_s)
@@ -175,8 +176,8 @@ class GaitEventStream:
         self.rates = {s: RateCheck(p.rate_hz) for s in self.sides}
         self._waiting: dict[str, InForceQueue[np.ndarray]] = {s: InForceQueue() for s in self.sides}
         self.feet = {s: self._foot(p.rate_hz) for s in self.sides} if p.spatial else {}
-        after = p.provisional_after if p.spatial_provisional else None
-        self.pairing = {s: SpatialPairing(p.spatial_wait, after, 1.0 / p.rate_hz) for s in self.sides}
+        after = p.provisional_after_s if p.spatial_provisional else None
+        self.pairing = {s: SpatialPairing(p.spatial_wait_s, after, 1.0 / p.rate_hz) for s in self.sides}
         self._released: dict[str, list[GaitCycle]] = {s: [] for s in self.sides}
 
     def _foot(self, rate_hz: float) -> FootTrajectoryStream:
@@ -261,7 +262,7 @@ class GaitEventStream:
         (``recovering``: its orientation is being re-acquired after a dropout), with its angular
         velocity (rad/s) and specific force (m/s²) for the foot trajectory → (the events it
         confirmed, the strides now complete). With ``spatial`` a stride closed by an IC comes out
-        once its trajectory stride is in (:mod:`.spatial`), at most ``spatial_wait`` s later."""
+        once its trajectory stride is in (:mod:`.spatial`), at most ``spatial_wait_s`` s later."""
         events = self._events(side, stamp_ns, q, recovering, gyr, acc)
         return events, self.take_released(side)
 
@@ -296,11 +297,11 @@ class GaitEventStream:
         last_ns = self._last_ns[side]
         if last_ns is not None:
             t, last = stamp_ns / NS_PER_S, last_ns / NS_PER_S
-            if t <= last or t - last > self.max_gap:
+            if t <= last or t - last > self.max_gap_s:
                 why = "time went backwards" if t <= last else f"{t - last:.2f} s gap in the stamps"
                 self.reset(side, why)
                 self.notices.say("warn", f"{side} foot: {self.notes[side]}")
-            elif t - last > self.params.dropout_gap:
+            elif t - last > self.params.dropout_gap_s:
                 self._doubtful[side] = (stamp_ns, f"sensor dropout: {t - last:.2f} s without data")
         if recovering:
             self._doubtful[side] = (stamp_ns, RECOVERING_FLAG)

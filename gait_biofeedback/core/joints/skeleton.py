@@ -1,8 +1,8 @@
 """Stick-figure geometry of the lower body from segment orientations (for the ``skeleton`` markers).
 
 EXT: a rigid-link model with the pelvis origin (mid-hip point) at the world origin. Hip centres at
-±``hip_width``/2 along the pelvis z (right), knee = hip + R_thigh (0, −thigh, 0), ankle = knee +
-R_shank (0, −shank, 0), toe = ankle + R_foot (toe, −ankle_height, 0); segment→world orientations.
+±``hip_width_m``/2 along the pelvis z (right), knee = hip + R_thigh (0, −thigh, 0), ankle = knee +
+R_shank (0, −shank, 0), toe = ankle + R_foot (toe, −ankle_height_m, 0); segment→world orientations.
 """
 
 from __future__ import annotations
@@ -25,15 +25,15 @@ def stick_figure(orientations: dict[str, np.ndarray], lengths: BodyDimensions | 
     lines: list[tuple[str, np.ndarray, np.ndarray]] = []
     origin = np.zeros(3)
     if "chest" in orientations:
-        trunk = np.array([0.0, lengths.trunk_length, 0.0])
+        trunk = np.array([0.0, lengths.trunk_length_m, 0.0])
         lines.append(("chest", origin, quat.rotate(np.asarray(orientations["chest"], dtype=float), trunk)))
     for side in SIDES:
         sign = 1.0 if side == "right" else -1.0
-        hip = quat.rotate(pelvis, np.array([0.0, 0.0, sign * lengths.hip_width / 2]))
+        hip = quat.rotate(pelvis, np.array([0.0, 0.0, sign * lengths.hip_width_m / 2]))
         lines.append(("pelvis", origin, hip))
-        chain = (("thigh", np.array([0.0, -lengths.thigh_length, 0.0])),
-                 ("shank", np.array([0.0, -lengths.shank_length, 0.0])),
-                 ("foot", np.array([lengths.foot_length, -lengths.ankle_height, 0.0])))
+        chain = (("thigh", np.array([0.0, -lengths.thigh_length_m, 0.0])),
+                 ("shank", np.array([0.0, -lengths.shank_length_m, 0.0])),
+                 ("foot", np.array([lengths.foot_length_m, -lengths.ankle_height_m, 0.0])))
         start = hip
         for part, vector in chain:
             seg = f"{side}_{part}"

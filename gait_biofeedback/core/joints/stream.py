@@ -38,8 +38,8 @@ class JointAnglesParams(StickFigureDimensions):
     """Parameters of the joint-angle stage (node ``joint_angles``, and ``analyze``); the body
     dimensions draw the ``skeleton``."""
 
-    max_wait: float = param(0.1, "longest wait for a stamp's missing segments before it is published "
-                            "without them (live only)", "s", low=0.0, high=5.0)
+    max_wait_s: float = param(0.1, "longest wait for a stamp's missing segments before it is published "
+                              "without them (live only)", "s", low=0.0, high=5.0)
     remove_standing_offset: bool = param(True, "subtract the mean angles of the first still standing after "
                                          "each calibration (gait.md §1.9)")
     offset_window_s: float = param(2.0, "still standing averaged for the standing offset", "s",
@@ -48,24 +48,25 @@ class JointAnglesParams(StickFigureDimensions):
                               low=0.01, high=5.0)
     skeleton_every: int = param(5, "publish the skeleton markers every this many samples (0 = never)",
                                 "samples", low=0, high=10000)
-    diagnostics_period: float = param(1.0, "period of the /diagnostics status", "s", low=0.1, high=60.0)
+    diagnostics_period_s: float = param(1.0, "period of the /diagnostics status", "s", low=0.1, high=60.0)
     heading: str = param("kinematic", "common heading of a joint's two sensors: 'kinematic' = from the "
                          "joint's own accelerations (6D sensors or a disturbed magnetometer), 'filters' = "
                          "trust the filters' shared magnetometer heading", choices=HEADING_SOURCES)
-    heading_time_constant: float = param(TIME_CONSTANT_S, "averaging time of the kinematic heading (it "
-                                         "follows the filters' heading drift this fast)", "s", low=0.5,
-                                         high=120.0)
-    heading_position_window: float = param(POSITION_WINDOW_S, "motion collected before a joint's centre is "
-                                           "estimated (its angles are published once the heading is "
-                                           "established)", "s", low=2.0, high=120.0)
+    heading_time_constant_s: float = param(TIME_CONSTANT_S, "averaging time of the kinematic heading (it "
+                                           "follows the filters' heading drift this fast)", "s", low=0.5,
+                                           high=120.0)
+    heading_position_window_s: float = param(POSITION_WINDOW_S, "motion collected before a joint's centre is "
+                                             "estimated (its angles are published once the heading is "
+                                             "established)", "s", low=2.0, high=120.0)
     hip_heading: str = param("segment_axes", "kinematic heading of the hips: 'segment_axes' = the pelvis' "
                              "and thigh's calibrated medio-lateral axes agree on average (robust on real "
                              "sensors; the hip's slow internal rotation is held at its standing value), "
                              "'joint_centre' = the hip centre's acceleration seen by both sensors",
                              choices=HIP_HEADING_SOURCES)
-    standing_max_tilt: float = param(0.52, "a still instant counts as standing for the standing offset only "
-                                     "when every calibrated thigh and shank is within this of vertical",
-                                     "rad", low=0.05, high=1.5)
+    standing_max_tilt_rad: float = param(0.52, "a still instant counts as standing for the standing offset "
+                                         "only when every calibrated thigh and shank is within this of "
+                                         "vertical",
+                                         "rad", low=0.05, high=1.5)
 
 
 STREAM_SEGMENTS: tuple[str, ...] = ("pelvis", "left_thigh", "left_shank", "left_foot", "right_thigh",
@@ -92,7 +93,7 @@ class JointAngleStream:
     """Synchronise segment samples by exact stamp, then :class:`JointAngleCalculator` (one per calibration).
 
     Sync: a stamp is emitted when every calibrated segment has it, when a newer stamp is complete, or
-    (only with a clock, :meth:`flush` ``now``) ``max_wait`` s after its first sample arrived; the
+    (only with a clock, :meth:`flush` ``now``) ``max_wait_s`` s after its first sample arrived; the
     missing segments are counted in :attr:`missing_counts`. Stamps are emitted in order.
     Calibrations: :meth:`set_calibration` with ``from_ns`` > 0 takes effect at the first emitted stamp
     ``>= from_ns`` (every consumer of a calibration then switches at the same sample, whenever the
@@ -117,7 +118,7 @@ class JointAngleStream:
         p = params or JointAnglesParams()
         self.params = p
         self.segments = tuple(segments)
-        self.max_wait = p.max_wait
+        self.max_wait_s = p.max_wait_s
         self.remove_offset = p.remove_standing_offset
         self.offset_window_s = p.offset_window_s
         self.still_gyro = p.still_gyro
@@ -138,8 +139,9 @@ class JointAngleStream:
     def _heading_estimator(self, joint: str) -> RelativeHeadingEstimator:
         p = self.params
         if joint == "hip" and p.hip_heading == "segment_axes":
-            return AxisHeadingEstimator(p.heading_time_constant)
-        return RelativeHeadingEstimator(p.heading_time_constant, position_window_s=p.heading_position_window)
+            return AxisHeadingEstimator(p.heading_time_constant_s)
+        return RelativeHeadingEstimator(p.heading_time_constant_s,
+                                        position_window_s=p.heading_position_window_s)
 
     def _give_axes(self, rotations: dict[str, np.ndarray]) -> None:
         """The calibrated medio-lateral axes (sensor coordinates) to the hips' axis estimators."""
@@ -199,7 +201,7 @@ class JointAngleStream:
         return self.flush(arrival)
 
     def flush(self, now: float | None = None, force: bool = False) -> list[SyncedAngles]:
-        """Emit the stamps that are complete, older than a complete one, waited ``max_wait`` s by
+        """Emit the stamps that are complete, older than a complete one, waited ``max_wait_s`` s by
         ``now`` (same clock as the arrivals), or all of them with ``force`` (end of a recording)."""
         if not self.pending:
             return []
@@ -212,7 +214,7 @@ class JointAngleStream:
         out = []
         for ns in stamps:
             done = force or ns in complete or (newest_complete is not None and ns < newest_complete)
-            timed_out = now is not None and now - self.first_arrival[ns] > self.max_wait
+            timed_out = now is not None and now - self.first_arrival[ns] > self.max_wait_s
             if not (done or timed_out):
                 break
             emitted = self._emit(ns, self.pending.pop(ns), wanted)
@@ -281,9 +283,9 @@ class JointAngleStream:
 
     def _legs_upright(self, quats: dict[str, np.ndarray]) -> bool:
         """Every calibrated thigh and shank present has its long axis (anatomical y) within
-        ``standing_max_tilt`` of vertical: still, but not sitting or lying (no standing offset there)."""
+        ``standing_max_tilt_rad`` of vertical: still, but not sitting or lying (no standing offset there)."""
         rotations = self.calculator.rotations if self.calculator is not None else {}
-        least = math.cos(self.params.standing_max_tilt)
+        least = math.cos(self.params.standing_max_tilt_rad)
         return all(quat.rotate(quat.multiply(q, rotations[seg]), _Y)[2] >= least for seg, q in quats.items()
                    if seg.endswith(("_thigh", "_shank")) and seg in rotations)
 

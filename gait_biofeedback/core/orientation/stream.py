@@ -12,14 +12,14 @@ Rules (issues 3 and 13):
 - dt comes from the stamps. A NaN/inf sample is skipped and counted. A sample more than 10 %
   beyond the sensor's physical range (``acc_range``, ``gyr_range``: a glitch, not motion; a reading
   at the range is a saturated one and is kept) is rejected and counted as out of range.
-- Samples pass a :class:`~gait_biofeedback.core.sequencer.StreamSequencer`: ``reorder_window`` s
+- Samples pass a :class:`~gait_biofeedback.core.sequencer.StreamSequencer`: ``reorder_window_s`` s
   re-sequence samples that arrive out of order (that much latency added); a duplicate, a late
   sample or a single stamp that jumps is dropped and counted, with a message saying which. Only a
   confirmed jump back (a bag that loops, a driver restart) resets the filter and the start-up step.
-  A hole in the stamps up to ``max_gap`` s is bridged (:meth:`SegmentOrientationTracker._bridge`);
+  A hole in the stamps up to ``max_gap_s`` s is bridged (:meth:`SegmentOrientationTracker._bridge`);
   after a longer gap the attitude is re-acquired from the next ``recover_s`` s
   (:mod:`~gait_biofeedback.core.orientation.reacquire`), those samples marked ``recovering``.
-  ``max_gap`` 0.15 s was chosen on the demo walk (seeds 1, 2): bridged
+  ``max_gap_s`` 0.15 s was chosen on the demo walk (seeds 1, 2): bridged
   holes up to 0.15 s stay within 3.4° of the clean run, a 0.2 s one reaches 8°, a 0.3 s one 28°;
   re-acquired after one gap, the attitude was as close to the truth as the clean run's. A gap
   inside the start-up or re-acquisition window ends that window and starts a new re-acquisition.
@@ -36,7 +36,7 @@ Rules (issues 3 and 13):
   the filter starts from the accelerometer alone. Then the buffered samples are filtered and released
   together, so no sample is lost; only the first ``startup_s`` s come out late, once.
 - Magnetometer: the IMU sample at ``t`` uses the newest magnetometer sample stamped at or before
-  ``t - mag_delay``, if it is not older than ``mag_delay + mag_max_age``; without one the filter runs
+  ``t - mag_delay``, if it is not older than ``mag_delay + mag_max_age_s``; without one the filter runs
   in 6D mode for that sample. The fixed look-back ``mag_delay`` (50 ms) makes the pairing depend on
   stamps only, not on whether the magnetometer message of an instant arrives before or after the IMU
   message (DDS does not order across topics), so the live graph and the offline path agree exactly
@@ -100,25 +100,25 @@ class OrientationParams:
                            "Hz", low=1.0, high=2000.0)
     startup_s: float = param(1.0, "quiet standing at the start used for the gyro bias and initial attitude",
                              "s", low=0.1, high=30.0)
-    max_gap: float = param(0.15, "longest hole in the stamps bridged by interpolation; after a longer one "
-                           "the attitude is re-acquired", "s", low=0.01, high=60.0)
+    max_gap_s: float = param(0.15, "longest hole in the stamps bridged by interpolation; after a longer one "
+                             "the attitude is re-acquired", "s", low=0.01, high=60.0)
     recover_s: float = param(2.0, "after a gap, the attitude is re-acquired from this much data (one "
                              "stride or more; the samples come out that much later, marked as recovering)",
                              "s", low=0.05, high=10.0)
-    reorder_window: float = param(0.03, "samples out of order by less than this are re-sequenced (added "
-                                  "latency)", "s", low=0.0, high=1.0)
+    reorder_window_s: float = param(0.03, "samples out of order by less than this are re-sequenced (added "
+                                    "latency)", "s", low=0.0, high=1.0)
     acc_range: float = param(16 * 9.80665, "the accelerometer's range per axis (more than 10 % beyond it: "
                              "a glitch, rejected)", "m/s^2", low=1.0, high=10000.0)
     gyr_range: float = param(2000 * math.pi / 180, "the gyro's range per axis (more than 10 % beyond it: a "
                              "glitch, rejected)", "rad/s", low=0.1, high=1000.0)
-    mag_max_age: float = param(0.05, "oldest magnetometer sample a sample may use, beyond the fixed 50 ms "
-                               "look-back", "s", low=0.0, high=1.0)
+    mag_max_age_s: float = param(0.05, "oldest magnetometer sample a sample may use, beyond the fixed 50 ms "
+                                 "look-back", "s", low=0.0, high=1.0)
     orientation_variance: float = param(0.0012, "diagonal of the published orientation_covariance (while "
                                         "recovering from a dropout: (10°)², which this stays below)", "rad^2",
                                         low=0.0, high=0.03)
-    stale_after: float = param(1.0, "time without data before a segment is reported stale on /diagnostics",
-                               "s", low=0.1, high=60.0)
-    diagnostics_period: float = param(1.0, "period of the /diagnostics status", "s", low=0.1, high=60.0)
+    stale_after_s: float = param(1.0, "time without data before a segment is reported stale on /diagnostics",
+                                 "s", low=0.1, high=60.0)
+    diagnostics_period_s: float = param(1.0, "period of the /diagnostics status", "s", low=0.1, high=60.0)
 
     def __post_init__(self) -> None:
         require(len(set(self.segments)) == len(self.segments),
@@ -131,8 +131,9 @@ class OrientationParams:
     def tracker(self, segment: str) -> SegmentOrientationTracker:
         """The stream of one segment with these parameters."""
         return SegmentOrientationTracker(segment, rate_hz=self.rate_hz, algorithm=self.algorithm_of(segment),
-                                         scheme=self.scheme, startup_s=self.startup_s, max_gap=self.max_gap,
-                                         mag_max_age=self.mag_max_age, reorder_window=self.reorder_window,
+                                         scheme=self.scheme, startup_s=self.startup_s,
+                                         max_gap_s=self.max_gap_s, mag_max_age_s=self.mag_max_age_s,
+                                         reorder_window_s=self.reorder_window_s,
                                          acc_range=self.acc_range, gyr_range=self.gyr_range,
                                          recover_s=self.recover_s)
 
@@ -159,8 +160,8 @@ class SegmentOrientationTracker:
     """Streaming orientation of one segment's IMU (see module docstring)."""
 
     def __init__(self, segment: str, rate_hz: float = 100.0, algorithm: str | None = None,
-                 params: dict[str, Any] | None = None, startup_s: float = 1.0, max_gap: float = 0.15,
-                 mag_max_age: float = 0.05, mag_delay: float = 0.05, reorder_window: float = 0.03,
+                 params: dict[str, Any] | None = None, startup_s: float = 1.0, max_gap_s: float = 0.15,
+                 mag_max_age_s: float = 0.05, mag_delay: float = 0.05, reorder_window_s: float = 0.03,
                  acc_range: float = 16 * 9.80665, gyr_range: float = 2000 * math.pi / 180,
                  recover_s: float = 2.0, scheme: str = "") -> None:
         self.segment = segment
@@ -176,14 +177,14 @@ class SegmentOrientationTracker:
                                                               **(params or {})})
         self.rate_hz = float(rate_hz)
         self.startup_s = float(startup_s)
-        self.max_gap = float(max_gap)
-        self.mag_max_age = float(mag_max_age)
+        self.max_gap_s = float(max_gap_s)
+        self.mag_max_age_s = float(mag_max_age_s)
         self.mag_delay = float(mag_delay)
         self.filter = ALGORITHMS[self.algorithm](self.rate_hz, **self.params)
         self.recover_s = float(recover_s)
         self.acc_range = float(acc_range)
         self.gyr_range = float(gyr_range)
-        self.sequencer = StreamSequencer(window=reorder_window)
+        self.sequencer = StreamSequencer(window=reorder_window_s)
         self.rate = RateCheck(rate_hz)
         self._rate_note: str | None = None
         self.counts = {"samples": 0, "published": 0, "nan_skipped": 0, "no_gyro": 0, "out_of_range": 0,
@@ -219,12 +220,12 @@ class SegmentOrientationTracker:
         newest = t - self.mag_delay
         for t_mag, m in reversed(self._mag):
             if t_mag <= newest:
-                return m if newest - t_mag <= self.mag_max_age else None
+                return m if newest - t_mag <= self.mag_max_age_s else None
         return None
 
     def update(self, stamp_ns: int, gyr: Any, acc: Any) -> list[OrientationSample]:
         """One IMU sample (rad/s, m/s²) stamped ``stamp_ns`` → the samples ready now (usually one,
-        ``reorder_window`` s after its stamp)."""
+        ``reorder_window_s`` s after its stamp)."""
         self.counts["samples"] += 1
         g = tuple(map(float, gyr))
         a = tuple(map(float, acc))
@@ -293,7 +294,8 @@ class SegmentOrientationTracker:
         released: list[OrientationSample] = []
         if self._t_last is not None:
             dt = t - self._t_last
-            gap_s = max(self.max_gap, 3.0 / self.rate_hz, STARTUP_GAP_S if self._startup is not None else 0.0)
+            gap_s = max(self.max_gap_s, 3.0 / self.rate_hz,
+                        STARTUP_GAP_S if self._startup is not None else 0.0)
             if dt > gap_s:
                 # a gap inside the start-up or re-acquisition window ends it with what it holds
                 if self._startup is not None:
@@ -325,7 +327,7 @@ class SegmentOrientationTracker:
         return [*released, self._step(g, a, m, dt, stamp_ns)]
 
     def _bridge(self, missing: int, dt: float, g: tuple, a: tuple) -> None:
-        """A hole of ``missing`` samples (at most ``max_gap``): the filter is stepped through the
+        """A hole of ``missing`` samples (at most ``max_gap_s``): the filter is stepped through the
         missing instants with the gyro and accelerometer interpolated linearly between the samples on
         either side (nothing is published for them). One step of the whole hole would integrate only
         the sample after it: on the demo walk a 0.1 s hole left a shank 13° off (1 s after), bridged

@@ -30,8 +30,8 @@ being spread over the swing as a drift. The foot-trajectory stage uses 30 m/s² 
 gaitmap_example's 56 mocap strides (benchmarks/spatial.py) the stride-length SD drops from 4.5 to
 1.7 cm; on pyshoe_vicon's walking trials it changes nothing.
 
-EXT, ``shock_stance``: the shock noise applies only in a swing whose stance before it lasted at least
-``shock_stance`` s (the first stance counts as long). Running's stances (10-70 ms; a valley is
+EXT, ``shock_stance_s``: the shock noise applies only in a swing whose stance before it lasted at least
+``shock_stance_s`` s (the first stance counts as long). Running's stances (10-70 ms; a valley is
 15 ms at 200 Hz) hold the velocity at zero too briefly to pin the velocity error an impact made, and
 its shocks are many: with the shock noise in every swing pyshoe_vicon's 9 running trials scored a mean
 ARMSE of 0.139 m, without it 0.080 m. The foot-trajectory stage uses 0.05 s: running 0.077 m, and
@@ -83,7 +83,7 @@ class KalmanNoise:
     acc_bias_init: float = 1e-6  # P_ba,init, (m/s²)²
     heading_init: float = 1e-11  # rad², the heading set to zero
     acc_shock: float = math.inf  # m/s²: |f| this far off gravity is a shock (module docstring)
-    shock_stance: float = 0.0  # s: shocks only in a swing after a stance at least this long (EXT)
+    shock_stance_s: float = 0.0  # s: shocks only in a swing after a stance at least this long (EXT)
 
 
 @dataclass
@@ -184,7 +184,7 @@ class FootKalman:
         omega = gyr - self.b[:3]
         f = acc - self.b[3:]
         rot = np.array(scalar.matrix(self.q))
-        gain = shock_gain(f, self.noise) if self._stance_s >= self.noise.shock_stance else 1.0
+        gain = shock_gain(f, self.noise) if self._stance_s >= self.noise.shock_stance_s else 1.0
         density = self._density
         if gain != 1.0:
             density = density.copy()

@@ -13,7 +13,7 @@ remainders there is no provisional value.
 
 Trust (EXT): each estimate is compared, once its stride closes, with the smoothed stride length. A
 foot's provisional values are published only while the root mean square of its last ``LEARN``
-differences is within ``tolerance`` (``provisional_tolerance``, 5 cm: the clinically important
+differences is within ``tolerance`` (``provisional_tolerance_m``, 5 cm: the clinically important
 difference of step length) with at least ``CHECKED`` of them; otherwise its strides wait for their
 smoothed values (0.28-0.46 s after the IC), as a foot's first strides do. The estimates go on being
 made and compared, so the provisional values come back once they agree again. On the qmt walk
@@ -105,7 +105,7 @@ class SwingAgreement:
     not trusted is NaN, and the smoothed value follows with the stride's revision. Through ``analyze``
     (``benchmarks/spatial.py --cli-only``), against the smoothed values: gaitmap_example +0.1 ± 0.7 cm
     (45 of its 51 provisional strides), strike −0.1 ± 1.9° (45), push-off +0.3 ± 2.2° (40);
-    qmt_fullbody's fast walk with its lengths let through (``provisional_tolerance`` 1 m), before this
+    qmt_fullbody's fast walk with its lengths let through (``provisional_tolerance_m`` 1 m), before this
     check +1.3 ± 4.6 cm and angles up to 68° off (95th percentile; the direction of travel so far was
     off), with it 6 heights of 62, 40 and 28 angles (−0.9 ± 1.9°, +0.3 ± 1.4°)."""
 

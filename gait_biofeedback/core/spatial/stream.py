@@ -4,20 +4,20 @@
 
 Live, per stride: the filter runs ``h`` samples (half the window: 25 ms) behind the sensor, the
 look-ahead of the zero-velocity detector. A stride closes once the next stance has lasted
-``close_after`` s. Its window, from the first stance's start to that sample, is then smoothed by
+``close_after_s`` s. Its window, from the first stance's start to that sample, is then smoothed by
 RTS (:func:`.smoother.rts_smooth`) and its parameters computed (:mod:`.strides`). The latency is
-``h`` + ``close_after`` after foot flat: 75 ms by default. A stance found by the valley rule (running:
-:class:`~.zero_velocity.StanceDetector`) is decided ``valley_gap`` (0.45 s) after its sample instead.
+``h`` + ``close_after_s`` after foot flat: 75 ms by default. A stance found by the valley rule (running:
+:class:`~.zero_velocity.StanceDetector`) is decided ``valley_gap_s`` (0.45 s) after its sample instead.
 
 Start: the filter starts at the first stance. Its vertical is the mean acceleration of that stance's
-first ``bias_rest`` s, or of the whole stance when it is shorter. When the stance lasts that long, the
+first ``bias_rest_s`` s, or of the whole stance when it is shorter. When the stance lasts that long, the
 mean gyro over it is the gyro bias prior (Suh §4.4: "b_g,init from the sensor at rest"). Samples before
 the first stance have no position (NaN offline).
 
 Memory: the window holds one stride; a standing stance keeps its last ``KEEP_STANDING_S`` s (3 s), so
 a live stride after standing reports that as its ``stance_start`` (offline: the whole standing).
 
-Bad input: a non-finite sample is skipped and counted; a stamp going back, or a gap over ``max_gap``
+Bad input: a non-finite sample is skipped and counted; a stamp going back, or a gap over ``max_gap_s``
 s, restarts the foot at its next stance (counted in :attr:`counts`, said in :attr:`notices`). A shorter
 gap (lost samples: a radio, a loaded DDS queue) is filled by linear interpolation of gyro and
 acceleration at the sample rate, so that the filter and the detector windows keep their step, and
@@ -26,16 +26,16 @@ lost sample moves the stride length by up to 4.2 cm interpolated (8.2 cm held), 
 at heel strike and push-off; a 80 ms gap in a stance leaves an attitude error that costs the next
 stride up to 8 cm. Hence, per stride (``_judge_lost``):
 
-- more than ``max_swing_lost`` s lost in its swing (from the last zero-velocity sample of the first
+- more than ``max_swing_lost_s`` s lost in its swing (from the last zero-velocity sample of the first
   stance to the first of the next, widened by the detector's look-ahead): NaN values and a flag;
-- a gap longer than ``max_stance_gap`` s in its window or in the previous stride's: NaN and a flag;
+- a gap longer than ``max_stance_gap_s`` s in its window or in the previous stride's: NaN and a flag;
 - fewer lost samples: the values, with the informational flag ``lost samples interpolated``.
 
 With 1 % of the samples lost at random (100 Hz), 27 % of the strides get no values and the others
 are within 4.1 cm of the lossless ones (0.8 cm p95); at 200 Hz 28 % and 0.7 cm
 (``benchmarks/spatial.py --lost-samples``).
 
-A swing longer than ``max_swing`` s (no stance seen: running, a sensor off the foot, a shuffle) gives a
+A swing longer than ``max_swing_s`` s (no stance seen: running, a sensor off the foot, a shuffle) gives a
 stride with NaN values and a flag, never a number integrated over seconds.
 """
 
@@ -92,8 +92,8 @@ class FootTrajectoryParams:
                               low=0.01, high=5.0)
     jerk_limit: float = param(150.0, "suh: largest change of acceleration per second (Suh B_a: 0.4 m/s² per "
                               "10 ms = 40 m/s³)", "m/s^3", low=1.0, high=1000.0)
-    window: float = param(0.05, "zero velocity: centred window (Suh: 10 samples at 100 Hz = 0.1 s); half "
-                          "of it is the look-ahead", "s", low=0.01, high=0.5)
+    window_s: float = param(0.05, "zero velocity: centred window (Suh: 10 samples at 100 Hz = 0.1 s); half "
+                            "of it is the look-ahead", "s", low=0.01, high=0.5)
     shoe_acc: float = param(SHOE_ACC, "shoe: scale of |a - g| in the statistic", "m/s^2", low=0.01, high=20.0)
     shoe_gyro: float = param(SHOE_GYRO, "shoe: scale of |ω| in the statistic", "rad/s", low=0.01, high=10.0)
     valley: bool = param(True, "one stance per gait cycle where the thresholds find none: the foot's "
@@ -102,8 +102,8 @@ class FootTrajectoryParams:
                               "as a stance", "rad/s", low=0.1, high=5.0)
     valley_swing: float = param(VALLEY_SWING, "valley: the statistic in the 0.3 s before it (a swing)",
                                 "rad/s", low=0.5, high=20.0)
-    valley_gap: float = param(VALLEY_GAP_S, "valley: no stance of the thresholds this close; an accepted "
-                              "valley is decided this late", "s", low=0.1, high=1.0)
+    valley_gap_s: float = param(VALLEY_GAP_S, "valley: no stance of the thresholds this close; an accepted "
+                                "valley is decided this late", "s", low=0.1, high=1.0)
     flat_floor: bool = param(True, "every stance at height 0 (Suh Eq 14): level ground only, turn off on "
                              "stairs and ramps")
     gyro_noise: float = param(1e-5, "gyro white-noise density R_g (Suh Table 1: 1e-3, far above a MEMS "
@@ -113,38 +113,38 @@ class FootTrajectoryParams:
     acc_shock: float = param(30.0, "a specific force this far off gravity is a shock (heel strike): the "
                              "accelerometer's noise density grows with the excess (kalman.py)", "m/s^2",
                              low=1.0, high=1000.0)
-    shock_stance: float = param(0.05, "EXT: the shock noise only in a swing after a stance at least this "
-                                "long (not in running; kalman.py)", "s", low=0.0, high=10.0)
-    bias_rest: float = param(1.0, "a first stance at least this long gives the gyro bias prior", "s",
-                             low=0.1, high=120.0)
-    close_after: float = param(0.05, "a stride closes once the next stance has lasted this long", "s",
-                               low=0.02, high=1.0)
-    min_swing: float = param(0.2, "zero velocity resumed sooner than this is the same stance (a stance "
-                             "that flickers is not two strides)", "s", low=0.0, high=1.0)
-    max_swing: float = param(2.5, "a longer time without stance gives no spatial values", "s",
-                             low=0.5, high=10.0)
-    max_gap: float = param(0.2, "a longer stamp gap restarts the foot at its next stance", "s",
-                           low=0.01, high=10.0)
-    max_swing_lost: float = param(0.01, "more lost (interpolated) time in a swing gives no spatial values",
-                                  "s", low=0.0, high=0.2)
-    max_stance_gap: float = param(0.035, "a longer stamp gap gives no spatial values to the stride it is in "
-                                  "and to the next", "s", low=0.0, high=0.2)
-    toe_lever_arm: tuple[float, ...] = param((), "toe position in the sensor frame, for the toe clearance "
-                                             "(empty: unknown)", "m")
-    provisional_tolerance: float = param(0.05, "EXT: provisional stride lengths are published only while "
-                                         "they differed from the smoothed ones by at most this (RMS of the "
-                                         "foot's last 5, at least 3; core/spatial/provisional.py)", "m",
-                                         low=0.0, high=1.0)
+    shock_stance_s: float = param(0.05, "EXT: the shock noise only in a swing after a stance at least this "
+                                  "long (not in running; kalman.py)", "s", low=0.0, high=10.0)
+    bias_rest_s: float = param(1.0, "a first stance at least this long gives the gyro bias prior", "s",
+                               low=0.1, high=120.0)
+    close_after_s: float = param(0.05, "a stride closes once the next stance has lasted this long", "s",
+                                 low=0.02, high=1.0)
+    min_swing_s: float = param(0.2, "zero velocity resumed sooner than this is the same stance (a stance "
+                               "that flickers is not two strides)", "s", low=0.0, high=1.0)
+    max_swing_s: float = param(2.5, "a longer time without stance gives no spatial values", "s",
+                               low=0.5, high=10.0)
+    max_gap_s: float = param(0.2, "a longer stamp gap restarts the foot at its next stance", "s",
+                             low=0.01, high=10.0)
+    max_swing_lost_s: float = param(0.01, "more lost (interpolated) time in a swing gives no spatial values",
+                                    "s", low=0.0, high=0.2)
+    max_stance_gap_s: float = param(0.035, "a longer stamp gap gives no spatial values to the stride it is "
+                                    "in and to the next", "s", low=0.0, high=0.2)
+    toe_lever_arm_m: tuple[float, ...] = param((), "toe position in the sensor frame, for the toe clearance "
+                                               "(empty: unknown)", "m")
+    provisional_tolerance_m: float = param(0.05, "EXT: provisional stride lengths are published only while "
+                                           "they differed from the smoothed ones by at most this (RMS of the "
+                                           "foot's last 5, at least 3; core/spatial/provisional.py)", "m",
+                                           low=0.0, high=1.0)
     smoother: str = param("suh", "offline smoother over the whole recording (live strides use rts)",
                           choices=SMOOTHERS)
 
     def __post_init__(self) -> None:
-        require(len(self.toe_lever_arm) in (0, 3), "toe_lever_arm: 3 numbers (x, y, z in m) or empty")
+        require(len(self.toe_lever_arm_m) in (0, 3), "toe_lever_arm_m: 3 numbers (x, y, z in m) or empty")
 
     @property
     def noise(self) -> KalmanNoise:
         return KalmanNoise(gyro=self.gyro_noise, acc=self.acc_noise, acc_shock=self.acc_shock,
-                           shock_stance=self.shock_stance)
+                           shock_stance_s=self.shock_stance_s)
 
 
 class FootTrajectoryStream:
@@ -160,17 +160,18 @@ class FootTrajectoryStream:
         self.notices = Notices()
         self.index: list[int] = []  # input sample number of each filter step, -1 if filled (keep_all)
         self.kept: list = []  # every filter step (keep_all)
-        self._min_swing_ns = self.params.min_swing * NS_PER_S
+        self._min_swing_ns = self.params.min_swing_s * NS_PER_S
         self._keep = round(KEEP_STANDING_S * self.rate_hz)
-        self._margin = max(1, round(self.params.window * self.rate_hz / 2))  # the detector's look-ahead
-        self.rest_of_swing = RestOfSwing(self.params.provisional_tolerance)
+        self._margin = max(1, round(self.params.window_s * self.rate_hz / 2))  # the detector's look-ahead
+        self.rest_of_swing = RestOfSwing(self.params.provisional_tolerance_m)
         self.swing_agreement = SwingAgreement()
         self._restart()
 
     def _restart(self) -> None:
         p = self.params
-        self._zv = StanceDetector(self.rate_hz, p.gyro_limit, p.jerk_limit, p.window, p.detector, p.shoe_acc,
-                                  p.shoe_gyro, p.valley, p.valley_max, p.valley_swing, p.valley_gap)
+        self._zv = StanceDetector(self.rate_hz, p.gyro_limit, p.jerk_limit, p.window_s, p.detector,
+                                  p.shoe_acc, p.shoe_gyro, p.valley, p.valley_max, p.valley_swing,
+                                  p.valley_gap_s)
         self._pending: list[tuple[int, int, np.ndarray, np.ndarray]] = []  # waiting for their decision
         self._rest: list[tuple[int, int, np.ndarray, np.ndarray]] = []  # the first stance, before start
         self._kf: FootKalman | None = None
@@ -198,7 +199,7 @@ class FootTrajectoryStream:
                 np.all(np.isfinite(gyr)) and np.all(np.isfinite(acc))):
             self.counts["skipped"] += 1
             return []
-        if self._last_ns is not None and not 0 < stamp_ns - self._last_ns <= self.params.max_gap * NS_PER_S:
+        if self._last_ns is not None and not 0 < stamp_ns - self._last_ns <= self.params.max_gap_s * NS_PER_S:
             gap = (stamp_ns - self._last_ns) / NS_PER_S
             self.counts["restarts"] += 1
             why = "went back" if gap <= 0 else f"gap {gap:.2f} s"
@@ -216,7 +217,7 @@ class FootTrajectoryStream:
         if not lost:
             return out
         self.counts["interpolated"] += len(lost)
-        if (len(lost) + 1) / self.rate_hz > self.params.max_stance_gap + 1e-9:
+        if (len(lost) + 1) / self.rate_hz > self.params.max_stance_gap_s + 1e-9:
             self._long_gaps.append((self._last_ns, stamp_ns))
         gyr0, acc0 = self._last
         for lost_ns, f in lost:
@@ -243,7 +244,7 @@ class FootTrajectoryStream:
         if self._kf is None:
             if zero_velocity:
                 self._rest.append(sample)
-                if len(self._rest) * 1.0 / self.rate_hz >= self.params.bias_rest:
+                if len(self._rest) * 1.0 / self.rate_hz >= self.params.bias_rest_s:
                     return self._start()
             elif self._rest:
                 return self._start(then=(sample, False))
@@ -254,7 +255,7 @@ class FootTrajectoryStream:
         rest = self._rest
         self._rest = []
         acc = np.mean([s[3] for s in rest], axis=0)
-        long_enough = len(rest) / self.rate_hz >= self.params.bias_rest
+        long_enough = len(rest) / self.rate_hz >= self.params.bias_rest_s
         bias = np.concatenate([np.mean([s[2] for s in rest], axis=0), np.zeros(3)]) if long_enough else None
         self._kf = FootKalman(self.params.noise, self.params.flat_floor, keep=False)
         number, ns, gyr, acc0, filled = rest[0]
@@ -290,7 +291,7 @@ class FootTrajectoryStream:
                 self._stance_start, self._closed = k, False
             self._in_stance, self._ended = True, None
             if (not self._closed and self._previous is not None
-                    and (k - self._stance_start + 1) / self.rate_hz >= self.params.close_after):
+                    and (k - self._stance_start + 1) / self.rate_hz >= self.params.close_after_s):
                 out.append(self._close(k))
             if (self._closed or self._previous is None) and k - self._stance_start + 1 > self._keep:
                 self._cut(k + 1 - self._keep)  # standing: its older samples are no longer needed
@@ -309,10 +310,10 @@ class FootTrajectoryStream:
         swing the forward filter's travel plus the foot's usual rest of the swing, in its next stance
         the travel to that stance; its swing values (foot height, toe clearance, foot and turning
         angles, lateral excursion) from the forward filter (:func:`~.strides.swing_so_far`). None
-        before the filter started, between stances less than ``min_swing`` apart, once the stride has
+        before the filter started, between stances less than ``min_swing_s`` apart, once the stride has
         closed (its smoothed values are out), after lost samples in the stride, while the foot's rests
         are not learnt, or while its length estimates are not trusted
-        (:class:`.provisional.RestOfSwing`, ``provisional_tolerance``)."""
+        (:class:`.provisional.RestOfSwing`, ``provisional_tolerance_m``)."""
         if self._kf is None or self._previous is None or self._ended is not None:
             return None
         stopped = self._in_stance
@@ -332,7 +333,7 @@ class FootTrajectoryStream:
         end = self._stance_start + 1 if stopped else len(self._steps)
         swing = swing_so_far(np.array([step.q for step in self._steps[a0:end]]),
                              np.array([step.r for step in self._steps[a0:end]]), (0, a1 - a0),
-                             self.params.toe_lever_arm or None)
+                             self.params.toe_lever_arm_m or None)
         return self.swing_agreement.offer(ProvisionalStride(self._stamps[a1], length, **swing))
 
     def _close(self, last: int) -> SpatialStride:
@@ -346,8 +347,8 @@ class FootTrajectoryStream:
         first = (0, self._previous[1] - a0)
         second = (self._stance_start - a0, last - a0)
         stride = stride_parameters(t, smooth["orientation"], smooth["position"], first, second,
-                                   self._numbers[a0:last + 1], self.params.toe_lever_arm or None,
-                                   self.params.max_swing)
+                                   self._numbers[a0:last + 1], self.params.toe_lever_arm_m or None,
+                                   self.params.max_swing_s)
         stride = self._judge_lost(stride, a0, last)
         self.rest_of_swing.check(self._stamps[self._previous[1]], stride.stride_length)
         self.swing_agreement.check(self._stamps[self._previous[1]],
@@ -371,7 +372,7 @@ class FootTrajectoryStream:
             return stride
         swing = self._filled[max(0, self._previous[1] - self._margin):self._stance_start + self._margin + 1]
         lost_s = sum(swing) / self.rate_hz
-        if lost_s > self.params.max_swing_lost + 1e-9:
+        if lost_s > self.params.max_swing_lost_s + 1e-9:
             return unknown(stride, f"{lost_s * 1e3:.0f} ms of lost samples in the swing: "
                            "spatial values unknown")
         return replace(stride, flags=(*stride.flags, LOST_FLAG))
@@ -445,13 +446,14 @@ def _strides(index: np.ndarray, states: dict, zv: np.ndarray, rate_hz: float,
     t = index / rate_hz
     stances: list[list[int]] = []
     for first, stop in runs(zv):
-        # the stream ends a stance at the first moving sample min_swing after it: the one before first
-        if stances and t[first - 1] - t[stances[-1][1]] < p.min_swing - 1e-9:
+        # the stream ends a stance at the first moving sample min_swing_s after it: the one before first
+        if stances and t[first - 1] - t[stances[-1][1]] < p.min_swing_s - 1e-9:
             stances[-1][1] = stop - 1
         else:
             stances.append([first, stop - 1])
     numbers = index.tolist()
-    close = max(1, math.ceil(p.close_after * rate_hz - 1e-9))
+    close = max(1, math.ceil(p.close_after_s * rate_hz - 1e-9))
     return [stride_parameters(t, states["orientation"], states["position"], (a0, a1),
-                              (b0, min(b1, b0 + close - 1)), numbers, p.toe_lever_arm or None, p.max_swing)
+                              (b0, min(b1, b0 + close - 1)), numbers, p.toe_lever_arm_m or None,
+                              p.max_swing_s)
             for (a0, a1), (b0, b1) in itertools.pairwise(stances)]

@@ -38,7 +38,7 @@ from gait_biofeedback.core import quaternion as quat
 
 MAX_STANCE_S = 1.5  # s: a longer stance is standing, and the stride after it has no cycle time
 MIN_LENGTH_M = 0.1  # m: shorter strides (stepping on the spot) have no direction for the angles
-LOST_FLAG = "lost samples interpolated"  # informational: within the stream's max_swing_lost, max_stance_gap
+LOST_FLAG = "lost samples interpolated"  # informational: within max_swing_lost_s, max_stance_gap_s
 MIN_TOE_PEAK_M = 0.01  # m: a toe-height maximum lower than this is the toe still rolling on the floor
 
 
@@ -111,12 +111,12 @@ SWING_VALUES = ("max_sensor_height", "min_toe_clearance", "foot_angle_ic", "foot
 
 
 def _toe_clearance(orientation: np.ndarray, position: np.ndarray, stance: slice, swing: slice,
-                   toe_lever_arm: np.ndarray | None) -> float:
+                   toe_lever_arm_m: np.ndarray | None) -> float:
     """``min_toe_clearance`` (module docstring) of the ``swing`` samples above the ``stance``'s mean toe
     height; NaN without a lever arm."""
-    if toe_lever_arm is None or len(toe_lever_arm) != 3:
+    if toe_lever_arm_m is None or len(toe_lever_arm_m) != 3:
         return math.nan
-    toe = position[:, 2] + (quat.as_matrix(orientation) @ np.asarray(toe_lever_arm, float))[:, 2]
+    toe = position[:, 2] + (quat.as_matrix(orientation) @ np.asarray(toe_lever_arm_m, float))[:, 2]
     return _min_between_maxima(toe[swing] - float(toe[stance].mean()))
 
 
@@ -126,7 +126,7 @@ def _lateral_excursion(position: np.ndarray, start: np.ndarray, lateral: np.ndar
 
 
 def swing_so_far(orientation: np.ndarray, position: np.ndarray, first: tuple[int, int],
-                 toe_lever_arm: np.ndarray | None = None) -> dict[str, float]:
+                 toe_lever_arm_m: np.ndarray | None = None) -> dict[str, float]:
     """``SWING_VALUES`` of a swing still in progress, as :func:`stride_parameters` defines them, from
     the samples ``first`` (the stance before it, indices as there) to the last one. EXT, what is not
     known yet is taken from what is: the direction of travel (for the angles and the lateral excursion)
@@ -139,7 +139,7 @@ def swing_so_far(orientation: np.ndarray, position: np.ndarray, first: tuple[int
     out = dict.fromkeys(SWING_VALUES, math.nan)
     out["max_sensor_height"] = float(position[a1:, 2].max() - p_first[2])
     out["min_toe_clearance"] = _toe_clearance(orientation, position, slice(a0, a1 + 1), slice(a1, None),
-                                              toe_lever_arm)
+                                              toe_lever_arm_m)
     out["turning_angle"] = _heading_change(orientation[a1], orientation[-1])
     travel = (position[-1] - p_first)[:2]
     length = float(np.linalg.norm(travel))
@@ -153,7 +153,7 @@ def swing_so_far(orientation: np.ndarray, position: np.ndarray, first: tuple[int
 
 def stride_parameters(t: np.ndarray, orientation: np.ndarray, position: np.ndarray,
                       first: tuple[int, int], second: tuple[int, int], numbers: list[int],
-                      toe_lever_arm: np.ndarray | None = None,
+                      toe_lever_arm_m: np.ndarray | None = None,
                       max_swing_s: float = math.inf) -> SpatialStride:
     """The stride between the stances ``first`` and ``second`` (``(first, last)`` sample, indices into
     ``t``/``orientation``/``position``; ``second`` may be the part of the stance seen so far).
@@ -169,7 +169,7 @@ def stride_parameters(t: np.ndarray, orientation: np.ndarray, position: np.ndarr
     stride_time = math.nan if standing_before else float(t[b0] - t[a0])
     swing = slice(a1, b0 + 1)
     height = float(position[swing, 2].max() - p_first[2])
-    clearance = _toe_clearance(orientation, position, slice(a0, a1 + 1), swing, toe_lever_arm)
+    clearance = _toe_clearance(orientation, position, slice(a0, a1 + 1), swing, toe_lever_arm_m)
     flags = ["started from standing"] if standing_before else []
     angle_ic = angle_tc = lateral_excursion = math.nan
     if length >= MIN_LENGTH_M:

@@ -25,7 +25,7 @@ is taken instead:
   rad/s: an acceleration 3 m/s² off gravity counts as a turn at 0.5 rad/s), in rad/s;
 - sample ``m`` is a valley when ``c_m ≤ valley_max`` (1.5 rad/s), ``c_m`` is the smallest ``c`` from
   0.3 s before to 0.1 s after it, ``c`` exceeded ``valley_swing`` (2.5 rad/s: a swing) in the 0.3 s
-  before it, and the fixed rule found no stance within ``valley_gap`` (0.45 s) on either side;
+  before it, and the fixed rule found no stance within ``valley_gap_s`` (0.45 s) on either side;
 - a valley and its ``s`` neighbours on each side are at zero velocity.
 
 Chosen on pyshoe_vicon's 28 trials (benchmarks/spatial.py): the running trials' ARMSE from 0.2-7 m
@@ -33,7 +33,7 @@ to 0.03-0.16 m (0.06-0.24 m with the shock noise of :mod:`.kalman`), the others 
 
 The look-ahead is variable: a sample is decided as soon as no undecided valley can reach it. In
 walking the fixed stance arrives within the gap and rejects the swing's valleys, so foot flat is
-decided with the fixed rule's 25 ms; an accepted valley waits ``valley_gap`` (0.45 s + 25 ms).
+decided with the fixed rule's 25 ms; an accepted valley waits ``valley_gap_s`` (0.45 s + 25 ms).
 """
 
 from __future__ import annotations
@@ -163,7 +163,7 @@ def detect_zero_velocity(gyr: np.ndarray, acc: np.ndarray, rate_hz: float, gyro_
                          jerk_limit: float = JERK_LIMIT, window_s: float = WINDOW_S, detector: str = "suh",
                          acc_scale: float = SHOE_ACC, gyro_scale: float = SHOE_GYRO, valley: bool = False,
                          valley_max: float = VALLEY_MAX, valley_swing: float = VALLEY_SWING,
-                         valley_gap: float = VALLEY_GAP_S) -> np.ndarray:
+                         valley_gap_s: float = VALLEY_GAP_S) -> np.ndarray:
     """(N,) bool on whole arrays; equal to :class:`ZeroVelocityDetector` (``valley``:
     :class:`StanceDetector`) sample for sample."""
     fixed = _fixed_zero_velocity(gyr, acc, rate_hz, gyro_limit, jerk_limit, window_s, detector, acc_scale,
@@ -173,7 +173,7 @@ def detect_zero_velocity(gyr: np.ndarray, acc: np.ndarray, rate_hz: float, gyro_
     c = valley_statistic(np.asarray(gyr, float), np.asarray(acc, float), rate_hz)
     half = valley_half(rate_hz)
     before, after = round(VALLEY_BEFORE_S * rate_hz), round(VALLEY_AFTER_S * rate_hz)
-    gap = round(valley_gap * rate_hz)
+    gap = round(valley_gap_s * rate_hz)
     out = fixed.copy()
     for m in np.flatnonzero(c <= valley_max):
         lo = max(0, m - before)
@@ -221,14 +221,14 @@ class StanceDetector:
     def __init__(self, rate_hz: float, gyro_limit: float = GYRO_LIMIT, jerk_limit: float = JERK_LIMIT,
                  window_s: float = WINDOW_S, detector: str = "suh", acc_scale: float = SHOE_ACC,
                  gyro_scale: float = SHOE_GYRO, valley: bool = False, valley_max: float = VALLEY_MAX,
-                 valley_swing: float = VALLEY_SWING, valley_gap: float = VALLEY_GAP_S) -> None:
+                 valley_swing: float = VALLEY_SWING, valley_gap_s: float = VALLEY_GAP_S) -> None:
         self.fixed = ZeroVelocityDetector(rate_hz, gyro_limit, jerk_limit, window_s, detector, acc_scale,
                                           gyro_scale)
         self.valley = valley
         self.valley_max, self.valley_swing = valley_max, valley_swing
         self.half = valley_half(rate_hz)
         self.before, self.after = round(VALLEY_BEFORE_S * rate_hz), round(VALLEY_AFTER_S * rate_hz)
-        self.gap = round(valley_gap * rate_hz)
+        self.gap = round(valley_gap_s * rate_hz)
         self._raw: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=2 * self.half + 1)
         self._seen = 0  # samples in
         self._base = 0  # absolute index of _c[0] and _f[0]
