@@ -72,7 +72,9 @@ class DelayLine:
 
     def state(self, rec: list, steps: list[float], transitions: list[tuple[float, str]],
               locomotion: Callable[[], str]) -> ActivityState:
-        """The state of a record that left the line; ``locomotion()`` labels a walking sample."""
+        """The state of a record that left the line; ``locomotion()`` labels a walking sample that is
+        standing: a state never pairs sitting or lying with a locomotion (the posture rules decide
+        whether a walk made a seated wearer stand, ``posture.py``)."""
         t, posture, walking, theta, stamp_ns, calibrated = rec
         while self.emitted_steps < len(steps) and steps[self.emitted_steps] <= t:
             self.emitted_steps += 1
@@ -83,7 +85,8 @@ class DelayLine:
         return ActivityState(
             stamp_ns=stamp_ns,
             posture=posture,
-            locomotion=locomotion() if walking else "none",
+            # only an upright trunk walks (thesis Fig 27): a seated wearer's few peaks are no locomotion
+            locomotion=locomotion() if walking and posture == "standing" else "none",
             trunk_inclination=theta,
             step_count=self.emitted_steps,
             last_transition=last[1] if last else None,

@@ -94,15 +94,19 @@ class Posture:
         Stand→sit then sit→lie within MERGE_S (MERGE_MOVING_S without a still moment between) is one
         stand→lie at the first instant, lie→sit then sit→stand one lie→stand (HAPT's six transitions;
         the thesis names four). The first event may have been published already: the merged one
-        replaces it, with its stamp.
+        replaces it, with its stamp; the samples still held from its instant on take the new posture
+        (a lie→stand published over samples still labelled sitting was hapt user 20's "sitting" after
+        "lie_to_stand").
         """
         last = self.transitions[-1] if self.transitions else None
         gap = math.inf if last is None else t - last[0]
         moving = self._still.longest_still < MERGE_STILL_S
+        since = t
         if (gap <= MERGE_S or (gap <= MERGE_MOVING_S and moving)) and (last[1], kind) in _MERGED:
             self.transitions[-1] = (last[0], _MERGED[(last[1], kind)])
             if self._line.last_emitted_transition == last:
                 self._line.last_emitted_transition = self.transitions[-1]
+            since = last[0]  # one movement from its first instant: no sitting between a lie→stand's halves
         else:
             self.transitions.append((t, kind))
         self._still.reset_moment()
@@ -110,7 +114,7 @@ class Posture:
         self.assumed = False
         self.pending_sit_stand = None  # older than this event: it cannot follow it
         self.excursions.clear()
-        self.relabel(t, posture)
+        self.relabel(since, posture)
         unconfirmed = kind == "sit_to_stand" and not walked
         self.stand_deadline = t + STAND_CONFIRM_S if unconfirmed else math.inf
 
