@@ -92,12 +92,15 @@ DECODE_BLOCK = 20_000
 
 class _Columns:
     """One topic's messages decoded a block at a time into the columns wanted (``columns``: slices of the
-    message's doubles), stamps int ns."""
+    message's doubles), stamps int ns, in arrays sized for ``expected`` messages (the file's count;
+    grown if it holds more)."""
 
-    def __init__(self, msg_class: type, n_doubles: int, columns: Sequence[slice]) -> None:
+    def __init__(self, msg_class: type, n_doubles: int, columns: Sequence[slice], expected: int) -> None:
         self.msg_class, self.n_doubles, self.columns = msg_class, n_doubles, columns
         self.payloads: list[bytes] = []
-        self.blocks: list[tuple[np.ndarray, list[np.ndarray]]] = []
+        self.ns = np.empty(expected, np.int64)
+        self.values = [np.empty((expected, c.stop - c.start)) for c in columns]
+        self.size = 0
         self.frame_id = ""
 
     def add(self, data: bytes) -> None:
@@ -106,22 +109,29 @@ class _Columns:
             self._decode()
 
     def _decode(self) -> None:
-        if self.payloads:
-            ns, doubles, frame_id = decode_stamped(self.payloads, self.msg_class, self.n_doubles)
-            self.blocks.append((ns, [doubles[:, c].copy() for c in self.columns]))
-            self.frame_id = self.frame_id or frame_id
-            self.payloads = []
+        if not self.payloads:
+            return
+        ns, doubles, frame_id = decode_stamped(self.payloads, self.msg_class, self.n_doubles)
+        self.frame_id = self.frame_id or frame_id
+        self.payloads = []
+        end = self.size + len(ns)
+        if end > len(self.ns):  # more than the file's summary said (a repaired file)
+            grown = max(end, 2 * len(self.ns))
+            self.ns = np.resize(self.ns, grown)
+            self.values = [np.resize(v, (grown, v.shape[1])) for v in self.values]
+        self.ns[self.size:end] = ns
+        for out, c in zip(self.values, self.columns, strict=True):
+            out[self.size:end] = doubles[:, c]
+        self.size = end
 
     def sorted(self) -> tuple[np.ndarray, list[np.ndarray]]:
         """(stamps, columns), ordered by stamp (a stable sort: log order among equal stamps)."""
         self._decode()
-        if not self.blocks:
-            return np.empty(0, np.int64), [np.empty((0, c.stop - c.start)) for c in self.columns]
-        ns = np.concatenate([b[0] for b in self.blocks])
-        columns = [np.concatenate([b[1][k] for b in self.blocks]) for k in range(len(self.columns))]
-        self.blocks = []
-        order = np.argsort(ns, kind="stable")
-        return ns[order], [c[order] for c in columns]
+        ns, values = self.ns[:self.size], [v[:self.size] for v in self.values]
+        if len(ns) > 1 and np.any(ns[1:] < ns[:-1]):
+            order = np.argsort(ns, kind="stable")
+            ns, values = ns[order], [v[order] for v in values]
+        return ns, values
 
 
 def read_imu_bag(path: str | Path, segments: Iterable[str] | None = None) -> dict[str, ImuSeries]:
@@ -129,7 +139,8 @@ def read_imu_bag(path: str | Path, segments: Iterable[str] | None = None) -> dic
 
     A segment is the name before ``/imu/data_raw`` of an Imu topic. Times are header stamps, sorted.
     mag is None without a ``/<segment>/imu/mag`` topic; if its stamps differ from the Imu ones it
-    is linearly interpolated onto them. Memory: the series, and :data:`DECODE_BLOCK` messages.
+    is linearly interpolated onto them. Memory: the series (sized from the file's message counts), and
+    :data:`DECODE_BLOCK` messages.
     """
     with BagReader(path) as reader:
         found, mag_found = topics.recorded_imu_topics(reader.topics())
@@ -139,9 +150,11 @@ def read_imu_bag(path: str | Path, segments: Iterable[str] | None = None) -> dic
                 f"{path}: no raw IMU topic for segment(s) {missing}; the bag has {sorted(found)}"
             )
         mag_topics = {s: mag_found[s] for s in wanted if s in mag_found}
+        counts = reader.message_counts()
         imu_columns = (LINEAR_ACCELERATION, ANGULAR_VELOCITY)
-        columns = {found[s]: _Columns(Imu, IMU_DOUBLES, imu_columns) for s in wanted}
-        columns.update({t: _Columns(MagneticField, MAG_DOUBLES, (slice(0, 3),)) for t in mag_topics.values()})
+        columns = {found[s]: _Columns(Imu, IMU_DOUBLES, imu_columns, counts.get(found[s], 0)) for s in wanted}
+        columns.update({t: _Columns(MagneticField, MAG_DOUBLES, (slice(0, 3),), counts.get(t, 0))
+                        for t in mag_topics.values()})
         for topic, _, data, _ in reader.raw_messages(topics=columns):
             columns[topic].add(data)
     result = {}
