@@ -618,13 +618,18 @@ def _analyze(ordered: LogOrderWriter | None, reader: BagReader, run: Orientation
         last_ns = joints.alignment.last[seg][0]
         span = f"{(first_ns - start_ns) / NS_PER_S:.1f}-{(last_ns - start_ns) / NS_PER_S:.1f} s"
         result.warnings.append(f"{span} into the recording: {stamps_off(seg, off)}")
+    moves_end = max((a.until_ns for a in result.calibrations if a.success and a.until_ns), default=None)
     for joint, (first, last) in waiting.items():
         if last - first < WAITING_WARN_NS:
             continue  # a hip's axis heading: 1 s after the calibration
+        span = f"{(first - start_ns) / NS_PER_S:.1f} to {(last - start_ns) / NS_PER_S:.1f} s"
+        if moves_end is not None and last <= moves_end:  # the calibration's own movements: as expected
+            result.notes.append(f"{joint.replace('_', ' ')}: no angles from {span}, during the calibration "
+                                "movements: its two sensors had no common heading yet (it comes from the legs' movement)")
+            continue
         result.warnings.append(
-            f"{joint.replace('_', ' ')}: no angles from {(first - start_ns) / NS_PER_S:.1f} to "
-            f"{(last - start_ns) / NS_PER_S:.1f} s into the recording, though calibrated: its two sensors "
-            "had no common heading yet (the kinematic heading needs about 15 s of walking)")
+            f"{joint.replace('_', ' ')}: no angles from {span} into the recording, though calibrated: its "
+            "two sensors had no common heading yet (the kinematic heading needs about 15 s of walking)")
     said_by: dict[str, list[str]] = {}  # what only /diagnostics said along the way, over the session
     for seg, tracker in trackers.items():
         for text in tracker.conditions({}):
