@@ -625,7 +625,8 @@ def _analyze(ordered: LogOrderWriter | None, reader: BagReader, run: Orientation
         span = f"{(first - start_ns) / NS_PER_S:.1f} to {(last - start_ns) / NS_PER_S:.1f} s"
         if moves_end is not None and last <= moves_end:  # the calibration's own movements: as expected
             result.notes.append(f"{joint.replace('_', ' ')}: no angles from {span}, during the calibration "
-                                "movements: its two sensors had no common heading yet (it comes from the legs' movement)")
+                                "movements: its two sensors had no common heading yet (it comes from the "
+                                "legs' movement)")
             continue
         result.warnings.append(
             f"{joint.replace('_', ' ')}: no angles from {span} into the recording, though calibrated: its "
