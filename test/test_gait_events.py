@@ -462,3 +462,20 @@ def test_flagged_strides_are_counted_by_their_reason():
     assert flag_kinds(second.flag) == [too_long, no_step]
     assert flag_kinds("sensor dropout: 0.30 s without data; " + first.flag) == ["sensor dropout", no_step]
     assert flag_kinds("") == []
+
+
+def test_a_turn_of_several_strides_is_found_where_no_single_stride_turns_enough():
+    """Two left strides of 0.3 rad (17°, each under TURN_LIMIT's 20°) make a 34° turn: with a 0.5 s
+    window and a 30° limit the strides that overlap both of them, or one of them and its neighbour,
+    are turning (the right foot's too, its own heading nearly kept); the walk's first and last are not.
+    Hand-derived: left [1, 2] sees left 0 + 0.3 + 0.3 in [0.5, 2.5]; left [0, 1] sees 0.3 in [-0.5, 1.5]."""
+    import math
+
+    from gait_biofeedback.core.gait.cycles import turning_strides
+
+    strides = [("left", 0.0, 1.0, 0.0), ("left", 1.0, 2.0, 0.3), ("left", 2.0, 3.0, 0.3),
+               ("left", 3.0, 4.0, 0.0), ("right", 0.5, 1.5, 0.0), ("right", 1.5, 2.5, 0.05),
+               ("right", 2.5, 3.5, math.nan)]
+    assert turning_strides(strides, 0.5, math.radians(30.0)) == [False, True, True, False, False, True, False]
+    assert turning_strides(strides, 0.5, math.radians(40.0)) == [False] * 7  # 34° is under 40°
+    assert turning_strides([("left", 0.0, 1.0, 0.4)]) == [True]  # 23° in one stride: TURN_LIMIT

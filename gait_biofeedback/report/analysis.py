@@ -5,7 +5,8 @@
   ``BOUT_TAIL_S`` after). Strides outside every bout (e.g. events from calibration moves) are left out
   and counted; a recording without ``activity/state`` uses every plausible stride, and says so. Turns
   are left out too, as gait analysis does (steady straight walking): a stride whose foot's heading
-  changed by more than ``TURN_LIMIT`` (``turning_angle``; a stride without one is kept). gaitmap_example
+  changed by more than ``TURN_LIMIT`` (``turning_angle``; a stride without one is kept), or inside a
+  turn of several strides (:func:`~gait_biofeedback.core.gait.cycles.turning_strides`). gaitmap_example
   through ``analyze``: its left stride length read 1.29 ± 0.22 m with its turning strides (0.56–0.82 m,
   68–114°) and a false left/right difference; 1.36 ± 0.07 m without, as its motion capture's straight
   strides (1.30–1.45 m). So are a walk's first and last stride of each foot (gait initiation and the
@@ -43,7 +44,14 @@ from gait_biofeedback.core.biofeedback.evaluator import (
     Stride,
     Targets,
 )
-from gait_biofeedback.core.gait.cycles import TURN_LIMIT, steady_strides, symmetry_index
+from gait_biofeedback.core.gait.cycles import (
+    TURN_LIMIT,
+    TURN_WINDOW_S,
+    WHOLE_TURN_LIMIT,
+    steady_strides,
+    symmetry_index,
+    turning_strides,
+)
 from gait_biofeedback.core.segments import SIDES
 from gait_biofeedback.report.extract import SessionData
 
@@ -136,7 +144,9 @@ LEFT_OUT = {
     "implausible": "the stride is not plausible (its flag says why)",
     "outside_walking": f"outside every walking bout of the activity monitor ({BOUT_LEAD_S:g} s before, "
                        f"{BOUT_TAIL_S:g} s after)",
-    "turning": f"the foot's heading changed by more than {math.degrees(TURN_LIMIT):.0f}° (turning_angle)",
+    "turning": f"a turn: the foot's heading changed by more than {math.degrees(TURN_LIMIT):.0f}° in the "
+               f"stride, or a foot's by more than {math.degrees(WHOLE_TURN_LIMIT):.0f}° over it and "
+               f"{TURN_WINDOW_S:g} s around it (turning_angle)",
     "walk_start_or_end": "the foot's first or last stride of a walk (gait initiation, the stop)",
 }
 """Why a stride is left out of the summaries (:func:`left_out`), checked in this order."""
@@ -148,13 +158,15 @@ def left_out(strides: list[dict], stride_objects: list[Stride],
     out of the summaries, a :data:`LEFT_OUT` key, or "" when it is used (module docstring, Strides
     used). ``bouts``: :func:`walking_bouts` (None: no activity monitor, every plausible stride walks)."""
     steady = steady_strides([(s.side, s.start_ns, s.end_ns, s.plausible) for s in stride_objects])
+    turns = turning_strides([(s.side, s.start_ns / 1e9, s.end_ns / 1e9, row["turning_angle"])
+                             for s, row in zip(stride_objects, strides, strict=True)])
     reasons = []
-    for row, keep in zip(strides, steady, strict=True):
+    for row, keep, turn in zip(strides, steady, turns, strict=True):
         if not row["plausible"]:
             reasons.append("implausible")
         elif bouts is not None and not _inside(row, bouts):
             reasons.append("outside_walking")
-        elif abs(row["turning_angle"]) > TURN_LIMIT:
+        elif turn:
             reasons.append("turning")
         elif not keep:
             reasons.append("walk_start_or_end")

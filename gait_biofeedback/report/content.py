@@ -10,7 +10,7 @@ from collections import Counter
 
 from gait_biofeedback.core.biofeedback import normative
 from gait_biofeedback.core.biofeedback.evaluator import Targets
-from gait_biofeedback.core.gait.cycles import TURN_LIMIT
+from gait_biofeedback.core.gait.cycles import TURN_LIMIT, WHOLE_TURN_LIMIT
 from gait_biofeedback.core.segments import SIDES
 from gait_biofeedback.core.words import plural
 from gait_biofeedback.report import figures
@@ -102,8 +102,8 @@ def spatiotemporal(analysis: SessionAnalysis, norms: dict[str, NormBand]) -> Sec
                 else ""
             )
             + (
-                f"; {plural(analysis.left_out_turning, 'turning stride')} (heading change over "
-                f"{math.degrees(TURN_LIMIT):.0f}°) left out: steady straight walking"
+                f"; {plural(analysis.left_out_turning, 'turning stride')} (in a turn) left out: steady "
+                "straight walking"
                 if analysis.left_out_turning
                 else ""
             )
@@ -247,7 +247,8 @@ def strides_section(data: SessionData, analysis: SessionAnalysis) -> Section:
         )
     if analysis.left_out_turning:
         items.append(f"{plural(analysis.left_out_turning, 'turning stride')} left out (the foot's heading "
-                     f"changed by more than {math.degrees(TURN_LIMIT):.0f}°)")
+                     f"changed by more than {math.degrees(TURN_LIMIT):.0f}° in the stride, or a foot's by "
+                     f"more than {math.degrees(WHOLE_TURN_LIMIT):.0f}° over it and the strides around it)")
     if analysis.left_out_ends:
         items.append(f"{plural(analysis.left_out_ends, 'stride')} starting or ending a walk left out (each "
                      "foot's first stride after a standing and last before a stop)")
