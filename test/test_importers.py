@@ -364,3 +364,22 @@ def test_a_one_sensor_gaitmap_file_is_sent_to_the_csv_importer(tmp_path: Path) -
     with pytest.raises(ValueError, match=r"one header row of axes .*import csv .*--units gyr=deg/s --rate "
                        r"204\.8.*left_foot: \{acc: \[acc_x, acc_y, acc_z\]"):
         import_gaitmap(path)
+
+
+def test_a_file_of_another_built_in_kind_is_refused_naming_its_kind(tmp_path: Path) -> None:
+    """qmt's .mat given as gaitmap failed on its bytes ("'utf-8' codec can't decode"): refused naming the
+    kind its name says, and the command that imports it; a folder given for qmt without its .mat is
+    refused naming the file it looked for."""
+    qmt = tmp_path / "full_body_example_data.mat"
+    qmt.write_bytes(b"MATLAB 5.0 MAT-file\xec")
+    with pytest.raises(ValueError, match=r"is a qmt_fullbody recording by its name and contents, not "
+                                         r"gaitmap: import it with `gait-biofeedback import qmt_fullbody "):
+        import_recording("gaitmap", qmt)
+    broad = tmp_path / "07_undisturbed_fast_rotation_B.mat"
+    broad.write_bytes(b"MATLAB 5.0 MAT-file")
+    with pytest.raises(ValueError, match="is a broad recording by its name and contents, not qmt_fullbody"):
+        import_recording("qmt_fullbody", broad)
+    empty = tmp_path / "take"
+    empty.mkdir()
+    with pytest.raises(FileNotFoundError, match=r"a folder without full_body_example_data\.mat"):
+        import_recording("qmt_fullbody", empty)

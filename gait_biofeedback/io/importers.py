@@ -854,6 +854,29 @@ def detect_kind(path: str | Path, **options: Any) -> str:
                      "(gaitmap), S-T.json (ipol_gait))")
 
 
+QMT_FILE = "full_body_example_data.mat"
+
+
+def _file_of_kind(kind: str, path: Path) -> Path:
+    """The file the importer ``kind`` reads at ``path``: qmt's .mat inside a folder given for it; a
+    file whose name says it is of another built-in kind is refused naming that kind (a .mat read as a
+    CSV failed on its bytes: "'utf-8' codec can't decode byte 0xec")."""
+    if kind == "qmt_fullbody" and path.is_dir():
+        if not (path / QMT_FILE).is_file():
+            raise FileNotFoundError(f"{path}: a folder without {QMT_FILE}: give qmt's .mat file")
+        return path / QMT_FILE
+    if kind == "csv" or path.is_dir() or not path.exists():
+        return path
+    try:
+        looks = detect_kind(path)
+    except ValueError:  # no built-in kind of its own: the importer asked for judges it
+        return path
+    if looks not in (kind, "csv"):
+        raise ValueError(f"{path} is a {looks} recording by its name and contents, not {kind}: import it "
+                         f"with `gait-biofeedback import {looks} {path}` (or `import auto`)")
+    return path
+
+
 def import_recording(kind: str, path: str | Path, **options: Any) -> Recording:
     """Import ``path`` with the importer ``kind`` (a key of :data:`IMPORTERS`, or ``"auto"``).
 
@@ -867,6 +890,7 @@ def import_recording(kind: str, path: str | Path, **options: Any) -> Recording:
         kind = detect_kind(path, **options)
     if kind not in IMPORTERS:
         raise ValueError(f"unknown recording kind '{kind}'; known: {[*IMPORTERS, 'auto']}")
+    path = _file_of_kind(kind, Path(path))
     if kind == "csv" and "mapping" not in options:
         raise ValueError(f"{path}: a CSV of your own needs a column mapping (the command line: --mapping "
                          "map.yaml; Python: mapping=...) naming the time column and each segment's acc/gyr "
