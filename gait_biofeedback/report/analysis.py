@@ -48,9 +48,8 @@ from gait_biofeedback.core.gait.cycles import (
     TURN_LIMIT,
     TURN_WINDOW_S,
     WHOLE_TURN_LIMIT,
-    steady_strides,
+    left_out_reasons,
     symmetry_index,
-    turning_strides,
 )
 from gait_biofeedback.core.segments import SIDES
 from gait_biofeedback.report.extract import SessionData
@@ -157,22 +156,9 @@ def left_out(strides: list[dict], stride_objects: list[Stride],
     """Per stride (the report's rows and the evaluator's strides, in the same order): why it is left
     out of the summaries, a :data:`LEFT_OUT` key, or "" when it is used (module docstring, Strides
     used). ``bouts``: :func:`walking_bouts` (None: no activity monitor, every plausible stride walks)."""
-    steady = steady_strides([(s.side, s.start_ns, s.end_ns, s.plausible) for s in stride_objects])
-    turns = turning_strides([(s.side, s.start_ns / 1e9, s.end_ns / 1e9, row["turning_angle"])
-                             for s, row in zip(stride_objects, strides, strict=True)])
-    reasons = []
-    for row, keep, turn in zip(strides, steady, turns, strict=True):
-        if not row["plausible"]:
-            reasons.append("implausible")
-        elif bouts is not None and not _inside(row, bouts):
-            reasons.append("outside_walking")
-        elif turn:
-            reasons.append("turning")
-        elif not keep:
-            reasons.append("walk_start_or_end")
-        else:
-            reasons.append("")
-    return reasons
+    walking = None if bouts is None else [_inside(row, bouts) for row in strides]
+    return left_out_reasons([(s.side, s.start_ns, s.end_ns, row["plausible"], row["turning_angle"])
+                             for s, row in zip(stride_objects, strides, strict=True)], walking)
 
 
 def mean_sd_n(values: list[float]) -> tuple[float, float, int]:

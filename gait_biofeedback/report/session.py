@@ -21,7 +21,7 @@ import numpy as np
 
 from gait_biofeedback.core import quaternion as quat
 from gait_biofeedback.core.calibration.sensor_to_segment import NOT_IN_KIT
-from gait_biofeedback.core.gait.cycles import flag_kinds, steady_strides, turning_strides
+from gait_biofeedback.core.gait.cycles import flag_kinds, left_out_reasons
 from gait_biofeedback.core.gait.events import INITIAL_CONTACT, TERMINAL_CONTACT
 from gait_biofeedback.core.gait.matching import EventScore, match_events
 from gait_biofeedback.core.segments import SIDES
@@ -107,27 +107,22 @@ def _events(times: dict[tuple[bool, str, str], list[float]]) -> dict[str, EventS
 
 
 def _cycles(messages: list[Any]) -> dict[str, float]:
-    """The strides' counts and the medians over the plausible steady straight ones (as in the report: a
-    turn, :func:`~gait_biofeedback.core.gait.cycles.turning_strides`, and a walk's first and last stride
-    of each foot,
-    :func:`~gait_biofeedback.core.gait.cycles.steady_strides`, are left out), from the ``gait/cycles``
-    messages with their ``gait/stride_space`` revisions (:attr:`Recording.cycles`), in log order."""
+    """The strides' counts and the medians over the plausible steady straight ones (the report's rule,
+    :func:`~gait_biofeedback.core.gait.cycles.left_out_reasons`, without the walking bouts), from the
+    ``gait/cycles`` messages with their ``gait/stride_space`` revisions (:attr:`Recording.cycles`), in
+    log order."""
     rows, spatial = [], []
-    spans = [(m.side, stamp_to_ns(m.start), stamp_to_ns(m.header.stamp)) for m in messages]
-    steady = steady_strides([(*span, m.plausible) for span, m in zip(spans, messages, strict=True)])
-    turns = turning_strides([(side, a / NS_PER_S, b / NS_PER_S, m.turning_angle)
-                             for (side, a, b), m in zip(spans, messages, strict=True)])
-    plausible = sum(m.plausible for m in messages)
-    turning = sum(m.plausible and turn for m, turn in zip(messages, turns, strict=True))
-    for m, keep, turn in zip(messages, steady, turns, strict=True):
-        if not keep or not m.plausible or turn:
+    reasons = left_out_reasons([(m.side, stamp_to_ns(m.start), stamp_to_ns(m.header.stamp), m.plausible,
+                                 m.turning_angle) for m in messages])
+    for m, why in zip(messages, reasons, strict=True):
+        if why:
             continue
         rows.append((m.stride_time, m.stance_fraction, m.cadence, m.double_support_fraction))
         if not m.spatial_flag and m.stride_length > 0:
             spatial.append((m.stride_length, m.gait_speed))
     good = np.array(rows, dtype=float).reshape(-1, 4)
-    counts = {"strides": len(messages), "plausible": plausible, "turning": turning,
-              "ends": plausible - turning - len(good)}
+    counts = {"strides": len(messages), "plausible": sum(m.plausible for m in messages),
+              "turning": reasons.count("turning"), "ends": reasons.count("walk_start_or_end")}
     if not len(good):
         return counts
     space = np.array(spatial, dtype=float).reshape(-1, 2)

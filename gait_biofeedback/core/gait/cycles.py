@@ -86,6 +86,29 @@ def turning_strides(strides: Sequence[tuple[str, float, float, float]], window_s
     return out
 
 
+def left_out_reasons(strides: Sequence[tuple[str, int, int, bool, float]],
+                     walking: Sequence[bool] | None = None) -> list[str]:
+    """Why each stride ``(side, start_ns, end_ns, plausible, turning angle rad)`` is left out of the
+    summaries (EXT), "" when it is used: ``implausible``; ``outside_walking`` where ``walking`` (per
+    stride, None: not looked at) is False; ``turning`` (:func:`turning_strides`); ``walk_start_or_end``
+    (:func:`steady_strides`). The one rule of analyze's summary, the report and the tables."""
+    steady = steady_strides([s[:4] for s in strides])
+    turns = turning_strides([(side, a / NS_PER_S, b / NS_PER_S, angle) for side, a, b, _, angle in strides])
+    reasons = []
+    for k, ((*_, plausible, _), keep, turn) in enumerate(zip(strides, steady, turns, strict=True)):
+        if not plausible:
+            reasons.append("implausible")
+        elif walking is not None and not walking[k]:
+            reasons.append("outside_walking")
+        elif turn:
+            reasons.append("turning")
+        elif not keep:
+            reasons.append("walk_start_or_end")
+        else:
+            reasons.append("")
+    return reasons
+
+
 def steady_strides(strides: Sequence[tuple[str, int, int, bool]]) -> list[bool]:
     """Which strides ``(side, start_ns, end_ns, plausible)`` are steady walking, for the summaries (EXT):
     plausible, and neither the first nor the last of their foot's bout. A bout is a run of the foot's
