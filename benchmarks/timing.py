@@ -21,7 +21,6 @@ Exit 1 when a figure is past its former bound (a quiet machine should meet them 
 from __future__ import annotations
 
 import argparse
-import gc
 import os
 import tempfile
 import time
@@ -35,34 +34,9 @@ SIMULATE_BOUND_S = 5.0
 
 def pacing_errors_ms(context, bag: Path, speed: float) -> np.ndarray:
     """|arrival - recorded offset / speed| about the median, ms, of the samples after the first 50 ms."""
-    from rclpy.node import Node
-    from sensor_msgs.msg import Imu
+    from gait_biofeedback.nodes.imu_replayer import replay_arrivals
 
-    from gait_biofeedback.nodes.common import make_executor, spin_until
-    from gait_biofeedback.nodes.imu_replayer import ImuReplayer
-    from gait_biofeedback.wire.topics import SENSOR_QOS
-
-    arrivals: list[tuple[float, float]] = []
-    sink = Node("pacing_sink", context=context)
-    sink.create_subscription(
-        Imu, "left_foot/imu/data_raw",
-        lambda m: arrivals.append((m.header.stamp.sec + m.header.stamp.nanosec * 1e-9, time.perf_counter())),
-        SENSOR_QOS)
-    replayer = ImuReplayer(context, bag=str(bag), speed=speed, wait_for_subscribers_s=5.0)
-    executor = make_executor(context)
-    executor.add_node(sink)
-    executor.add_node(replayer)
-    gc.collect()
-    gc.freeze()  # a full collection would stall the replayer thread: not its pacing
-    try:
-        spin_until(executor, replayer.finished.is_set, timeout=20)
-        spin_until(executor, lambda: len(arrivals) >= 100, timeout=2)
-    finally:
-        gc.unfreeze()
-        replayer.destroy_node()
-        sink.destroy_node()
-        executor.shutdown()
-    stamps, wall = np.array(arrivals).T
+    stamps, wall = (np.array(v) for v in replay_arrivals(context, bag, speed))
     expected, arrived = (stamps - stamps[0]) / speed, wall - wall[0]
     settled = expected >= 0.05
     lag = arrived[settled] - expected[settled]

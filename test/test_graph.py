@@ -6,7 +6,6 @@ a hard time limit, so a hung executor fails the test instead of hanging CI.
 
 from __future__ import annotations
 
-import gc
 import os
 import signal
 import subprocess
@@ -49,36 +48,12 @@ def test_replayer_to_recorder_delivers_every_message(tmp_path):
 
 def _arrival_offsets(tmp_path, ros_context, speed: float) -> tuple[np.ndarray, np.ndarray]:
     """Replay one segment at ``speed``; (stamp offsets / speed, arrival offsets) in s."""
-    from rclpy.node import Node
-    from sensor_msgs.msg import Imu
-
-    from gait_biofeedback.nodes.common import make_executor, spin_until
-    from gait_biofeedback.nodes.imu_replayer import ImuReplayer
-    from gait_biofeedback.wire.topics import SENSOR_QOS
+    from gait_biofeedback.nodes.imu_replayer import replay_arrivals
 
     bag = write_imu_bag(tmp_path / "in", synthetic_imu(["left_foot"], duration=1.0, with_mag=False))
-    arrivals: list[tuple[float, float]] = []
-    sink = Node("sink", context=ros_context)
-    sink.create_subscription(Imu, "left_foot/imu/data_raw",
-                             lambda m: arrivals.append((stamp_s(m.header.stamp), time.perf_counter())),
-                             SENSOR_QOS)
-    executor = make_executor(ros_context)
-    executor.add_node(sink)
-    replayer = ImuReplayer(ros_context, bag=str(bag), speed=speed, wait_for_subscribers_s=5.0)
-    executor.add_node(replayer)
-    # the objects the earlier tests left are frozen: a full collection of them (tens of ms late in
-    # the suite) would stall the replayer thread, which is not what this measures
-    gc.collect()
-    gc.freeze()
-    try:
-        assert spin_until(executor, replayer.finished.is_set, timeout=20)
-        spin_until(executor, lambda: len(arrivals) >= 100, timeout=2)
-    finally:
-        gc.unfreeze()
-        replayer.destroy_node()
-        sink.destroy_node()
-        executor.shutdown()
-    stamps, wall = np.array(arrivals).T
+    # the objects the earlier tests left are frozen by replay_arrivals: a full collection of them (tens
+    # of ms late in the suite) would stall the replayer thread, which is not what this measures
+    stamps, wall = (np.array(v) for v in replay_arrivals(ros_context, bag, speed))
     assert len(stamps) == 100, "every sample arrives"
     assert np.all(np.diff(stamps) > 0), "in order"
     return (stamps - stamps[0]) / speed, wall - wall[0]

@@ -151,6 +151,47 @@ class ImuReplayer(GuardedNode):
         super().destroy_node()
 
 
+def replay_arrivals(context: Context, bag: str | Path, speed: float, segment: str = "left_foot"
+                    ) -> tuple[list[float], list[float]]:
+    """The replayer's pacing as a subscriber in this process sees it: ``segment``'s raw IMU samples of
+    ``bag`` replayed at ``speed``, (their header stamps, their arrival times on ``time.perf_counter``)
+    in s, in arrival order (test/test_graph.py and benchmarks/timing.py). Full garbage collections are
+    held off while it runs: one would stall the replayer's thread, which is not its pacing."""
+    import gc
+
+    from rclpy.node import Node
+    from sensor_msgs.msg import Imu
+
+    from gait_biofeedback.nodes.common import make_executor, spin_until
+
+    stamps: list[float] = []
+    arrivals: list[float] = []
+
+    def arrived(msg: Imu) -> None:
+        stamps.append(msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9)
+        arrivals.append(time.perf_counter())
+
+    topic = topics.raw_imu(segment)
+    sink = Node("pacing_sink", context=context)
+    sink.create_subscription(topic.msg_type, topic.name, arrived, topic.qos)
+    replayer = ImuReplayer(context, bag=str(bag), speed=speed, wait_for_subscribers_s=5.0)
+    executor = make_executor(context)
+    executor.add_node(sink)
+    executor.add_node(replayer)
+    gc.collect()
+    gc.freeze()
+    try:
+        spin_until(executor, replayer.finished.is_set, timeout=20)
+        sent = replayer.published_by_topic.get(topic.absolute(), 0)
+        spin_until(executor, lambda: len(stamps) >= sent, timeout=2)
+    finally:
+        gc.unfreeze()
+        replayer.destroy_node()
+        sink.destroy_node()
+        executor.shutdown()
+    return stamps, arrivals
+
+
 def main(args: list[str] | None = None) -> int:
     """Console script: replay until the recording ends (or forever with loop:=true)."""
     import rclpy
