@@ -33,15 +33,8 @@ from collections import deque
 import numpy as np
 from scipy import signal
 
-from gait_biofeedback.core.activity.signal import STANDARD_GRAVITY, Biquad, group_delay_s, step_lowpass_ba
-from gait_biofeedback.core.activity.steps import (
-    MAX_STEP_S,
-    MIN_STEP_S,
-    STEP_LOWPASS_HZ,
-    STEP_PEAK_RELEASE,
-    STEP_PEAK_THRESHOLD,
-    SvmPeaks,
-)
+from gait_biofeedback.core.activity.signal import STANDARD_GRAVITY, Biquad
+from gait_biofeedback.core.activity.steps import MAX_STEP_S, MIN_STEP_S, StepSvm
 
 QUIET_RELATIVE_STD = 0.02  # per-axis std / |mean| of a still worn sensor (hapt_waist standing: 0.3-1 %)
 WALK_REFERENCE_STEPS = 10  # successive steps before a bout's mean is taken as "up" (~5 s of walking)
@@ -155,10 +148,7 @@ class UprightFinder:
         self.angle = math.nan
         self.done = False
         self.walk_steps: list[float] = []
-        b, a = step_lowpass_ba(rate_hz, STEP_LOWPASS_HZ)
-        self._svm = Biquad(b, a)
-        self._step_delay = group_delay_s(b, a, 1.8, rate_hz)
-        self._peaks = SvmPeaks(STEP_PEAK_THRESHOLD, STEP_PEAK_RELEASE)
+        self._steps = StepSvm(rate_hz)
         self._alpha = 1.0 / (GRAVITY_TAU_S * rate_hz)
         self._g = math.nan
         self._run: list[float] = []
@@ -173,7 +163,7 @@ class UprightFinder:
             return None  # a driver's all-zero start-up sample: no direction, no magnitude
         if math.isnan(self._g):
             self._g = norm
-            self._svm.reset_steady(0.0)
+            self._steps.filter.reset_steady(0.0)
         self._g += self._alpha * (norm - self._g)
         walking = self._walk(t, ax, ay, az, norm)
         if self.reference is None:
@@ -215,7 +205,7 @@ class UprightFinder:
 
     def _walk(self, t: float, ax: float, ay: float, az: float, norm: float) -> np.ndarray | None:
         """The mean acceleration of a walking bout that has just reached WALK_REFERENCE_STEPS."""
-        svm = self._svm.step(STANDARD_GRAVITY * (norm / self._g - 1.0))
+        svm = self._steps.svm(STANDARD_GRAVITY * (norm / self._g - 1.0))
         run, rs = self._run, self._run_sum
         if run:
             rs[0] += ax
@@ -223,12 +213,12 @@ class UprightFinder:
             rs[2] += az
             rs[3] += norm
             rs[4] += 1.0
-        peak = self._peaks.update(t, svm)
+        peak = self._steps.peak(t, svm)
         if peak is None:
-            if run and t - run[-1] > MAX_STEP_S + self._step_delay:
+            if run and t - run[-1] > MAX_STEP_S + self._steps.delay:
                 run.clear()
             return None
-        t_peak = peak[0] - self._step_delay
+        t_peak = peak[0]
         if run and t_peak - run[-1] < MIN_STEP_S:
             return None
         if not run or t_peak - run[-1] > MAX_STEP_S:

@@ -6,11 +6,14 @@ the magnitude needs none).
 
 from __future__ import annotations
 
+from gait_biofeedback.core.activity.signal import Biquad, group_delay_s, step_lowpass_ba
+
 STEP_LOWPASS_HZ = 3.0  # step SVM from raw |a| (READING gait.md §6 item 26), cadence < 180/min kept
 STEP_PEAK_THRESHOLD = 1.0  # m/s² (≈ 0.1 g): "low" SVM peak threshold; slow walking peaks ≈ 2 m/s²
 STEP_PEAK_RELEASE = 0.0  # m/s²: an SVM peak ends when the signal falls back below 0
 MIN_STEP_S = 0.25  # successive peaks closer than this are one step (≤ 240 steps/min)
 MAX_STEP_S = 1.3  # "pre-defined step duration": slow (stroke) gait has steps ≤ ~1.2 s
+STEP_FREQUENCY_HZ = 1.8  # a typical step frequency, at which the low-pass's group delay is taken
 
 
 class SvmPeaks:
@@ -44,3 +47,23 @@ class SvmPeaks:
             return None
         self._in = False
         return self._t, self._tag
+
+
+class StepSvm:
+    """The step SVM and its peaks, one definition for the walking detector and the upright finder:
+    ``svm(excess)`` low-passes a sample's acceleration magnitude beyond gravity (m/s²) at
+    :data:`STEP_LOWPASS_HZ`; ``peak(t, svm, tag)`` is :meth:`SvmPeaks.update` with the peak's time
+    taken back by the low-pass's group delay (``delay``, ≈ 0.08 s at :data:`STEP_FREQUENCY_HZ`)."""
+
+    def __init__(self, rate_hz: float) -> None:
+        b, a = step_lowpass_ba(rate_hz, STEP_LOWPASS_HZ)
+        self.filter = Biquad(b, a)
+        self.delay = group_delay_s(b, a, STEP_FREQUENCY_HZ, rate_hz)
+        self.peaks = SvmPeaks(STEP_PEAK_THRESHOLD, STEP_PEAK_RELEASE)
+
+    def svm(self, excess: float) -> float:
+        return self.filter.step(excess)
+
+    def peak(self, t: float, svm: float, tag: float = 0.0) -> tuple[float, float] | None:
+        found = self.peaks.update(t, svm, tag)
+        return None if found is None else (found[0] - self.delay, found[1])

@@ -11,15 +11,8 @@ import math
 
 from gait_biofeedback.core.activity.output import DelayLine
 from gait_biofeedback.core.activity.posture import SIT_WALK_MIN_STEPS, Posture
-from gait_biofeedback.core.activity.signal import STANDARD_GRAVITY, Biquad, group_delay_s, step_lowpass_ba
-from gait_biofeedback.core.activity.steps import (
-    MAX_STEP_S,
-    MIN_STEP_S,
-    STEP_LOWPASS_HZ,
-    STEP_PEAK_RELEASE,
-    STEP_PEAK_THRESHOLD,
-    SvmPeaks,
-)
+from gait_biofeedback.core.activity.signal import STANDARD_GRAVITY
+from gait_biofeedback.core.activity.steps import MAX_STEP_S, MIN_STEP_S, StepSvm
 
 MIN_SUCCESSIVE_PEAKS = 3  # [T §7.2.6]
 UPRIGHT_WALKING_RAD = math.radians(30.0)  # "small threshold" rejecting peaks of a non-upright trunk (chosen)
@@ -31,10 +24,7 @@ class Walking:
     typical 1.8 Hz step frequency)."""
 
     def __init__(self, rate_hz: float, posture: Posture, line: DelayLine) -> None:
-        step_b, step_a = step_lowpass_ba(rate_hz, STEP_LOWPASS_HZ)
-        self._filter = Biquad(step_b, step_a)
-        self._delay = group_delay_s(step_b, step_a, 1.8, rate_hz)
-        self._peaks = SvmPeaks(STEP_PEAK_THRESHOLD, STEP_PEAK_RELEASE)
+        self._steps = StepSvm(rate_hz)
         self._posture = posture
         self._line = line
         self.last_peak_t = -math.inf
@@ -44,7 +34,7 @@ class Walking:
 
     def svm(self, magnitude: float) -> float:
         """Each sample: the step SVM, |a| − g low-passed."""
-        return self._filter.step(magnitude - STANDARD_GRAVITY)
+        return self._steps.svm(magnitude - STANDARD_GRAVITY)
 
     def end(self) -> None:
         """The bout is over (a step duration without a peak, or sensor handling)."""
@@ -58,7 +48,7 @@ class Walking:
         if self.walking:
             self.end()
         self.run = []
-        self._peaks.reset()
+        self._steps.peaks.reset()
 
     def adopt(self, steps: list[float]) -> None:
         """The upright finder's walking bout becomes the walk in progress (steps counted)."""
@@ -74,10 +64,10 @@ class Walking:
         """SVM peaks → steps and walking bouts [T §7.2.6, Table 16(b) "low threshold + rejection"]."""
         if self.walking and t - self.last_peak_t > MAX_STEP_S:
             self.end()
-        peak = self._peaks.update(t, svm, theta)
+        peak = self._steps.peak(t, svm, theta)
         if peak is None:
             return
-        t_peak = peak[0] - self._delay
+        t_peak = peak[0]
         if t_peak - self.last_peak_t < MIN_STEP_S:
             return
         if peak[1] > UPRIGHT_WALKING_RAD:
