@@ -311,8 +311,9 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
 def cmd_analyze(args: argparse.Namespace) -> int:
     from gait_biofeedback.analyze import analyze_recording
+    from gait_biofeedback.report.recording import read_recording_file
     from gait_biofeedback.report.session import format_report, summarise
-    from gait_biofeedback.report.tables import read_whole, write_tables
+    from gait_biofeedback.report.tables import write_tables
 
     params = _session_parameters(args.params)
     requests = _calibration_options(args, params)
@@ -328,7 +329,7 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     outputs = ", ".join(f"{t} {n}" for t, n in sorted(result.counts.items()) if "/imu/" not in t)
     oriented = any("/imu/" in t for t in result.counts)
     print(f"wrote {result.output}: {outputs or ('orientations only' if oriented else 'no output')}")
-    recording = read_whole(result.output)  # once, for the tables and the summary
+    recording = read_recording_file(result.output)  # once, for the tables and the summary
     if not args.no_tables:
         files = write_tables(result.output, recording=recording)
         print(f"wrote {files.folder}: {files.summary()} (Parquet; README: Tables for analysis)")

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import contextlib
 import math
-import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -14,8 +13,7 @@ from typing import Any
 import numpy as np
 
 from gait_biofeedback.core.biofeedback.evaluator import Stride
-from gait_biofeedback.io.bag import BagReader, BagRecoveryWarning
-from gait_biofeedback.report.recording import CALIBRATION, EVENTS, Recording, read_recording
+from gait_biofeedback.report.recording import CALIBRATION, EVENTS, Recording, read_recording_file
 from gait_biofeedback.report.session import SessionReport, summarise
 from gait_biofeedback.wire import topics
 from gait_biofeedback.wire.gait import stride_of
@@ -122,21 +120,17 @@ def read_session(path: str | Path) -> SessionData:
     holds no graph outputs. A damaged file is read as far as it can be, and what was lost is in
     :attr:`SessionData.damage`."""
     path = Path(path)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", BagRecoveryWarning)  # kept in reader.warnings, and in the report
-        with BagReader(path) as reader:
-            counts = reader.message_counts()
-            outputs = [t.absolute() for t in (topics.GAIT_CYCLES, topics.JOINT_STATES, topics.ACTIVITY)]
-            if not any(t in counts for t in outputs):
-                raise _not_a_session(path, counts, reader)
-            recording = read_recording(reader)
+    recording = read_recording_file(path)
+    outputs = [t.absolute() for t in (topics.GAIT_CYCLES, topics.JOINT_STATES, topics.ACTIVITY)]
+    if not any(t in recording.counts for t in outputs):
+        raise _not_a_session(path, recording.counts, recording.damage)
     return session_data(recording)
 
 
-def _not_a_session(path: Path, counts: dict[str, int], reader: BagReader) -> NotASessionError:
+def _not_a_session(path: Path, counts: dict[str, int], damage: list[str]) -> NotASessionError:
     why = f"{path} holds no gait/cycles, joint_states or activity/state: "
     if not counts:
-        damage = "; ".join(reader.warnings) or "the file holds none"
+        damage = "; ".join(damage) or "the file holds none"
         return NotASessionError(why + f"no message could be read ({damage}); check it with `gait-biofeedback "
                                 f"info {path}` and `repair` it, or report the recording it was made from")
     if not any(t.endswith("/imu/data") or t == "/diagnostics" for t in counts):

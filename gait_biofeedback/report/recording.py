@@ -10,6 +10,7 @@ for a simulated session, its ``/ground_truth/...`` topics, read once in log orde
 from __future__ import annotations
 
 import math
+import warnings
 from array import array
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -18,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from gait_biofeedback.io.bag import BagReader
+from gait_biofeedback.io.bag import BagReader, BagRecoveryWarning
 from gait_biofeedback.wire import topics
 from gait_biofeedback.wire.activity import add_transition
 from gait_biofeedback.wire.gait import event_of, revised_cycles
@@ -172,3 +173,13 @@ def read_recording(reader: BagReader, summary_only: bool = False) -> Recording:
     rec.cycles = revised_cycles(cycles)
     rec.damage = list(dict.fromkeys(reader.warnings))
     return rec
+
+
+def read_recording_file(path: str | Path) -> Recording:
+    """:func:`read_recording` of the recording at ``path`` (every topic the report and the tables use);
+    a damaged file is read as far as it can be, what was lost in :attr:`Recording.damage` (its
+    BagRecoveryWarnings are not raised)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", BagRecoveryWarning)
+        with BagReader(path) as reader:
+            return read_recording(reader)

@@ -70,7 +70,6 @@ per second.
 from __future__ import annotations
 
 import math
-import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -80,11 +79,10 @@ import numpy as np
 
 from gait_biofeedback.core.joints.angles import JOINT_NAMES
 from gait_biofeedback.core.segments import SIDES
-from gait_biofeedback.io.bag import BagReader, BagRecoveryWarning
 from gait_biofeedback.io.bag_writer import TABLES_FOLDER
 from gait_biofeedback.report.analysis import discrete_values, left_out, locomotion_bouts
 from gait_biofeedback.report.extract import stride_row
-from gait_biofeedback.report.recording import JointRows, Recording, read_recording
+from gait_biofeedback.report.recording import JointRows, Recording, read_recording_file
 from gait_biofeedback.wire.activity import state_of
 from gait_biofeedback.wire.gait import event_of
 
@@ -295,7 +293,7 @@ def write_tables(bag: str | Path, folder: str | Path | None = None,
         folder = (bag if bag.is_dir() else bag.parent) / TABLES_FOLDER
     folder = Path(folder)
     if recording is None:
-        recording = read_whole(bag)
+        recording = read_recording_file(bag)
     folder.mkdir(parents=True, exist_ok=True)
     out = TableFiles(folder, damage=recording.damage)
     metadata = {START_KEY: str(recording.start_ns).encode()}
@@ -309,15 +307,6 @@ def write_tables(bag: str | Path, folder: str | Path | None = None,
             staging.unlink(missing_ok=True)
         out.rows[name] = table.num_rows
     return out
-
-
-def read_whole(bag: str | Path) -> Recording:
-    """Every topic the report and the tables use, one read; a damaged file is read as far as it can be
-    (what was lost: :attr:`Recording.damage`)."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", BagRecoveryWarning)  # kept in reader.warnings
-        with BagReader(bag) as reader:
-            return read_recording(reader)
 
 
 def _joint_columns(rows: JointRows) -> tuple[np.ndarray, dict[str, np.ndarray], np.ndarray]:
