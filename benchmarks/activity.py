@@ -2,7 +2,7 @@
 
 Run: ``.venv/bin/python benchmarks/activity.py`` (about 1 min; ``--rates``: only the HAPT table, with
 the phone resampled to 20, 50, 100 and 200 Hz; ``--cli``: only the UCI table with nothing handed and
-the HAPT table, each recording through ``import csv`` → ``analyze``, about 5 min). Prints tables for
+the HAPT table, each recording through ``import`` → ``analyze``, about 5 min). Prints tables for
 - UCI "Activity Recognition from a Single Chest-Mounted Accelerometer" (Casale, Pujol, Radeva 2011;
   CC BY 4.0): per-window posture / locomotion accuracy, confusion matrix, sit→stand detection, split
   into development subjects 1–7 (all thresholds chosen there) and 8–15, held out until the rules of
@@ -231,30 +231,27 @@ HAPT_GOALS = {"lying vs upright": 0.97, "walking vs static": 0.97, "sitting vs s
               "transitions found": 0.90}  # issue 15
 
 
-HAPT_MAPPING = ("units: {acc: g, gyr: rad/s}\n"
-                "pelvis: {acc: [acc-x, acc-y, acc-z], gyr: [gyro-x, gyro-y, gyro-z]}\n")
-HAPT_PARAMS = "activity_monitor:\n  ros__parameters:\n    segment: pelvis\n    placement: pelvis\n"
 UCI_MAPPING = "units: {acc: g}\nchest: {acc: [acc-x, acc-y, acc-z]}\n"
 
 
-def _through_cli(path: str, mapping: str, params: str | None, rate_hz: float, n: int, work: Path) -> dict:
-    """One recording the user's way: ``import csv`` (a mapping, ``--rate``) → ``analyze`` (``--params``
-    if given) → ``/activity/state`` as per-sample arrays (each state in force from the sample it
-    describes), the transitions it reports and its steps (when its count rose: the state's stamp)."""
+def _through_cli(path: str, mapping: str | None, rate_hz: float, n: int, work: Path) -> dict:
+    """One recording the user's way: ``import csv`` (a mapping, ``--rate``; None: the built-in ``hapt``
+    importer) → ``analyze`` with the kit's defaults (no params file) → ``/activity/state`` as
+    per-sample arrays (each state in force from the sample it describes), the transitions it reports
+    and its steps (when its count rose: the state's stamp)."""
     import subprocess
 
     from gait_biofeedback.io.bag_reader import BagReader
     from gait_biofeedback.wire.activity import TRANSITION_NAMES, add_transition, state_of
 
-    (work / "map.yaml").write_text(mapping)
     cli = [str(REPO / ".venv" / "bin" / "python"), "-m", "gait_biofeedback.cli"]
-    subprocess.run([*cli, "import", "csv", path, "--mapping", str(work / "map.yaml"), "--rate",
-                    str(rate_hz), "-o", str(work / "in")], check=True, capture_output=True)
-    options = []
-    if params is not None:
-        (work / "params.yaml").write_text(params)
-        options = ["--params", str(work / "params.yaml")]
-    subprocess.run([*cli, "analyze", str(work / "in"), "-o", str(work / "out"), *options, "--overwrite"],
+    if mapping is None:
+        how = ["hapt", path]
+    else:
+        (work / "map.yaml").write_text(mapping)
+        how = ["csv", path, "--mapping", str(work / "map.yaml"), "--rate", str(rate_hz)]
+    subprocess.run([*cli, "import", *how, "-o", str(work / "in")], check=True, capture_output=True)
+    subprocess.run([*cli, "analyze", str(work / "in"), "-o", str(work / "out"), "--overwrite"],
                    check=True, capture_output=True)
     messages = [m for _, m, _ in BagReader(work / "out").messages(["/activity/state"])]
     subprocess.run(["rm", "-rf", str(work / "in"), str(work / "out")], check=True)
@@ -278,7 +275,7 @@ def _uci_cli(acc_counts: np.ndarray, work: Path) -> dict:
     the counts written in g about mid-scale (400 counts/g; the monitor rescales to its static norm)."""
     path = work / "chest.csv"
     np.savetxt(path, acc_counts / 400.0, delimiter=",", header="acc-x,acc-y,acc-z", comments="", fmt="%.5f")
-    out = _through_cli(str(path), UCI_MAPPING, None, UCI_RATE, len(acc_counts), work)
+    out = _through_cli(str(path), UCI_MAPPING, UCI_RATE, len(acc_counts), work)
     path.unlink()
     return out
 
@@ -315,7 +312,7 @@ def hapt(rate_hz: float = HAPT_RATE, no_gyro: bool = False, cli: bool = False) -
             t, imu = resample(t0, imu, HAPT_RATE, rate_hz)
             label = label[np.minimum(np.round(t * HAPT_RATE).astype(int), len(label) - 1)]
         if cli:
-            out = _through_cli(path, HAPT_MAPPING, HAPT_PARAMS, HAPT_RATE, len(label), work)
+            out = _through_cli(path, None, HAPT_RATE, len(label), work)
         else:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", UnitMismatchWarning)

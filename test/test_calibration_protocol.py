@@ -214,3 +214,25 @@ def test_a_request_at_the_first_sample_says_there_is_no_data_before_it():
             buffer.add(seg, 10_000_000 * k, (0.0, 0.0, 9.81), (0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0))
     attempt = buffer.calibrate("walking", until_ns=0)
     assert not attempt.success and attempt.message.startswith("no sensor data before the calibration instant")
+
+
+def test_segments_that_never_sent_data_are_not_in_this_kit_and_a_silent_one_is_named():
+    """A feet + pelvis kit calibrated by a node that handles the thighs too: the left thigh never sent a
+    sample, so it is "not in this kit" (information, no fault); the right thigh sent one sample at the
+    start and none since, so it is named as giving no data in the calibration window."""
+    from gait_biofeedback.core.calibration.stream import CalibrationBuffer, CalibrationParams
+
+    worn = ("pelvis", "left_foot", "right_foot")
+    session = simulate(SCENARIOS["calibration_walking"](seed=4, segments=worn))
+    buffer = CalibrationBuffer(CalibrationParams(segments=(*worn, "left_thigh", "right_thigh")))
+    buffer.add("right_thigh", 0, (0.0, 0.0, 9.81), (0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0))
+    for seg in worn:
+        series = session.imu[seg]
+        q = track_orientation(series)[1]
+        for k in range(len(series.t)):
+            buffer.add(seg, round(series.t[k] * 1e9), series.acc[k], series.gyr[k], q[k], heading=False)
+    attempt = buffer.calibrate("walking")
+    assert attempt.success, attempt.message
+    assert "; left_thigh: not in this kit" in attempt.message
+    assert "; no data from right_thigh in the calibration window (not calibrated)" in attempt.message
+    assert "no data from left_thigh" not in attempt.message

@@ -383,3 +383,111 @@ def test_a_file_of_another_built_in_kind_is_refused_naming_its_kind(tmp_path: Pa
     empty.mkdir()
     with pytest.raises(FileNotFoundError, match=r"a folder without full_body_example_data\.mat"):
         import_recording("qmt_fullbody", empty)
+
+
+# ---------------------------------------------------------------- pyshoe and UCI HAPT
+
+
+def test_pyshoe_trial_right_foot_and_vicon_reference(tmp_path: Path) -> None:
+    """A pyshoe Vicon trial (MAT v5: ts, imu = acc then gyro, gt, zv_*_opt) is found by its variables
+    and read as the right foot from t = 0, the Vicon positions and the detectors' labels as reference;
+    a .mat lacking ``gt`` is refused naming it."""
+    from scipy.io import savemat
+
+    n = 5
+    imu = np.column_stack([np.full(n, 0.1), np.zeros(n), np.full(n, -9.8), np.arange(n) * 0.01,
+                           np.zeros(n), np.full(n, 0.5)])
+    trial = {"ts": 3.0 + np.arange(n) / 200.0, "imu": imu, "gt": np.arange(3 * n, dtype=float).reshape(n, 3),
+             "zv_shoe_opt": np.array([1, 1, 0, 0, 1]), "zv_vicon_opt": np.array([1, 0, 0, 0, 1]),
+             "best_error": 0.032}
+    path = tmp_path / "2017-11-22-11-22-03.mat"
+    savemat(path, trial)
+    assert detect_kind(path) == "pyshoe"
+    recording = import_recording("auto", path)
+    foot = recording.imu["right_foot"]
+    np.testing.assert_allclose(foot.t, [0.0, 0.005, 0.010, 0.015, 0.020], atol=1e-12)
+    np.testing.assert_array_equal(foot.acc[:, 2], -9.8)
+    np.testing.assert_array_equal(foot.gyr[:, 0], [0.0, 0.01, 0.02, 0.03, 0.04])
+    assert foot.mag is None
+    np.testing.assert_array_equal(recording.reference["position"][1], [3.0, 4.0, 5.0])
+    np.testing.assert_array_equal(recording.reference["zero_velocity"]["vicon"],
+                                  [True, False, False, False, True])
+    assert recording.reference["best_error"] == pytest.approx(0.032)
+    del trial["gt"]
+    savemat(path, trial)
+    with pytest.raises(ValueError, match=r"not a pyshoe Vicon trial: variables \['gt'\] missing"):
+        import_recording("pyshoe", path)
+
+
+def _hapt_raw(folder: Path, acc_rows: list[str], gyro_rows: list[str], labels: str) -> Path:
+    folder.mkdir(exist_ok=True)
+    (folder / "acc_exp03_user02.txt").write_text("\n".join(acc_rows) + "\n")
+    (folder / "gyro_exp03_user02.txt").write_text("\n".join(gyro_rows) + "\n")
+    (folder / "labels.txt").write_text(labels)
+    return folder / "acc_exp03_user02.txt"
+
+
+def test_hapt_raw_files_in_g_with_1_based_inclusive_labels(tmp_path: Path) -> None:
+    """HAPT's RawData layout: acc (g) and gyro (rad/s) files of one experiment, labels.txt rows
+    ``experiment user activity start end`` (1-based, inclusive: module docstring's READING), other
+    experiments' rows ignored; the phone is the pelvis, at 50 Hz."""
+    acc = ["1.0 0.0 0.0", "0.5 0.5 0.0", "0.0 0.0 -1.0", "1.0 0.1 0.2"]
+    gyro = ["0.1 0.2 0.3"] * 4
+    path = _hapt_raw(tmp_path / "RawData", acc, gyro, "3 2 5 2 3\n3 2 1 4 4\n4 2 6 1 4\n")
+    assert detect_kind(path) == "hapt"
+    recording = import_recording("auto", path)
+    waist = recording.imu["pelvis"]
+    np.testing.assert_allclose(waist.t, [0.0, 0.02, 0.04, 0.06])
+    np.testing.assert_allclose(waist.acc[2], [0.0, 0.0, -9.80665])
+    np.testing.assert_allclose(waist.gyr[3], [0.1, 0.2, 0.3])
+    np.testing.assert_array_equal(recording.reference["labels"], [-1, 5, 5, 1])
+    assert recording.reference["activities"] == [("standing", 0.02, 0.06), ("walking", 0.06, 0.08)]
+    assert import_recording("hapt", path.with_name("gyro_exp03_user02.txt")).imu["pelvis"].acc[0, 0] == \
+        pytest.approx(9.80665)
+
+
+def test_hapt_raw_files_that_disagree_are_refused(tmp_path: Path) -> None:
+    """A gyro file shorter than its acc file, a label beyond the experiment's samples and a missing gyro
+    file are each refused naming the file."""
+    path = _hapt_raw(tmp_path / "a", ["1 0 0"] * 3, ["0 0 0"] * 2, "")
+    with pytest.raises(ValueError, match=r"acc_exp03_user02\.txt has 3 samples but gyro_exp03_user02\.txt 2"):
+        import_recording("hapt", path)
+    path = _hapt_raw(tmp_path / "b", ["1 0 0"] * 3, ["0 0 0"] * 3, "3 2 4 2 9\n")
+    with pytest.raises(ValueError, match=r"label 4 spans samples 2-9, outside the 3 samples"):
+        import_recording("hapt", path)
+    path.with_name("gyro_exp03_user02.txt").unlink()
+    with pytest.raises(FileNotFoundError, match=r"gyro_exp03_user02\.txt not found"):
+        import_recording("hapt", path)
+
+
+def test_hapt_csv_per_experiment_with_labels_per_sample(tmp_path: Path) -> None:
+    """The one-CSV-per-experiment layout (``userUU_runK.csv.gz``): acc in g, the label column per sample;
+    a header without ``gyro-z`` is refused naming it."""
+    import gzip
+
+    path = tmp_path / "user20_run1.csv.gz"
+    with gzip.open(path, "wt") as f:
+        f.write("acc-x,acc-y,acc-z,gyro-x,gyro-y,gyro-z,sequence,label\n"
+                "1,0,0,0,0,0,0,-1\n0.9,0,0.1,0.2,0,0,1,4\n1,0,0,0,0,0,2,4\n")
+    recording = import_recording("auto", path)
+    np.testing.assert_allclose(recording.imu["pelvis"].acc[1], [0.9 * 9.80665, 0.0, 0.1 * 9.80665])
+    np.testing.assert_array_equal(recording.reference["labels"], [-1, 4, 4])
+    assert recording.reference["activities"] == [("sitting", 0.02, 0.06)]
+    with gzip.open(path, "wt") as f:
+        f.write("acc-x,acc-y,acc-z,gyro-x,gyro-y,sequence,label\n1,0,0,0,0,0,-1\n")
+    with pytest.raises(ValueError, match=r"columns \['gyro-z'\] missing"):
+        import_recording("hapt", path)
+
+
+def test_hapt_and_pyshoe_shared_data_import() -> None:
+    """The real files of ../shared/data: HAPT user 20 run 1 at 50 Hz with 1 g at rest and its first
+    labelled activity standing; a pyshoe walking trial at 200 Hz with |acc| 1 g in its first 0.25 s."""
+    hapt = import_recording("auto", shared_data("hapt_waist", "user20_run1.csv.gz"))
+    waist = hapt.imu["pelvis"]
+    assert np.median(np.diff(waist.t)) == pytest.approx(0.02)
+    assert np.median(np.linalg.norm(waist.acc, axis=1)) == pytest.approx(9.81, abs=0.3)
+    assert hapt.reference["activities"][0][0] == "standing"
+    shoe = import_recording("auto", shared_data("pyshoe_vicon", "2017-11-22-11-22-03.mat"))
+    foot = shoe.imu["right_foot"]
+    assert 1 / np.median(np.diff(foot.t)) == pytest.approx(200.0, rel=0.01)
+    assert np.linalg.norm(foot.acc[:50], axis=1).mean() == pytest.approx(9.81, abs=0.3)

@@ -36,7 +36,9 @@ import numpy as np
 
 from gait_biofeedback.core.safe_yaml import describe, load_yaml_file, shown
 from gait_biofeedback.core.segments import GRAVITY, SEGMENTS, STANDARD_GRAVITY, ImuSeries
+from gait_biofeedback.io.hapt import import_hapt, is_hapt_name
 from gait_biofeedback.io.ipol import TRIAL_NAME, import_ipol_gait
+from gait_biofeedback.io.pyshoe import import_pyshoe, is_pyshoe
 from gait_biofeedback.io.recording import Recording
 
 DEG_TO_RAD = math.pi / 180.0
@@ -808,6 +810,8 @@ IMPORTERS: dict[str, Callable[..., Recording]] = {
     "gaitmap": import_gaitmap,
     "broad": import_broad,
     "ipol_gait": import_ipol_gait,
+    "pyshoe": import_pyshoe,
+    "hapt": import_hapt,
     "csv": import_generic_csv,
 }
 
@@ -819,7 +823,8 @@ def detect_kind(path: str | Path, **options: Any) -> str:
 
     ``full_body*.mat`` -> ``qmt_fullbody``; ``NN_*.mat`` or a .mat with ``imu_gyr``/``opt_quat`` ->
     ``broad``; ``imu_sample*.csv`` or a ``gaitmap_example`` folder -> ``gaitmap``; ``S-T.json`` or
-    ``S-T_lf.txt.gz`` -> ``ipol_gait``; any other ``.csv`` ->
+    ``S-T_lf.txt.gz`` -> ``ipol_gait``; a .mat with ``ts``/``imu``/``gt``/``zv_*`` -> ``pyshoe``;
+    ``acc_expXX_userYY.txt``/``gyro_...`` or ``userUU_runK.csv.gz`` -> ``hapt``; any other ``.csv`` ->
     ``csv`` when a ``mapping`` option is given. Raises ValueError otherwise.
     """
     path = Path(path)
@@ -828,6 +833,8 @@ def detect_kind(path: str | Path, **options: Any) -> str:
         return "gaitmap"
     if TRIAL_NAME.match(path.name):
         return "ipol_gait"
+    if is_hapt_name(path.name):
+        return "hapt"
     if name.endswith(".mat"):
         if name.startswith("full_body"):
             return "qmt_fullbody"
@@ -841,6 +848,8 @@ def detect_kind(path: str | Path, **options: Any) -> str:
                 return "broad"
             if {"t", "hip", "foot_left"} <= variables:
                 return "qmt_fullbody"
+            if is_pyshoe(variables):
+                return "pyshoe"
     if name.endswith((".csv", ".csv.gz")):
         if name.startswith("imu_sample"):
             return "gaitmap"
@@ -851,7 +860,8 @@ def detect_kind(path: str | Path, **options: Any) -> str:
                          "the README, Replaying your own recording")
     raise ValueError(f"cannot tell the kind of {path} from its name; name the kind, one of "
                      f"{list(IMPORTERS)} (known names: full_body*.mat, NN_*.mat (BROAD), imu_sample*.csv "
-                     "(gaitmap), S-T.json (ipol_gait))")
+                     "(gaitmap), S-T.json (ipol_gait), acc_expXX_userYY.txt or userUU_runK.csv.gz (hapt); "
+                     "pyshoe's and BROAD's .mat files by their variables)")
 
 
 QMT_FILE = "full_body_example_data.mat"

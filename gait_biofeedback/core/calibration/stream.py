@@ -20,6 +20,7 @@ from gait_biofeedback.core.calibration.file import CALIBRATION_FILE as CALIBRATI
 from gait_biofeedback.core.calibration.file import read_calibration_file as read_calibration_file
 from gait_biofeedback.core.calibration.file import write_calibration_file as write_calibration_file
 from gait_biofeedback.core.calibration.sensor_to_segment import (
+    NOT_IN_KIT,
     REQUESTS,
     SessionCalibration,
     calibrate_session,
@@ -121,6 +122,15 @@ class CalibrationBuffer:
         """Stamp of the newest sample of ``segment``, None before any."""
         return self._newest_ns.get(segment) if self.buffers[segment] else None
 
+    def _silent_text(self, silent: list[str]) -> str:
+        """The segments left out of a calibration: those that never sent a sample are not in this kit
+        (information: a feet-only kit), those that did and are silent now are named as missing."""
+        absent = [s for s in silent if s not in self._newest_ns]
+        quiet = [s for s in silent if s in self._newest_ns]
+        return ((f"; {', '.join(absent)}: {NOT_IN_KIT}" if absent else "")
+                + (f"; no data from {', '.join(quiet)} in the calibration window (not calibrated)"
+                   if quiet else ""))
+
     def reached(self, until_ns: int, segments: Sequence[str] | None = None) -> bool:
         """True when some segment has data and every one with data has a sample at or after ``until_ns``."""
         newest = [self.newest(s) for s in (segments or self.segments)]
@@ -191,7 +201,7 @@ class CalibrationBuffer:
                                       end_ns + self.apply_delay_ns, cal.looks_like)
         cal = calibrate_session(data, standing, motion, protocol, orientations=ori,
                                 common_heading=not self.six_d)
-        message = cal.message + (f"; no data from {', '.join(silent)} (not calibrated)" if silent else "")
+        message = cal.message + self._silent_text(silent)
         asked = standing_duration or self.default_standing
         if standing[1] - standing[0] < asked - 1e-6:
             short = (f"the quiet standing lasted only {standing[1] - standing[0]:.2f} s (asked {asked:g} s): "
