@@ -13,6 +13,7 @@ import warnings
 import numpy as np
 import pytest
 
+from gait_biofeedback.core import quaternion as quat
 from gait_biofeedback.core.activity.monitor import (
     DELAY_S,
     ActivityMonitor,
@@ -1000,3 +1001,37 @@ def test_a_merged_lie_to_stand_relabels_its_held_samples_and_walking_is_upright(
     seated = line.state([11.0, "sitting", True, 0.1, s_to_ns(11.0), True], [], [], lambda: "level")
     upright = line.state([11.02, "standing", True, 0.1, s_to_ns(11.02), True], [], [], lambda: "level")
     assert (seated.posture, seated.locomotion, upright.locomotion) == ("sitting", "none", "level")
+
+
+@pytest.mark.parametrize("inclination_deg", [0.0, 85.0])
+def test_a_calibration_gives_the_thighs_their_upright_so_posture_is_read_from_the_start(inclination_deg):
+    """Chest upright, thighs still at 0° (standing) or 85° (seated) from the first sample. With the
+    thighs' sensor-to-segment calibration in force from the start (``analyze``), their upright (segment
+    y = sensor x here) gives the inclination at once: every state published says the thighs' posture,
+    none assumed (qmt: "sitting (assumed)" for its first 5.2 s of standing). Without it the chest's
+    assumed sitting stands for the first seconds (the thighs' own upright needs a quiet period)."""
+    from gait_biofeedback.core.activity.stream import ActivityParams, ActivityStream
+    from gait_biofeedback.core.calibration.sensor_to_segment import SegmentEntry
+
+    acc = Template(RATE).hold(12.0, 0.0).acc()
+    thigh = _thigh_acc(np.full(len(acc), inclination_deg))
+    y_to_x = quat.from_axis_angle(np.array([0.0, 0.0, 1.0]), -math.pi / 2)  # segment y → sensor x
+    expected = "standing" if inclination_deg == 0.0 else "sitting"
+    postures = {}
+    for calibrated in (True, False):
+        stream = ActivityStream(ActivityParams(rate_hz=RATE, reorder_window_s=0.0))
+        if calibrated:
+            entry = SegmentEntry(y_to_x, True)
+            stream.apply_calibration({"left_thigh": entry, "right_thigh": entry}, from_ns=0)
+        states = []
+        for k, stamp_ns in enumerate(sample_stamps(len(acc), RATE).tolist()):
+            for seg in ("left_thigh", "right_thigh"):
+                stream.update_thigh(seg, stamp_ns, thigh[k].tolist())
+            state, _ = stream.update(stamp_ns, acc[k].tolist())
+            states += [state] if state is not None else []
+        states += stream.finish()
+        postures[calibrated] = [s.posture for s in states]
+        if calibrated:
+            assert not stream.monitor.posture_assumed
+    assert set(postures[True]) == {expected}
+    assert postures[False][0] == "sitting"

@@ -674,3 +674,21 @@ def test_calibration_file_refusal_echoes_a_huge_name_or_value_briefly(tmp_path):
     _edit(path, hostile)
     refusal = _refusal(path)
     assert len(refusal) < 1000 and "xxx" in refusal and "'quality' is 'qqq" in refusal
+
+
+@pytest.mark.parametrize(("tilt_deg", "refused"), [(80.0, True), (60.0, False)])
+def test_trunk_refused_when_its_orientation_and_accelerometer_disagree_on_the_vertical(tilt_deg, refused):
+    """Trunk heading from the thighs' magnetometer heading (option (a)): the pelvis accelerometer says
+    its z is up, its filter orientation is pitched ``tilt_deg`` about y, so the thighs' forward (world x)
+    lands at sin(90° - tilt) of the sensor's horizontal: 0.17 at 80° (below 0.3: refused, the two
+    disagree on the vertical), 0.5 at 60° (kept, heading along sensor x)."""
+    thigh = SegmentCalibrationResult("left_thigh", quat.IDENTITY.copy(), True, 1.0, "x", 0.0,
+                                     details={"standing_orientation": [1.0, 0.0, 0.0, 0.0]})
+    pitched = quat.from_axis_angle(np.array([0.0, 1.0, 0.0]), np.radians(tilt_deg))
+    acc = np.tile([0.0, 0.0, 9.81], (200, 1))
+    result = calibrate_trunk("pelvis", acc, np.zeros((200, 3)), pitched, [thigh])
+    assert result.valid is not refused
+    if refused:
+        assert result.message == "pelvis: sensor orientation and accelerometer disagree on the vertical"
+    else:
+        np.testing.assert_allclose(quat.rotate(result.rotation, [1.0, 0.0, 0.0]), [1.0, 0.0, 0.0], atol=1e-9)

@@ -209,6 +209,8 @@ class ActivityMonitor:
         if rot is None:
             if frame.finder is None and frame.add_start(t, ax, ay, az):
                 self._sit_stand.start(frame.theta_prev, t)
+            if self.thigh_inclination is not None:  # the thighs need no trunk frame (their calibration)
+                self._level.thighs(t, self.thigh_inclination)
             return self._emit(t, posture.posture, False, frame.theta_prev, stamp_ns, frame.rot is not None)
         f = rot[0] * ax + rot[1] * ay + rot[2] * az
         v = rot[3] * ax + rot[4] * ay + rot[5] * az

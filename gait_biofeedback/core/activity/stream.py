@@ -138,10 +138,17 @@ class ActivityStream:
 
     def apply_calibration(self, entries: Mapping[str, SegmentEntry], from_ns: int = 0) -> None:
         """The trunk forward axis from this segment's entry of a calibration (in force from
-        ``from_ns``); what happened is said in :attr:`notices`.
+        ``from_ns``), and the thighs' uprights from theirs (:meth:`ThighInputs.calibrate`); what happened
+        is said in :attr:`notices`.
 
         The entry's rotation maps segment axes into sensor axes, so the segment's x (anterior) in
         sensor axes is rotate(r, x)."""
+        thighs = [seg for seg in self.thighs.segments if seg in entries and entries[seg].valid]
+        for seg in thighs:
+            self.thighs.calibrate(seg, quat.rotate(entries[seg].rotation, np.array([0.0, 1.0, 0.0])), from_ns)
+        if thighs:
+            self.notices.say("info", f"{', '.join(thighs)}: upright from the calibration (sitting vs "
+                                     "standing from the thighs' inclination)")
         segment = self.params.segment
         entry = entries.get(segment)
         if entry is None or not entry.valid:

@@ -7,7 +7,11 @@ near vertical. :class:`ThighTilt` gives that inclination sample by sample: the a
 thigh accelerometer's gravity component (the monitor's GA low-pass, thesis §7.2.3) and the thigh's
 upright, which :class:`~gait_biofeedback.core.activity.reference.UprightFinder` finds as for the
 trunk (the first quiet period, checked by walking: a thigh swings about its upright while walking,
-mean flexion 5-10°, within the finder's 15°).
+mean flexion 5-10°, within the finder's 15°). A sensor-to-segment calibration gives the upright
+outright (the thigh segment's y axis in sensor axes): from the stamp it is in force, it replaces the
+finder's, so a calibration in force from the start (``analyze``) reads the posture from the first
+samples instead of assuming one until the first quiet period (qmt: "sitting (assumed)" for 5.2 s of
+standing).
 """
 
 from __future__ import annotations
@@ -20,6 +24,7 @@ import numpy as np
 
 from gait_biofeedback.core.activity.reference import UprightFinder
 from gait_biofeedback.core.activity.signal import Biquad, clip_acos, gravity_lowpass_ba
+from gait_biofeedback.core.in_force import InForceQueue
 from gait_biofeedback.core.stamps import NS_PER_S
 
 THIGH_SIT_RAD = math.radians(50.0)  # mean thigh inclination held above this ⇒ sitting (qmt seated: 80°)
@@ -35,12 +40,19 @@ class ThighTilt:
         b, a = gravity_lowpass_ba(rate_hz)
         self._gravity = [Biquad(b, a) for _ in range(3)]
         self._up: np.ndarray | None = None
+        self._calibrated = False
         self._started = False
 
     @property
     def upright(self) -> np.ndarray | None:
         """The thigh's upright in sensor axes (unit vector), once found."""
         return self._up
+
+    def set_upright(self, upright: Sequence[float]) -> None:
+        """The thigh's upright in sensor axes from a calibration: kept, the finder no longer moves it."""
+        up = np.asarray(upright, dtype=float)
+        self._up = up / np.linalg.norm(up)
+        self._calibrated = True
 
     def update(self, t: float, acc: Sequence[float]) -> float | None:
         ax, ay, az = float(acc[0]), float(acc[1]), float(acc[2])
@@ -50,7 +62,7 @@ class ThighTilt:
             self._started = True
         gx, gy, gz = (f.step(v) for f, v in zip(self._gravity, (ax, ay, az), strict=True))
         finder = self._finder
-        if finder.update(t, ax, ay, az) in ("quiet", "walking"):
+        if finder.update(t, ax, ay, az) in ("quiet", "walking") and not self._calibrated:
             self._up = finder.reference / np.linalg.norm(finder.reference)
         up = self._up
         if up is None:
@@ -80,11 +92,17 @@ class ThighInputs:
         self.quiet_s = quiet_s
         self._tilts: dict[str, ThighTilt] = {}
         self._history: dict[str, deque[tuple[int, float | None]]] = {seg: deque() for seg in segments}
+        self._uprights: dict[str, InForceQueue[np.ndarray]] = {seg: InForceQueue() for seg in segments}
         self.counts = {"thigh_samples": 0, "thigh_skipped": 0, "thigh_restarts": 0}
 
     @property
     def segments(self) -> tuple[str, ...]:
         return tuple(self._history)
+
+    def calibrate(self, segment: str, upright: np.ndarray, from_ns: int) -> None:
+        """A calibration's upright (sensor axes) for ``segment``, used from its sample stamped ``from_ns``
+        on (by stamp, so the node and ``analyze`` switch at the same sample)."""
+        self._uprights[segment].put(int(from_ns), upright)
 
     def clear(self) -> None:
         """Forget the samples heard (the trunk's time went back); the thighs' uprights are kept."""
@@ -104,6 +122,8 @@ class ThighInputs:
         tilt = self._tilts.get(segment)
         if tilt is None:
             tilt = self._tilts[segment] = ThighTilt(self.rate_hz, self.quiet_s)
+        for upright in self._uprights[segment].due(stamp_ns):
+            tilt.set_upright(upright)
         history.append((stamp_ns, tilt.update(stamp_ns / NS_PER_S, acc)))
         while history[0][0] < stamp_ns - _HISTORY_NS:
             history.popleft()
