@@ -49,14 +49,14 @@ def _decodes_everywhere(bag: Path, expected_topics: set[str]) -> dict[str, int]:
 @pytest.fixture(scope="module")
 def simulated(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("sim") / "walk"
-    assert main(["simulate", "-o", str(out), "--scenario", "walk"]) == 0
+    assert main(["simulate", "-o", str(out), "--scenario", "walk", "--duration", "20"]) == 0  # 28 s
     return out
 
 
 def test_simulated_and_analyzed_bags_decode(simulated, tmp_path):
     truth = {f"/ground_truth/{t}" for t in ("joint_states", "gait/events", "calibration/sensor_to_segment")}
     counts = _decodes_everywhere(simulated, {*truth, "/left_foot/imu/mag"})
-    assert counts["/ground_truth/joint_states"] == 3800
+    assert counts["/ground_truth/joint_states"] == 2800
     out = tmp_path / "offline"
     assert main(["analyze", str(simulated), "-o", str(out), "--calibrate-at", "13:walking"]) == 0
     outputs = {"/joint_states", "/skeleton", "/gait/events", "/gait/cycles", "/gait/stride_space",
