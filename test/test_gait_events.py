@@ -23,6 +23,8 @@ from gait_biofeedback.core.orientation.stream import SegmentOrientationTracker
 from gait_biofeedback.core.stamps import s_to_ns, seconds_to_ns
 from gait_biofeedback.sim.simulator import SCENARIOS, simulate
 
+ALGORITHM1 = {"event_margin": 0.0}  # Algorithm 1's own event stamps (the extremum samples)
+
 
 def _hand_made() -> np.ndarray:
     """0 until k=29, linear fall to -0.6 at k=49 (TC), rise to +0.2 at k=69 (IC), fall to 0 at 89."""
@@ -42,8 +44,9 @@ def walk_session():
 
 def test_algorithm1_on_hand_made_signal_gives_exact_indices_and_one_sample_delay():
     signal = _hand_made()
-    assert {k: v.tolist() for k, v in events_from_signal(signal, 100.0).items()} == {"ic": [69], "tc": [49]}
-    detector = GaitEventDetector("left", 100.0)
+    assert {k: v.tolist() for k, v in events_from_signal(signal, 100.0, **ALGORITHM1).items()} == {
+        "ic": [69], "tc": [49]}
+    detector = GaitEventDetector("left", 100.0, **ALGORITHM1)
     emitted = [(k, e) for k, v in enumerate(signal)
                if (e := detector.update_signal(k * 10_000_000, v)) is not None]
     (k_tc, tc), (k_ic, ic) = emitted
@@ -53,13 +56,13 @@ def test_algorithm1_on_hand_made_signal_gives_exact_indices_and_one_sample_delay
     assert tc.signal == pytest.approx(-0.6)
     # the same shape at 200 Hz (every sample twice as dense): the same times
     dense = np.interp(np.arange(240) / 2, np.arange(120), signal)
-    assert {k: (v / 200).tolist() for k, v in events_from_signal(dense, 200.0).items()} == {
+    assert {k: (v / 200).tolist() for k, v in events_from_signal(dense, 200.0, **ALGORITHM1).items()} == {
         "ic": [0.69], "tc": [0.49]}
 
 
 def test_threshold_blocks_shallow_minimum():
     shallow = _hand_made() / 4  # minimum -0.15 > -0.2: no TC, so no IC either (strict alternation)
-    assert all(len(v) == 0 for v in events_from_signal(shallow, 100.0).values())
+    assert all(len(v) == 0 for v in events_from_signal(shallow, 100.0, **ALGORITHM1).values())
 
 
 @pytest.mark.parametrize(("depth", "expected"), [
@@ -77,13 +80,14 @@ def test_a_clear_heel_strike_counts_without_its_toe_off(depth: float, expected: 
     s[50:70] = depth + (0.3 - depth) * np.arange(1, 21) / 20  # heel strike, maximum +0.3 at k=69
     s[70:90] = 0.3 - 0.3 * np.arange(1, 21) / 20
     s[130:220] = _hand_made()[30:120]  # a normal step: TC at k=149, IC at k=169
-    detector = GaitEventDetector(rate_hz=100.0)
+    detector = GaitEventDetector(rate_hz=100.0, **ALGORITHM1)
     events = [e for k, sk in enumerate(s.tolist()) if (e := detector.update_signal(k * 10_000_000, sk))]
     assert [(e.kind, round(e.stamp_ns / 1e7), e.flag) for e in events] == [
         *expected, ("tc", 149, ""), ("ic", 169, "")]
     # the heel strike is detected when its maximum is confirmed (k=70), the late toe-off with it
     assert round(events[0].detected_ns / 1e7) == 70
-    assert events_from_signal(s, 100.0)["tc"].tolist() == [e[1] for e in expected if e[0] == "tc"] + [149]
+    assert events_from_signal(s, 100.0, **ALGORITHM1)["tc"].tolist() == [
+        e[1] for e in expected if e[0] == "tc"] + [149]
 
 
 @pytest.mark.parametrize(("reversals", "flag"), [(3, ""), (4, LATE_TC_FLAG)])
@@ -94,7 +98,7 @@ def test_80_percent_trend_rule(reversals: int, flag: str):
     for j in range(reversals):
         k = 36 + 3 * j
         s[k] = s[k - 1] + 0.005
-    detector = GaitEventDetector(rate_hz=100.0)
+    detector = GaitEventDetector(rate_hz=100.0, **ALGORITHM1)
     events = [e for k, sk in enumerate(s.tolist()) if (e := detector.update_signal(k * 10_000_000, sk))]
     toe_offs = [(round(e.stamp_ns / 1e7), e.flag) for e in events if e.kind == "tc"]
     assert toe_offs[0] == (49, flag)
@@ -108,7 +112,7 @@ def test_80_percent_trend_rule_before_the_ic_maximum(reversals: int, expected: l
     for j in range(reversals):
         k = 56 + 3 * j
         s[k] = s[k - 1] - 0.005
-    events = events_from_signal(s, 100.0)
+    events = events_from_signal(s, 100.0, **ALGORITHM1)
     assert events["tc"].tolist() == [49]
     assert events["ic"].tolist() == expected
 
@@ -122,7 +126,8 @@ def test_maximum_below_the_threshold_is_no_initial_contact():
     s[70:80] = -0.3 - 0.15 * np.arange(1, 11) / 10
     s[80:100] = -0.45 + 0.65 * np.arange(1, 21) / 20
     s[100:120] = 0.2 - 0.2 * np.arange(1, 21) / 20
-    assert {k: v.tolist() for k, v in events_from_signal(s, 100.0).items()} == {"ic": [99], "tc": [49]}
+    assert {k: v.tolist() for k, v in events_from_signal(s, 100.0, **ALGORITHM1).items()} == {
+        "ic": [99], "tc": [49]}
 
 
 @pytest.mark.parametrize(("period", "spacing"), [(15, 30), (16, 16)])
@@ -175,7 +180,7 @@ def test_no_event_in_quiet_standing_or_turning_on_the_spot():
     pitch = np.radians(4.0) * np.sin(2 * np.pi * 1.5 * t) * (t > 2) + rng.normal(0, 0.002, t.size)
     roll = np.radians(3.0) * np.sin(2 * np.pi * 1.5 * t + 1.0) * (t > 2)
     q = quat.from_euler_zyx(yaw, -pitch, roll)
-    detector = GaitEventDetector(rate_hz=100.0)
+    detector = GaitEventDetector(rate_hz=100.0, **ALGORITHM1)
     stamps = seconds_to_ns(t)
     assert [e for k in range(t.size) if (e := detector.update(stamps[k], q[k])) is not None] == []
 
@@ -184,7 +189,7 @@ def test_simulated_walk_true_orientation_events_match_truth(walk_session):
     truth = walk_session.truth
     for side in ("left", "right"):
         s = foot_pitch_sine(truth.segment_orientation[f"{side}_foot"])
-        events = events_from_signal(s, 100.0)
+        events = events_from_signal(s, 100.0, **ALGORITHM1)
         for kind, ref in (("ic", truth.initial_contacts[side]), ("tc", truth.terminal_contacts[side])):
             t = events[kind] / 100.0
             inside = t[(t > ref[0] - 0.5) & (t < ref[-1] + 0.5)]
@@ -377,7 +382,7 @@ def test_events_keep_their_time_across_lost_samples(walk_session):
     ref = walk_session.truth.initial_contacts["left"]
     # (scored from 0.5 s before the first truth IC, as the benchmark does: the simulator labels no
     # event in its walk's first, blended step)
-    with_stamps = np.array(detect_gait_events(gyr, acc, 100.0, t=t)["ic"])
+    with_stamps = np.array(detect_gait_events(gyr, acc, 100.0, t=t, **ALGORITHM1)["ic"])
     with_stamps = with_stamps[with_stamps > ref[0] - 0.5]
     assert len(with_stamps) == len(ref) and np.all(np.abs(with_stamps - ref) < 0.03)
     as_even = np.array(detect_gait_events(gyr, acc, 100.0)["ic"])
@@ -412,7 +417,7 @@ def test_other_labs_feet_are_never_refused():
 
 
 def _events_with_stamps(s: np.ndarray, keep: np.ndarray) -> list[tuple[str, int, str]]:
-    detector = GaitEventDetector(rate_hz=100.0)
+    detector = GaitEventDetector(rate_hz=100.0, **ALGORITHM1)
     out = []
     for k in np.flatnonzero(keep):
         if (event := detector.update_signal(int(k) * 10_000_000, float(s[k]))) is not None:
@@ -479,3 +484,96 @@ def test_a_turn_of_several_strides_is_found_where_no_single_stride_turns_enough(
     assert turning_strides(strides, 0.5, math.radians(30.0)) == [False, True, True, False, False, True, False]
     assert turning_strides(strides, 0.5, math.radians(40.0)) == [False] * 7  # 34° is under 40°
     assert turning_strides([("left", 0.0, 1.0, 0.4)]) == [True]  # 23° in one stride: TURN_LIMIT
+
+
+def _cosine_walk(rate_hz: float, seconds: float = 6.0) -> tuple[np.ndarray, np.ndarray]:
+    """s = 0.9 cos(2π t): a toes-up maximum at every whole second, a toes-down minimum at every half."""
+    t = np.arange(round(seconds * rate_hz)) / rate_hz
+    return t, 0.9 * np.cos(2 * np.pi * t)
+
+
+def test_event_stamps_sit_event_margin_from_the_extremum():
+    # issue 47, READING (events.py "Event times"): by hand, s = 0.9 cos(2π t) lies within m = 0.05 of an
+    # extremum for |t - t_ext| <= arccos(1 - 0.05 / 0.9) / 2π = 53.3 ms. At 200 Hz (5 ms samples): the
+    # TC is the first sample within it before a minimum, t_min - 50 ms; the IC the first sample out
+    # of it after a maximum, t_max + 55 ms; both well inside the 60 ms cap
+    half_width = math.acos(1 - 0.05 / 0.9) / (2 * math.pi)
+    assert 0.050 < half_width < 0.055
+    t, s = _cosine_walk(200.0)
+    detector = GaitEventDetector(rate_hz=200.0)
+    events = [e for tk, sk in zip(t.tolist(), s.tolist(), strict=True)
+              if (e := detector.update_signal(round(tk * 1e9), sk)) is not None]
+    tcs = [e for e in events if e.kind == "tc"]
+    ics = [e for e in events if e.kind == "ic"]
+    assert len(tcs) >= 5 and len(ics) >= 4
+    for e in tcs:
+        assert e.t == pytest.approx(round(e.t) + 0.5 - 0.050, abs=1e-6) or e.t == pytest.approx(
+            round(e.t - 0.5) + 0.5 - 0.050, abs=1e-6)
+        assert e.detected_ns - e.stamp_ns == pytest.approx(0.055e9, abs=1e3)  # at the minimum + 1 sample
+        assert e.signal == pytest.approx(-0.9, abs=1e-3)  # the extremum that gave it
+    for e in ics:
+        assert e.t - round(e.t) == pytest.approx(0.055, abs=1e-6)
+        assert e.detected_ns == e.stamp_ns  # published at its own sample: causal, 55 ms after the maximum
+    # the same through the batch entry (sample indices)
+    batch = events_from_signal(s, 200.0)
+    assert batch["ic"].tolist() == [round(e.t * 200) for e in ics]
+    assert batch["tc"].tolist() == [round(e.t * 200) for e in tcs]
+
+
+def test_event_margin_zero_is_algorithm1_and_the_cap_bounds_the_shift():
+    _, s = _cosine_walk(200.0)
+    at_extremum = events_from_signal(s, 200.0, event_margin=0.0)
+    assert set((at_extremum["ic"] % 200).tolist()) == {0}
+    assert set((at_extremum["tc"] % 200).tolist()) == {100}
+    # a 20 ms cap: the IC at the last sample within it (the sample 25 ms after the maximum is still in
+    # the margin), the TC 20 ms before the minimum
+    capped = events_from_signal(s, 200.0, event_shift_max_s=0.02)
+    assert set((capped["ic"] % 200).tolist()) == {4}
+    assert set((capped["tc"] % 200).tolist()) == {96}
+    # a heel strike still waiting for its stamp when the data end is given out at the last sample
+    detector = GaitEventDetector(rate_hz=200.0)
+    end = 1000 + 5  # 25 ms after the maximum at sample 1000
+    for k in range(end + 1):
+        detector.update_signal(k * 5_000_000, float(s[k]))
+    last = detector.flush()
+    assert last is not None and (last.kind, last.stamp_ns) == ("ic", end * 5_000_000)
+    assert detector.flush() is None
+
+
+def test_the_live_stream_takes_the_event_margin_from_its_parameters():
+    from gait_biofeedback.core.gait.events import EVENT_MARGIN, EVENT_SHIFT_MAX_S
+    from gait_biofeedback.core.gait.stream import GaitEventsParams, GaitEventStream
+
+    default = GaitEventStream(GaitEventsParams())
+    assert {d.event_margin for d in default.detectors.values()} == {EVENT_MARGIN}
+    assert {d.event_shift_max_ns for d in default.detectors.values()} == {round(EVENT_SHIFT_MAX_S * 1e9)}
+    algorithm1 = GaitEventStream(GaitEventsParams(event_margin=0.0, event_shift_max_s=0.03))
+    assert {(d.event_margin, d.event_shift_max_ns) for d in algorithm1.detectors.values()} == {
+        (0.0, 30_000_000)}
+
+
+def test_ipol_reference_events_are_met_without_a_bias():
+    # issue 47: on one development subject of ipol_gait (subject 3, chosen-on half), the median IC and
+    # TC errors against the data set's reference (subjects 1-5 together: 0 / 0 ms; Algorithm 1's extremum
+    # stamps: -40 / +30 ms)
+    from conftest import shared_data
+
+    from gait_biofeedback.core.gait.matching import match_events
+    from gait_biofeedback.io.importers import import_recording
+
+    folder = shared_data("ipol_gait")
+    errors: dict[str, list[float]] = {"ic": [], "tc": []}
+    for trial in (1, 2):
+        rec = import_recording("auto", folder / f"3-{trial}.json")
+        t0, t1 = rec.reference["trial"]
+        for side in ("left", "right"):
+            series = rec.imu[f"{side}_foot"]
+            events = detect_gait_events(series.gyr, series.acc, 100.0, t=series.t)
+            for kind in ("ic", "tc"):
+                ref = rec.reference["events"][side][kind]
+                found = np.array(events[kind])
+                errors[kind] += match_events(found[(found >= t0 - 0.3) & (found <= t1 + 0.3)],
+                                             ref[(ref >= t0) & (ref <= t1)], 0.3).errors
+    for kind, values in errors.items():
+        assert len(values) > 60, kind
+        assert abs(np.median(values)) <= 0.020, f"{kind}: median {np.median(values) * 1000:+.0f} ms"

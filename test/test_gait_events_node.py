@@ -69,7 +69,8 @@ def test_node_on_replayed_walk_equals_offline_core(ros_context, walk_bag):
                   for e in events)
     assert live == _offline_events(bag, session)
     assert len(live) >= 4 * len(session.truth.initial_contacts["left"]) - 4
-    assert all(e.detection_latency == pytest.approx(0.01, abs=1e-6) for e in events)
+    # published at or after its stamp (causal), at most the stamp shift's cap + one sample later (issue 47)
+    assert all(-1e-9 <= e.detection_latency <= 0.06 + 0.01 + 1e-6 for e in events)
     for side, code in (("left", 0), ("right", 1)):
         ics = [e for e in live if e[0] == side and e[1] == "ic"]
         mine = [c for c in cycles if c.side == code]

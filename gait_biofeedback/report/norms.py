@@ -67,10 +67,6 @@ class NormBand:
 
 
 _MARGIN = "band = the source's mean ± 10 % (EXT: the source gives no range)"
-_TOE_OFF = (
-    "; the foot sensors' toe-off comes 16 ms after the motion-capture one (gaitmap_example): "
-    "about +{} points here"
-)
 NORMS: dict[str, NormBand] = {
     "gait_speed": NormBand(0.94, 1.43, "m/s", BOHANNON),
     "stride_length": NormBand(1.27, 1.55, "m", PERRY, _MARGIN),
@@ -78,9 +74,9 @@ NORMS: dict[str, NormBand] = {
     "cadence": NormBand(1.70, 2.07, "Hz", PERRY, _MARGIN + " (113 steps/min)"),
     "stride_time": NormBand(0.96, 1.17, "s", PERRY, "2 / cadence, ± 10 % (EXT)"),
     "step_time": NormBand(0.48, 0.59, "s", PERRY, "1 / cadence, ± 10 % (EXT)"),
-    "stance_fraction": NormBand(0.57, 0.63, "1", PERRY, "60 % ± 3 points (EXT)" + _TOE_OFF.format(1.5)),
+    "stance_fraction": NormBand(0.57, 0.63, "1", PERRY, "60 % ± 3 points (EXT)"),
     "swing_fraction": NormBand(0.37, 0.43, "1", PERRY, "40 % ± 3 points (EXT)"),
-    "double_support_fraction": NormBand(0.16, 0.24, "1", PERRY, "20 % ± 4 points (EXT)" + _TOE_OFF.format(3)),
+    "double_support_fraction": NormBand(0.16, 0.24, "1", PERRY, "20 % ± 4 points (EXT)"),
     "symmetry": NormBand(
         -0.10,
         0.10,

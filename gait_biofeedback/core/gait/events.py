@@ -46,6 +46,26 @@ READINGs / choices (documented and tested):
   left as they are (the stream flags a stride with a gap over 0.1 s). On ipol_gait IC Se
   97.9 → 98.0 %, Pr 98.6 → 98.7 % (benchmarks/gait_events.py).
 
+Event times (issue 47; READING of "IC/TC ↔ local maximum/minimum" [T §6.2.2, Fig 23(c)], with the
+extremum kept as Algorithm 1's detection and a documented definitional placement of the stamp):
+Algorithm 1 finds each event at an extremum of ``s``; the extremum is not the contact itself. The
+stamp is placed by the foot pitch's distance from that extremum, ``EVENT_MARGIN`` (m = 0.05, 2.9°):
+- TC: the first sample of the run before the minimum that stays within m of it (``s <= s_min + m``), at
+  most ``EVENT_SHIFT_MAX_S`` (60 ms) before it: where the toe-down rotation of push-off enters its
+  plateau. The stamp lies before the detection (published at the minimum's confirming sample, as
+  Algorithm 1; a negative shift of the stamp, causal).
+- IC: the first sample after the maximum that is more than m below it (``s <= s_max - m``): where the
+  foot, having struck with the heel, starts lowering its forefoot; at most ``EVENT_SHIFT_MAX_S`` after
+  the maximum (else the last sample within it). It is published when that sample arrives (detection
+  latency 0 to 60 ms after the maximum's confirmation; the stamp is never after the publication).
+The reference is the ipol_gait data set's (Voisard et al. 2023: two validated IMU algorithms, checked
+by hand); m and the cap were chosen on its subjects 1-5 and confirmed on 6-9 (medians 0 / 0 ms,
+benchmarks/gait_events.py ``--halves``). Against motion capture (gaitmap_example, one subject) the
+IC comes about 30 ms after the mocap heel strike, which coincides with the pitch maximum (+0 ms), and
+the TC 5 ms before the mocap toe-off: the two references' heel strikes differ by that much (the
+README, "Gait events: definition"). ``event_margin = 0`` gives Algorithm 1's extremum stamps.
+A pending IC is dropped by :meth:`GaitEventDetector.reset` and given out by :meth:`~GaitEventDetector.flush`.
+
 Samples and events are identified by their stamps (int ns, ``docs/conventions.md``); Algorithm 1 itself
 counts samples and never looks at time.
 """
@@ -78,14 +98,21 @@ LATE_TC_THRESHOLD = 0.03  # -sin(beta): a toe-off taken late may be level within
 LATE_TC_LOOKBACK_S = 1.5  # how far back from such a heel strike its toe-off is looked for
 LATE_TC_FLAG = "toe-off shallower than the threshold, found at the next heel strike"
 MAX_FILL_S = 0.1  # s: the longest stamp gap whose missing samples are filled (module docstring)
+EVENT_MARGIN = 0.05  # -sin(beta), 2.9°: how far from its extremum the foot pitch places the event (module
+# docstring "Event times"); chosen on ipol_gait subjects 1-5 with EVENT_SHIFT_MAX_S (benchmarks/gait_events.py
+# --halves): margin 0.03 / 0.04 / 0.05 / 0.06 → median IC -10 / 0 / 0 / 0 ms, TC +10 / 0 / 0 / 0 ms, trials
+# with stance within 2 points 22 / 27 / 27 / 24 of 28, double support 12 / 14 / 22 / 19 of 28
+EVENT_SHIFT_MAX_S = 0.06  # s: the most an event is moved from its extremum (0.06 / 0.08 / 0.10 s: 27 / 25 /
+# 24 of 28 trials' stance within 2 points at margin 0.05)
 
 
 @dataclass(frozen=True)
 class GaitEvent:
-    """One detected event of one foot. ``stamp_ns``: stamp of the event (extremum) sample;
-    ``detected_ns``: stamp of the sample that confirmed it (one sample later); ``signal``: the
-    detector's signal at the event (-sin(beta) for Algorithm 1); ``index``: running count of events of
-    this side and type; ``flag``: why the event is doubtful (set by the stream), empty otherwise."""
+    """One detected event of one foot. ``stamp_ns``: stamp of the event's sample;
+    ``detected_ns``: stamp of the sample that gave it out (module docstring "Event times"); ``signal``:
+    the detector's signal at the extremum that gave the event (-sin(beta) for Algorithm 1); ``index``:
+    running count of events of this side and type; ``flag``: why the event is doubtful (set by the
+    stream), empty otherwise."""
 
     side: str
     kind: str
@@ -139,11 +166,14 @@ class GaitEventDetector:
 
     def __init__(self, side: str = "left", rate_hz: float = 100.0, mounting: np.ndarray | None = None,
                  threshold: float = THRESHOLD, refractory_s: float = REFRACTORY_S,
-                 window_s: float = EXTREMUM_WINDOW_S, trend_fraction: float = TREND_FRACTION) -> None:
+                 window_s: float = EXTREMUM_WINDOW_S, trend_fraction: float = TREND_FRACTION,
+                 event_margin: float = EVENT_MARGIN, event_shift_max_s: float = EVENT_SHIFT_MAX_S) -> None:
         if not rate_hz > 0:
             raise ValueError(f"rate_hz must be > 0, got {rate_hz}")
         self.side = side
         self.threshold = float(threshold)
+        self.event_margin = float(event_margin)
+        self.event_shift_max_ns = round(float(event_shift_max_s) * NS_PER_S)
         self._durations = (float(window_s), float(refractory_s), float(trend_fraction))
         self.set_rate(rate_hz)
         self.set_mounting(mounting)
@@ -174,7 +204,9 @@ class GaitEventDetector:
         self.waiting_for_ic = False  # Algorithm 1 "flag"
         lookback = samples_for(LATE_TC_LOOKBACK_S, self.rate_hz)
         self._recent: deque[tuple[int, int, float]] = deque(maxlen=lookback)  # (k, stamp, s)
-        # (a queued heel strike is kept: its toe-off has been emitted, the next update returns it)
+        # a heel strike found at its maximum, waiting for its stamp: (maximum's stamp, level, s_max, flag)
+        self._pending_ic: tuple[int, float, float, str] | None = None
+        # (a queued event is kept: the next update returns it)
 
     def signal(self, foot_quat: Any) -> float:
         """``-sin(beta)`` of one sensor orientation (w, x, y, z) with the current calibration."""
@@ -205,38 +237,88 @@ class GaitEventDetector:
 
     def _detect(self, stamp_ns: int, s: float) -> tuple[GaitEvent, ...]:
         buf = self._s
+        last_ns = self._stamps[-1] if self._stamps else stamp_ns
         buf.append(s)
         self._stamps.append(stamp_ns)
         self._k += 1
         k = self._k
         self._recent.append((k, stamp_ns, s))
+        settled = self._settle_heel_strike(stamp_ns, s, last_ns)
         if len(buf) < self.window + 3:
-            return ()
+            return settled
         prev = buf[-2]
         if not self.waiting_for_ic:
             if k - self._k_tc > self.refractory and s < self.threshold and prev < s and self._is_minimum():
                 self._k_tc = k
                 self.waiting_for_ic = True
-                return (self._event(TERMINAL_CONTACT, stamp_ns, prev),)
+                tc_ns = self._toe_off_stamp(self._stamps[0], prev)
+                return (*settled, self._event(TERMINAL_CONTACT, stamp_ns, prev, stamp_ns=tc_ns))
             if (k - self._k_ic > self._ic_alone and s > IC_WITHOUT_TC and prev > s
                     and self._is_maximum()):
                 late = self._late_toe_off(k)
                 self._k_ic = k
                 if late is None:
-                    return (self._event(INITIAL_CONTACT, stamp_ns, prev, MISSED_TC_FLAG),)
+                    return (*settled, *self._heel_strike(stamp_ns, s, prev, MISSED_TC_FLAG))
                 k_tc, tc_ns, value = late
                 self._k_tc = k_tc + 1  # as Algorithm 1 counts a TC: at its confirming sample
-                toe_off = self._event(TERMINAL_CONTACT, stamp_ns, value, LATE_TC_FLAG, stamp_ns=tc_ns)
-                return toe_off, self._event(INITIAL_CONTACT, stamp_ns, prev)
+                toe_off = self._event(TERMINAL_CONTACT, stamp_ns, value, LATE_TC_FLAG,
+                                      stamp_ns=self._toe_off_stamp(tc_ns, value))
+                return (*settled, toe_off, *self._heel_strike(stamp_ns, s, prev))
         elif k - self._k_ic > self.refractory and s > self.threshold and prev > s and self._is_maximum():
             self._k_ic = k
             self.waiting_for_ic = False
-            return (self._event(INITIAL_CONTACT, stamp_ns, prev),)
-        return ()
+            return (*settled, *self._heel_strike(stamp_ns, s, prev))
+        return settled
+
+    def _toe_off_stamp(self, minimum_ns: int, s_min: float) -> int:
+        """The stamp of a toe-off whose minimum ``s_min`` is at ``minimum_ns``: the first sample of the run
+        before it within ``event_margin`` of it, at most ``event_shift_max_s`` earlier (module docstring)."""
+        level = s_min + self.event_margin
+        stamp = minimum_ns
+        for _, sample_ns, sj in reversed(self._recent):
+            if sample_ns >= minimum_ns:
+                continue
+            if sj > level or minimum_ns - sample_ns > self.event_shift_max_ns:
+                break
+            stamp = sample_ns
+        return stamp
+
+    def _heel_strike(self, stamp_ns: int, s: float, s_max: float, flag: str = "") -> tuple[GaitEvent, ...]:
+        """The heel strike whose maximum ``s_max`` is the previous sample, confirmed by the sample
+        (``stamp_ns``, ``s``): out now if that sample already lies ``event_margin`` below the maximum
+        (or the shift is capped at the maximum itself), else pending (:meth:`_settle_heel_strike`); with
+        ``event_margin <= 0`` at the maximum."""
+        maximum_ns = self._stamps[0]
+        if self.event_margin <= 0.0:  # Algorithm 1's own stamp: the maximum
+            return (self._event(INITIAL_CONTACT, stamp_ns, s_max, flag, stamp_ns=maximum_ns),)
+        self._pending_ic = (maximum_ns, s_max - self.event_margin, s_max, flag)
+        return self._settle_heel_strike(stamp_ns, s, maximum_ns)
+
+    def _settle_heel_strike(self, stamp_ns: int, s: float, last_ns: int) -> tuple[GaitEvent, ...]:
+        """The pending heel strike, given out at this sample (``stamp_ns``, ``s``) when it lies
+        ``event_margin`` below the maximum, or at the last sample before it (``last_ns``) when this one is
+        more than ``event_shift_max_s`` after the maximum; nothing otherwise (module docstring)."""
+        if self._pending_ic is None:
+            return ()
+        maximum_ns, level, s_max, flag = self._pending_ic
+        if stamp_ns - maximum_ns > self.event_shift_max_ns:
+            at_ns = last_ns
+        elif s <= level:
+            at_ns = stamp_ns
+        else:
+            return ()
+        self._pending_ic = None
+        return (self._event(INITIAL_CONTACT, stamp_ns, s_max, flag, stamp_ns=at_ns),)
 
     def flush(self) -> GaitEvent | None:
-        """The next event still queued (a heel strike behind its late toe-off): call at the end of the
-        data until it returns None."""
+        """The next event still queued (a heel strike behind its late toe-off, or one still waiting for
+        its stamp at the end of the data: stamped at the last sample): call at the end of the data until
+        it returns None."""
+        if self._pending_ic is not None and self._stamps:
+            _, _, s_max, flag = self._pending_ic
+            self._pending_ic = None
+            last_ns = self._stamps[-1]
+            self._queued.append(self._event(INITIAL_CONTACT, last_ns, s_max, flag, stamp_ns=last_ns))
         return self._queued.popleft() if self._queued else None
 
     def _late_toe_off(self, k: int) -> tuple[int, int, float] | None:

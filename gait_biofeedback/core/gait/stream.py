@@ -48,6 +48,8 @@ from gait_biofeedback.core import quaternion as quat
 from gait_biofeedback.core.calibration.sensor_to_segment import SegmentEntry
 from gait_biofeedback.core.gait.cycles import MAX_STRIDE_S, MIN_STRIDE_S, GaitCycle, GaitCycleTracker
 from gait_biofeedback.core.gait.events import (
+    EVENT_MARGIN,
+    EVENT_SHIFT_MAX_S,
     EXTREMUM_WINDOW_S,
     REFRACTORY_S,
     THRESHOLD,
@@ -85,6 +87,13 @@ class GaitEventsParams:
                             low=0.01, high=1.0)
     trend_fraction: float = param(TREND_FRACTION, "share of monotone differences the extremum rule needs",
                                   "1", low=0.0, high=1.0)
+    event_margin: float = param(EVENT_MARGIN, "an event is stamped where the -sin(foot pitch) is this far "
+                                "from its extremum: TC where it enters it before the minimum, IC where it "
+                                "leaves it after the maximum; 0 = at the extremum (core/gait/events.py, "
+                                "chosen on ipol_gait subjects 1-5)", "1", low=0.0, high=0.5)
+    event_shift_max_s: float = param(EVENT_SHIFT_MAX_S, "the most an event's stamp is moved from its "
+                                     "extremum by event_margin (an IC is published at most this much after "
+                                     "it)", "s", low=0.0, high=0.5)
     max_gap_s: float = param(0.5, "longest stamp gap before a foot's state is reset", "s",
                              low=0.01, high=60.0)
     dropout_gap_s: float = param(0.1, "a stamp gap longer than this inside a stride makes it implausible "
@@ -163,7 +172,8 @@ class GaitEventStream:
                                         max_stride_s=p.max_stride_s)
         self.detectors = {s: GaitEventDetector(s, p.rate_hz, threshold=p.threshold,
                                                refractory_s=p.refractory_s, window_s=p.window_s,
-                                               trend_fraction=p.trend_fraction)
+                                               trend_fraction=p.trend_fraction, event_margin=p.event_margin,
+                                               event_shift_max_s=p.event_shift_max_s)
                           for s in self.sides}
         self.calibrated = {s: False for s in self.sides}
         self.counts = {s: {"samples": 0, "uncalibrated": 0, "resets": 0, "stream_stops": 0, "ic": 0, "tc": 0,
