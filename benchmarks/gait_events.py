@@ -599,8 +599,9 @@ def main() -> None:
         return
     if "--halves" in sys.argv:
         options = {}
-        if "--event-margin" in sys.argv:
-            options["event_margin"] = float(sys.argv[sys.argv.index("--event-margin") + 1])
+        for flag in ("--event-margin", "--heel-strike-shift-max-s", "--toe-off-shift-max-s"):
+            if flag in sys.argv:
+                options[flag[2:].replace("-", "_")] = float(sys.argv[sys.argv.index(flag) + 1])
         halves(options)
         return
     if "--walk-only" in sys.argv:

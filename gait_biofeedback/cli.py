@@ -549,8 +549,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_simulate)
 
     p = sub.add_parser("import", help="real recording (CSV/MAT) → the project's MCAP layout")
-    p.add_argument("kind", help="qmt_fullbody, gaitmap, broad, ipol_gait, pyshoe, hapt, csv (with --mapping; .csv or "
-                                "gzip-compressed .csv.gz), or auto (from the file name)")
+    p.add_argument("kind", help="qmt_fullbody, gaitmap, broad, ipol_gait, pyshoe, hapt, csv (with --mapping; "
+                                ".csv or gzip-compressed .csv.gz), or auto (from the file name)")
     p.add_argument("path", help="the file to import")
     p.add_argument("-o", "--output", required=True, help="output bag folder (rosbag2: metadata.yaml + .mcap)")
     p.add_argument("--mapping", help="csv: YAML file mapping segments to columns")

@@ -49,10 +49,11 @@ from gait_biofeedback.core.calibration.sensor_to_segment import SegmentEntry
 from gait_biofeedback.core.gait.cycles import MAX_STRIDE_S, MIN_STRIDE_S, GaitCycle, GaitCycleTracker
 from gait_biofeedback.core.gait.events import (
     EVENT_MARGIN,
-    EVENT_SHIFT_MAX_S,
     EXTREMUM_WINDOW_S,
+    HEEL_STRIKE_SHIFT_MAX_S,
     REFRACTORY_S,
     THRESHOLD,
+    TOE_OFF_SHIFT_MAX_S,
     TREND_FRACTION,
     GaitEvent,
     GaitEventDetector,
@@ -91,9 +92,11 @@ class GaitEventsParams:
                                 "from its extremum: TC where it enters it before the minimum, IC where it "
                                 "leaves it after the maximum; 0 = at the extremum (core/gait/events.py, "
                                 "chosen on ipol_gait subjects 1-5)", "1", low=0.0, high=0.5)
-    event_shift_max_s: float = param(EVENT_SHIFT_MAX_S, "the most an event's stamp is moved from its "
-                                     "extremum by event_margin (an IC is published at most this much after "
-                                     "it)", "s", low=0.0, high=0.5)
+    toe_off_shift_max_s: float = param(TOE_OFF_SHIFT_MAX_S, "the most a TC's stamp is moved before its "
+                                       "minimum by event_margin", "s", low=0.0, high=0.5)
+    heel_strike_shift_max_s: float = param(HEEL_STRIKE_SHIFT_MAX_S, "the most an IC's stamp is moved after "
+                                           "its maximum by event_margin (it is published at most this much "
+                                           "later)", "s", low=0.0, high=0.5)
     max_gap_s: float = param(0.5, "longest stamp gap before a foot's state is reset", "s",
                              low=0.01, high=60.0)
     dropout_gap_s: float = param(0.1, "a stamp gap longer than this inside a stride makes it implausible "
@@ -173,7 +176,8 @@ class GaitEventStream:
         self.detectors = {s: GaitEventDetector(s, p.rate_hz, threshold=p.threshold,
                                                refractory_s=p.refractory_s, window_s=p.window_s,
                                                trend_fraction=p.trend_fraction, event_margin=p.event_margin,
-                                               event_shift_max_s=p.event_shift_max_s)
+                                               toe_off_shift_max_s=p.toe_off_shift_max_s,
+                                               heel_strike_shift_max_s=p.heel_strike_shift_max_s)
                           for s in self.sides}
         self.calibrated = {s: False for s in self.sides}
         self.counts = {s: {"samples": 0, "uncalibrated": 0, "resets": 0, "stream_stops": 0, "ic": 0, "tc": 0,
