@@ -151,3 +151,32 @@ def test_inertial_kernel_run_equals_steps(walking, twin: str) -> None:
         plain(ik, "run")(np.array(s), b._p, gyr.ravel(), acc.ravel(), mag.ravel(), has, dt, flat)
         q = np.array(flat).reshape(n, 7)[:, :4]
     assert q.tobytes() == expected.tobytes()
+
+
+def test_bulk_codecs_equal_the_single_message_ones(walking) -> None:
+    """``orientation_messages`` gives the bytes and Stamped of ``pack_imu(*orientation_fields(...))``;
+    ``decode_stamped`` with frames gives what ``decode_imu`` gives message by message."""
+    from sensor_msgs.msg import Imu
+
+    from gait_biofeedback.core.orientation.stream import OrientationSample
+    from gait_biofeedback.wire.cdr import IMU_DOUBLES, Stamped, decode_imu, decode_stamped, pack_imu
+    from gait_biofeedback.wire.imu import orientation_fields, orientation_messages, raw_imu_values
+
+    rng = np.random.default_rng(3)
+    n = 50
+    samples = [OrientationSample(1_700_000_000_000_000_000 + 10_000_000 * k, rng.normal(size=4),
+                                 rng.normal(size=3), rng.normal(size=3), bool(k % 3 == 0), bool(k % 4))
+               for k in range(n)]
+    raws = [Stamped(s.stamp_ns, "x", tuple(rng.normal(size=IMU_DOUBLES).tolist())) for s in samples]
+    batch = OrientationBatch.of(list(range(n)), samples)
+    got = orientation_messages("left_foot", batch.stamp_ns, batch.q, batch.gyr, batch.acc, batch.recovering,
+                               batch.heading, np.array([r.values for r in raws]), 0.0012)
+    for (data, stamped), sample, raw in zip(got, samples, raws, strict=True):
+        fields = orientation_fields("left_foot", sample, raw, 0.0012)
+        assert data == pack_imu(*fields) and stamped == Stamped(*fields)
+    payloads = [pack_imu(s.stamp_ns, f"frame_{k % 2}", raw_imu_values((0.1, k, 2.0), (0.0, 9.8, -k)))
+                for k, s in enumerate(samples)]
+    frames: list[str] = []
+    ns, doubles, _ = decode_stamped(payloads, Imu, IMU_DOUBLES, frames)
+    for k, data in enumerate(payloads):
+        assert Stamped(int(ns[k]), frames[k], tuple(doubles[k].tolist())) == decode_imu(data)
