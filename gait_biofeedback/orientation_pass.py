@@ -18,13 +18,31 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
-from gait_biofeedback.core.orientation.stream import OrientationParams, SegmentOrientationTracker
+import numpy as np
+from sensor_msgs.msg import Imu, MagneticField
+
+from gait_biofeedback.core.orientation.stream import (
+    OrientationBatch,
+    OrientationParams,
+    SegmentOrientationTracker,
+)
 from gait_biofeedback.core.stamps import NS_PER_S
 from gait_biofeedback.io.bag import BagReader
 from gait_biofeedback.wire import diagnostics, topics
-from gait_biofeedback.wire.cdr import Stamped, decode_imu, decode_mag, pack_imu
-from gait_biofeedback.wire.imu import mag_sample, orientation_fields, raw_sample
+from gait_biofeedback.wire.cdr import (
+    ANGULAR_VELOCITY,
+    IMU_DOUBLES,
+    LINEAR_ACCELERATION,
+    MAG_DOUBLES,
+    MAGNETIC_FIELD,
+    Stamped,
+    decode_stamped,
+)
+from gait_biofeedback.wire.imu import orientation_messages
 from gait_biofeedback.wire.stamps import ns_to_stamp
+
+BLOCK = 4096
+"""Messages read ahead at most: a block ends there or where a ``/diagnostics`` status is due."""
 
 Filtered = list[tuple[bytes, Stamped]]
 """Orientation samples as ``(<segment>/imu/data CDR, the same decoded)``."""
@@ -95,21 +113,66 @@ class OrientationPass:
         self._items = itertools.chain(items, self._items)
 
     def _run(self, messages: Iterator[tuple[str, str, bytes, int]]) -> Iterator[PassItem]:
+        """The messages a block at a time (up to a ``/diagnostics`` status, which reads the trackers'
+        state there, or :data:`BLOCK` messages), each block through :meth:`_block`."""
+        block: list[PassItem] = []
+        seen_raw = False
         for topic, type_name, data, log_ns in messages:
             item = PassItem(topic, type_name, data, log_ns)
-            if log_ns >= self._next_status_ns and self.last_raw:
+            if log_ns >= self._next_status_ns and seen_raw:
+                yield from self._block(block)
+                block = []
                 item.status = self._status(log_ns)
+            seen_raw = seen_raw or self.trackers.get(self._segment_of.get(topic, "")) is not None
+            block.append(item)
+            if len(block) >= BLOCK:
+                yield from self._block(block)
+                block = []
+        yield from self._block(block)
+
+    def _block(self, block: list[PassItem]) -> Iterator[PassItem]:
+        """A block's raw IMU and magnetometer messages decoded in bulk per topic, each tracked segment's
+        samples through :meth:`SegmentOrientationTracker.update_batch` (the magnetometer samples in
+        between as they came), its outputs encoded in bulk; then its items, in log order."""
+        by_topic: dict[str, list[int]] = {}
+        for k, item in enumerate(block):
+            if item.topic in self._segment_of or item.topic in self._mag_of:
+                by_topic.setdefault(item.topic, []).append(k)
+        raw_of: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # segment → (block indices, doubles)
+        mags: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        for topic, where in by_topic.items():
             if topic in self._mag_of:
-                if (tracker := self.trackers.get(self._mag_of[topic])) is not None:
-                    tracker.add_mag(*mag_sample(decode_mag(data)))
-            elif topic in self._segment_of:
-                item.segment = seg = self._segment_of[topic]
-                item.raw = raw = decode_imu(data)
-                if (tracker := self.trackers.get(seg)) is not None:
-                    self.last_raw[seg] = raw
-                    self.last_log[seg] = self.newest_ns = log_ns
-                    item.filtered = self._payloads(seg, tracker.update(*raw_sample(raw)))
-                item.notices = self._notices()
+                if self._mag_of[topic] in self.trackers:
+                    data = [block[k].data for k in where]
+                    ns, doubles, _ = decode_stamped(data, MagneticField, MAG_DOUBLES)
+                    mags[self._mag_of[topic]] = (np.array(where), ns, doubles[:, MAGNETIC_FIELD])
+                continue
+            seg = self._segment_of[topic]
+            frames: list[str] = []
+            ns, doubles, _ = decode_stamped([block[k].data for k in where], Imu, IMU_DOUBLES, frames)
+            for k, stamp, frame, row in zip(where, ns.tolist(), frames, doubles.tolist(), strict=True):
+                block[k].segment, block[k].raw = seg, Stamped(stamp, frame, tuple(row))
+            if seg in self.trackers:
+                raw_of[seg] = (np.array(where), doubles)
+        for seg in [s for s in self.trackers if s in raw_of or s in mags]:
+            where, doubles = raw_of.get(seg, (np.zeros(0, np.int64), np.zeros((0, IMU_DOUBLES))))
+            mag_where, mag_ns, mag = mags.get(seg, (np.zeros(0, np.int64), None, None))
+            batch = self.trackers[seg].update_batch(
+                np.array([block[k].raw.ns for k in where.tolist()], dtype=np.int64),
+                doubles[:, ANGULAR_VELOCITY], doubles[:, LINEAR_ACCELERATION], mag_ns, mag,
+                np.searchsorted(mag_where, where))
+            messages = orientation_messages(seg, batch.stamp_ns, batch.q, batch.gyr, batch.acc,
+                                            batch.recovering, batch.heading, doubles[batch.call],
+                                            self.params.orientation_variance)
+            bounds = np.searchsorted(batch.call, np.arange(len(where) + 1)).tolist()
+            for j, k in enumerate(where.tolist()):
+                block[k].filtered = messages[bounds[j]:bounds[j + 1]]
+            for j, said in batch.notices:
+                block[int(where[j])].notices = [n.text for n in said if n.level != "info"]
+        for item in block:
+            if item.raw is not None and item.filtered is not None:
+                self.last_raw[item.segment] = item.raw
+                self.last_log[item.segment] = self.newest_ns = item.log_ns
             yield item
 
     def finish(self) -> PassEnd:
@@ -124,9 +187,10 @@ class OrientationPass:
         return self._end
 
     def _payloads(self, seg: str, samples: list) -> Filtered:
-        raw, variance = self.last_raw[seg], self.params.orientation_variance
-        fields = [orientation_fields(seg, sample, raw, variance) for sample in samples]
-        return [(pack_imu(*f), Stamped(*f)) for f in fields]
+        batch = OrientationBatch.of([0] * len(samples), samples)
+        raw = np.array([self.last_raw[seg].values])
+        return orientation_messages(seg, batch.stamp_ns, batch.q, batch.gyr, batch.acc, batch.recovering,
+                                    batch.heading, raw[batch.call], self.params.orientation_variance)
 
     def _notices(self) -> list[str]:
         return [n.text for tracker in self.trackers.values() if tracker.notices

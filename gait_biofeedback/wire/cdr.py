@@ -65,12 +65,14 @@ def encode_stamped(ns: np.ndarray, frame_id: str, doubles: np.ndarray) -> list[b
 
 
 def decode_stamped(
-    payloads: list[bytes], msg_class: type, n_doubles: int
+    payloads: list[bytes], msg_class: type, n_doubles: int, frames: list[str] | None = None
 ) -> tuple[np.ndarray, np.ndarray, str]:
-    """``(t_ns, doubles (N, n_doubles), first frame_id)`` of Imu/MagneticField payloads."""
+    """``(t_ns, doubles (N, n_doubles), first frame_id)`` of Imu/MagneticField payloads; with a list
+    ``frames``, each message's frame_id is put in it too (the bulk :func:`decode_imu`)."""
     ns = np.empty(len(payloads), dtype=np.int64)
     doubles = np.empty((len(payloads), n_doubles))
     frame_id = ""
+    names: list[str] = [""] * len(payloads)
     by_size: dict[int, list[int]] = {}
     for i, p in enumerate(payloads):
         by_size.setdefault(len(p), []).append(i)
@@ -85,12 +87,19 @@ def decode_stamped(
                 records = None
         if records is None:  # other encapsulation or layout: let rclpy decode
             for i in indices:
-                ns[i], doubles[i], name = decode_with_rclpy(payloads[i], msg_class)
-                frame_id = frame_id or name
+                ns[i], doubles[i], names[i] = decode_with_rclpy(payloads[i], msg_class)
+                frame_id = frame_id or names[i]
             continue
         ns[indices] = records["sec"].astype(np.int64) * _NS + records["nanosec"]
         doubles[indices] = records["d"]
         frame_id = frame_id or records["frame"][0].decode("utf-8")
+        if frames is not None:
+            raw = records["frame"].tolist()
+            text = {b: b.decode("utf-8") for b in set(raw)}
+            for i, b in zip(indices, raw, strict=True):
+                names[i] = text[b]
+    if frames is not None:
+        frames[:] = names
     return ns, doubles, frame_id
 
 

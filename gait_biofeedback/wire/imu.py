@@ -106,6 +106,30 @@ def orientation_fields(segment: str, sample: OrientationSample, raw: Stamped, va
     return sample.stamp_ns, sensor_frame(segment), values
 
 
+def orientation_messages(segment: str, stamp_ns: np.ndarray, q: np.ndarray, gyr: np.ndarray, acc: np.ndarray,
+                         recovering: np.ndarray, heading: np.ndarray, raw_cov: np.ndarray, variance: float
+                         ) -> list[tuple[bytes, Stamped]]:
+    """:func:`orientation_fields` of many samples (arrays: stamps (n,), q (n, 4) w, x, y, z, gyr, acc (n, 3),
+    flags (n,), ``raw_cov`` (n, 37) the doubles of the raw message that released each), encoded in bulk
+    (:func:`~gait_biofeedback.wire.cdr.encode_stamped`): [(the bytes :func:`pack_imu` gives, the
+    :class:`Stamped` they decode to)]."""
+    n = len(stamp_ns)
+    if not n:
+        return []
+    values = np.zeros((n, IMU_DOUBLES))
+    values[:, ORIENTATION] = q[:, [1, 2, 3, 0]]
+    v = np.where(recovering, RECOVERING_VARIANCE, float(variance))
+    values[:, 4] = values[:, 8] = v
+    values[:, 12] = np.where(heading, v, float(HEADING_UNKNOWN_VARIANCE))
+    values[:, ANGULAR_VELOCITY], values[:, LINEAR_ACCELERATION] = gyr, acc
+    values[:, ANGULAR_VELOCITY_COV] = raw_cov[:, ANGULAR_VELOCITY_COV]
+    values[:, LINEAR_ACCELERATION_COV] = raw_cov[:, LINEAR_ACCELERATION_COV]
+    frame = sensor_frame(segment)
+    payloads = encode_stamped(stamp_ns, frame, values)
+    return [(data, Stamped(ns, frame, tuple(row)))
+            for data, ns, row in zip(payloads, stamp_ns.tolist(), values.tolist(), strict=True)]
+
+
 def raw_imu_values(gyr: Vector, acc: Vector) -> tuple[float, ...]:
     """The 37 doubles of a raw ``<segment>/imu/data_raw`` (for :func:`~gait_biofeedback.wire.cdr.pack_imu`):
     orientation unknown (identity, covariance[0] = -1), ``gyr`` rad/s, ``acc`` m/s², covariances 0."""

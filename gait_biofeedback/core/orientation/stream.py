@@ -53,7 +53,7 @@ from typing import Any
 
 import numpy as np
 
-from gait_biofeedback.core.notices import Notices
+from gait_biofeedback.core.notices import Notice, Notices
 from gait_biofeedback.core.orientation.filters import (
     ALGORITHMS,
     DEFAULT_ALGORITHM,
@@ -64,7 +64,7 @@ from gait_biofeedback.core.orientation.filters.config import filter_params
 from gait_biofeedback.core.orientation.filters.guo_fkf import KF_SCHEMES
 from gait_biofeedback.core.orientation.reacquire import attitude_after_gap
 from gait_biofeedback.core.params import param, require
-from gait_biofeedback.core.rate import MISSING_SHARE_MIN, MISSING_WARN, RateCheck, missing_samples
+from gait_biofeedback.core.rate import HOLE, MISSING_SHARE_MIN, MISSING_WARN, RateCheck, missing_samples
 from gait_biofeedback.core.segments import SEGMENTS, ImuSeries
 from gait_biofeedback.core.sequencer import DROPPED, StreamSequencer
 from gait_biofeedback.core.stamps import NS_PER_S, ns_to_seconds, seconds_to_ns
@@ -154,6 +154,49 @@ class OrientationSample:
     def t(self) -> float:
         """The stamp in seconds."""
         return self.stamp_ns / NS_PER_S
+
+
+@dataclass
+class OrientationBatch:
+    """What :meth:`SegmentOrientationTracker.update_batch` released, in release order: ``call`` (M,) the
+    index of the input sample whose update released each (as :meth:`~SegmentOrientationTracker.update`
+    returns them), the :class:`OrientationSample` fields as arrays (``stamp_ns`` (M,) int, ``q`` (M, 4),
+    ``gyr`` (M, 3), ``acc`` (M, 3), ``recovering``, ``heading`` (M,) bool), and ``notices``: (call
+    index, the notices said while handling it), popped from the tracker."""
+
+    call: np.ndarray
+    stamp_ns: np.ndarray
+    q: np.ndarray
+    gyr: np.ndarray
+    acc: np.ndarray
+    recovering: np.ndarray
+    heading: np.ndarray
+    notices: list[tuple[int, list[Notice]]]
+
+    @classmethod
+    def of(cls, calls: list[int], samples: list[OrientationSample]) -> OrientationBatch:
+        """Samples released one by one (``calls``: the input index of each) as a batch."""
+        n = len(samples)
+        return cls(np.array(calls, dtype=np.int64), np.array([s.stamp_ns for s in samples], dtype=np.int64),
+                   np.array([s.q for s in samples]).reshape(n, 4),
+                   np.array([s.gyr for s in samples]).reshape(n, 3),
+                   np.array([s.acc for s in samples]).reshape(n, 3),
+                   np.array([s.recovering for s in samples], dtype=bool),
+                   np.array([s.heading for s in samples], dtype=bool), [])
+
+    @classmethod
+    def concat(cls, parts: list[OrientationBatch]) -> OrientationBatch:
+        """The parts one after the other."""
+        return cls(*(np.concatenate([getattr(p, name) for p in parts]) for name in
+                     ("call", "stamp_ns", "q", "gyr", "acc", "recovering", "heading")),
+                   [n for p in parts for n in p.notices])
+
+
+MIN_RUN = 16
+MAX_RUN = 8192
+"""Ordinary samples in a row that :meth:`SegmentOrientationTracker.update_batch` runs as arrays; fewer go
+through :meth:`SegmentOrientationTracker.update` (the arrays' set-up costs more than they save); a run
+is cut every ``MAX_RUN`` samples."""
 
 
 class SegmentOrientationTracker:
@@ -249,6 +292,157 @@ class SegmentOrientationTracker:
                                   "further ones are counted")
             return []
         return self._run(self.sequencer.push(stamp_ns, (g, a)))
+
+    def update_batch(self, stamp_ns: np.ndarray, gyr: np.ndarray, acc: np.ndarray,
+                     mag_ns: np.ndarray | None = None, mag: np.ndarray | None = None,
+                     mag_before: np.ndarray | None = None) -> OrientationBatch:
+        """:meth:`update` of each row (stamps int ns (n,), gyro, acc (n, 3)) with the magnetometer
+        samples (``mag_ns``, ``mag``) given to :meth:`add_mag` in between (``mag_before`` (n,): how many
+        of them come before each row; the rest after the last), as the array function of the stream (as
+        vqf's ``updateBatch``): the same outputs, notices and state, bit for bit. Runs of ordinary
+        samples (the stream steady: in order, no hole, finite, in range, the magnetometer stamps in
+        order, nothing held across a jump) are filtered as arrays (:meth:`_steady_run`); wherever the
+        control logic acts, the samples go through :meth:`update` one by one."""
+        n = len(stamp_ns)
+        stamps = np.asarray(stamp_ns, dtype=np.int64)
+        gyr, acc = np.asarray(gyr, dtype=float), np.asarray(acc, dtype=float)
+        n_mag = 0 if mag_ns is None else len(mag_ns)
+        mag_before = np.zeros(n, np.int64) if mag_before is None else np.asarray(mag_before, np.int64)
+        mag_values = np.zeros((0, 3)) if mag is None else np.asarray(mag, dtype=float)
+        mag_list = mag_values.tolist()
+        mag_stamps = [] if mag_ns is None else np.asarray(mag_ns, np.int64).tolist()
+        stamp_list, g_rows, a_rows = stamps.tolist(), gyr.tolist(), acc.tolist()
+        ordinary = (np.isfinite(gyr).all(axis=1) & np.isfinite(acc).all(axis=1)
+                    & ~(np.abs(acc).max(axis=1, initial=0.0) > RANGE_MARGIN * self.acc_range)
+                    & ~(np.abs(gyr).max(axis=1, initial=0.0) > RANGE_MARGIN * self.gyr_range))
+        step_ns = np.diff(stamps)
+        ordinary[1:] &= (step_ns > 0) & (step_ns <= self.sequencer._max_jump_ns)
+        breaks = np.flatnonzero(~ordinary)
+        next_break = np.append(breaks, n)[np.searchsorted(breaks, np.arange(n))]  # the first at or after
+        t = np.array([s / NS_PER_S for s in stamp_list])
+        mag_t = [s / NS_PER_S for s in mag_stamps]
+        mag_ok = (np.isfinite(mag_values).all(axis=1) if n_mag else np.zeros(0, bool)).tolist()
+        parts: list[OrientationBatch] = []
+        calls: list[int] = []
+        samples: list[OrientationSample] = []
+        notices: list[tuple[int, list[Notice]]] = []
+        added = 0
+        i = 0
+        while i < n:
+            run = self._steady_run(i, stamps, t, ordinary, next_break, gyr, acc, mag_before, mag_t, mag_list,
+                                   mag_ok, added)
+            if run is not None:
+                if samples:
+                    parts.append(OrientationBatch.of(calls, samples))
+                    calls, samples = [], []
+                batch, i, added = run
+                parts.append(batch)
+                continue
+            for k in range(added, int(mag_before[i])):
+                self.add_mag(mag_stamps[k], mag_list[k])
+            added = max(added, int(mag_before[i]))
+            out = self.update(stamp_list[i], g_rows[i], a_rows[i])
+            calls += [i] * len(out)
+            samples += out
+            if self.notices:
+                notices.append((i, self.notices.pop()))
+            i += 1
+        for k in range(added, n_mag):
+            self.add_mag(mag_stamps[k], mag_list[k])
+        parts.append(OrientationBatch.of(calls, samples))
+        batch = OrientationBatch.concat(parts)
+        batch.notices = notices
+        return batch
+
+    def _steady_run(self, i: int, stamps: np.ndarray, t: np.ndarray, ordinary: np.ndarray,
+                    next_break: np.ndarray, gyr: np.ndarray, acc: np.ndarray, mag_before: np.ndarray,
+                    mag_t: list[float], mag_list: list, mag_ok: list[bool],
+                    added: int) -> tuple[OrientationBatch, int, int] | None:
+        """The ordinary samples from ``i`` on through the filter as arrays, the stream's state brought to
+        where :meth:`update` of each would leave it: (what they released, the next index, magnetometer
+        samples given); None when the stream is not steady at ``i`` or the run is short (then
+        :meth:`update` takes sample ``i``)."""
+        seq = self.sequencer
+        if (self._startup is not None or self._recover is not None or self._t_last is None
+                or self._last_q is None or seq._jumped or seq._newest_ns is None
+                or self.rate.measured_hz is None or not ordinary[i]
+                or not 0 < int(stamps[i]) - seq._newest_ns <= seq._max_jump_ns
+                or any(p[3] or p[4] for p in seq._pending)):
+            return None
+        end = min(int(next_break[i]), i + MAX_RUN)
+        # the released stamps: what the window held, then the run's; each checked against the one before
+        held = [p[0] for p in seq._pending]
+        t_all = np.concatenate([[self._t_last], [h / NS_PER_S for h in held], t[i:end]])
+        dt = np.diff(t_all)
+        rate = self.rate_hz
+        bad = ~(dt > 0.0) | (dt > max(self.max_gap_s, 3.0 / rate)) | (dt * rate > HOLE)
+        first_bad = np.flatnonzero(bad)
+        if len(first_bad):
+            if first_bad[0] < len(held):
+                return None
+            end = i + int(first_bad[0]) - len(held)
+        if end - i < MIN_RUN:
+            return None
+        run_ns = stamps[i:end]
+        window = seq._window_ns
+        all_ns = np.concatenate([np.array(held, dtype=np.int64), run_ns])
+        call = np.searchsorted(run_ns, all_ns + window, side="left")  # the run's index that releases it
+        released = int(np.searchsorted(call, end - i, side="left"))
+        call = call[:released] + i
+        # the magnetometer each released sample pairs with (:meth:`_mag_for` at its release)
+        mag_end = int(mag_before[end - 1])
+        prior = list(self._mag)
+        new = [k for k in range(max(added, 0), mag_end) if mag_ok[k]]
+        mag_times = np.array([p[0] for p in prior] + [mag_t[k] for k in new])
+        if len(mag_times) > 1 and np.any(np.diff(mag_times) < 0):
+            return None
+        new_before = np.searchsorted(np.array(new, dtype=np.int64), mag_before[call], side="left")
+        count = len(prior) + new_before  # the deque's length at each release, before its maxlen
+        newest = t_all[1:released + 1] - self.mag_delay
+        idx = np.minimum(np.searchsorted(mag_times, newest, side="right") - 1, count - 1)
+        have = (idx >= np.maximum(count - self._mag.maxlen, 0)) & (idx >= 0)
+        idx = np.where(have, idx, 0)
+        if len(mag_times):
+            have &= newest - mag_times[idx] <= self.mag_max_age_s
+            mag_rows = np.array([p[1] for p in prior] + [mag_list[k] for k in new]).reshape(-1, 3)[idx]
+        else:
+            mag_rows = np.zeros((released, 3))
+        mag_rows[~have] = 0.0
+        # the filter over the released samples
+        held_g = [p[2][0] for p in seq._pending]
+        held_a = [p[2][1] for p in seq._pending]
+        g = np.concatenate([np.array(held_g).reshape(-1, 3), gyr[i:end]])
+        a = np.concatenate([np.array(held_a).reshape(-1, 3), acc[i:end]])
+        q, bias = self.filter.update_batch(g[:released], a[:released], mag_rows, have, dt[:released])
+        # the state as update() leaves it
+        run_stamps = run_ns.tolist()
+        g_rows, a_rows = gyr[i:end].tolist(), acc[i:end].tolist()
+        self.counts["samples"] += end - i
+        self.counts["published"] += released
+        arrivals = seq._arrivals
+        pending = seq._pending[released:] if released < len(held) else []
+        pending += [(s, arrivals + 1 + k, (tuple(g_rows[k]), tuple(a_rows[k])), 0.0, 0.0)
+                    for k, s in enumerate(run_stamps) if k + len(held) >= released]
+        seq._pending = pending
+        seq._arrivals = arrivals + end - i
+        seq._newest_ns = run_stamps[-1]
+        if released:
+            out_ns = all_ns[:released].tolist()
+            previous = seq._released_ns
+            intervals = [s - p for s, p in zip(out_ns, [previous, *out_ns[:-1]], strict=True)]
+            seq._intervals.extend(intervals if previous is not None else intervals[1:])
+            seq._jump_threshold = None
+            seq._released_ns = out_ns[-1]
+            self._t_last = float(t_all[released])
+            self._last_ga = (tuple(g[released - 1].tolist()), tuple(a[released - 1].tolist()))
+            self._last_q = q[-1].copy()
+            self.rate._last_ns = out_ns[-1]
+        for k in new:
+            self._mag.append((mag_t[k], tuple(mag_list[k])))
+        self.counts["mag_samples"] += len(new)
+        batch = OrientationBatch(call, all_ns[:released], q, g[:released] - bias, a[:released],
+                                 np.zeros(released, bool), have, [])
+        return batch, end, max(added, mag_end)
 
     def flush(self, end: bool = False) -> list[OrientationSample]:
         """The samples the reorder window still holds (a stream that went silent); with ``end`` (the end

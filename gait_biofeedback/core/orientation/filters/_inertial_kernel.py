@@ -305,3 +305,21 @@ def step(s: Any, p: Any, gx: float, gy: float, gz: float, ax: float, ay: float, 
     s[OUT + 2] = oy * n
     s[OUT + 3] = oz * n
     return 0
+
+
+def run(s: Any, p: Any, g: Any, a: Any, m: Any, has_mag: Any, dt: Any, out: Any) -> int:
+    """:func:`step` over n samples (the batch twin of a loop of steps, as vqf's ``updateBatch``): ``g``,
+    ``a``, ``m`` flat (3n) gyro, accelerometer, magnetometer, ``has_mag`` and ``dt`` (n); writes each
+    sample's output quaternion and total gyro bias (static + online) into ``out`` (flat 7n: w, x, y, z,
+    bx, by, bz). Returns the number of samples skipped."""
+    skipped = 0
+    for i in range(len(dt)):
+        j = 3 * i
+        skipped += step(s, p, g[j], g[j + 1], g[j + 2], a[j], a[j + 1], a[j + 2], m[j], m[j + 1], m[j + 2],
+                        has_mag[i], dt[i])
+        k = 7 * i
+        for c in range(4):
+            out[k + c] = s[OUT + c]
+        for c in range(3):
+            out[k + 4 + c] = s[SBIAS + c] + s[BIAS + c]
+    return skipped

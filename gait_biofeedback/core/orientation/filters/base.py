@@ -144,6 +144,20 @@ class OrientationFilter:
         self._q = q
         return np.array(q)
 
+    def update_batch(self, gyr: np.ndarray, acc: np.ndarray, mag: np.ndarray, has_mag: np.ndarray,
+                     dt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """n samples (rows of ``gyr``, ``acc``, ``mag`` (n, 3); ``has_mag`` (n,): the row of ``mag`` is a
+        sample, else none; ``dt`` (n,) s) → (q (n, 4), total gyro bias (n, 3)) after each: what :meth:`update`
+        and :meth:`gyro_bias` give sample by sample (as vqf's ``updateBatch``). Here that loop; a filter
+        with a compiled kernel overrides it."""
+        n = len(dt)
+        q, bias = np.empty((n, 4)), np.empty((n, 3))
+        g_rows, a_rows, m_rows = gyr.tolist(), acc.tolist(), mag.tolist()
+        for i, (d, m) in enumerate(zip(dt.tolist(), has_mag.tolist(), strict=True)):
+            q[i] = self.update(g_rows[i], a_rows[i], m_rows[i] if m else None, d)
+            bias[i] = self.gyro_bias()
+        return q, bias
+
     @property
     def initialized(self) -> bool:
         """True once an attitude was set (first valid sample, ``initialize`` or ``reset(q)``)."""

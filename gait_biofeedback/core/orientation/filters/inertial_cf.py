@@ -57,6 +57,12 @@ def _warmup() -> tuple:
     return (s, np.ones(len(ik.PARAM_NAMES)), 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, -1.0, True, 0.01)
 
 
+def _run_warmup() -> tuple:
+    s, p, *sample = _warmup()
+    return (s, p, np.array(sample[0:3]), np.array(sample[3:6]), np.array(sample[6:9]), np.array([True]),
+            np.array([0.01]), np.empty(7))
+
+
 class InertialCF(OrientationFilter):
     """Complementary filter: inertial-frame accelerometer low-pass, heading-only magnetometer."""
 
@@ -233,6 +239,29 @@ class InertialCF(OrientationFilter):
         if self._kernel(self._s, self._p, gx, gy, gz, ax, ay, az, mx, my, mz, mag is not None,
                         self.dt if dt is None else float(dt)):
             self._skipped += 1
+
+    def update_batch(self, gyr: np.ndarray, acc: np.ndarray, mag: np.ndarray, has_mag: np.ndarray,
+                     dt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`OrientationFilter.update_batch` in the kernel's loop
+        (:func:`~gait_biofeedback.core.orientation.filters._inertial_kernel.run`, compiled when
+        :meth:`update` is): the same numbers as sample by sample."""
+        if not self._initialized or not len(dt):
+            return super().update_batch(gyr, acc, mag, has_mag, dt)
+        n = len(dt)
+        runner = compiled(ik, "run", _run_warmup(), ("step",)) if self.numba else None
+        if runner is not None:
+            out = np.empty(7 * n)
+            flat = [np.ascontiguousarray(v, float).ravel() for v in (gyr, acc, mag)]
+            skipped = runner(self._s, self._p, *flat, np.ascontiguousarray(has_mag, bool),
+                             np.ascontiguousarray(dt, float), out)
+        else:  # the pure-Python twin, on lists as :meth:`update` runs it
+            flat = [0.0] * (7 * n)
+            skipped = plain(ik, "run")(self._s, self._p, gyr.ravel().tolist(), acc.ravel().tolist(),
+                                       mag.ravel().tolist(), has_mag.tolist(), dt.tolist(), flat)
+            out = np.array(flat)
+        self._skipped += skipped
+        out = out.reshape(n, 7)
+        return out[:, :4].copy(), out[:, 4:].copy()
 
     def gyro_bias(self) -> np.ndarray:
         """Total gyro bias (static + online, rad/s): the cheap per-sample form of ``state()["gyro_bias"]``."""
