@@ -327,7 +327,7 @@ def test_the_same_motion_at_50_to_400_hz_gives_the_same_events_and_steps(tmp_pat
     """rate_hz stays 100 (the default) whatever the sensor sends: the stages measure the rate."""
     reference, steps = _events_and_steps(tmp_path, 100.0)
     assert len(reference) >= 30 and steps >= 25
-    for rate_hz in (50.0, 200.0, 400.0):
+    for rate_hz in (50.0, 400.0):  # the extremes (200 Hz gave the same)
         events, other_steps = _events_and_steps(tmp_path, rate_hz)
         assert other_steps == steps, rate_hz
         assert len(events) == len(reference), rate_hz
