@@ -109,8 +109,10 @@ class AnalysisResult:
     calibration in force at the end, saved as ``<output>/calibration.yaml`` (None: none in force or
     nothing written); ``warnings``: what the stages said (time going back, gaps, requests that never
     ran, chunks of the recording that could not be read); ``notes``: what ``auto`` calibration
-    instants found; ``requested``: the calibration requests looked for (an ``auto`` one is dropped from a
-    recording without leg or foot sensors: :func:`drop_needless_auto`)."""
+    instants found and information about the kit; ``live_only``: what the live graph would have done
+    otherwise (e.g. provisional values it would have withheld), not printed by ``analyze``: offline
+    every stride has its smoothed values; ``requested``: the calibration requests looked for (an
+    ``auto`` one is dropped from a recording without leg or foot sensors: :func:`drop_needless_auto`)."""
 
     output: Path | None
     start_ns: int = 0
@@ -120,6 +122,7 @@ class AnalysisResult:
     warnings: list[str] = field(default_factory=list)
     messages: list[tuple[str, Any, int]] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    live_only: list[str] = field(default_factory=list)
     requested: int = 0
 
 
@@ -639,10 +642,10 @@ def _analyze(ordered: LogOrderWriter | None, reader: BagReader, run: Orientation
     for text, segments in said_by.items():
         who = segments[0] if len(segments) == 1 else f"{', '.join(segments)} ({len(segments)} sensors)"
         (result.notes if text in INFORMATION else result.warnings).append(f"{who}: over the session: {text}")
-    for side, foot in gait.feet.items():  # what the live graph would have held back: information here
+    for side, foot in gait.feet.items():  # what the live graph would have held back
         swing = {k: a.withheld for k, a in foot.swing_agreement.values.items() if a.withheld}
         if swing:
-            result.notes.append(
+            result.live_only.append(
                 f"{side} foot, live only: provisional "
                 + ", ".join(f"{SWING_WORDS[k]} withheld {n} times" for k, n in swing.items())
                 + " (their last estimates differed from the smoothed ones by more than "
@@ -650,7 +653,7 @@ def _analyze(ordered: LogOrderWriter | None, reader: BagReader, run: Orientation
                 + " RMS); offline every stride has its smoothed values")
         rest = foot.rest_of_swing
         if rest.withheld:
-            result.notes.append(
+            result.live_only.append(
                 f"{side} foot, live only: {rest.withheld} provisional stride lengths withheld (those strides "
                 f"wait for their smoothed values) while their last estimates differed from the smoothed ones "
                 f"by more than provisional_tolerance_m, {100 * rest.tolerance:g} cm RMS (at the end of the "

@@ -75,7 +75,8 @@ RANGE_MARGIN = 1.1
 ±16 g accelerometer reads up to 158 m/s² on gaitmap's example) is clipped, not glitching."""
 UNITS_SUSPECT = 100
 """This many samples beyond the range among the first 2 × as many: the units are wrong, not a glitch."""
-SIX_D = "6D (no magnetometer): heading from the gyro only, it drifts"
+SIX_D = ("6D (no magnetometer): each sensor's own heading comes from its gyro and drifts; joint angles take "
+         "their headings from the legs' movement, gait events and strides need none")
 INFORMATION = (SIX_D,)
 """Conditions that are a kit's normal state, not a fault (a kit without magnetometers): said, at level
 OK on /diagnostics and as a note by ``analyze``, never as a warning."""
