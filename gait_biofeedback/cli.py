@@ -96,7 +96,8 @@ def cmd_import(args: argparse.Namespace) -> int:
         options["trust_units"] = True
     try:  # a CSV is streamed (bounded memory); whatever fails ends in one line (main)
         path, segments = import_to_bag(args.kind, args.path, args.output, **options,
-                                       warn=lambda text: print(f"warning: {text}", file=sys.stderr))
+                                       warn=lambda text: print(f"warning: {text}", file=sys.stderr),
+                                       note=print)
     except MemoryError:
         raise ValueError(f"{args.path}: not enough memory to import it (a {args.kind} file is read whole; "
                          "a CSV is streamed)") from None

@@ -200,6 +200,8 @@ def test_a_pelvis_without_thighs_is_refused_naming_the_thighs_not_the_protocol()
             "need them: wear those sensors and calibrate again" in pelvis.message)
     assert "walking protocol" not in pelvis.message
     assert calibration_outcome(pelvis.valid, pelvis.message) == "needs sensors not in this kit"
+    assert "; not calibrated, for want of sensors: pelvis: no heading" in cal.message  # no fault: no caps
+    assert "NOT calibrated" not in cal.message
     assert calibration_outcome(False, "pelvis: moved during the standing") == "REFUSED"
 
 

@@ -347,6 +347,9 @@ def test_ipol_gait_trial_on_the_packet_counter_time_base():
     # 3362 rows, packet counter 0 ... 3902: 541 samples lost; times from the counter, not the row
     assert len(foot) == 3362 and foot.t[-1] == pytest.approx(39.02) and foot.mag is None
     assert any("left_foot: 541 samples lost by the radio (13.9 %" in w for w in rec.warnings)
+    assert rec.notes == ["magnetometer not imported (vendor-normalised units, not tesla): the recording is "
+                         "6D"]
+    assert not any("magnetometer" in w for w in rec.warnings)  # no fault: a note
     assert rec.reference["trial"] == pytest.approx((5.15, 25.15))
     # the reference's stride time matches the signal's on this time base (row numbers: 16 % short)
     ic = rec.reference["events"]["left"]["ic"]

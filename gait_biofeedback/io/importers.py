@@ -919,9 +919,10 @@ _WRITE_ROWS = 8192  # samples encoded at a time
 
 
 def import_to_bag(kind: str, path: str | Path, output: str | Path,
-                  warn: Callable[[str], None] | None = None, **options: Any) -> tuple[Path, list[str]]:
+                  warn: Callable[[str], None] | None = None, note: Callable[[str], None] | None = None,
+                  **options: Any) -> tuple[Path, list[str]]:
     """Import ``path`` (as :func:`import_recording`) and write it to the bag folder ``output``; return
-    (the folder, the segments). ``warn`` receives each warning. A CSV is streamed
+    (the folder, the segments). ``warn`` receives each warning, ``note`` each note. A CSV is streamed
     (:func:`import_csv_to_bag`: any size in bounded memory); the other kinds are read whole. An output
     the free disk cannot hold is refused before anything is written."""
     from gait_biofeedback.io.imu_bag import write_imu_bag
@@ -934,6 +935,8 @@ def import_to_bag(kind: str, path: str | Path, output: str | Path,
     recording = import_recording(kind, path, **options)
     for text in recording.warnings:
         warn(text)
+    for text in recording.notes:
+        (note or (lambda text: None))(text)
     check_disk_space(output, sum(len(s) * (1 if s.mag is None else 2) for s in recording.imu.values()))
     return write_imu_bag(output, recording.imu), list(recording.imu)
 

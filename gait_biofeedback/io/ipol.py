@@ -67,7 +67,7 @@ def import_ipol_gait(path: str | Path) -> Recording:
     Times from 0 at each sensor's first packet (the counters of a trial's sensors start together)."""
     base = trial_base(path)
     imu, rates = {}, set()
-    warnings = ["magnetometer not imported (vendor-normalised units, not tesla): 6D"]
+    warnings: list[str] = []
     for suffix, segment in IPOL_FILES.items():
         file = base.with_name(f"{base.name}_{suffix}.txt.gz")
         if not file.is_file():
@@ -95,4 +95,5 @@ def import_ipol_gait(path: str | Path) -> Recording:
                  "trial": tuple(np.asarray(meta["TrialBoundaries"], dtype=float) / rate),
                  "u_turn": tuple(np.asarray(u_turn, dtype=float) / rate),
                  "subject": {k: v for k, v in meta.items() if not k.endswith(("Events", "Boundaries"))}}
-    return Recording(imu, f"ipol_gait {base}", reference, warnings)
+    return Recording(imu, f"ipol_gait {base}", reference, warnings,
+                     ["magnetometer not imported (vendor-normalised units, not tesla): the recording is 6D"])

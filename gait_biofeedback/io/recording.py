@@ -15,13 +15,15 @@ class Recording:
     ``imu``: segment name -> samples in SI units. ``source``: what was read (importer kind and path).
     ``reference``: optional ground truth or vendor output, importer-specific (documented per importer),
     e.g. ``events``, ``opt_quat``, ``movement``, ``vendor_quat``. ``warnings``: things a user should know
-    about the data (NaN samples kept, suspicious magnitudes), one sentence each.
+    about the data (NaN samples kept, suspicious magnitudes), one sentence each; ``notes``: information
+    that is no fault (a magnetometer left out), one sentence each.
     """
 
     imu: dict[str, ImuSeries]
     source: str
     reference: dict[str, Any] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
 
     @property
     def segments(self) -> list[str]:

@@ -615,8 +615,12 @@ def calibrate_session(
         message = "calibration refused, previous calibration stays in force: " + "; ".join(problems)
     else:
         message = "calibrated " + ", ".join(valid)
+        lacking = [p for p in problems if NOT_IN_KIT in p]  # information: the kit has no such sensors
+        problems = [p for p in problems if NOT_IN_KIT not in p]
         if problems:
             message += "; NOT calibrated (their joints are not published): " + "; ".join(problems)
+        if lacking:
+            message += "; not calibrated, for want of sensors: " + "; ".join(lacking)
     if unconfirmed:
         message += (f" (the movement did not confirm the {WORDS[protocol]} protocol: {check.evidence()}; "
                     "check that it was done as instructed)")
