@@ -496,12 +496,11 @@ def test_event_stamps_sit_event_margin_from_the_extremum():
     # issue 47, READING (events.py "Event times"): by hand, s = 0.9 cos(2π t) lies within m = 0.05 of an
     # extremum for |t - t_ext| <= arccos(1 - 0.05 / 0.9) / 2π = 53.3 ms. At 200 Hz (5 ms samples): the
     # TC is the first sample within it before a minimum, t_min - 50 ms; the IC the first sample out
-    # of it after a maximum, t_max + 55 ms; both inside 60 ms caps (the heel strike's default cap, 20 ms,
-    # is the next test's)
+    # of it after a maximum, t_max + 55 ms; both well inside the 60 ms caps
     half_width = math.acos(1 - 0.05 / 0.9) / (2 * math.pi)
     assert 0.050 < half_width < 0.055
     t, s = _cosine_walk(200.0)
-    detector = GaitEventDetector(rate_hz=200.0, heel_strike_shift_max_s=0.06)
+    detector = GaitEventDetector(rate_hz=200.0)
     events = [e for tk, sk in zip(t.tolist(), s.tolist(), strict=True)
               if (e := detector.update_signal(round(tk * 1e9), sk)) is not None]
     tcs = [e for e in events if e.kind == "tc"]
@@ -516,7 +515,7 @@ def test_event_stamps_sit_event_margin_from_the_extremum():
         assert e.t - round(e.t) == pytest.approx(0.055, abs=1e-6)
         assert e.detected_ns == e.stamp_ns  # published at its own sample: causal, 55 ms after the maximum
     # the same through the batch entry (sample indices)
-    batch = events_from_signal(s, 200.0, heel_strike_shift_max_s=0.06)
+    batch = events_from_signal(s, 200.0)
     assert batch["ic"].tolist() == [round(e.t * 200) for e in ics]
     assert batch["tc"].tolist() == [round(e.t * 200) for e in tcs]
 
@@ -526,13 +525,13 @@ def test_event_margin_zero_is_algorithm1_and_the_cap_bounds_the_shift():
     at_extremum = events_from_signal(s, 200.0, event_margin=0.0)
     assert set((at_extremum["ic"] % 200).tolist()) == {0}
     assert set((at_extremum["tc"] % 200).tolist()) == {100}
-    # 20 ms caps (the heel strike's default): the IC at the last sample within it (the sample 25 ms after
-    # the maximum is still in the margin), the TC 20 ms before the minimum
-    capped = events_from_signal(s, 200.0, toe_off_shift_max_s=0.02)
+    # 20 ms caps: the IC at the last sample within it (the sample 25 ms after the maximum is still in the
+    # margin), the TC 20 ms before the minimum
+    capped = events_from_signal(s, 200.0, toe_off_shift_max_s=0.02, heel_strike_shift_max_s=0.02)
     assert set((capped["ic"] % 200).tolist()) == {4}
     assert set((capped["tc"] % 200).tolist()) == {96}
     # a heel strike still waiting for its stamp when the data end is given out at the last sample
-    detector = GaitEventDetector(rate_hz=200.0, heel_strike_shift_max_s=0.06)
+    detector = GaitEventDetector(rate_hz=200.0)
     end = 1000 + 5  # 25 ms after the maximum at sample 1000
     for k in range(end + 1):
         detector.update_signal(k * 5_000_000, float(s[k]))
@@ -546,7 +545,7 @@ def test_the_live_stream_takes_the_event_margin_from_its_parameters():
 
     default = GaitEventStream(GaitEventsParams())
     assert {(d.event_margin, d.toe_off_shift_max_ns, d.heel_strike_shift_max_ns)
-            for d in default.detectors.values()} == {(0.05, 60_000_000, 20_000_000)}
+            for d in default.detectors.values()} == {(0.05, 60_000_000, 60_000_000)}
     algorithm1 = GaitEventStream(GaitEventsParams(event_margin=0.0, toe_off_shift_max_s=0.03,
                                                   heel_strike_shift_max_s=0.01))
     assert {(d.event_margin, d.toe_off_shift_max_ns, d.heel_strike_shift_max_ns)

@@ -135,7 +135,9 @@ def test_stride_time_and_cadence_per_side_match_the_simulator(reported):
         errors, true_times = [], []
         for r in (r for r in rows if r["side"] == side):
             k = int(np.argmin(np.abs(ics - float(r["start_s"]))))
-            assert abs(ics[k] - float(r["start_s"])) < 0.03, "each stride starts at a true IC"
+            # the simulator's IC is the toes-up maximum (as motion capture's); ours is stamped up to 60 ms
+            # after it (core/gait/events.py, "Event times")
+            assert -0.01 <= float(r["start_s"]) - ics[k] <= 0.07, "each stride starts at a true IC"
             true_times.append(ics[k + 1] - ics[k])
             errors.append(float(r["stride_time"]) - true_times[-1])
         assert len(errors) >= 6
