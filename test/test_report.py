@@ -458,3 +458,18 @@ def test_joint_rows_merge_one_stamp_s_messages_and_leave_absent_angles_nan():
     np.testing.assert_array_equal(columns["right_ankle"], [np.nan, np.nan, -0.4, np.nan])
     assert rows.by_stamp("left_knee") == {10: 0.5, 20: 0.3} and list(rows.by_stamp("left_knee")) == [10, 20]
     assert rows.by_stamp("head") == {}
+
+
+def test_a_feet_only_kit_gets_one_sentence_instead_of_empty_joint_angle_plots(tmp_path):
+    """Feet only (ipol_gait, pyshoe): the joint-angle and GPS sections were six empty plots, an empty
+    chart and a table of dashes; now one sentence says why there are none, and the pages go on."""
+    config = SimulationConfig(seed=5, phases=[Phase("stand", 5.0), Phase("walk", 10.0), Phase("stand", 2.0)])
+    config.segments = ("left_foot", "right_foot")
+    raw, _ = simulated_bag(tmp_path / "walk", config)
+    assert run_cli("analyze", str(raw), "-o", str(tmp_path / "analyzed"), "--calibrate-at", "auto")[0] == 0
+    rc, _, err = run_cli("report", str(tmp_path / "analyzed"), "-o", str(tmp_path / "report"))
+    assert rc == 0, err
+    text = " ".join(" ".join(_pdf_pages(tmp_path / "report" / "report.pdf")).split())
+    assert "No joint angles: no stride used has hip, knee and ankle angles (" in text
+    assert "a thigh, shank or foot sensor missing" in text
+    assert "no strides with angles" not in text and "Movement Analysis Profile: the Gait Variable" not in text

@@ -209,8 +209,8 @@ def write_report(
     sections = [
         content.summary_section(summary),
         content.spatiotemporal(analysis, norms),
-        content.joint_curves(analysis, targets),
-        content.profile_score(analysis),
+        *((content.joint_curves(analysis, targets), content.profile_score(analysis))
+          if content.has_joint_curves(analysis) else (content.no_joint_curves(analysis),)),
         content.strides_section(data, analysis),
         content.activity_section(data),
         content.calibration_section(data, summary),

@@ -159,6 +159,22 @@ def spatiotemporal(analysis: SessionAnalysis, norms: dict[str, NormBand]) -> Sec
     return section
 
 
+def has_joint_curves(analysis: SessionAnalysis) -> bool:
+    """Whether any stride used has joint-angle curves (a feet-only kit has none)."""
+    return any(len(curve) for side in analysis.curves.values() for curve in side.values())
+
+
+def no_joint_curves(analysis: SessionAnalysis) -> Section:
+    """The joint-angle sections of a recording without any: one sentence instead of empty plots."""
+    section = Section("Joint angles over the stride")
+    reasons = "; ".join(f"{plural(n, 'stride')}: {NO_CURVES[r]}"
+                        for r, n in analysis.strides_without_curves.items())
+    section.add(Paragraph("No joint angles: no stride used has hip, knee and ankle angles"
+                          + (f" ({reasons})" if reasons else "") + ". The Gait Profile Score needs them too.",
+                          "note"))
+    return section
+
+
 def joint_curves(analysis: SessionAnalysis, targets: Targets) -> Section:
     section = Section("Joint angles over the stride", new_page=True)
     tol = {n: math.degrees(v) for n, v in targets.reference_tolerance.items()}
