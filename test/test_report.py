@@ -473,3 +473,18 @@ def test_a_feet_only_kit_gets_one_sentence_instead_of_empty_joint_angle_plots(tm
     assert "No joint angles: no stride used has hip, knee and ankle angles (" in text
     assert "a thigh, shank or foot sensor missing" in text
     assert "no strides with angles" not in text and "Movement Analysis Profile: the Gait Variable" not in text
+    assert "error to true mounting" in text  # simulated: the truth column is there
+
+
+def test_the_true_mounting_column_is_left_out_of_a_real_recordings_calibration_table():
+    from types import SimpleNamespace
+
+    from gait_biofeedback.report.content import calibration_section
+
+    entry = {"valid": True, "message": "", "quality": 0.9}
+    data = SimpleNamespace(calibration={"left_foot": entry})
+    real = calibration_section(data, SimpleNamespace(calibration={})).blocks[0]
+    truth = SimpleNamespace(calibration={"left_foot": {"error": 0.01}})
+    simulated = calibration_section(data, truth).blocks[0]
+    assert real.header == ["segment", "status", "quality (0-1)", "message"] and len(real.rows[0]) == 4
+    assert simulated.header[-1] == "error to true mounting (°, simulated)" and simulated.rows[0][-1] == "0.6"

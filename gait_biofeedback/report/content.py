@@ -316,11 +316,10 @@ def calibration_section(data: SessionData, report: SessionReport) -> Section:
                 f"{math.degrees(error):.1f}" if error is not None else "–",
             ]
         )
-    section.add(
-        Table(
-            ["segment", "status", "quality (0-1)", "message", "error to true mounting (°, simulated)"], rows
-        )
-    )
+    header = ["segment", "status", "quality (0-1)", "message", "error to true mounting (°, simulated)"]
+    if not any(report.calibration.get(seg, {}).get("error") is not None for seg in data.calibration):
+        header, rows = header[:-1], [row[:-1] for row in rows]  # a real recording: no true mounting
+    section.add(Table(header, rows))
     return section
 
 
