@@ -10,7 +10,7 @@ from collections import Counter
 
 from gait_biofeedback.core.biofeedback import normative
 from gait_biofeedback.core.biofeedback.evaluator import Targets
-from gait_biofeedback.core.gait.cycles import TURN_LIMIT, WHOLE_TURN_LIMIT
+from gait_biofeedback.core.gait.cycles import TURN_LIMIT, WHOLE_TURN_LIMIT, flag_kinds
 from gait_biofeedback.core.segments import SIDES
 from gait_biofeedback.core.words import plural
 from gait_biofeedback.report import figures
@@ -268,7 +268,7 @@ def strides_section(data: SessionData, analysis: SessionAnalysis) -> Section:
     if analysis.left_out_ends:
         items.append(f"{plural(analysis.left_out_ends, 'stride')} starting or ending a walk left out (each "
                      "foot's first stride after a standing and last before a stop)")
-    flags = Counter(r["flag"].split(":")[0] for r in data.strides if not r["plausible"])
+    flags = Counter(kind for r in data.strides if not r["plausible"] for kind in flag_kinds(r["flag"]))
     items += [f"not plausible: {n} × {flag}" for flag, n in flags.most_common()]
     spatial = Counter(r["spatial_flag"].split(":")[0] for r in analysis.used if r["spatial_flag"])
     items += [f"no spatial values: {n} × {flag}" for flag, n in spatial.most_common()]

@@ -136,7 +136,15 @@ def strides_over_time(data: SessionData, analysis: SessionAnalysis) -> str:
             )
             ax.set_ylabel(f"{name.replace('_', ' ')} ({unit})")
             ax.grid(alpha=0.3)
-    axes[0].set_ylim(0, 3.0)  # plausible strides are 0.4-3 s
+    top = 3.0  # plausible strides are 0.4-3 s
+    for line in axes[0].lines:  # a longer one (a pause) as a triangle at the top: the PDF's SVG has no clip
+        x, y = (np.asarray(v, dtype=float) for v in line.get_data())
+        over = y > top
+        if over.any():
+            line.set_data(x[~over], y[~over])
+            axes[0].plot(x[over], np.full(over.sum(), 0.97 * top), "^", ms=3, mfc=line.get_mfc(),
+                         color=line.get_color())
+    axes[0].set_ylim(0, top)
     axes[1].set_ylim(bottom=0)
     axes[0].legend(fontsize=6, frameon=False, ncol=4, loc="upper left")
     for k, side in enumerate(SIDES):
@@ -154,7 +162,8 @@ def strides_over_time(data: SessionData, analysis: SessionAnalysis) -> str:
     axes[2].set_yticks([0, 1], ["left", "right"])
     axes[2].set_ylim(-0.5, 1.8)
     axes[2].set_xlabel("time into the session (s)")
-    axes[2].legend(fontsize=6, frameon=False, ncol=4, loc="upper left")
+    axes[2].legend(fontsize=6, frameon=False, ncol=4, loc="lower left", bbox_to_anchor=(0.0, 1.0),
+                   borderaxespad=0.0)  # above the events, not on them
     for a, b in analysis.walking_bouts or []:
         for ax in axes:
             ax.axvspan(a, b, color="#2ecc71", alpha=0.08, lw=0)
