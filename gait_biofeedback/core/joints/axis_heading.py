@@ -28,16 +28,11 @@ The filters' own heading corrections (9D, step 3 of the joint-centre module) are
 
 from __future__ import annotations
 
-import math
-
+from gait_biofeedback.core.joints import _heading_kernel as hk
 from gait_biofeedback.core.joints.relative_heading import (
-    JUMP_BACK_NS,
-    MAX_TURN_STEP_S,
     TIME_CONSTANT_S,
     HeadingEstimate,
     RelativeHeadingEstimator,
-    _rotate,
-    _turned_back,
 )
 
 MIN_SECONDS = 1.0  # s of horizontal axes (weight 1 each) before the estimate is used: about one stride
@@ -47,17 +42,16 @@ MIN_COHERENCE = 0.7  # |Σ| / Σ|·|: the two axes' headings agree within about 
 class AxisHeadingEstimator(RelativeHeadingEstimator):
     """Streaming heading offset of the hip's two sensors from their calibrated medio-lateral axes
     (module docstring). :meth:`set_axes` gives the axes (sensor coordinates, from the calibration);
-    :meth:`update` takes the same synchronised samples as the joint-centre estimator."""
+    :meth:`update` takes the same synchronised samples as the joint-centre estimator; its arithmetic is
+    :func:`._heading_kernel.axis_step`."""
 
     def __init__(self, time_constant: float = TIME_CONSTANT_S, min_seconds: float = MIN_SECONDS,
                  min_coherence: float = MIN_COHERENCE) -> None:
         self.axes: tuple[tuple[float, ...], tuple[float, ...]] | None = None
-        self._last_ns: int | None = None
         super().__init__(time_constant, min_information=min_seconds, min_coherence=min_coherence)
 
-    def reset(self) -> None:
-        super().reset()
-        self._last_ns = None
+    def _restarted(self) -> None:
+        super()._restarted()
         self.state = "waiting for a calibration" if self.axes is None else "converging"
 
     def set_axes(self, axis1: tuple | None, axis2: tuple | None) -> None:
@@ -65,8 +59,12 @@ class AxisHeadingEstimator(RelativeHeadingEstimator):
         is not calibrated). The average restarts; the filters' world turns are kept."""
         self.axes = None if axis1 is None or axis2 is None else (tuple(map(float, axis1)),
                                                                  tuple(map(float, axis2)))
-        self._sum, self._magnitude, self.information = 0j, 0.0, 0.0
-        self.kinematic_delta, self.established = 0.0, False
+        f, i = self._f, self._i
+        for k in (hk.SUM, hk.SUM + 1, hk.MAGNITUDE, hk.INFORMATION, hk.KDELTA):
+            f[k] = 0.0
+        i[hk.ESTABLISHED], i[hk.HAS_AXES] = 0, int(self.axes is not None)
+        for k, v in enumerate((*self.axes[0], *self.axes[1]) if self.axes is not None else (0.0,) * 6):
+            f[hk.AXES + k] = v
         self.state = "waiting for a calibration" if self.axes is None else "converging"
 
     def update(self, ns: int, q1: tuple, gyr1: tuple, acc1: tuple, q2: tuple, gyr2: tuple,
@@ -74,19 +72,6 @@ class AxisHeadingEstimator(RelativeHeadingEstimator):
         """Add one sample (``acc`` is not used: same call as the joint-centre estimator); the estimate in
         force for it, which includes it. Non-finite samples are skipped; a stamp more than 1 s back
         restarts the average and the world turns (the filters restarted)."""
-        if not math.isfinite(sum(q1) + sum(gyr1) + sum(q2) + sum(gyr2)):
-            return self._estimate()
-        if self._last_ns is not None and ns <= self._last_ns:
-            if ns > self._last_ns - JUMP_BACK_NS:
-                return self._estimate()
-            axes = self.axes
-            self.reset()
-            self.set_axes(*(axes or (None, None)))
-        self._turn_worlds(ns, tuple(q1), tuple(gyr1), tuple(q2), tuple(gyr2), magnetic)
-        dt = 0.0 if self._last_ns is None else min(ns - self._last_ns, MAX_TURN_STEP_S * 1e9) * 1e-9
-        self._last_ns = ns
-        if self.axes is not None and dt > 0.0:
-            h1 = complex(*_rotate(_turned_back(q1, self.world_turn[0]), self.axes[0]))
-            h2 = complex(*_rotate(_turned_back(q2, self.world_turn[1]), self.axes[1]))
-            self._add_product(h1 * h2.conjugate(), dt)
+        self._after(self._k.axis_step(self._f, self._i, self._p, int(ns), *q1, *gyr1, *q2, *gyr2,
+                                      bool(magnetic[0]), bool(magnetic[1])))
         return self._estimate()

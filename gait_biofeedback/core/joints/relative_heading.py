@@ -60,17 +60,17 @@ Stamps are int ns.
 
 from __future__ import annotations
 
-import cmath
 import dataclasses
 import math
 from collections import deque
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from gait_biofeedback.core import quaternion as quat
-from gait_biofeedback.core.orientation.filters import _scalar as scalar
+from gait_biofeedback.core.jit import fast
+from gait_biofeedback.core.joints import _heading_kernel as hk
 from gait_biofeedback.core.stamps import seconds_to_ns
 
 TIME_CONSTANT_S = 5.0
@@ -80,15 +80,15 @@ MIN_INFORMATION = 20.0  # (m/s²)² s: e.g. 10 s of 1.4 m/s² horizontal joint-c
 MIN_COHERENCE = 0.3
 MIN_WINDOW_INFORMATION = 2.0  # (m/s²)² s, one window (calibration), after WINDOW_LOWPASS_HZ
 MIN_WINDOW_COHERENCE = 0.5
-JUMP_BACK_NS = 1_000_000_000  # a stamp this much older than the last one restarts the estimate
+JUMP_BACK_NS = hk.JUMP_BACK_NS
 MAX_WINDOW_SPAN = 6.0  # the joint-centre window keeps at most this many position windows of time (memory)
-MOVING = 0.2  # rad/s: a sample counts as motion for the joint-centre window when either |ω| exceeds it
+MOVING = hk.MOVING
 MAX_JOINT_DISTANCE = 1.0  # m: a larger sensor-to-joint distance is not a joint centre
 MAX_RESIDUAL = 2.0  # m/s²: RMS of the norm mismatch above which the joint-centre fit is refused
-HUBER = 1.0  # m/s²: norm mismatches larger than this weigh as |e| (robust fit)
+HUBER = hk.HUBER
 WINDOW_LOWPASS_HZ = 3.0  # Hz: zero-phase low-pass of the window's world joint-centre accelerations
 LOWPASS_HZ = 5.0  # Hz: zero-phase low-pass of the joint-centre window (heel-strike impacts)
-MAX_TURN_STEP_S = 0.1  # s: the longest sample interval over which a heading correction is read (step 3)
+MAX_TURN_STEP_S = hk.MAX_TURN_STEP_NS * 1e-9
 
 
 def _gamma(gyr: np.ndarray, gyr_dot: np.ndarray) -> np.ndarray:
@@ -121,27 +121,6 @@ def estimate_joint_position(gyr1: np.ndarray, acc1: np.ndarray, gyr2: np.ndarray
                 gyr2, rate_derivative(gyr2, dt), np.asarray(acc2, float), iterations, ridge)
 
 
-def _rotate(q: tuple[float, float, float, float], v: tuple[float, float, float]) -> tuple[float, float]:
-    """x, y of q ⊗ v ⊗ q* (the horizontal part of a sensor vector in the world)."""
-    w, x, y, z = q
-    vx, vy, vz = v
-    tx = 2.0 * (y * vz - z * vy)
-    ty = 2.0 * (z * vx - x * vz)
-    tz = 2.0 * (x * vy - y * vx)
-    return vx + w * tx + (y * tz - z * ty), vy + w * ty + (z * tx - x * tz)
-
-
-def _centre_force(gyr: tuple, gyr_dot: tuple, acc: tuple, r: np.ndarray) -> tuple[float, float, float]:
-    """a + ω × (ω × r) + ω̇ × r: the specific force at the joint centre, in sensor coordinates."""
-    wx, wy, wz = gyr
-    dx, dy, dz = gyr_dot
-    rx, ry, rz = r
-    cx, cy, cz = wy * rz - wz * ry, wz * rx - wx * rz, wx * ry - wy * rx  # ω × r
-    return (acc[0] + wy * cz - wz * cy + dy * rz - dz * ry,
-            acc[1] + wz * cx - wx * cz + dz * rx - dx * rz,
-            acc[2] + wx * cy - wy * cx + dx * ry - dy * rx)
-
-
 class HeadingEstimate(NamedTuple):
     """One sample's result: ``delta`` (rad, rotate the distal sensor's world frame by it about the
     vertical to put it in the proximal's), ``established``, ``coherence`` (0..1) and a ``state`` word
@@ -157,7 +136,8 @@ class HeadingEstimate(NamedTuple):
 class RelativeHeadingEstimator:
     """Streaming heading offset of one joint's two sensors (module docstring). :meth:`update` takes one
     synchronised sample of both (orientation w,x,y,z sensor→own world, bias-corrected rate rad/s, acc
-    m/s², stamp int ns)."""
+    m/s², stamp int ns). The per-sample arithmetic is :func:`._heading_kernel.step` (numba-compiled when
+    possible, on this object's state arrays); the joint-centre fit (step 1) stays here."""
 
     def __init__(self, time_constant: float = TIME_CONSTANT_S, highpass_s: float = HIGHPASS_S,
                  position_window_s: float = POSITION_WINDOW_S, min_information: float = MIN_INFORMATION,
@@ -167,53 +147,72 @@ class RelativeHeadingEstimator:
         self.position_window_s = float(position_window_s)
         self.min_information = float(min_information)
         self.min_coherence = float(min_coherence)
-        self.r1: np.ndarray | None = None
-        self.r2: np.ndarray | None = None
+        self._k = _kernels()
+        new = self._k.new
+        self._f, self._i = new(hk.N_FLOAT, 0.0), new(hk.N_INT, 0)
+        self._ring, self._row = new(RING_ROWS * hk.RING_WIDTH, 0.0), new(hk.ROW_WIDTH, 0.0)
+        self._p = new(hk.N_PARAM, 0.0)
+        self._p[hk.P_TIME_CONSTANT], self._p[hk.P_HALF] = self.time_constant, 0.5 * self.highpass_s
+        self._p[hk.P_MIN_INFORMATION], self._p[hk.P_MIN_COHERENCE] = self.min_information, self.min_coherence
         self.residual = math.nan
         self.reset()
 
     def reset(self) -> None:
         """Forget everything but the joint centre (time went back: the filters restarted, their headings
         are new)."""
-        self._prev: tuple = (None, None)
-        self._window: deque[tuple[tuple, float]] = deque()  # (row, its motion time s)
+        self._k.restart(self._f, self._i)
+        self._restarted()
+
+    def _restarted(self) -> None:
+        self._window: deque[np.ndarray] = deque()  # joint-centre window rows (hk.ROW_WIDTH)
         self._window_s = 0.0  # motion time in the window
         self._span_s = 0.0  # all time in the window
-        self._recent: deque[tuple[float, complex, complex, float, float]] = deque()  # t s, h₁, h₂, weight, dt
-        self._centre = 0  # index in _recent of the next sample whose centred mean is complete
-        self._edge = -1  # index in _recent of the newest sample inside the centre's window
-        self._window_h1 = self._window_h2 = 0j  # sums of h over _recent[0 .. _edge]
-        self._sum = 0j
-        self._magnitude = 0.0
-        self.information = 0.0
-        self.kinematic_delta = 0.0  # δ between the gyro-only worlds (step 2)
-        self.world_turn = [0.0, 0.0]  # E₁, E₂ (step 3)
-        self._last_q: tuple = (None, None, None)  # (ns, (q₁, ω₁), (q₂, ω₂)) of the last sample
-        self.established = False
         self.state = "collecting motion" if self.r1 is None else "converging"
+
+    def _centre(self, at: int) -> np.ndarray | None:
+        return np.array(self._f[at:at + 3], dtype=float) if self._i[hk.FITTED] else None
+
+    def _set_centre(self, at: int, r: np.ndarray | None) -> None:
+        self._i[hk.FITTED] = int(r is not None)
+        for k in range(3):
+            self._f[at + k] = 0.0 if r is None else float(r[k])
+
+    r1 = property(lambda self: self._centre(hk.CENTRE), lambda self, r: self._set_centre(hk.CENTRE, r),
+                  doc="sensor 1 → joint centre (m, sensor coordinates), None before the fit")
+    r2 = property(lambda self: self._centre(hk.CENTRE + 3),
+                  lambda self, r: self._set_centre(hk.CENTRE + 3, r),
+                  doc="sensor 2 → joint centre (m, sensor coordinates), None before the fit")
+
+    @property
+    def established(self) -> bool:
+        """The products weigh ``min_information`` and agree (module docstring step 4)."""
+        return bool(self._i[hk.ESTABLISHED])
 
     @property
     def delta(self) -> float:
         """The heading offset in force (rad): the kinematic one plus the worlds' own turns (step 3)."""
-        return _wrap(self.kinematic_delta + self.world_turn[0] - self.world_turn[1])
-
-    def _turn_worlds(self, ns: int, q1: tuple, gyr1: tuple, q2: tuple, gyr2: tuple,
-                     magnetic: tuple[bool, bool]) -> None:
-        last_ns, last1, last2 = self._last_q
-        self._last_q = (ns, (q1, gyr1), (q2, gyr2))
-        if last_ns is None or not 0 < ns - last_ns <= MAX_TURN_STEP_S * 1e9:
-            return
-        dt = (ns - last_ns) * 1e-9
-        for k, (q, gyr, (q_last, gyr_last)) in enumerate(((q1, gyr1, last1), (q2, gyr2, last2))):
-            if magnetic[k]:
-                self.world_turn[k] = _wrap(self.world_turn[k]
-                                           + _vertical_correction(q_last, gyr_last, q, gyr, dt))
-
-    def _coherence(self) -> float:
-        return abs(self._sum) / self._magnitude if self._magnitude > 0 else 0.0
+        return float(self._k.delta(self._f))
 
     def _estimate(self) -> HeadingEstimate:
-        return HeadingEstimate(self.delta, self.established, self._coherence(), self.state)
+        return HeadingEstimate(self.delta, self.established, float(self._k.coherence(self._f)), self.state)
+
+    def _room(self) -> None:
+        """At least one free row in the ring of recent products (it doubles when full)."""
+        ring, i, width = self._ring, self._i, hk.RING_WIDTH
+        cap = len(ring) // width
+        if i[hk.COUNT] < cap:
+            return
+        grown = self._k.new(2 * cap * width, 0.0)
+        for k in range(cap):
+            at = (int(i[hk.START]) + k) % cap * width
+            grown[k * width:(k + 1) * width] = ring[at:at + width]
+        self._ring, i[hk.START] = grown, 0
+
+    def _after(self, code: int) -> None:
+        if code & hk.RESTARTED:
+            self._restarted()
+        if code & hk.NOW_ESTABLISHED:
+            self.state = "ok"
 
     def update(self, ns: int, q1: tuple, gyr1: tuple, acc1: tuple, q2: tuple, gyr2: tuple,
                acc2: tuple, magnetic: tuple[bool, bool] = (False, False)) -> HeadingEstimate:
@@ -221,46 +220,29 @@ class RelativeHeadingEstimator:
         previous sample is added now, with ω̇ as the central difference around it). A sample with a
         value that is not finite is skipped (one NaN would otherwise poison every later estimate).
         ``magnetic``: whether each filter's heading comes from a magnetometer (module docstring step 3)."""
-        if not math.isfinite(sum(q1) + sum(gyr1) + sum(acc1) + sum(q2) + sum(gyr2) + sum(acc2)):
-            return self._estimate()
-        if self._prev[1] is not None and ns <= self._prev[1][0]:
-            if ns > self._prev[1][0] - JUMP_BACK_NS:
-                return self._estimate()  # a repeated or late sample
-            self.reset()  # time went back (replayed, restarted): the filters' headings are new
-        self._turn_worlds(ns, tuple(q1), tuple(gyr1), tuple(q2), tuple(gyr2), magnetic)
-        sample = (ns, _turned_back(q1, self.world_turn[0]), tuple(gyr1), tuple(acc1),
-                  _turned_back(q2, self.world_turn[1]), tuple(gyr2), tuple(acc2))
-        before, middle = self._prev
-        self._prev = (middle, sample)
-        if before is None or ns - before[0] > 0.25e9:  # start or a gap: no derivative across it
-            return self._estimate()
-        dt = (ns - before[0]) * 1e-9
-        _, mq1, mg1, ma1, mq2, mg2, ma2 = middle
-        d1 = tuple((a - b) / dt for a, b in zip(gyr1, before[2], strict=True))
-        d2 = tuple((a - b) / dt for a, b in zip(gyr2, before[5], strict=True))
-        step = (middle[0] - before[0]) * 1e-9
-        row = (mq1, mg1, d1, ma1, mq2, mg2, d2, ma2, step, middle[0] * 1e-9)
-        if self.r1 is None:
-            moving = step if max(math.hypot(*mg1), math.hypot(*mg2)) > MOVING else 0.0
-            self._window.append((row, moving))
-            self._window_s += moving
-            self._span_s += step
+        self._room()
+        code = self._k.step(self._f, self._i, self._ring, self._p, self._row, int(ns), *q1, *gyr1, *acc1, *q2,
+                            *gyr2, *acc2, bool(magnetic[0]), bool(magnetic[1]))
+        self._after(code)
+        if code & hk.ROW_MADE:
+            row = np.array(self._row, dtype=float)
+            self._window.append(row)
+            self._window_s += row[28]
+            self._span_s += row[26]
             while self._span_s > MAX_WINDOW_SPAN * self.position_window_s:  # long stillness: forget its start
-                (old, old_moving) = self._window.popleft()
-                self._span_s -= old[8]
-                self._window_s -= old_moving
+                old = self._window.popleft()
+                self._span_s -= old[26]
+                self._window_s -= old[28]
             if self._window_s >= self.position_window_s and len(self._window) >= 20:
                 self._fit_position()
-            return self._estimate()
-        self._add(*row)
         return self._estimate()
 
     def _fit_position(self) -> None:
-        rows = [row for row, _ in self._window]
+        rows = np.array(self._window)
         self._window, self._window_s, self._span_s = deque(), 0.0, 0.0
-        rate_hz = 1.0 / float(np.median([r[8] for r in rows]))
-        g1, d1, a1, g2, d2, a2 = (_zero_phase_lowpass(np.array([r[k] for r in rows]), rate_hz)
-                                  for k in (1, 2, 3, 5, 6, 7))
+        rate_hz = 1.0 / float(np.median(rows[:, 26]))
+        g1, d1, a1, g2, d2, a2 = (_zero_phase_lowpass(np.ascontiguousarray(rows[:, k:k + 3]), rate_hz)
+                                  for k in (4, 7, 10, 17, 20, 23))
         r1, r2, res = _fit(g1, d1, a1, g2, d2, a2)
         if (refused := _joint_centre_refused(r1, r2, res)) is not None:
             self.state = f"{refused}: are both sensors on this joint's segments? collecting motion again"
@@ -268,65 +250,55 @@ class RelativeHeadingEstimator:
         self.r1, self.r2, self.residual = r1, r2, res
         self.state = "converging"
         for row in rows:  # the window's own samples inform the heading too
-            self._add(*row)
-
-    def _add(self, q1: tuple, gyr1: tuple, dot1: tuple, acc1: tuple, q2: tuple, gyr2: tuple, dot2: tuple,
-             acc2: tuple, dt: float, t_s: float) -> None:
-        c1 = _centre_force(gyr1, dot1, acc1, self.r1)
-        c2 = _centre_force(gyr2, dot2, acc2, self.r2)
-        mismatch = (math.hypot(*c1) - math.hypot(*c2)) / HUBER
-        recent = self._recent
-        recent.append((t_s, complex(*_rotate(q1, c1)), complex(*_rotate(q2, c2)),
-                       1.0 / (1.0 + mismatch * mismatch), dt))
-        half = 0.5 * self.highpass_s
-        while self._centre < len(recent) and recent[-1][0] >= recent[self._centre][0] + half:
-            t_centre = recent[self._centre][0]
-            while self._edge + 1 < len(recent) and recent[self._edge + 1][0] <= t_centre + half:
-                self._edge += 1
-                self._window_h1 += recent[self._edge][1]
-                self._window_h2 += recent[self._edge][2]
-            while recent[0][0] < t_centre - half:
-                _, old1, old2, _, _ = recent.popleft()
-                self._window_h1 -= old1
-                self._window_h2 -= old2
-                self._centre -= 1
-                self._edge -= 1
-            count = self._edge + 1
-            _, h1, h2, weight, step = recent[self._centre]
-            self._centre += 1
-            self._add_product((h1 - self._window_h1 / count) * (h2 - self._window_h2 / count).conjugate()
-                              * weight, step)
-
-    def _add_product(self, p: complex, dt: float) -> None:
-        """One high-passed product h₁·conj(h₂) (module docstring step 2) into the exponential sum."""
-        a = min(1.0, dt / self.time_constant)
-        self._sum += a * (p - self._sum)
-        self._magnitude += a * (abs(p) - self._magnitude)
-        self.information += abs(p) * dt
-        if self._sum != 0:
-            self.kinematic_delta = cmath.phase(self._sum)
-        if not self.established and self.information >= self.min_information \
-                and self._coherence() >= self.min_coherence:
-            self.established = True
-            self.state = "ok"
+            self._room()
+            self._after(self._k.add_row(self._f, self._i, self._ring, self._p, self._k.row(row)))
 
 
-def _wrap(angle: float) -> float:
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+RING_ROWS = 128  # first capacity of the ring of recent products (0.6 s at 100 Hz needs 61; it grows)
 
 
-def _turned_back(q: tuple, turn: float) -> tuple[float, float, float, float]:
-    """R_z(−turn) ⊗ q."""
-    return scalar.multiply((math.cos(0.5 * turn), 0.0, 0.0, -math.sin(0.5 * turn)), q)
+class _Kernels(NamedTuple):
+    """The entry points of :mod:`._heading_kernel` and the state they run on: numpy arrays when
+    compiled, lists as plain Python (faster there)."""
+
+    step: Any
+    add_row: Any
+    axis_step: Any
+    restart: Any
+    delta: Any
+    coherence: Any
+    new: Any  # (size, fill) → a state sequence
+    row: Any  # an array row → the kernel's sequence
 
 
-def _vertical_correction(q_last: tuple, gyr_last: tuple, q: tuple, gyr: tuple, dt: float) -> float:
-    """Twist about the world vertical (rad) of ``q ⊗ conj(q_last ⊗ exp(ω̄ dt))`` (module docstring
-    step 3)."""
-    mean_rate = ((a + b) * 0.5 for a, b in zip(gyr_last, gyr, strict=True))
-    pw, px, py, pz = scalar.gyro_step(q_last, *mean_rate, dt)
-    cw, _, _, cz = scalar.multiply(q, (pw, -px, -py, -pz))
-    return 2.0 * math.atan2(cz, cw) if cw >= 0 else 2.0 * math.atan2(-cz, -cw)
+_LOADED: list[_Kernels] = []
+
+
+def _kernels(python: bool = False) -> _Kernels:
+    """:mod:`._heading_kernel`'s entry points compiled with numba (:func:`~gait_biofeedback.core.jit.fast`:
+    once per process, numba's disk cache), or plain Python (``python``: the module's functions as they
+    are, the twin when they are the plain ones)."""
+    if python:
+        return _Kernels(hk.step, hk.add_row, hk.axis_step, hk._restart, hk.delta, hk.coherence,
+                        lambda n, fill: [fill] * n, lambda r: r.tolist())
+    if not _LOADED:
+        f, i, p = np.zeros(hk.N_FLOAT), np.zeros(hk.N_INT, dtype=np.int64), np.ones(hk.N_PARAM)
+        ring, row = np.zeros(RING_ROWS * hk.RING_WIDTH), np.zeros(hk.ROW_WIDTH)
+        i[hk.EDGE], i[hk.FITTED] = -1, 1
+        sample = (1.0, 0.0, 0.0, 0.0, 0.1, 0.2, 0.3, 0.0, 0.0, 9.8) * 2
+        helpers = ("_norm", "_wrap", "_turned_back", "_vertical_correction", "_turn_worlds", "_restart",
+                   "_rotate", "_centre_force", "_coherence", "_add_product", "add_row")
+        step = fast(hk, "step", (f, i, ring, p, row, 10_000_000, *sample, True, True), helpers)
+        if not hasattr(step, "py_func"):
+            _LOADED.append(_kernels(python=True))
+            return _LOADED[0]
+        _LOADED.append(_Kernels(step, fast(hk, "add_row", (f, i, ring, p, row)),
+                                fast(hk, "axis_step", (f, i, p, 10_000_000, *sample[:7], *sample[:7], True,
+                                                       True)),
+                                fast(hk, "_restart", (f, i)), fast(hk, "delta", (f,)),
+                                fast(hk, "coherence", (f,)),
+                                lambda n, fill: np.full(n, fill, dtype=type(fill)), lambda r: r))
+    return _LOADED[0]
 
 
 def _joint_centre_refused(r1: np.ndarray, r2: np.ndarray, residual: float) -> str | None:
