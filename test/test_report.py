@@ -488,3 +488,19 @@ def test_the_true_mounting_column_is_left_out_of_a_real_recordings_calibration_t
     simulated = calibration_section(data, truth).blocks[0]
     assert real.header == ["segment", "status", "quality (0-1)", "message"] and len(real.rows[0]) == 4
     assert simulated.header[-1] == "error to true mounting (°, simulated)" and simulated.rows[0][-1] == "0.6"
+
+
+def test_a_waist_only_kit_gets_activity_and_one_sentence_for_the_gait(tmp_path):
+    """A lower-back sensor alone (hapt): no strides and no calibration are what the kit is, said in one
+    sentence each (information), not an empty table, an empty strides page and a calibration warning."""
+    config = SimulationConfig(seed=5, phases=[Phase("stand", 5.0), Phase("walk", 8.0), Phase("stand", 2.0)])
+    config.segments = ("pelvis",)
+    raw, _ = simulated_bag(tmp_path / "walk", config)
+    assert run_cli("analyze", str(raw), "-o", str(tmp_path / "analyzed"))[0] == 0
+    rc, _, err = run_cli("report", str(tmp_path / "analyzed"), "-o", str(tmp_path / "report"))
+    assert rc == 0, err
+    text = " ".join(" ".join(_pdf_pages(tmp_path / "report" / "report.pdf")).split())
+    assert "No strides: this kit has no foot sensor, and gait events and strides come from the feet." in text
+    assert "No calibration: this kit has no leg or foot sensor" in text
+    assert "No calibration in force" not in text and "Strides and events over time" not in text
+    assert "steps counted" in text

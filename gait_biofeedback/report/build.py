@@ -206,12 +206,16 @@ def write_report(
     ]
     if len(sessions) > 1:
         header.append(("sessions compared", ", ".join(labels)))
+    if not data.strides:
+        gait = [content.no_strides(data)]
+    else:
+        gait = [content.spatiotemporal(analysis, norms),
+                *((content.joint_curves(analysis, targets), content.profile_score(analysis))
+                  if content.has_joint_curves(analysis) else (content.no_joint_curves(analysis),)),
+                content.strides_section(data, analysis)]
     sections = [
         content.summary_section(summary),
-        content.spatiotemporal(analysis, norms),
-        *((content.joint_curves(analysis, targets), content.profile_score(analysis))
-          if content.has_joint_curves(analysis) else (content.no_joint_curves(analysis),)),
-        content.strides_section(data, analysis),
+        *gait,
         content.activity_section(data),
         content.calibration_section(data, summary),
         content.quality_section(data),

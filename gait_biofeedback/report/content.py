@@ -159,6 +159,14 @@ def spatiotemporal(analysis: SessionAnalysis, norms: dict[str, NormBand]) -> Sec
     return section
 
 
+def no_strides(data: SessionData) -> Section:
+    """The gait sections of a recording without any stride: one sentence instead of empty tables."""
+    feet = [t for t in data.counts if t.endswith(("_foot/imu/data_raw", "_foot/imu/data"))]
+    why = ("the foot sensors gave no gait events (no walking, or no calibration in force)" if feet
+           else "this kit has no foot sensor, and gait events and strides come from the feet")
+    return Section("Spatiotemporal parameters").add(Paragraph(f"No strides: {why}.", "note"))
+
+
 def has_joint_curves(analysis: SessionAnalysis) -> bool:
     """Whether any stride used has joint-angle curves (a feet-only kit has none)."""
     return any(len(curve) for side in analysis.curves.values() for curve in side.values())
@@ -300,6 +308,10 @@ def activity_section(data: SessionData) -> Section:
 def calibration_section(data: SessionData, report: SessionReport) -> Section:
     section = Section("Calibration quality")
     if not data.calibration:
+        legs = [t for t in data.counts if t.split("/")[1].endswith(("_thigh", "_shank", "_foot"))]
+        if not legs:  # a trunk sensor alone needs none: information
+            return section.add(Paragraph("No calibration: this kit has no leg or foot sensor, and the "
+                                         "activity monitor finds its own upright reference.", "note"))
         return section.add(
             Paragraph("No calibration in force: no joint angles and no gait events.", "warning")
         )
