@@ -460,16 +460,23 @@ def test_joint_rows_merge_one_stamp_s_messages_and_leave_absent_angles_nan():
     assert rows.by_stamp("head") == {}
 
 
+def _kit_report_text(tmp_path: Path, segments: tuple[str, ...], walk_s: float, *analyze_args: str) -> str:
+    """The PDF text (whitespace joined) of a simulated walk by a kit of ``segments``, analysed and reported
+    through the CLI."""
+    phases = [Phase("stand", 5.0), Phase("walk", walk_s), Phase("stand", 2.0)]
+    config = SimulationConfig(seed=5, phases=phases)
+    config.segments = segments
+    raw, _ = simulated_bag(tmp_path / "walk", config)
+    assert run_cli("analyze", str(raw), "-o", str(tmp_path / "analyzed"), *analyze_args)[0] == 0
+    rc, _, err = run_cli("report", str(tmp_path / "analyzed"), "-o", str(tmp_path / "report"))
+    assert rc == 0, err
+    return " ".join(" ".join(_pdf_pages(tmp_path / "report" / "report.pdf")).split())
+
+
 def test_a_feet_only_kit_gets_one_sentence_instead_of_empty_joint_angle_plots(tmp_path):
     """Feet only (ipol_gait, pyshoe): the joint-angle and GPS sections were six empty plots, an empty
     chart and a table of dashes; now one sentence says why there are none, and the pages go on."""
-    config = SimulationConfig(seed=5, phases=[Phase("stand", 5.0), Phase("walk", 10.0), Phase("stand", 2.0)])
-    config.segments = ("left_foot", "right_foot")
-    raw, _ = simulated_bag(tmp_path / "walk", config)
-    assert run_cli("analyze", str(raw), "-o", str(tmp_path / "analyzed"), "--calibrate-at", "auto")[0] == 0
-    rc, _, err = run_cli("report", str(tmp_path / "analyzed"), "-o", str(tmp_path / "report"))
-    assert rc == 0, err
-    text = " ".join(" ".join(_pdf_pages(tmp_path / "report" / "report.pdf")).split())
+    text = _kit_report_text(tmp_path, ("left_foot", "right_foot"), 10.0, "--calibrate-at", "auto")
     assert "No joint angles: no stride used has hip, knee and ankle angles (" in text
     assert "a thigh, shank or foot sensor missing" in text
     assert "no strides with angles" not in text and "Movement Analysis Profile: the Gait Variable" not in text
@@ -493,13 +500,7 @@ def test_the_true_mounting_column_is_left_out_of_a_real_recordings_calibration_t
 def test_a_waist_only_kit_gets_activity_and_one_sentence_for_the_gait(tmp_path):
     """A lower-back sensor alone (hapt): no strides and no calibration are what the kit is, said in one
     sentence each (information), not an empty table, an empty strides page and a calibration warning."""
-    config = SimulationConfig(seed=5, phases=[Phase("stand", 5.0), Phase("walk", 8.0), Phase("stand", 2.0)])
-    config.segments = ("pelvis",)
-    raw, _ = simulated_bag(tmp_path / "walk", config)
-    assert run_cli("analyze", str(raw), "-o", str(tmp_path / "analyzed"))[0] == 0
-    rc, _, err = run_cli("report", str(tmp_path / "analyzed"), "-o", str(tmp_path / "report"))
-    assert rc == 0, err
-    text = " ".join(" ".join(_pdf_pages(tmp_path / "report" / "report.pdf")).split())
+    text = _kit_report_text(tmp_path, ("pelvis",), 8.0)
     assert "No strides: this kit has no foot sensor, and gait events and strides come from the feet." in text
     assert "No calibration: this kit has no leg or foot sensor" in text
     assert "No calibration in force" not in text and "Strides and events over time" not in text
