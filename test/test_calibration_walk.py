@@ -197,7 +197,8 @@ def test_analyze_auto_gives_the_gait_events_of_a_walk_without_standing(walk_from
         truth = walk_from_rest.truth.initial_contacts[side]
         found = np.array(sorted(t for s, t in events if s == index and t < truth[-1] + 0.5))
         assert len(found) == len(truth) > 4
-        assert np.abs(found - truth).max() < 0.03
+        assert (found - truth).min() >= -0.01 and (found - truth).max() <= 0.07  # IC stamped up to 60 ms
+        # after the toes-up maximum, the simulator's IC (core/gait/events.py, "Event times")
 
 
 @pytest.mark.ros
@@ -241,4 +242,4 @@ def test_replay_auto_puts_the_walks_calibration_in_force_from_the_start(walk_fro
         # truth, counted from the gait phase, does not list
         found = found[found > truth[0] - 0.5] if standing_s else found
         assert len(found) == len(truth) > 4
-        assert np.abs(found - truth).max() < 0.03
+        assert (found - truth).min() >= -0.01 and (found - truth).max() <= 0.07  # as above
