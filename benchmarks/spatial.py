@@ -147,7 +147,7 @@ def _tracked(position: np.ndarray, reference: np.ndarray) -> float:
 
 
 RUNNING = ("2017-11-27-", "2017-12-15-18-01", "2017-12-15-18-02")  # pyshoe_vicon's running trials
-ADAPTIVE_CANDIDATES = (0.0, 0.065, 0.09, 0.13, 0.18)  # adaptive_scale, rad/s per m/s²; 0: the old default
+ADAPTIVE_CANDIDATES = (0.0, 0.03, 0.045, 0.065, 0.09, 0.13)  # adaptive_scale, rad/s per m/s²; 0: the old rule
 
 
 def session(stem: str) -> str:
