@@ -2,7 +2,8 @@
 
 Run: ``.venv/bin/python benchmarks/spatial.py`` (about 15 min on this 2-core machine, 4 of it
 without gaitmap; the first run also makes gaitmap's venv in ``output/gaitmap-venv``, about 1 min;
-``--no-gaitmap`` leaves gaitmap out; ``--pyshoe-only`` prints the first table alone). Every estimate
+``--no-gaitmap`` leaves gaitmap out; ``--pyshoe-only`` prints the first table alone, with its
+cross-validation: about 6 min). Every estimate
 goes through
 the batch entry point ``estimate_foot_trajectory``. It prints three tables.
 
@@ -30,10 +31,19 @@ the batch entry point ``estimate_foot_trajectory``. It prints three tables.
        ARED's error twice and AMVD's not at all); ``vicon`` labels stances from the Vicon positions
        and is the best on 9 trials, so this is the best of the first four;
      - ``suh@oracle-zv``: our filter and smoother (default noise) given the oracle's zero-velocity
-       labels: the detector taken out.
+       labels: the detector taken out;
+     - ``old default``: the default before issue 47 (``adaptive_scale=0``: the fixed rule and the
+       valley rule, no gait-scaled test).
    - Means over the 9 running trials (2017-11-27-*, 2017-12-15-18-01/02) and the 19 others, and over
      the two halves in time order (A: the 1st, 3rd, ... trial; B: the 2nd, 4th, ...), on which
      parameters are chosen (A) and confirmed (B).
+   - Leave-one-session-out cross-validation of ``adaptive_scale`` (the gait-scaled stance test of
+     ``core/spatial/zero_velocity.py``), among ``ADAPTIVE_CANDIDATES`` (0: off, the old default): the
+     sessions are the recording dates of the file names (2017-11-22, 2017-11-27, 2017-12-15, 2018-02-09,
+     2018-02-22). Per fold, the value whose worst training trial has the least ARMSE ratio to the
+     IMU-only oracle is chosen on the other sessions and scored on the held-out one: its mean and
+     median ARMSE, its worst trial, the oracle's mean, their ratio and the largest per-trial ratio, and
+     the old default on the same trials beside it. The default is the same rule applied to all 28.
 2. ``gaitmap_example``: 57 strides with Vicon markers at 100 Hz.
    - Stride length against the heel marker's horizontal displacement over the reference stride:
      the default (Suh over the whole recording), ``no shock``, the live per-stride values (RTS),
@@ -79,6 +89,7 @@ import scipy.io as sio
 
 from gait_biofeedback.batch import (
     SCENARIOS,
+    FootTrajectoryParams,
     FootTrajectoryStream,
     estimate_foot_trajectory,
     import_gaitmap,
@@ -136,6 +147,47 @@ def _tracked(position: np.ndarray, reference: np.ndarray) -> float:
 
 
 RUNNING = ("2017-11-27-", "2017-12-15-18-01", "2017-12-15-18-02")  # pyshoe_vicon's running trials
+ADAPTIVE_CANDIDATES = (0.0, 0.03, 0.045, 0.065, 0.09, 0.13)  # adaptive_scale, rad/s per m/s²; 0: the old rule
+
+
+def session(stem: str) -> str:
+    """A pyshoe_vicon trial's recording session: the date of its file name."""
+    return stem[:10]
+
+
+def choose_adaptive_scale(errors: dict[float, np.ndarray], oracle: np.ndarray, train: np.ndarray) -> float:
+    """The candidate whose worst ``train`` trial has the least ARMSE ratio to the IMU-only oracle."""
+    return min(errors, key=lambda c: (float(np.max(errors[c][train] / oracle[train])), c))
+
+
+def cross_validate(stems: list[str], errors: dict[float, np.ndarray], oracle: np.ndarray) -> None:
+    """Leave-one-session-out: per held-out session and overall (module docstring)."""
+    sessions = np.array([session(s) for s in stems])
+    old = errors[0.0]
+    out_of_fold = np.full(len(stems), np.nan)
+    print("\n### leave-one-session-out cross-validation of adaptive_scale (rad/s per m/s²)\n")
+    print("| held out | trials | chosen | mean | median | worst trial | oracle (IMU) mean | mean / oracle "
+          "| max trial / oracle | old default: mean | worst | max trial / oracle |")
+    print("|---" * 12 + "|")
+
+    def row(label: str, pick: np.ndarray, values: np.ndarray, chosen: str) -> None:
+        worst = int(np.flatnonzero(pick)[np.argmax(values[pick])])
+        old_worst = int(np.flatnonzero(pick)[np.argmax(old[pick])])
+        mean, ratio = values[pick].mean(), values[pick] / oracle[pick]
+        print(f"| {label} | {pick.sum()} | {chosen} | {mean:.3f} | {np.median(values[pick]):.3f} "
+              f"| {stems[worst]} {values[worst]:.3f} | {oracle[pick].mean():.3f} | "
+              f"{mean / oracle[pick].mean():.2f} | {ratio.max():.2f} | {old[pick].mean():.3f} | "
+              f"{stems[old_worst]} {old[old_worst]:.3f} | {np.max(old[pick] / oracle[pick]):.2f} |")
+
+    for held_out in sorted(set(sessions)):
+        test = sessions == held_out
+        chosen = choose_adaptive_scale(errors, oracle, ~test)
+        out_of_fold[test] = errors[chosen][test]
+        row(held_out, test, errors[chosen], f"{chosen:g}")
+    everything = np.ones(len(stems), bool)
+    row("**all, out of fold**", everything, out_of_fold, "per fold")
+    final = choose_adaptive_scale(errors, oracle, everything)
+    row("all, in sample (the default)", everything, errors[final], f"{final:g}")
 
 
 def pyshoe(python: Path | None) -> None:
@@ -144,10 +196,12 @@ def pyshoe(python: Path | None) -> None:
         print("pyshoe_vicon: not found, skipped")
         return
     names = ["suh", "rts", "ekf", "no valley", "no shock", "shock always", *(["gaitmap"] if python else []),
-             "oracle", "oracle (IMU)", "suh@oracle-zv"]
+             "oracle", "oracle (IMU)", "suh@oracle-zv", "old default"]
     options = {"suh": {}, "rts": {"smoother": "rts"}, "ekf": {"smoother": "none"},
                "no valley": {"valley": False}, "no shock": {"acc_shock": 1000.0},
                "shock always": {"shock_stance_s": 0.0}}
+    default_scale = FootTrajectoryParams().adaptive_scale
+    candidates: dict[float, list[float]] = {c: [] for c in ADAPTIVE_CANDIDATES}
     print(f"\n## pyshoe_vicon: ARMSE (m) of {len(files)} trials\n")
     print("| trial | " + " | ".join(names) + " | strides |")
     print("|---" * (len(names) + 2) + "|")
@@ -169,6 +223,10 @@ def pyshoe(python: Path | None) -> None:
         row["oracle"] = float(d["best_error"])
         row["oracle (IMU)"] = float(np.min(np.atleast_1d(d["trial_error"])[:4]))
         row["suh@oracle-zv"] = _oracle_zv(gyr, acc, rate, d[f"zv_{d['best_detector']}_opt"].astype(bool), gt)
+        for c in ADAPTIVE_CANDIDATES:
+            candidates[c].append(row["suh"] if c == default_scale else _tracked(
+                estimate_foot_trajectory(gyr, acc, rate, adaptive_scale=c)["position"], gt))
+        row["old default"] = candidates[0.0][-1]
         for n in names:
             scores[n].append(row[n])
         running.append(path.stem.startswith(RUNNING))
@@ -184,6 +242,8 @@ def pyshoe(python: Path | None) -> None:
     ours, oracle = np.array(scores["suh"]), np.array(scores["oracle"])
     print(f"\nsuh within 1.5x of the oracle on {(ours <= 1.5 * oracle).sum()}/{len(ours)} trials, "
           f"better on {(ours <= oracle).sum()}")
+    cross_validate([p.stem for p in files], {c: np.array(v) for c, v in candidates.items()},
+                   np.array(scores["oracle (IMU)"]))
 
 
 def _oracle_zv(gyr, acc, rate, zero_velocity, gt) -> float:
@@ -567,7 +627,7 @@ def main() -> None:
     parser.add_argument("--gyro-limit-grid", action="store_true", help="only the pyshoe table of one "
                         "zero-velocity threshold per trial (about 5 min)")
     parser.add_argument("--pyshoe-only", action="store_true", help="only the pyshoe_vicon table (with "
-                        "--no-gaitmap: about 3 min)")
+                        "--no-gaitmap: about 6 min, with the cross-validation)")
     parser.add_argument("--provisional-after-s", type=float, help="gait_events provisional_after_s for the "
                         "command-line table (default: the parameter's)")
     args = parser.parse_args()

@@ -68,6 +68,9 @@ from gait_biofeedback.core.spatial.strides import (
     unknown,
 )
 from gait_biofeedback.core.spatial.zero_velocity import (
+    ADAPTIVE_SCALE,
+    ADAPTIVE_SHOE_WINDOW_S,
+    ADAPTIVE_WINDOW_S,
     DETECTORS,
     SHOE_ACC,
     SHOE_GYRO,
@@ -75,6 +78,7 @@ from gait_biofeedback.core.spatial.zero_velocity import (
     VALLEY_MAX,
     VALLEY_SWING,
     StanceDetector,
+    window_half,
 )
 from gait_biofeedback.core.stamps import NS_PER_S, lost_between
 
@@ -104,6 +108,14 @@ class FootTrajectoryParams:
                                 "rad/s", low=0.5, high=20.0)
     valley_gap_s: float = param(VALLEY_GAP_S, "valley: no stance of the thresholds this close; an accepted "
                                 "valley is decided this late", "s", low=0.1, high=1.0)
+    adaptive_scale: float = param(ADAPTIVE_SCALE, "gait-scaled stance test (zero_velocity.py): SHOE's gyro "
+                                  "scale per m/s² of the past adaptive_window_s's 90th percentile of "
+                                  "| |a| - g |; a stance must pass it too; 0: off (chosen by "
+                                  "cross-validation over pyshoe_vicon's sessions)", "rad/s per m/s^2",
+                                  low=0.0, high=1.0)
+    adaptive_window_s: float = param(ADAPTIVE_WINDOW_S, "gait-scaled stance test: the past its acceleration "
+                                     "percentile is taken over (causal, live and offline)", "s", low=1.0,
+                                     high=120.0)
     flat_floor: bool = param(True, "every stance at height 0 (Suh Eq 14): level ground only, turn off on "
                              "stairs and ramps")
     gyro_noise: float = param(1e-5, "gyro white-noise density R_g (Suh Table 1: 1e-3, far above a MEMS "
@@ -162,7 +174,9 @@ class FootTrajectoryStream:
         self.kept: list = []  # every filter step (keep_all)
         self._min_swing_ns = self.params.min_swing_s * NS_PER_S
         self._keep = round(KEEP_STANDING_S * self.rate_hz)
-        self._margin = max(1, round(self.params.window_s * self.rate_hz / 2))  # the detector's look-ahead
+        self._margin = window_half(self.rate_hz, self.params.window_s)  # the detector's look-ahead
+        if self.params.adaptive_scale:
+            self._margin = max(self._margin, window_half(self.rate_hz, ADAPTIVE_SHOE_WINDOW_S))
         self.rest_of_swing = RestOfSwing(self.params.provisional_tolerance_m)
         self.swing_agreement = SwingAgreement()
         self._restart()
@@ -171,7 +185,7 @@ class FootTrajectoryStream:
         p = self.params
         self._zv = StanceDetector(self.rate_hz, p.gyro_limit, p.jerk_limit, p.window_s, p.detector,
                                   p.shoe_acc, p.shoe_gyro, p.valley, p.valley_max, p.valley_swing,
-                                  p.valley_gap_s)
+                                  p.valley_gap_s, p.adaptive_scale, p.adaptive_window_s)
         self._pending: list[tuple[int, int, np.ndarray, np.ndarray]] = []  # waiting for their decision
         self._rest: list[tuple[int, int, np.ndarray, np.ndarray]] = []  # the first stance, before start
         self._kf: FootKalman | None = None
