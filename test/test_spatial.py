@@ -542,3 +542,14 @@ def test_standing_keeps_a_bounded_window():
     for k in range(4000):
         stream.update(k * 10_000_000, np.zeros(3), np.array([0.0, 0.0, 9.81]))
     assert len(stream._steps) == 300
+
+
+def test_the_gait_events_node_declares_the_adaptive_zero_velocity_check():
+    """The live node (GaitEventsParams) hands adaptive_scale / adaptive_window_s to the foot-trajectory
+    stage: 0 switches the check off live as offline."""
+    from gait_biofeedback.core.gait.stream import GaitEventsParams
+    from gait_biofeedback.core.spatial.stream import FootTrajectoryParams
+
+    assert GaitEventsParams().foot_trajectory.adaptive_scale == FootTrajectoryParams().adaptive_scale > 0
+    off = GaitEventsParams(adaptive_scale=0.0, adaptive_window_s=20.0).foot_trajectory
+    assert (off.adaptive_scale, off.adaptive_window_s) == (0.0, 20.0)

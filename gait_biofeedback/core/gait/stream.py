@@ -134,13 +134,16 @@ class GaitEventsParams:
     max_swing_s: float = same_as(FootTrajectoryParams, "max_swing_s")
     toe_lever_arm_m: tuple[float, ...] = same_as(FootTrajectoryParams, "toe_lever_arm_m")
     provisional_tolerance_m: float = same_as(FootTrajectoryParams, "provisional_tolerance_m")
+    adaptive_scale: float = same_as(FootTrajectoryParams, "adaptive_scale")
+    adaptive_window_s: float = same_as(FootTrajectoryParams, "adaptive_window_s")
 
     @property
     def foot_trajectory(self) -> FootTrajectoryParams:
         """The foot-trajectory stage's parameters (the rest at their defaults)."""
         return FootTrajectoryParams(**{f: getattr(self, f) for f in (
             "detector", "gyro_limit", "jerk_limit", "valley", "flat_floor", "bias_rest_s", "close_after_s",
-            "min_swing_s", "max_swing_s", "toe_lever_arm_m", "provisional_tolerance_m")})
+            "min_swing_s", "max_swing_s", "toe_lever_arm_m", "provisional_tolerance_m", "adaptive_scale",
+            "adaptive_window_s")})
 
     def __post_init__(self) -> None:
         require(bool(self.sides) and len(set(self.sides)) == len(self.sides),
