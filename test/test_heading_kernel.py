@@ -114,6 +114,7 @@ def _stream_run(rows, mounting):
 def test_the_streams_instant_kernel_compiled_and_plain_agree_bit_for_bit(faulty_walk, monkeypatch):
     """One kernel call per synchronised instant (the six joints' headings, the chain, the angles, the
     still test): compiled and as plain Python, the same instants, angles and turned orientations, ==."""
+    assert hasattr(relative_heading._kernels().instant, "py_func"), "numba compiled the kernel"
     compiled, f_compiled = _stream_run(*faulty_walk)
     for name in ("step", "add_row", "axis_step", "delta", "coherence", "_norm", "_wrap", "_turned_back",
                  "_vertical_correction", "_turn_worlds", "_restart", "_rotate", "_centre_force", "_coherence",

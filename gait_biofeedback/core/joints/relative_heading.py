@@ -307,7 +307,7 @@ def _kernels(python: bool = False) -> _Kernels:
         bank = (f[None], i[None], ring[None], p[None], row[None], np.array([hk.RELATIVE]))
         table, flags = np.array([[0.0, 1.0, 1.0, 1.0, 1.0]]), np.full(2, hk.PRESENT | hk.CALIBRATED | hk.LIMB)
         s, rot, q = np.array([sample[:10], sample[10:]]), np.array([sample[:4]] * 2), np.zeros((2, 4))
-        instant = fast(hk, "instant", (*bank, table, flags, s, rot, q, np.zeros(3),
+        instant = fast(hk, "instant", (*bank, table, s, flags, rot, q, np.zeros(3),
                                        np.zeros(1, dtype=np.int64), True, 20_000_000, 0.2, 0.5),
                        ("_multiply", "_upright", "segment_angles", "axis_step", "step", "delta"))
         angles = fast(hk, "segment_angles", (table, s, flags, rot, np.zeros(3)))
