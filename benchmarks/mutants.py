@@ -109,8 +109,10 @@ MUTANTS: tuple[Mutant, ...] = (
     # --- joint angles
     Mutant("js-still-count", JSTREAM, "and len(samples) == len(wanted)", "", (T_ANGLES,),
            "standing offset: an instant with a missing segment counts as still"),
-    Mutant("js-still-flip", JSTREAM, "all(math.hypot(*g) < self.still_gyro",
-           "all(math.hypot(*g) > self.still_gyro", (T_ANGLES,),
+    Mutant("js-still-flip", "gait_biofeedback/core/joints/_heading_kernel.py",
+           "not _norm(s[k][4], s[k][5], s[k][6]) < still_gyro",
+           "not _norm(s[k][4], s[k][5], s[k][6]) > still_gyro",
+           (T_ANGLES,),
            "standing offset: still gate flipped (< → >)"),
     Mutant("ja-knee-sign", ANGLES, 's_fe = -1.0 if joint == "knee" else 1.0', "s_fe = 1.0",
            (T_CONV, T_ANGLES),

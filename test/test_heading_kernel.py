@@ -67,3 +67,68 @@ def test_compiled_and_plain_python_kernels_agree_bit_for_bit(samples, monkeypatc
     assert any(e[1] for e in compiled[0]), "the estimate was established"
     assert compiled[2][hk.HAS_MIDDLE] == 1
 
+
+
+@pytest.fixture(scope="module")
+def faulty_walk():
+    """(segment, stamp ns, q, ω, a, recovering, magnetic, received ns) of a 40 s walk's seven joint
+    segments in arrival order, with faults: the left shank dropped for 1 s (a segment gone), a NaN rate
+    of the right thigh, the right foot's stamps 0.5 s ahead for 3 s (a stamp jump: misaligned), the
+    pelvis recovering for 0.3 s, the left thigh's world turned by 40° and read as magnetic."""
+    from gait_biofeedback.core.joints.stream import STREAM_SEGMENTS
+
+    walk = simulate(SCENARIOS["walk"](duration=40.0, seed=4, segments=STREAM_SEGMENTS))
+    t_ns = np.round(walk.imu["pelvis"].t * 1e9).astype(np.int64)
+    out = []
+    for k in range(len(t_ns)):
+        for seg in STREAM_SEGMENTS:
+            imu, q = walk.imu[seg], walk.truth.sensor_orientation[seg][k]
+            if seg == "left_shank" and 1500 <= k < 1600:
+                continue
+            if seg == "left_thigh":
+                q = quat.multiply(quat.from_axis_angle([0.0, 0.0, 1.0], np.radians(40.0)), q)
+            gyr = tuple(imu.gyr[k])
+            if seg == "right_thigh" and k == 900:
+                gyr = (np.nan, *gyr[1:])
+            ns = int(t_ns[k]) + (500_000_000 if seg == "right_foot" and 2000 <= k < 2300 else 0)
+            out.append((seg, ns, q, gyr, tuple(imu.acc[k]), seg == "pelvis" and 2500 <= k < 2530,
+                        seg == "left_thigh", int(t_ns[k])))
+    return out, walk.truth.mounting
+
+
+def _stream_run(rows, mounting):
+    from gait_biofeedback.core.joints.stream import JointAnglesParams, JointAngleStream
+
+    stream = JointAngleStream(JointAnglesParams(offset_window_s=2.0))
+    stream.set_calibration(dict(mounting))
+    stream.set_calibration(dict(mounting), from_ns=25_000_000_000)  # a second one, 25 s in
+    out = []
+    for seg, ns, q, gyr, acc, recovering, magnetic, received in rows:
+        out += stream.add(seg, ns, q, gyr, acc, recovering=recovering, magnetic=magnetic,
+                          received_ns=received)
+    out += stream.flush(force=True)
+    return ([(s.ns, s.angles, {k: v.tolist() for k, v in s.sensor_quats.items()}, s.recovering, s.no_heading)
+             for s in out], [np.array(e._f) for e in stream.headings.values()])
+
+
+def test_the_streams_instant_kernel_compiled_and_plain_agree_bit_for_bit(faulty_walk, monkeypatch):
+    """One kernel call per synchronised instant (the six joints' headings, the chain, the angles, the
+    still test): compiled and as plain Python, the same instants, angles and turned orientations, ==."""
+    assert hasattr(relative_heading._kernels().instant, "py_func"), "numba compiled the kernel"
+    compiled, f_compiled = _stream_run(*faulty_walk)
+    for name in ("step", "add_row", "axis_step", "delta", "coherence", "_norm", "_wrap", "_turned_back",
+                 "_vertical_correction", "_turn_worlds", "_restart", "_rotate", "_centre_force", "_coherence",
+                 "_add_product", "instant", "segment_angles", "_multiply", "_upright"):
+        monkeypatch.setattr(hk, name, jit.plain(hk, name))
+    twin = relative_heading._kernels(python=True)
+    monkeypatch.setattr(relative_heading, "_kernels", lambda: twin)
+    from gait_biofeedback.core.joints import stream as stream_module
+
+    monkeypatch.setattr(stream_module, "_kernels", lambda: twin)
+    plain, f_plain = _stream_run(*faulty_walk)
+    assert compiled == plain
+    for a, b in zip(f_compiled, f_plain, strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert not compiled[-1][4], "every joint's heading was established by the end"
+    assert any(s[3] for s in compiled), "some instants were recovering"
+    assert sum(1 for s in compiled if s[1]) > 3000

@@ -212,7 +212,10 @@ def test_angles_left_out_take_no_part_in_the_standing_offset_and_get_their_own_l
 
 
 def test_the_streams_vertical_turn_is_the_quaternion_product():
-    from gait_biofeedback.core.joints.stream import _turned
+    from gait_biofeedback.core.joints._heading_kernel import _turned_back
+
+    def _turned(q, angle):  # the stream's turn of a segment into the pelvis sensor's world (its kernel)
+        return np.array(_turned_back(*q, -angle))
 
     np.testing.assert_allclose(_turned(np.array([1.0, 0.0, 0.0, 0.0]), np.pi / 2),
                                [np.cos(np.pi / 4), 0.0, 0.0, np.sin(np.pi / 4)], atol=1e-15)

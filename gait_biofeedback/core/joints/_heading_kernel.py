@@ -330,3 +330,134 @@ def delta(f: Any) -> float:
 def coherence(f: Any) -> float:
     """``|Σ| / Σ|·|`` of the products so far (0 before any)."""
     return _coherence(f)
+
+
+# ---- the joint-angle stream's synchronised instant (issue 46) ---------------------------------------
+# Segment slots: angles.JOINT_SLOTS (the stream's segments); a sample row is q (4), ω (3), a (3).
+SAMPLE_WIDTH = 10
+PRESENT, RECOVERING, MAGNETIC, CALIBRATED, LIMB = 1, 2, 4, 8, 16  # segment flags (LIMB: a thigh or shank)
+RELATIVE, AXIS = 0, 1  # a joint's heading kind (-1: none, the filters' heading is trusted)
+# joint table rows (angles.joint_table): proximal slot, distal slot, the three angle signs
+NEED_ROOM = -1  # a joint-centre estimator's ring is full: grow it, then call again
+# result bits of :func:`instant`: joint j left without a heading (1 << j), its angles computed
+# (1 << (ANGLES_AT + j)), every present segment still and every calibrated limb upright (QUIET), and
+# ROWS_PENDING (an estimator made a joint-centre window row: the stream takes it, then calls again
+# without the steps)
+ANGLES_AT = 8
+QUIET = 1 << 6
+ROWS_PENDING = 1 << 7
+
+
+def segment_angles(table: Any, q: Any, flags: Any, rot: Any, out: Any) -> int:
+    """Clinical (flexion, adduction, internal rotation) of every joint of ``table`` whose two segments
+    are present and calibrated into ``out[3j:3j + 3]`` (angles.py's module docstring, gait.md §1.8): the
+    segment orientations ``q ⊗ r`` (thesis Eq 17), ``q_rel = conj(q_prox) ⊗ q_dist`` normalised and
+    decomposed Z-X'-Y''. The bits ``1 << j`` of the joints computed."""
+    done = 0
+    for j in range(len(table)):
+        a, b = int(table[j][0]), int(table[j][1])
+        both = flags[a] & flags[b]
+        if both & PRESENT == 0 or both & CALIBRATED == 0:
+            continue
+        pw, px, py, pz = _multiply(q[a][0], q[a][1], q[a][2], q[a][3],
+                                   rot[a][0], rot[a][1], rot[a][2], rot[a][3])
+        dw, dx, dy, dz = _multiply(q[b][0], q[b][1], q[b][2], q[b][3],
+                                   rot[b][0], rot[b][1], rot[b][2], rot[b][3])
+        w, x, y, z = _multiply(pw, -px, -py, -pz, dw, dx, dy, dz)
+        n = math.sqrt(w * w + x * x + y * y + z * z)
+        w, x, y, z = w / n, x / n, y / n, z / n
+        out[3 * j] = table[j][2] * math.atan2(-(2 * (x * y - w * z)), 1 - 2 * (x * x + z * z))
+        out[3 * j + 1] = table[j][3] * math.asin(min(max(2 * (y * z + w * x), -1.0), 1.0))
+        out[3 * j + 2] = table[j][4] * math.atan2(-(2 * (x * z - w * y)), 1 - 2 * (x * x + y * y))
+        done |= 1 << j
+    return done
+
+
+def _multiply(pw: float, px: float, py: float, pz: float, qw: float, qx: float, qy: float,
+              qz: float) -> tuple[float, float, float, float]:
+    """Hamilton product ``p ⊗ q`` (the operations of ``_scalar.multiply``)."""
+    return (pw * qw - px * qx - py * qy - pz * qz,
+            pw * qx + px * qw + py * qz - pz * qy,
+            pw * qy - px * qz + py * qw + pz * qx,
+            pw * qz + px * qy - py * qx + pz * qw)
+
+
+def _upright(q: Any, k: int, rot: Any, least: float) -> bool:
+    """The segment's long axis (anatomical y, ``R(q ⊗ r) ŷ``) within ``acos(least)`` of vertical
+    (quaternion.rotate's operations)."""
+    w, x, y, z = _multiply(q[k][0], q[k][1], q[k][2], q[k][3],
+                           rot[k][0], rot[k][1], rot[k][2], rot[k][3])
+    a, b, c = 0.0, 1.0, 0.0
+    tx, ty, tz = 2.0 * (y * c - z * b), 2.0 * (z * a - x * c), 2.0 * (x * b - y * a)
+    return c + w * tz + (x * ty - y * tx) >= least
+
+
+def instant(f: Any, i: Any, ring: Any, p: Any, row: Any, kind: Any, table: Any, s: Any, flags: Any,
+            rot: Any, out_q: Any, out_angles: Any, codes: Any, steps: bool, ns: int, still_gyro: float,
+            least: float) -> int:
+    """One synchronised instant of the joint-angle stream (stream.py's class docstring), the estimators'
+    state stacked one joint a row (``f``, ``i``, ``ring``, ``p``, ``row``; ``kind`` RELATIVE or AXIS or
+    -1), the samples ``s`` one slot a row with their ``flags``. With ``steps``: each joint whose two
+    samples are present and not recovering steps its heading estimator (:func:`step` or
+    :func:`axis_step`, result bits into ``codes``; NEED_ROOM first if a ring is full, ROWS_PENDING after
+    when a row was made). Then the chain: each distal segment turned about the vertical into the pelvis
+    sensor's world by the established headings down its leg (relative_heading step 3's
+    ``δ = δ_kinematic + E₁ − E₂``), into ``out_q``; the joint angles of :func:`segment_angles` into
+    ``out_angles``; whether the instant is quiet (|ω| < ``still_gyro`` everywhere, every calibrated limb
+    upright). Result bits: module constants above. (Indexed ``x[a][b]``: the plain twin runs on lists of
+    Python floats, as the estimators' own state.)"""
+    n_joints = len(table)
+    if steps:
+        for j in range(n_joints):
+            if kind[j] == RELATIVE and i[j][COUNT] >= len(ring[j]) // RING_WIDTH:
+                return NEED_ROOM
+        pending = 0
+        for j in range(n_joints):
+            codes[j] = 0
+            a, b = int(table[j][0]), int(table[j][1])
+            if kind[j] < 0 or (flags[a] & flags[b] & PRESENT) == 0:
+                continue
+            if ((flags[a] | flags[b]) & RECOVERING) != 0:
+                continue
+            m1, m2 = (flags[a] & MAGNETIC) != 0, (flags[b] & MAGNETIC) != 0
+            if kind[j] == AXIS:
+                codes[j] = axis_step(f[j], i[j], p[j], ns, s[a][0], s[a][1], s[a][2], s[a][3], s[a][4],
+                                     s[a][5], s[a][6], s[b][0], s[b][1], s[b][2], s[b][3], s[b][4], s[b][5],
+                                     s[b][6], m1, m2)
+            else:
+                codes[j] = step(f[j], i[j], ring[j], p[j], row[j], ns, s[a][0], s[a][1], s[a][2],
+                                s[a][3], s[a][4], s[a][5], s[a][6], s[a][7], s[a][8], s[a][9], s[b][0],
+                                s[b][1], s[b][2], s[b][3], s[b][4], s[b][5], s[b][6], s[b][7], s[b][8],
+                                s[b][9], m1, m2)
+            pending |= codes[j] & ROW_MADE
+        if pending != 0:
+            return ROWS_PENDING
+    out = 0
+    turn = [0.0] * len(s)
+    for j in range(n_joints):
+        if kind[j] < 0:
+            continue
+        a, b = int(table[j][0]), int(table[j][1])
+        if i[j][ESTABLISHED] != 0:
+            turn[b] = turn[a] + delta(f[j])
+        else:
+            turn[b] = 0.0  # its own world: the joints below it still work
+            out |= 1 << j
+    quiet = True
+    for k in range(len(s)):
+        if flags[k] & PRESENT == 0:
+            continue
+        if turn[k] != 0.0:
+            tw, tx, ty, tz = _turned_back(s[k][0], s[k][1], s[k][2], s[k][3], -turn[k])
+            out_q[k, 0], out_q[k, 1], out_q[k, 2], out_q[k, 3] = tw, tx, ty, tz
+        else:
+            out_q[k, 0], out_q[k, 1], out_q[k, 2], out_q[k, 3] = s[k][0], s[k][1], s[k][2], s[k][3]
+        if quiet and not _norm(s[k][4], s[k][5], s[k][6]) < still_gyro:
+            quiet = False
+    for k in range(len(s)):
+        both = LIMB | CALIBRATED | PRESENT
+        if quiet and flags[k] & both == both and not _upright(out_q, k, rot, least):
+            quiet = False
+    if quiet:
+        out |= QUIET
+    return out | segment_angles(table, out_q, flags, rot, out_angles) << ANGLES_AT

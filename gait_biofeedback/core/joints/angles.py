@@ -27,7 +27,6 @@ from typing import Any
 import numpy as np
 
 from gait_biofeedback.core import quaternion as quat
-from gait_biofeedback.core.orientation.filters import _scalar as scalar
 from gait_biofeedback.core.segments import SIDES
 
 JOINTS: tuple[str, ...] = ("hip", "knee", "ankle")
@@ -227,25 +226,40 @@ class JointAngleCalculator:
 
     def raw(self, segment_quats: dict[str, np.ndarray]) -> dict[str, float]:
         """Angles without offset removal of one instant (segment → (4,) sensor→world):
-        :func:`compute_joint_angles` of one sample, on Python floats (the same operations in the same
-        order: the same numbers; test/test_joint_angles.py)."""
-        rotations = self._floats
-        segments = {s: scalar.multiply(np.asarray(q, dtype=float).tolist(), rotations[s])
-                    for s, q in segment_quats.items() if s in rotations}
-        out = {}
-        for prox, dist, names, signs in _JOINT_TABLE:
-            if prox in segments and dist in segments:
-                out.update(zip(names, _angles(segments[prox], segments[dist], signs), strict=True))
-        return out
+        :func:`compute_joint_angles` of one sample, by the joint stage's kernel
+        (:func:`._heading_kernel.segment_angles`: the same operations in the same order, the same
+        numbers; test/test_joint_angles.py)."""
+        from gait_biofeedback.core.joints import _heading_kernel as hk
+        from gait_biofeedback.core.joints.relative_heading import _kernels
+
+        q, rot = np.zeros((len(JOINT_SLOTS), 4)), np.zeros((len(JOINT_SLOTS), 4))
+        flags = np.zeros(len(JOINT_SLOTS), dtype=np.int64)
+        for k, seg in enumerate(JOINT_SLOTS):
+            if seg in segment_quats and seg in self._floats:
+                q[k], rot[k], flags[k] = segment_quats[seg], self._floats[seg], hk.PRESENT | hk.CALIBRATED
+        out = np.zeros(3 * len(_JOINT_TABLE))
+        return self.named(_kernels().segment_angles(JOINT_TABLE, q, flags, rot, out), out.tolist())
+
+    @staticmethod
+    def named(done: int, values: list[float]) -> dict[str, float]:
+        """Angle name → value of the joints whose bit (``1 << j``, :data:`JOINT_TABLE` row j) is set in
+        ``done``; ``values`` three a joint."""
+        return {name: values[3 * j + m] for j, (_, _, names, _) in enumerate(_JOINT_TABLE) if done >> j & 1
+                for m, name in enumerate(names)}
 
     def update(self, stamp_ns: int, segment_quats: dict[str, np.ndarray],
                still: bool = True, leave_out: Iterable[str] = ()) -> dict[str, float]:
         """Angles (rad) of the joints whose segments are present and calibrated, offset removed.
         ``leave_out``: angle names neither returned nor collected into the standing offset (a joint
         whose segments are not yet in one world heading: an offset from them would be wrong later)."""
-        stamp = stamp_ns * 1e-9
         skip = set(leave_out)
-        angles = {k: v for k, v in self.raw(segment_quats).items() if k not in skip}
+        return self.correct(stamp_ns, {k: v for k, v in self.raw(segment_quats).items() if k not in skip},
+                            still)
+
+    def correct(self, stamp_ns: int, angles: dict[str, float], still: bool = True) -> dict[str, float]:
+        """``angles`` (raw, rad) with the standing offset removed, collecting it while ``still`` (class
+        docstring, gait.md §1.9)."""
+        stamp = stamp_ns * 1e-9
         if self._collect_s is None and self._duration is not None and not angles.keys() <= self.offset.keys():
             self._collect_s = self._duration
             self._first, self._sums, self._counts = None, {}, {}
@@ -267,16 +281,10 @@ _JOINT_TABLE = tuple((*segment_pair(side, joint), joint_angle_names(side, joint)
                      for side in SIDES for joint in JOINTS)
 """(proximal, distal, angle names, signs) of every joint, in :data:`JOINT_NAMES` order."""
 
+JOINT_SLOTS: tuple[str, ...] = ("pelvis", "left_thigh", "left_shank", "left_foot", "right_thigh",
+                                "right_shank", "right_foot")
+"""The segments of the joints, in the kernel's slot order (the joint-angle stream's segments)."""
 
-def _angles(proximal: tuple, distal: tuple, signs: tuple[float, float, float]) -> tuple[float, float, float]:
-    """:func:`angles_from_relative_rotation` of ``conj(proximal) ⊗ distal``, step by step as
-    :func:`~gait_biofeedback.core.quaternion.as_matrix` and ``normalize`` compute it (the scalar
-    product is the same operations as ``quaternion.multiply``'s)."""
-    w, x, y, z = proximal
-    w, x, y, z = scalar.multiply((w, -x, -y, -z), distal)
-    n = math.sqrt(w * w + x * x + y * y + z * z)
-    w, x, y, z = w / n, x / n, y / n, z / n
-    s_fe, s_aa, s_ie = signs
-    return (s_fe * math.atan2(-(2 * (x * y - w * z)), 1 - 2 * (x * x + z * z)),
-            s_aa * math.asin(min(max(2 * (y * z + w * x), -1.0), 1.0)),
-            s_ie * math.atan2(-(2 * (x * z - w * y)), 1 - 2 * (x * x + y * y)))
+JOINT_TABLE = np.array([(JOINT_SLOTS.index(prox), JOINT_SLOTS.index(dist), *signs)
+                        for prox, dist, _, signs in _JOINT_TABLE], dtype=float)
+"""The kernel's joint table: a row per :data:`_JOINT_TABLE` joint, (proximal slot, distal slot, signs)."""

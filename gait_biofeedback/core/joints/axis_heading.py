@@ -45,6 +45,8 @@ class AxisHeadingEstimator(RelativeHeadingEstimator):
     :meth:`update` takes the same synchronised samples as the joint-centre estimator; its arithmetic is
     :func:`._heading_kernel.axis_step`."""
 
+    _kind = hk.AXIS
+
     def __init__(self, time_constant: float = TIME_CONSTANT_S, min_seconds: float = MIN_SECONDS,
                  min_coherence: float = MIN_COHERENCE) -> None:
         self.axes: tuple[tuple[float, ...], tuple[float, ...]] | None = None
@@ -72,6 +74,6 @@ class AxisHeadingEstimator(RelativeHeadingEstimator):
         """Add one sample (``acc`` is not used: same call as the joint-centre estimator); the estimate in
         force for it, which includes it. Non-finite samples are skipped; a stamp more than 1 s back
         restarts the average and the world turns (the filters restarted)."""
-        self._after(self._k.axis_step(self._f, self._i, self._p, int(ns), *q1, *gyr1, *q2, *gyr2,
+        self._took(self._k.axis_step(self._f, self._i, self._p, int(ns), *q1, *gyr1, *q2, *gyr2,
                                       bool(magnetic[0]), bool(magnetic[1])))
         return self._estimate()

@@ -139,6 +139,9 @@ class RelativeHeadingEstimator:
     m/s², stamp int ns). The per-sample arithmetic is :func:`._heading_kernel.step` (numba-compiled when
     possible, on this object's state arrays); the joint-centre fit (step 1) stays here."""
 
+    _kind = hk.RELATIVE  # the kernel's name of this estimator (stacked in a :class:`HeadingBank`)
+    _bank: HeadingBank | None = None
+
     def __init__(self, time_constant: float = TIME_CONSTANT_S, highpass_s: float = HIGHPASS_S,
                  position_window_s: float = POSITION_WINDOW_S, min_information: float = MIN_INFORMATION,
                  min_coherence: float = MIN_COHERENCE) -> None:
@@ -202,6 +205,9 @@ class RelativeHeadingEstimator:
         cap = len(ring) // width
         if i[hk.COUNT] < cap:
             return
+        if self._bank is not None:
+            self._bank.grow()
+            return
         grown = self._k.new(2 * cap * width, 0.0)
         for k in range(cap):
             at = (int(i[hk.START]) + k) % cap * width
@@ -221,8 +227,13 @@ class RelativeHeadingEstimator:
         value that is not finite is skipped (one NaN would otherwise poison every later estimate).
         ``magnetic``: whether each filter's heading comes from a magnetometer (module docstring step 3)."""
         self._room()
-        code = self._k.step(self._f, self._i, self._ring, self._p, self._row, int(ns), *q1, *gyr1, *acc1, *q2,
-                            *gyr2, *acc2, bool(magnetic[0]), bool(magnetic[1]))
+        self._took(self._k.step(self._f, self._i, self._ring, self._p, self._row, int(ns), *q1, *gyr1,
+                                *acc1, *q2, *gyr2, *acc2, bool(magnetic[0]), bool(magnetic[1])))
+        return self._estimate()
+
+    def _took(self, code: int) -> None:
+        """What a kernel step's result bits ask of this object: a restart, the state word, and a row made
+        into the joint-centre window (step 1: fitted once the window holds enough motion)."""
         self._after(code)
         if code & hk.ROW_MADE:
             row = np.array(self._row, dtype=float)
@@ -235,7 +246,6 @@ class RelativeHeadingEstimator:
                 self._window_s -= old[28]
             if self._window_s >= self.position_window_s and len(self._window) >= 20:
                 self._fit_position()
-        return self._estimate()
 
     def _fit_position(self) -> None:
         rows = np.array(self._window)
@@ -262,6 +272,8 @@ class _Kernels(NamedTuple):
     compiled, lists as plain Python (faster there)."""
 
     step: Any
+    instant: Any
+    segment_angles: Any
     add_row: Any
     axis_step: Any
     restart: Any
@@ -279,8 +291,8 @@ def _kernels(python: bool = False) -> _Kernels:
     once per process, numba's disk cache), or plain Python (``python``: the module's functions as they
     are, the twin when they are the plain ones)."""
     if python:
-        return _Kernels(hk.step, hk.add_row, hk.axis_step, hk._restart, hk.delta, hk.coherence,
-                        lambda n, fill: [fill] * n, lambda r: r.tolist())
+        return _Kernels(hk.step, hk.instant, hk.segment_angles, hk.add_row, hk.axis_step, hk._restart,
+                        hk.delta, hk.coherence, lambda n, fill: [fill] * n, lambda r: r.tolist())
     if not _LOADED:
         f, i, p = np.zeros(hk.N_FLOAT), np.zeros(hk.N_INT, dtype=np.int64), np.ones(hk.N_PARAM)
         ring, row = np.zeros(RING_ROWS * hk.RING_WIDTH), np.zeros(hk.ROW_WIDTH)
@@ -292,13 +304,57 @@ def _kernels(python: bool = False) -> _Kernels:
         if not hasattr(step, "py_func"):
             _LOADED.append(_kernels(python=True))
             return _LOADED[0]
-        _LOADED.append(_Kernels(step, fast(hk, "add_row", (f, i, ring, p, row)),
+        bank = (f[None], i[None], ring[None], p[None], row[None], np.array([hk.RELATIVE]))
+        table, flags = np.array([[0.0, 1.0, 1.0, 1.0, 1.0]]), np.full(2, hk.PRESENT | hk.CALIBRATED | hk.LIMB)
+        s, rot, q = np.array([sample[:10], sample[10:]]), np.array([sample[:4]] * 2), np.zeros((2, 4))
+        instant = fast(hk, "instant", (*bank, table, s, flags, rot, q, np.zeros(3),
+                                       np.zeros(1, dtype=np.int64), True, 20_000_000, 0.2, 0.5),
+                       ("_multiply", "_upright", "segment_angles", "axis_step", "step", "delta"))
+        angles = fast(hk, "segment_angles", (table, s, flags, rot, np.zeros(3)))
+        _LOADED.append(_Kernels(step, instant, angles,
+                                fast(hk, "add_row", (f, i, ring, p, row)),
                                 fast(hk, "axis_step", (f, i, p, 10_000_000, *sample[:7], *sample[:7], True,
                                                        True)),
                                 fast(hk, "_restart", (f, i)), fast(hk, "delta", (f,)),
                                 fast(hk, "coherence", (f,)),
                                 lambda n, fill: np.full(n, fill, dtype=type(fill)), lambda r: r))
     return _LOADED[0]
+
+
+class HeadingBank:
+    """Several estimators' state stacked one a row (``f``, ``i``, ``ring``, ``p``, ``row``, ``kind``), so
+    that one kernel call (:func:`._heading_kernel.instant`) steps them all; each estimator goes on working
+    on its row (its methods and the joint-centre fit)."""
+
+    def __init__(self, estimators: list[RelativeHeadingEstimator]) -> None:
+        self.estimators = list(estimators)
+        self.plain = any(isinstance(e._f, list) for e in self.estimators)  # the twin's lists, kept as lists
+        names = ("_f", "_i", "_p", "_row", "_ring")
+        rows = {name: [getattr(e, name) for e in self.estimators] for name in names}
+        self.f, self.i, self.p, self.row, self.ring = (self._stack(r) for r in rows.values())
+        self.kind = np.array([e._kind for e in self.estimators], dtype=np.int64)
+        self._link()
+
+    def _stack(self, rows: list) -> Any:
+        return [list(r) for r in rows] if self.plain else np.array(rows)
+
+    def _link(self) -> None:
+        for k, e in enumerate(self.estimators):
+            e._f, e._i, e._p, e._row, e._ring, e._bank = (self.f[k], self.i[k], self.p[k], self.row[k],
+                                                          self.ring[k], self)
+
+    def grow(self) -> None:
+        """Every ring twice as long, its rows from its first one on (the same ring: its start moves)."""
+        width = hk.RING_WIDTH
+        cap = len(self.ring[0]) // width
+        grown = self._stack([[0.0] * (2 * cap * width) for _ in self.estimators])
+        for k in range(len(self.estimators)):
+            for r in range(cap):
+                at = (int(self.i[k][hk.START]) + r) % cap * width
+                grown[k][r * width:(r + 1) * width] = self.ring[k][at:at + width]
+            self.i[k][hk.START] = 0
+        self.ring = grown
+        self._link()
 
 
 def _joint_centre_refused(r1: np.ndarray, r2: np.ndarray, residual: float) -> str | None:

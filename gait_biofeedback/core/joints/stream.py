@@ -12,19 +12,29 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import numpy as np
 
 from gait_biofeedback.core import quaternion as quat
 from gait_biofeedback.core.body import StickFigureDimensions
 from gait_biofeedback.core.in_force import InForceQueue
+from gait_biofeedback.core.joints import _heading_kernel as hk
 from gait_biofeedback.core.joints.alignment import StampAlignment
-from gait_biofeedback.core.joints.angles import JOINTS, JointAngleCalculator, joint_angle_names, segment_pair
+from gait_biofeedback.core.joints.angles import (
+    JOINT_SLOTS,
+    JOINT_TABLE,
+    JOINTS,
+    JointAngleCalculator,
+    segment_pair,
+)
 from gait_biofeedback.core.joints.axis_heading import AxisHeadingEstimator
 from gait_biofeedback.core.joints.relative_heading import (
     POSITION_WINDOW_S,
     TIME_CONSTANT_S,
+    HeadingBank,
     RelativeHeadingEstimator,
+    _kernels,
 )
 from gait_biofeedback.core.params import param
 from gait_biofeedback.core.segments import SIDES
@@ -69,8 +79,7 @@ class JointAnglesParams(StickFigureDimensions):
                                          "rad", low=0.05, high=1.5)
 
 
-STREAM_SEGMENTS: tuple[str, ...] = ("pelvis", "left_thigh", "left_shank", "left_foot", "right_thigh",
-                                    "right_shank", "right_foot")
+STREAM_SEGMENTS: tuple[str, ...] = JOINT_SLOTS
 """Segments the joint-angle stream synchronises (the chest takes no part in a joint)."""
 
 
@@ -124,7 +133,7 @@ class JointAngleStream:
         self.still_gyro = p.still_gyro
         self.calculator: JointAngleCalculator | None = None
         self._waiting: InForceQueue[JointAngleCalculator] = InForceQueue()
-        self.pending: dict[int, dict[str, tuple[np.ndarray, tuple, tuple, bool]]] = {}
+        self.pending: dict[int, _Instant] = {}
         self._seen: dict[str, int] = {}
         self._magnetic: dict[str, bool] = {}  # segment → its newest sample's heading is magnetic
         self.headings: dict[str, RelativeHeadingEstimator] = {
@@ -135,6 +144,20 @@ class JointAngleStream:
         self.missing_counts: dict[str, int] = {s: 0 for s in self.segments}
         self.recovering_count = 0  # emitted instants with a recovering segment
         self.alignment = StampAlignment()
+        if not set(self.segments) <= set(JOINT_SLOTS):
+            raise ValueError(f"the joint-angle stream takes segments of {JOINT_SLOTS}, not {self.segments}")
+        self._k = _kernels()
+        self._slot = {seg: k for k, seg in enumerate(JOINT_SLOTS)}
+        self._joint_names = tuple(f"{side}_{joint}" for side in SIDES for joint in JOINTS)
+        self._bank = (HeadingBank([self.headings[name] for name in self._joint_names]) if self.headings
+                      else None)
+        self._rot = np.zeros((len(JOINT_SLOTS), 4))
+        self._flags = np.zeros(len(JOINT_SLOTS), dtype=np.int64)
+        self._limb = [hk.LIMB if seg.endswith(("_thigh", "_shank")) else 0 for seg in JOINT_SLOTS]
+        self._out_q = np.zeros((len(JOINT_SLOTS), 4))
+        self._out_angles = np.zeros(3 * len(JOINT_TABLE))
+        self._codes = np.zeros(len(JOINT_TABLE), dtype=np.int64)
+        self._least = math.cos(p.standing_max_tilt_rad)
 
     def _heading_estimator(self, joint: str) -> RelativeHeadingEstimator:
         p = self.params
@@ -195,8 +218,11 @@ class JointAngleStream:
             recovering = True
         self._seen[segment] = max(ns, self._seen.get(segment, ns))
         self._magnetic[segment] = bool(magnetic)
-        self.pending.setdefault(ns, {})[segment] = (np.asarray(q, dtype=float), tuple(gyr), tuple(acc),
-                                                    bool(recovering))
+        instant = self.pending.get(ns)
+        if instant is None:
+            instant = self.pending[ns] = _Instant()
+        instant[segment] = bool(recovering)
+        instant.values[self._slot[segment]] = (*q, *gyr, *acc)
         self.first_arrival.setdefault(ns, arrival if arrival is not None else math.inf)
         return self.flush(arrival)
 
@@ -223,48 +249,64 @@ class JointAngleStream:
                 out.append(emitted)
         return out
 
-    def _chain(self, ns: int, samples: dict[str, tuple[np.ndarray, tuple, tuple, bool]]
-               ) -> tuple[dict[str, float], tuple[str, ...]]:
-        """(segment → heading turn δ (rad) into the pelvis sensor's world, joints without a heading)."""
-        turn: dict[str, float] = {"pelvis": 0.0}
-        missing = []
-        for side in SIDES:
-            for joint in JOINTS:
-                prox, dist = segment_pair(side, joint)
-                estimator = self.headings[f"{side}_{joint}"]
-                if prox in samples and dist in samples and not (samples[prox][3] or samples[dist][3]):
-                    (q1, g1, a1, _), (q2, g2, a2, _) = samples[prox], samples[dist]
-                    estimator.update(ns, tuple(q1), g1, a1, tuple(q2), g2, a2,
-                                     (self._magnetic.get(prox, False), self._magnetic.get(dist, False)))
-                if estimator.established and prox in turn:
-                    turn[dist] = turn[prox] + estimator.delta
-                else:
-                    turn[dist] = 0.0  # its own world: the joints below it still work
-                    missing.append(f"{side}_{joint}")
-        return turn, tuple(missing)
-
-    def _emit(self, ns: int, samples: dict[str, tuple[np.ndarray, tuple, tuple, bool]],
-              wanted: list[str]) -> SyncedAngles | None:
+    def _emit(self, ns: int, samples: _Instant, wanted: list[str]) -> SyncedAngles | None:
+        """One instant: the calibration due, then one kernel call (:func:`._heading_kernel.instant`: the
+        joints' headings stepped, the chain turned, the angles decomposed, whether it is still)."""
         for calculator in self._waiting.due(ns):
             self.calculator = calculator
-        if self.calculator is not self._axes_of and self.calculator is not None:
-            self._axes_of = self.calculator
-            self._give_axes(self.calculator.rotations)
-        turn, no_heading = self._chain(ns, samples) if self.headings else ({}, ())
-        if self.calculator is None:
+        calculator = self.calculator
+        if calculator is not self._axes_of and calculator is not None:
+            self._axes_of = calculator
+            self._give_axes(calculator.rotations)
+            self._rot[:] = 0.0
+            for k, seg in enumerate(JOINT_SLOTS):
+                if seg in calculator.rotations:
+                    self._rot[k] = calculator.rotations[seg]
+        if calculator is None and self._bank is None:
+            return None
+        flags = self._flags
+        calibrated = calculator.rotations if calculator is not None else {}
+        for k, seg in enumerate(JOINT_SLOTS):
+            if seg in samples:
+                flags[k] = (_PRESENT | (hk.RECOVERING if samples[seg] else 0)
+                            | (hk.MAGNETIC if self._magnetic.get(seg, False) else 0)
+                            | (hk.CALIBRATED if seg in calibrated else 0) | self._limb[k])
+            else:
+                flags[k] = 0
+        values = samples.values.tolist() if self._bank is not None and self._bank.plain else samples.values
+        result = self._instant(ns, values, True)
+        if result & hk.ROWS_PENDING:
+            result = self._instant(ns, values, False)
+        if calculator is None:
             return None
         for seg in wanted:
             if seg not in samples:
                 self.missing_counts[seg] += 1
-        quats = {s: _turned(q, turn[s]) if turn.get(s) else q for s, (q, _, _, _) in samples.items()}
-        recovering = tuple(s for s, (_, _, _, r) in samples.items() if r)
+        out_q = self._out_q.copy()
+        quats = {s: out_q[self._slot[s]] for s in samples}
+        recovering = tuple(s for s, r in samples.items() if r)
         self.recovering_count += bool(recovering)
-        still = (not recovering and len(samples) == len(wanted)
-                 and all(math.hypot(*g) < self.still_gyro for _, g, _, _ in samples.values())
-                 and self._legs_upright(quats))
-        leave_out = [key for joint in no_heading for key in joint_angle_names(*joint.split("_", 1))]
-        angles = self.calculator.update(ns, quats, still=still, leave_out=leave_out)
-        return SyncedAngles(ns, angles, quats, self.calculator.rotations, recovering, no_heading)
+        still = not recovering and len(samples) == len(wanted) and bool(result & hk.QUIET)
+        no_heading = tuple(name for j, name in enumerate(self._joint_names) if result >> j & 1)
+        usable = (result >> hk.ANGLES_AT) & ~result
+        angles = calculator.correct(ns, calculator.named(usable, self._out_angles.tolist()), still)
+        return SyncedAngles(ns, angles, quats, calculator.rotations, recovering, no_heading)
+
+    def _instant(self, ns: int, values: np.ndarray | list, steps: bool) -> int:
+        """The kernel on this instant's samples (a ring grown when full); the estimators' results taken."""
+        while True:
+            bank = self._bank or _NO_HEADINGS
+            result = self._k.instant(bank.f, bank.i, bank.ring, bank.p, bank.row, bank.kind, JOINT_TABLE,
+                                     values, self._flags, self._rot, self._out_q, self._out_angles,
+                                     self._codes, steps, ns, self.still_gyro, self._least)
+            if result != hk.NEED_ROOM:
+                break
+            bank.grow()
+        if steps and self._bank is not None and self._codes.any():
+            for estimator, code in zip(self._bank.estimators, self._codes.tolist(), strict=True):
+                if code:
+                    estimator._took(code)
+        return result
 
     def heading_status(self) -> tuple[list[str], dict[str, str]]:
         """(joints of the calibration in force whose two sensors have no common heading yet, so that
@@ -281,22 +323,19 @@ class JointAngleStream:
                 waiting.append(name)
         return waiting, values
 
-    def _legs_upright(self, quats: dict[str, np.ndarray]) -> bool:
-        """Every calibrated thigh and shank present has its long axis (anatomical y) within
-        ``standing_max_tilt_rad`` of vertical: still, but not sitting or lying (no standing offset there)."""
-        rotations = self.calculator.rotations if self.calculator is not None else {}
-        least = math.cos(self.params.standing_max_tilt_rad)
-        return all(quat.rotate(quat.multiply(q, rotations[seg]), _Y)[2] >= least for seg, q in quats.items()
-                   if seg.endswith(("_thigh", "_shank")) and seg in rotations)
+
+class _Instant(dict):
+    """The samples of one stamp: segment → recovering, their values (q, ω, a) in ``values``, one slot a
+    row (:data:`~gait_biofeedback.core.joints.angles.JOINT_SLOTS`)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.values = np.zeros((len(JOINT_SLOTS), hk.SAMPLE_WIDTH))
 
 
-_Y = np.array([0.0, 1.0, 0.0])
+_PRESENT = hk.PRESENT
+_NO_HEADINGS = SimpleNamespace(  # heading 'filters': no estimators, state arrays the kernel never reads
+    f=np.zeros((len(JOINT_TABLE), hk.N_FLOAT)), i=np.zeros((len(JOINT_TABLE), hk.N_INT), dtype=np.int64),
+    ring=np.zeros((len(JOINT_TABLE), hk.RING_WIDTH)), p=np.zeros((len(JOINT_TABLE), hk.N_PARAM)),
+    row=np.zeros((len(JOINT_TABLE), hk.ROW_WIDTH)), kind=np.full(len(JOINT_TABLE), -1, dtype=np.int64))
 _Z = np.array([0.0, 0.0, 1.0])
-
-
-def _turned(q: np.ndarray, angle: float) -> np.ndarray:
-    """``R_z(angle) ⊗ q``: q (w, x, y, z) turned by ``angle`` rad about the world vertical (scalar
-    arithmetic: it runs for every segment of every instant)."""
-    c, s = math.cos(0.5 * angle), math.sin(0.5 * angle)
-    w, x, y, z = q
-    return np.array([c * w - s * z, c * x - s * y, c * y + s * x, c * z + s * w])
