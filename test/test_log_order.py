@@ -13,18 +13,20 @@ class _Recorder:
     def __init__(self) -> None:
         self.written: list[tuple[str, int]] = []
 
-    def write_serialized(self, topic: str, type_name: str, data: bytes, log_ns: int, padded: bool) -> None:
-        self.written.append((topic, log_ns))
+    def write_many(self, messages: list[tuple[int, str, str, bytes, bool]]) -> None:
+        self.written += [(topic, log_ns) for log_ns, topic, *_ in messages]
 
 
+@pytest.mark.parametrize("hold", [1, 7, 4096])
 @pytest.mark.parametrize("seed", range(5))
-def test_released_as_it_goes_it_writes_the_stable_sort(seed):
+def test_released_as_it_goes_it_writes_the_stable_sort(seed, hold):
     """Two sources with many equal log times, released at random watermarks that keep the promise
     (nothing still to come is logged earlier), and a tail that comes out of order: the file gets what
-    sorting everything at the end gave, ties copied first, each source in its own order."""
+    sorting everything at the end gave, ties copied first, each source in its own order, whether what
+    is released is written at once (``hold`` 1) or in runs."""
     rng = np.random.default_rng(seed)
     recorder = _Recorder()
-    ordered = LogOrderWriter(recorder)
+    ordered = LogOrderWriter(recorder, hold=hold)
     copied, produced = [], []
     now = released = 0
     for k in range(400):

@@ -15,7 +15,9 @@ import contextlib
 import os
 import shutil
 import time
+from collections.abc import Iterable
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from types import TracebackType
 from typing import Any, BinaryIO
@@ -34,7 +36,7 @@ from gait_biofeedback.io.mcap_writer import McapWriter
 from gait_biofeedback.io.params import COMPRESSIONS as COMPRESSION_NAMES
 from gait_biofeedback.io.schemas import schema_text, type_description_hash, type_name_of
 from gait_biofeedback.wire.cdr import serialize
-from gait_biofeedback.wire.padding import zero_padding
+from gait_biofeedback.wire.padding import Padder
 
 SESSION_FILES = (CALIBRATION_FILE, DASHBOARD_LINK_FILE)
 """Files of a session that may be in its bag folder before the bag (a graph that crashed leaves the
@@ -83,6 +85,25 @@ def _bag_part(path: Path) -> bool:
     return path.suffix == ".mcap" or path.name in ("metadata.yaml", *SESSION_FILES)
 
 
+Message = tuple[int, str, str, bytes, bool]
+"""A message for :meth:`BagWriter.write_many`: (log time ns, topic, type name, CDR bytes, padding zeroed
+already)."""
+_RUN = 4096  # records handed to the MCAP writer at once, at most
+
+
+@dataclass(slots=True)
+class _Lane:
+    """One topic of the bag: its record, its channel id in the open file (0: not registered there
+    yet), its messages so far (the sequence number of the last) and its padding check (its own: a
+    topic's messages share one layout)."""
+
+    record: TopicRecord
+    type_name: str
+    channel_id: int
+    sequence: int
+    pad: Padder
+
+
 @dataclass
 class _McapPart:
     """One open .mcap file of the bag and what has gone into it."""
@@ -91,7 +112,6 @@ class _McapPart:
     stream: BinaryIO
     writer: McapWriter
     schema_ids: dict[str, int] = field(default_factory=dict)
-    channel_ids: dict[str, int] = field(default_factory=dict)
     record: FileRecord = field(default_factory=lambda: FileRecord(""))
     good_offset: int = 0  # end of the last complete chunk handed to the OS
     good_end_ns: int = 0  # log time of the newest message before it
@@ -136,7 +156,7 @@ class BagWriter:
         self._split_ns = None if split_duration_s is None else round(split_duration_s * 1e9)
         self._chunk_size = chunk_size
         self._topics: dict[str, TopicRecord] = {}
-        self._sequence: dict[str, int] = {}
+        self._lanes: dict[str, _Lane] = {}
         self._records: list[FileRecord] = []
         self._last_flush = time.monotonic()
         self._closed = False
@@ -177,6 +197,9 @@ class BagWriter:
             path.unlink(missing_ok=True)
             raise
         part = _McapPart(path, stream, writer, record=FileRecord(path.name), good_offset=stream.tell())
+        writer.on_chunk = partial(self._chunk_written, part)
+        for lane in self._lanes.values():
+            lane.channel_id = 0  # registered again in the new file, on its first message there
         self._records.append(part.record)
         return part
 
@@ -199,53 +222,83 @@ class BagWriter:
         schema_text(type_name)  # fails early, with the search path, if the definition is missing
         record = TopicRecord(topic, type_name, offered_qos or qos_profile(), type_description_hash(type_name))
         self._topics[topic] = record
-        self._sequence[topic] = 0
+        self._lanes[topic] = _Lane(record, type_name, 0, 0, Padder(type_name))
         return record
 
-    def write(self, topic: str, msg: Any, log_time_ns: int, publish_time_ns: int | None = None) -> None:
+    def write(self, topic: str, msg: Any, log_time_ns: int) -> None:
         """Serialise the rclpy message ``msg`` (exact CDR size) and write it at ``log_time_ns``."""
-        self.write_serialized(topic, type_name_of(msg), serialize(msg), log_time_ns, publish_time_ns,
-                              padded=True)
+        self.write_many(((log_time_ns, topic, type_name_of(msg), serialize(msg), True),))
 
-    def write_serialized(
-        self, topic: str, type_name: str, data: bytes, log_time_ns: int, publish_time_ns: int | None = None,
-        padded: bool = False,
-    ) -> None:
+    def write_serialized(self, topic: str, type_name: str, data: bytes, log_time_ns: int,
+                         padded: bool = False) -> None:
         """Write a CDR-serialised message of ``type_name`` (``pkg/msg/Type``), its padding bytes zeroed
         (:func:`~gait_biofeedback.wire.padding.zero_padding`; ``padded``: the caller's bytes come from
-        :func:`~gait_biofeedback.wire.cdr.serialize`, zeroed already)."""
+        :func:`~gait_biofeedback.wire.cdr.serialize`, zeroed already): :meth:`write_many` of one."""
+        self.write_many(((log_time_ns, topic, type_name, data, padded),))
+
+    def write_many(self, messages: Iterable[Message]) -> None:
+        """Write ``messages`` (:data:`Message`: log time ns, topic, type name, CDR bytes, padding
+        zeroed already) in their order, each as :meth:`write_serialized` says; the publish time is the
+        log time. Per message: its topic's lane looked up, its padding checked, its record's fields; the
+        records go into the file in runs (:meth:`McapWriter.add_messages`), the file's count and time
+        range brought up to date once a run. A message that cannot be written (its topic carries
+        another type) raises, those before it written."""
         if self._closed:
             raise ValueError(f"bag {self.path} is closed; open a new BagWriter to write more")
-        record = self._topics.get(topic) or self.add_topic(topic, type_name)
-        if record.type_name != type_name:
-            raise ValueError(f"topic {topic} carries {record.type_name}; cannot write {type_name} to it")
-        log_time_ns = int(log_time_ns)
-        self._split_if_due(log_time_ns)
-        part = self._part
-        channel_id = part.channel_ids.get(topic) or self._register(part, record)
-        self._sequence[topic] += 1
-        part.writer.add_message(channel_id, log_time_ns, data if padded else zero_padding(data, type_name),
-                                log_time_ns if publish_time_ns is None else int(publish_time_ns),
-                                self._sequence[topic] & 0xFFFFFFFF)
-        file_record = part.record
-        if file_record.message_count == 0 or log_time_ns < file_record.start_time:
-            file_record.start_time = log_time_ns
-        if log_time_ns > file_record.end_time:
-            file_record.end_time = log_time_ns
-        file_record.message_count += 1
-        record.message_count += 1
-        self.message_count += 1
-        if part.writer.pending_bytes == 0:
-            # the chunk closed with this message: hand it to the OS, so that after a write error the
-            # file is cut back to here, not to the last flush
-            part.stream.flush()
-            self._mark_good(part)
+        lanes, splitting = self._lanes, self._split_size is not None or self._split_ns is not None
+        pending: list[tuple[int, int, int, int, bytes]] = []  # records for the open file, in order
+        add = pending.append
+        try:
+            for log_ns, topic, type_name, data, padded in messages:
+                lane = lanes.get(topic)
+                if lane is None or lane.type_name != type_name:
+                    lane = self._lane(topic, type_name)
+                log_ns = int(log_ns)
+                if splitting or not lane.channel_id or len(pending) >= _RUN:
+                    self._put(pending)  # what came before goes into the file first (and memory is bounded)
+                    if splitting:
+                        self._split_if_due(log_ns)
+                    if not lane.channel_id:
+                        lane.channel_id = self._register(self._part, lane.record)
+                sequence = lane.sequence + 1
+                add((log_ns, lane.channel_id, log_ns, sequence & 0xFFFFFFFF,
+                     data if padded else lane.pad(data)))
+                lane.sequence = sequence
+        finally:
+            self._put(pending)
         self.maybe_flush()
 
-    @staticmethod
-    def _mark_good(part: _McapPart) -> None:
-        part.good_offset, part.good_end_ns = part.stream.tell(), part.record.end_time
-        part.good_messages = part.record.message_count
+    def _put(self, pending: list[tuple[int, int, int, int, bytes]]) -> None:
+        """The ``pending`` records into the open file (handed over once: the list is emptied), counted
+        in its record and the bag's count."""
+        if not pending:
+            return
+        records = pending.copy()
+        pending.clear()
+        record = self._part.record
+        start, end = min(records)[0], max(records)[0]
+        if record.message_count == 0 or start < record.start_time:
+            record.start_time = start
+        if end > record.end_time:
+            record.end_time = end
+        record.message_count += len(records)
+        self.message_count += len(records)
+        self._part.writer.add_messages(records)
+
+    def _lane(self, topic: str, type_name: str) -> _Lane:
+        """The lane of ``topic`` (declared now if new); ValueError if it carries another type."""
+        lane = self._lanes.get(topic)
+        if lane is not None:
+            raise ValueError(f"topic {topic} carries {lane.type_name}; cannot write {type_name} to it")
+        self.add_topic(topic, type_name)
+        return self._lanes[topic]
+
+    def _chunk_written(self, part: _McapPart) -> None:
+        """A chunk of ``part`` closed: hand it to the OS, so that after a write error the file is cut
+        back to here, not to the last flush."""
+        part.stream.flush()
+        part.good_offset = part.stream.tell()
+        part.good_messages, part.good_end_ns = part.writer.written
 
     def _register(self, part: _McapPart, record: TopicRecord) -> int:
         schema_id = part.schema_ids.get(record.type_name)
@@ -256,28 +309,27 @@ class BagWriter:
         metadata = {"offered_qos_profiles": qos_to_text(record.offered_qos)}
         if record.type_hash:
             metadata["topic_type_hash"] = record.type_hash
-        channel_id = part.writer.register_channel(record.name, "cdr", schema_id, metadata)
-        part.channel_ids[record.name] = channel_id
-        return channel_id
+        return part.writer.register_channel(record.name, "cdr", schema_id, metadata)
 
-    def _split_if_due(self, log_time_ns: int) -> None:
+    def _split_if_due(self, log_time_ns: int) -> bool:
+        """Open the next file if the open one is full (size or duration); whether it did."""
         record = self._part.record
         if record.message_count == 0:
-            return
+            return False
         too_big = self._split_size is not None and self._part.size_estimate() >= self._split_size
         too_long = self._split_ns is not None and log_time_ns - record.start_time >= self._split_ns
         if too_big or too_long:
             self._close_part()
             self._part = self._open_part()
             self._write_metadata()
+            return True
+        return False
 
     def flush(self) -> None:
         """Write the open chunk to the file now and flush the file to the OS."""
         if self._closed:
             return
-        part = self._part
-        part.writer.flush()
-        self._mark_good(part)
+        self._part.writer.flush()  # a chunk written is marked good by _chunk_written
         self._last_flush = time.monotonic()
 
     def maybe_flush(self) -> None:
@@ -312,6 +364,8 @@ class BagWriter:
             stream.close()
 
     def _write_metadata(self) -> None:
+        for lane in self._lanes.values():
+            lane.record.message_count = lane.sequence
         write_metadata(self.path, bag_metadata(self._records, list(self._topics.values())))
 
     def close(self) -> None:

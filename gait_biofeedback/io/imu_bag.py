@@ -78,11 +78,8 @@ def write_series(writer: BagWriter, imu: dict[str, ImuSeries], extra: Sequence[S
     stream_of = np.concatenate([np.full(len(s[2]), k) for k, s in enumerate(streams)])
     sample_of = np.concatenate([np.arange(len(s[2])) for s in streams])
     order = np.argsort(all_ns, kind="stable")
-    write = writer.write_serialized
-    for t, k, i in zip(all_ns[order].tolist(), stream_of[order].tolist(), sample_of[order].tolist(),
-                       strict=True):
-        topic, type_name, _, payloads = streams[k]
-        write(topic, type_name, payloads[i], t)
+    writer.write_many((t, streams[k][0], streams[k][1], streams[k][3][i], False) for t, k, i in zip(
+        all_ns[order].tolist(), stream_of[order].tolist(), sample_of[order].tolist(), strict=True))
 
 
 DECODE_BLOCK = 20_000

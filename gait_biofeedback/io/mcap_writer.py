@@ -2,22 +2,26 @@
 
 The PyPI ``mcap`` writer builds every record through a general record builder: about 20 µs per
 message, a sixth of ``analyze``'s time and a large share of the live recorder's. Here a message costs
-one ``struct`` pack and two list appends; a chunk is joined, checked (CRC-32) and compressed when it
-is full or flushed. The file has what the ``mcap`` writer's defaults give, so every reader
+one ``struct`` pack and two list extends (:meth:`McapWriter.add_messages` takes a run of them in one
+call); what is counted per chunk (its time range, its messages per channel) is read from its message
+index when it closes; a chunk is joined, checked (CRC-32) and compressed when it is full or flushed.
+The file has what the ``mcap`` writer's defaults give, so every reader
 (:mod:`gait_biofeedback.io.mcap_file`, ``rosbags``, ``mcap-ros2-support``, Foxglove) reads it alike:
 header; schema and channel records inside the chunk in which they are registered; per chunk, one
 message index record per channel after it; data end; a summary with the schemas, channels,
 statistics and chunk indexes and their summary offsets; a footer whose CRC covers the summary.
 
 Interface (what :class:`~gait_biofeedback.io.bag_writer.BagWriter` uses): :meth:`start`,
-:meth:`register_schema`, :meth:`register_channel`, :meth:`add_message`, :meth:`flush` (the open chunk
-to the stream, the stream to the OS: the crash-safety point) and :meth:`finish`.
+:meth:`register_schema`, :meth:`register_channel`, :meth:`add_messages` (:meth:`add_message`: one),
+:attr:`on_chunk` (told of each chunk written), :meth:`flush` (the open chunk to the stream, the stream
+to the OS: the crash-safety point) and :meth:`finish`.
 """
 
 from __future__ import annotations
 
 import struct
 import zlib
+from collections.abc import Callable, Iterable
 from typing import BinaryIO
 
 import lz4.frame
@@ -30,6 +34,7 @@ COMPRESSIONS = ("zstd", "lz4", "")
 
 _MESSAGE_HEAD = struct.Struct("<BQHIQQ")  # opcode, length, channel id, sequence, log time, publish time
 _MESSAGE_HEAD_BYTES = 2 + 4 + 8 + 8
+_MESSAGE_RECORD_BYTES = 1 + 8 + _MESSAGE_HEAD_BYTES
 _RECORD_HEAD = struct.Struct("<BQ")
 
 
@@ -66,17 +71,17 @@ class McapWriter:
         self._channels: list[bytes] = []
         self._chunk_indexes: list[bytes] = []
         self._channel_counts: dict[int, int] = {}
-        self._message_count = 0
+        self._message_count = 0  # in the chunks written
         self._start_ns = 0
         self._end_ns = 0
+        self.on_chunk: Callable[[], None] | None = None
+        """Called after each chunk is written to the stream (the owner hands it to the OS there)."""
         self._new_chunk()
 
     def _new_chunk(self) -> None:
         self._parts: list[bytes] = []
         self._size = 0  # of the chunk's records so far
         self._index: dict[int, list[int]] = {}  # channel id → [log time, offset, log time, offset, …]
-        self._chunk_messages = 0
-        self._chunk_start = self._chunk_end = 0
 
     def start(self, profile: str = "", library: str = "") -> None:
         """The magic and the header record."""
@@ -109,46 +114,82 @@ class McapWriter:
 
     def add_message(self, channel_id: int, log_time: int, data: bytes, publish_time: int,
                     sequence: int = 0) -> None:
-        """One message of a registered channel (log and publish time in ns)."""
-        index = self._index.get(channel_id)
-        if index is None:
-            if channel_id not in self._channel_counts:
-                raise ValueError(f"channel {channel_id} is not registered")
-            index = self._index[channel_id] = []
-        index += (log_time, self._size)
-        head = _MESSAGE_HEAD.pack(OP_MESSAGE, _MESSAGE_HEAD_BYTES + len(data), channel_id, sequence, log_time,
-                                  publish_time)
-        self._parts += (head, data)
-        self._size += len(head) + len(data)
-        if self._chunk_messages == 0:
-            self._chunk_start = self._chunk_end = log_time
-        elif log_time < self._chunk_start:
-            self._chunk_start = log_time
-        elif log_time > self._chunk_end:
-            self._chunk_end = log_time
-        self._chunk_messages += 1
-        self._channel_counts[channel_id] += 1
-        if self._size > self.chunk_size:
-            self._finish_chunk()
+        """One message of a registered channel (log and publish time in ns): :meth:`add_messages` of
+        one."""
+        self.add_messages(((log_time, channel_id, publish_time, sequence, data),))
+
+    def add_messages(self, messages: Iterable[tuple[int, int, int, int, bytes]]) -> None:
+        """Messages ``(log time, channel id, publish time, sequence, data)`` (the order of
+        :class:`~gait_biofeedback.io.mcap_file.RawMessage`) of registered channels, in their order. Per
+        message: its record's head packed, its index entry; what is counted (the chunk's time range
+        and message count, each channel's count) is taken from the chunk's message index when the
+        chunk closes."""
+        index_of, pack, limit = self._index, _MESSAGE_HEAD.pack, self.chunk_size
+        parts, size = self._parts, self._size
+        for log_time, channel_id, publish_time, sequence, data in messages:
+            index = index_of.get(channel_id)
+            if index is None:
+                if channel_id not in self._channel_counts:
+                    raise ValueError(f"channel {channel_id} is not registered")
+                index = index_of[channel_id] = []
+            index += (log_time, size)
+            length = len(data)
+            parts += (pack(OP_MESSAGE, _MESSAGE_HEAD_BYTES + length, channel_id, sequence, log_time,
+                           publish_time), data)
+            size += _MESSAGE_RECORD_BYTES + length
+            self._size = size
+            if size > limit:
+                self._finish_chunk()
+                index_of, parts, size = self._index, self._parts, self._size
 
     @property
     def pending_bytes(self) -> int:
         """Uncompressed bytes of the open chunk."""
         return self._size
 
+    @property
+    def message_count(self) -> int:
+        """Messages added, those of the open chunk included."""
+        return self._message_count + sum(map(len, self._index.values())) // 2
+
+    @property
+    def written(self) -> tuple[int, int]:
+        """(messages in the chunks written, log time of the newest of them; 0: none)."""
+        return self._message_count, self._end_ns
+
+    def time_range(self) -> tuple[int, int]:
+        """(first, last) log time of the messages added, those of the open chunk included; (0, 0):
+        none."""
+        start, end = self._open_range()
+        if not self._message_count:
+            return start, end
+        if not self._index:
+            return self._start_ns, self._end_ns
+        return min(start, self._start_ns), max(end, self._end_ns)
+
+    def _open_range(self) -> tuple[int, int]:
+        if not self._index:
+            return 0, 0
+        return (min(min(entries[0::2]) for entries in self._index.values()),
+                max(max(entries[0::2]) for entries in self._index.values()))
+
     def _finish_chunk(self) -> None:
-        if self._chunk_messages == 0:
+        if not self._index:
             return  # a chunk of schema and channel records only waits for a message
+        chunk_start, chunk_end = self._open_range()
         records = b"".join(self._parts)
         data = _compress(records, self.compression)
-        body = (struct.pack("<QQQI", self._chunk_start, self._chunk_end, len(records), zlib.crc32(records))
+        body = (struct.pack("<QQQI", chunk_start, chunk_end, len(records), zlib.crc32(records))
                 + _string(self.compression) + struct.pack("<Q", len(data)))
         chunk_offset = self.stream.tell()
         chunk = _RECORD_HEAD.pack(OP_CHUNK, len(body) + len(data)) + body
         index_offset = chunk_offset + len(chunk) + len(data)
         indexes, offsets = [], []
+        messages = 0
         for channel_id in sorted(self._index):
             entries = self._index[channel_id]
+            messages += len(entries) // 2
+            self._channel_counts[channel_id] += len(entries) // 2
             offsets.append(struct.pack("<HQ", channel_id, index_offset + sum(map(len, indexes))))
             indexes.append(_record(OP_MESSAGE_INDEX, struct.pack(f"<HI{len(entries)}Q", channel_id,
                                                                    8 * len(entries), *entries)))
@@ -157,18 +198,20 @@ class McapWriter:
         self.stream.write(data)
         self.stream.write(index_bytes)
         offset_map = b"".join(offsets)
-        head = struct.pack("<QQQQI", self._chunk_start, self._chunk_end, chunk_offset, len(chunk) + len(data),
+        head = struct.pack("<QQQQI", chunk_start, chunk_end, chunk_offset, len(chunk) + len(data),
                            len(offset_map))
         tail = _string(self.compression) + struct.pack("<QQ", len(data), len(records))
         self._chunk_indexes.append(_record(OP_CHUNK_INDEX,
                                            head + offset_map + struct.pack("<Q", len(index_bytes)) + tail))
         if self._message_count == 0:
-            self._start_ns, self._end_ns = self._chunk_start, self._chunk_end
+            self._start_ns, self._end_ns = chunk_start, chunk_end
         else:
-            self._start_ns = min(self._start_ns, self._chunk_start)
-            self._end_ns = max(self._end_ns, self._chunk_end)
-        self._message_count += self._chunk_messages
+            self._start_ns = min(self._start_ns, chunk_start)
+            self._end_ns = max(self._end_ns, chunk_end)
+        self._message_count += messages
         self._new_chunk()
+        if self.on_chunk is not None:
+            self.on_chunk()
 
     def flush(self) -> None:
         """Write the open chunk (if it holds a message) and flush the stream to the OS (no fsync)."""

@@ -151,6 +151,6 @@ def write_faulty_bag(source: str | Path, output: str | Path, faults: Iterable[Fa
         messages = list(reader.raw_messages())
         start_ns = reader.start_time_ns
     with BagWriter(output, overwrite=overwrite, flush_period_s=None) as writer:
-        for topic, type_name, data, log_ns in inject(messages, faults, start_ns):
-            writer.write_serialized(topic, type_name, data, log_ns)
+        writer.write_many((log_ns, topic, type_name, data, False)
+                          for topic, type_name, data, log_ns in inject(messages, faults, start_ns))
     return Path(output)
