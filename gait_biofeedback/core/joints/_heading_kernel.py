@@ -19,6 +19,8 @@ import cmath
 import math
 from typing import Any
 
+from gait_biofeedback.core.orientation.filters._scalar import half_turn
+
 # ---- float state (f): reset by a restart below KEEP -------------------------------------------------
 TURN = 0  # 0..1  E₁, E₂: each filter's own world turn (rad, step 3)
 KDELTA = 2  # δ between the gyro-only worlds (step 2)
@@ -107,12 +109,7 @@ def _vertical_correction(f: Any, at: int, qw: float, qx: float, qy: float, qz: f
     3), ``q_last`` and its rate at ``f[at:at + 7]``; the strap-down step of thesis Eq 7-8."""
     lw, lx, ly, lz = f[at], f[at + 1], f[at + 2], f[at + 3]
     mx, my, mz = (f[at + 4] + gx) * 0.5, (f[at + 5] + gy) * 0.5, (f[at + 6] + gz) * 0.5
-    n = math.sqrt(mx * mx + my * my + mz * mz)
-    half = 0.5 * n * dt
-    if half < 1e-8:
-        c, s = 1.0, 0.5 * dt
-    else:
-        c, s = math.cos(half), math.sin(half) / n
+    c, s = half_turn(mx, my, mz, dt)
     ex, ey, ez = mx * s, my * s, mz * s
     pw = lw * c - lx * ex - ly * ey - lz * ez
     px = lw * ex + lx * c + ly * ez - lz * ey

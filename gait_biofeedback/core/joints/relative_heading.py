@@ -298,7 +298,8 @@ def _kernels(python: bool = False) -> _Kernels:
         ring, row = np.zeros(RING_ROWS * hk.RING_WIDTH), np.zeros(hk.ROW_WIDTH)
         i[hk.EDGE], i[hk.FITTED] = -1, 1
         sample = (1.0, 0.0, 0.0, 0.0, 0.1, 0.2, 0.3, 0.0, 0.0, 9.8) * 2
-        helpers = ("_norm", "_wrap", "_turned_back", "_vertical_correction", "_turn_worlds", "_restart",
+        helpers = ("half_turn", "_norm", "_wrap", "_turned_back", "_vertical_correction", "_turn_worlds",
+                   "_restart",
                    "_rotate", "_centre_force", "_coherence", "_add_product", "add_row")
         step = fast(hk, "step", (f, i, ring, p, row, 10_000_000, *sample, True, True), helpers)
         if not hasattr(step, "py_func"):

@@ -14,14 +14,19 @@ Quat = tuple[float, float, float, float]
 Vec = tuple[float, float, float]
 
 
-def gyro_step(q: Quat, gx: float, gy: float, gz: float, dt: float) -> Quat:
-    """``q ⊗ exp(½ ω dt)``: exact closed-form strap-down step (orientation.md §2.2, thesis Eq 7–8)."""
+def half_turn(gx: float, gy: float, gz: float, dt: float) -> tuple[float, float]:
+    """``(c, s)`` with ``exp(½ ω dt) = (c, ω s)`` (orientation.md §2.2, thesis Eq 7–8); plain math, so
+    numba compiles it as a helper of a kernel (``core/joints/_heading_kernel.py``)."""
     n = math.sqrt(gx * gx + gy * gy + gz * gz)
     half = 0.5 * n * dt
     if half < 1e-8:
-        c, s = 1.0, 0.5 * dt
-    else:
-        c, s = math.cos(half), math.sin(half) / n
+        return 1.0, 0.5 * dt
+    return math.cos(half), math.sin(half) / n
+
+
+def gyro_step(q: Quat, gx: float, gy: float, gz: float, dt: float) -> Quat:
+    """``q ⊗ exp(½ ω dt)``: exact closed-form strap-down step (orientation.md §2.2, thesis Eq 7–8)."""
+    c, s = half_turn(gx, gy, gz, dt)
     return multiply(q, (c, gx * s, gy * s, gz * s))
 
 
