@@ -50,6 +50,10 @@ def _faulty(clean: Path, output: Path) -> None:
                                      ClockStep("left_thigh", 40.0, 0.2)])
 
 
+REFERENCES = ("clean", "no_mag", "faults", "qmt", "gaitmap")
+"""The reference recordings' names (module docstring), for ``--only``."""
+
+
 def inputs(folder: Path) -> dict[str, tuple[Path, list[str]]]:
     """Reference name → (recording, analyze's calibration arguments), made in ``folder`` if missing."""
     out: dict[str, tuple[Path, list[str]]] = {}
@@ -143,7 +147,7 @@ def main() -> int:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--against", required=True, metavar="REV", help="git revision to compare with")
     parser.add_argument("--keep", type=Path, default=None, help="folder for inputs and outputs (reused)")
-    parser.add_argument("--only", nargs="*", help="reference names to run")
+    parser.add_argument("--only", nargs="*", choices=REFERENCES, help="reference names to run")
     args = parser.parse_args()
     work = args.keep or Path(tempfile.mkdtemp(prefix="regression_"))
     work.mkdir(parents=True, exist_ok=True)
