@@ -577,3 +577,26 @@ def test_ipol_reference_events_are_met_without_a_bias():
     for kind, values in errors.items():
         assert len(values) > 60, kind
         assert abs(np.median(values)) <= 0.020, f"{kind}: median {np.median(values) * 1000:+.0f} ms"
+
+
+def test_a_stride_without_spatial_values_gets_its_heading_change_from_the_foot_orientation():
+    """A stride without spatial values (here: spatial off; in a U-turn: no trajectory stride) used to
+    have a NaN turning angle and so counted as straight; it now gets the foot's heading change from its
+    orientation at the opening IC to the one at the closing IC. By hand: a foot turning about the
+    vertical at 0.3 rad/s while it walks (pitch -sin β = 0.9 cos 2πt) turns 0.3 rad/s × the stride time."""
+    from gait_biofeedback.core import quaternion as quat
+    from gait_biofeedback.core.gait.stream import GaitEventsParams, GaitEventStream
+
+    rate, yaw_rate = 100.0, 0.3
+    stream = GaitEventStream(GaitEventsParams(spatial=False, use_standing_reference=True, sides=("left",)))
+    cycles = []
+    for k in range(round(9 * rate)):
+        t = k / rate
+        s = 0.0 if t < 1.0 else 0.9 * math.cos(2 * math.pi * t)  # 1 s standing, then the walk
+        pitch = quat.from_axis_angle(np.array([0.0, 1.0, 0.0]), -math.asin(s))
+        q = quat.multiply(quat.from_axis_angle(np.array([0.0, 0.0, 1.0]), yaw_rate * t), pitch)
+        cycles += stream.update("left", round(t * 1e9), tuple(float(v) for v in q))[1]
+    assert len(cycles) >= 5
+    for cycle in cycles:
+        assert cycle.space.flag == "spatial values off"
+        assert cycle.space.turning_angle == pytest.approx(yaw_rate * cycle.stride_time, abs=1e-9)

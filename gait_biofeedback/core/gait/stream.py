@@ -39,6 +39,8 @@ Samples are identified by their stamps (int ns); the stage's parameters are :cla
 from __future__ import annotations
 
 import math
+from bisect import bisect_right
+from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 
@@ -65,6 +67,7 @@ from gait_biofeedback.core.params import param, require, same_as
 from gait_biofeedback.core.rate import RateCheck
 from gait_biofeedback.core.segments import SIDES
 from gait_biofeedback.core.spatial.stream import FootTrajectoryParams, FootTrajectoryStream
+from gait_biofeedback.core.spatial.strides import heading_change
 from gait_biofeedback.core.stamps import NS_PER_S
 
 FOOT_SIDES = SIDES
@@ -196,6 +199,9 @@ class GaitEventStream:
         after = p.provisional_after_s if p.spatial_provisional else None
         self.pairing = {s: SpatialPairing(p.spatial_wait_s, after, 1.0 / p.rate_hz) for s in self.sides}
         self._released: dict[str, list[GaitCycle]] = {s: [] for s in self.sides}
+        # each foot's recent orientations, for the heading change of a stride without spatial values
+        self._orientations: dict[str, deque[tuple[int, tuple[float, ...]]]] = {s: deque() for s in self.sides}
+        self._history_ns = round((p.max_stride_s + p.spatial_wait_s + 1.0) * NS_PER_S)
 
     def _foot(self, rate_hz: float) -> FootTrajectoryStream:
         return FootTrajectoryStream(rate_hz, self.params.foot_trajectory)
@@ -236,6 +242,7 @@ class GaitEventStream:
             self._release(side, self.pairing[side].release(f"state reset ({why}): spatial values unknown"))
         self._last_ns[side] = None
         self._doubtful[side] = None
+        self._orientations[side].clear()
         self.counts[side]["resets"] += 1
         self.notes[side] = f"state reset: {why}"
 
@@ -270,7 +277,20 @@ class GaitEventStream:
         for cycle, space, revision in decided:
             final = "spatial_unknown" if space.flag else "spatial_strides"
             self.counts[side]["spatial_provisional" if space.provisional else final] += 1
+            if not space.provisional and not math.isfinite(space.turning_angle):
+                space = replace(space, turning_angle=self._turn(side, cycle.start_ns, cycle.end_ns))
             self._released[side].append(replace(cycle, space=space, revision=revision))
+
+    def _turn(self, side: str, start_ns: int, end_ns: int) -> float:
+        """The foot's heading change (rad) from its orientation at ``start_ns`` to the one at ``end_ns``
+        (each the last sample at or before it): a stride without spatial values still says whether it
+        turned (EXT; a U-turn's strides often have none: benchmarks/turns.py). NaN when either is gone."""
+        history = self._orientations[side]
+        stamps = [t for t, _ in history]
+        a, b = bisect_right(stamps, start_ns) - 1, bisect_right(stamps, end_ns) - 1
+        if a < 0 or b < 0:
+            return math.nan
+        return heading_change(np.array(history[a][1]), np.array(history[b][1]))
 
     def update(self, side: str, stamp_ns: int, q: tuple[float, float, float, float],
                recovering: bool = False, gyr: tuple[float, float, float] | None = None,
@@ -323,6 +343,10 @@ class GaitEventStream:
         if recovering:
             self._doubtful[side] = (stamp_ns, RECOVERING_FLAG)
         self._last_ns[side] = stamp_ns
+        history = self._orientations[side]
+        history.append((stamp_ns, tuple(q)))
+        while history[0][0] < stamp_ns - self._history_ns:
+            history.popleft()
         self.tracker.tracking.add(side)
         event = self.detectors[side].update(stamp_ns, q)
         events = [] if event is None else [self._event(side, event, recovering)]

@@ -76,7 +76,8 @@ def unknown(stride: SpatialStride, why: str) -> SpatialStride:
     return replace(stride, flags=(*stride.flags, why), **dict.fromkeys(UNKNOWN_VALUES, math.nan))
 
 
-def _heading_change(q_from: np.ndarray, q_to: np.ndarray) -> float:
+def heading_change(q_from: np.ndarray, q_to: np.ndarray) -> float:
+    """The turn about the world vertical (rad, positive left) from orientation ``q_from`` to ``q_to``."""
     m = quat.as_matrix(quat.multiply(q_to, quat.conjugate(q_from)))
     return math.atan2(m[1, 0] - m[0, 1], m[0, 0] + m[1, 1])
 
@@ -140,7 +141,7 @@ def swing_so_far(orientation: np.ndarray, position: np.ndarray, first: tuple[int
     out["max_sensor_height"] = float(position[a1:, 2].max() - p_first[2])
     out["min_toe_clearance"] = _toe_clearance(orientation, position, slice(a0, a1 + 1), slice(a1, None),
                                               toe_lever_arm_m)
-    out["turning_angle"] = _heading_change(orientation[a1], orientation[-1])
+    out["turning_angle"] = heading_change(orientation[a1], orientation[-1])
     travel = (position[-1] - p_first)[:2]
     length = float(np.linalg.norm(travel))
     if length >= MIN_LENGTH_M:
@@ -179,7 +180,7 @@ def stride_parameters(t: np.ndarray, orientation: np.ndarray, position: np.ndarr
         lateral_excursion = _lateral_excursion(position[swing], p_first, lateral)
     else:
         flags.append("no direction of travel")
-    turning = _heading_change(orientation[a1], orientation[b0])
+    turning = heading_change(orientation[a1], orientation[b0])
     stride = SpatialStride(
         stance_start=numbers[a0], foot_off=numbers[a1], foot_flat=numbers[b0], end=numbers[b1],
         stride_length=length, stride_time=stride_time, gait_speed=length / stride_time,
