@@ -18,9 +18,11 @@ heading change of either foot summed over the strides around it). Its window and
 subjects 1-5 and are confirmed on 6-9, both halves printed; ``--grid`` prints the candidates (windows
 0-1 s, limits 20-60°). The rule: fewest U-turn strides kept (within one of the least), then the most
 straight strides kept: 0.25 s and 60°. 2026-12-07: per stride 47 of 110 / 34 of 74 U-turn strides kept
-(99.1 / 99.6 % straight kept), whole turn 14 of 110 / 12 of 74 (93.2 / 94.7 %). The U-turn strides
-still kept have no turning angle (their foot trajectories have no values: NaN; trials 1-6, 3-6, 5-6,
-6-5, 7-1, 8-6), or lie at its edges (5-4).
+(99.1 / 99.6 % straight kept), whole turn 14 of 110 / 12 of 74 (93.2 / 94.7 %); those still kept had
+no turning angle (their foot trajectories had no values: NaN; trials 1-6, 3-6, 5-6, 6-5, 7-1, 8-6), or
+lay at its edges (5-4). 2026-12-08, a stride without spatial values given its heading change from the
+foot orientation at its ICs (and the night's event stamps): whole turn 0 of 109 / 0 of 74 (91.1 / 92.7 %
+straight kept), per stride 26 of 109 / 21 of 74 (99.0 / 99.8 %).
 """
 
 from __future__ import annotations
