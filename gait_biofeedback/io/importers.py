@@ -928,6 +928,7 @@ def import_to_bag(kind: str, path: str | Path, output: str | Path,
     from gait_biofeedback.io.imu_bag import write_imu_bag
 
     warn = warn or (lambda text: None)
+    note = note or (lambda text: None)
     if kind == "auto" and Path(path).exists():
         kind = detect_kind(path, **options)
     if kind == "csv" and "mapping" in options and Path(path).exists():
@@ -936,7 +937,7 @@ def import_to_bag(kind: str, path: str | Path, output: str | Path,
     for text in recording.warnings:
         warn(text)
     for text in recording.notes:
-        (note or (lambda text: None))(text)
+        note(text)
     check_disk_space(output, sum(len(s) * (1 if s.mag is None else 2) for s in recording.imu.values()))
     return write_imu_bag(output, recording.imu), list(recording.imu)
 

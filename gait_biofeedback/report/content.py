@@ -19,6 +19,7 @@ from gait_biofeedback.report.document import Bullets, Figure, Paragraph, Section
 from gait_biofeedback.report.extract import LEVELS, SessionData
 from gait_biofeedback.report.norms import BAKER_2009, BAKER_2012, MCID, NormBand
 from gait_biofeedback.report.session import SessionReport, calibration_outcome, format_report
+from gait_biofeedback.wire.topics import segment_of
 
 # parameter → (label, display factor from SI, display unit, decimals)
 DISPLAY: dict[str, tuple[str, float, str, int]] = {
@@ -159,9 +160,14 @@ def spatiotemporal(analysis: SessionAnalysis, norms: dict[str, NormBand]) -> Sec
     return section
 
 
+def _kit(data: SessionData) -> set[str]:
+    """The segments whose IMU topics the recording has."""
+    return {seg for t in data.counts if (seg := segment_of(t)) is not None}
+
+
 def no_strides(data: SessionData) -> Section:
     """The gait sections of a recording without any stride: one sentence instead of empty tables."""
-    feet = [t for t in data.counts if t.endswith(("_foot/imu/data_raw", "_foot/imu/data"))]
+    feet = [seg for seg in _kit(data) if seg.endswith("_foot")]
     why = ("the foot sensors gave no gait events (no walking, or no calibration in force)" if feet
            else "this kit has no foot sensor, and gait events and strides come from the feet")
     return Section("Spatiotemporal parameters").add(Paragraph(f"No strides: {why}.", "note"))
@@ -308,7 +314,7 @@ def activity_section(data: SessionData) -> Section:
 def calibration_section(data: SessionData, report: SessionReport) -> Section:
     section = Section("Calibration quality")
     if not data.calibration:
-        legs = [t for t in data.counts if t.split("/")[1].endswith(("_thigh", "_shank", "_foot"))]
+        legs = [seg for seg in _kit(data) if seg.endswith(("_thigh", "_shank", "_foot"))]
         if not legs:  # a trunk sensor alone needs none: information
             return section.add(Paragraph("No calibration: this kit has no leg or foot sensor, and the "
                                          "activity monitor finds its own upright reference.", "note"))
