@@ -311,19 +311,17 @@ class BagWriter:
             metadata["topic_type_hash"] = record.type_hash
         return part.writer.register_channel(record.name, "cdr", schema_id, metadata)
 
-    def _split_if_due(self, log_time_ns: int) -> bool:
-        """Open the next file if the open one is full (size or duration); whether it did."""
+    def _split_if_due(self, log_time_ns: int) -> None:
+        """Open the next file if the open one is full (size or duration)."""
         record = self._part.record
         if record.message_count == 0:
-            return False
+            return
         too_big = self._split_size is not None and self._part.size_estimate() >= self._split_size
         too_long = self._split_ns is not None and log_time_ns - record.start_time >= self._split_ns
         if too_big or too_long:
             self._close_part()
             self._part = self._open_part()
             self._write_metadata()
-            return True
-        return False
 
     def flush(self) -> None:
         """Write the open chunk to the file now and flush the file to the OS."""

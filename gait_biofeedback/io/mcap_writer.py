@@ -148,24 +148,9 @@ class McapWriter:
         return self._size
 
     @property
-    def message_count(self) -> int:
-        """Messages added, those of the open chunk included."""
-        return self._message_count + sum(map(len, self._index.values())) // 2
-
-    @property
     def written(self) -> tuple[int, int]:
         """(messages in the chunks written, log time of the newest of them; 0: none)."""
         return self._message_count, self._end_ns
-
-    def time_range(self) -> tuple[int, int]:
-        """(first, last) log time of the messages added, those of the open chunk included; (0, 0):
-        none."""
-        start, end = self._open_range()
-        if not self._message_count:
-            return start, end
-        if not self._index:
-            return self._start_ns, self._end_ns
-        return min(start, self._start_ns), max(end, self._end_ns)
 
     def _open_range(self) -> tuple[int, int]:
         if not self._index:
