@@ -86,6 +86,7 @@ decided with the fixed rule's 25 ms; an accepted valley waits ``valley_gap_s`` (
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Callable
 
 import numpy as np
 
@@ -316,7 +317,13 @@ def detect_zero_velocity(gyr: np.ndarray, acc: np.ndarray, rate_hz: float, gyro_
 
 def _gait_scaled_test(gyr: np.ndarray, acc: np.ndarray, rate_hz: float, scale: np.ndarray) -> np.ndarray:
     """The gait-scaled SHOE test of every sample with its gyro scale ``scale`` (rad/s)."""
-    n, half = len(gyr), window_half(rate_hz, ADAPTIVE_SHOE_WINDOW_S)
+    half = window_half(rate_hz, ADAPTIVE_SHOE_WINDOW_S)
+    return _shoe_values(gyr, acc, half, ADAPTIVE_ACC_PER_GYRO * scale, scale) <= 1.0
+
+
+def _window_sums(n: int, half: int) -> tuple[Callable[[np.ndarray], np.ndarray], np.ndarray]:
+    """(the sum of an (n, ...) array over each sample's ±``half`` window, cut at the ends; each window's
+    sample count)."""
     k = np.arange(n)
     lo, hi = np.maximum(k - half, 0), np.minimum(k + half, n - 1)
 
@@ -324,35 +331,30 @@ def _gait_scaled_test(gyr: np.ndarray, acc: np.ndarray, rate_hz: float, scale: n
         c = np.concatenate([np.zeros((1, *x.shape[1:])), np.cumsum(x, axis=0)])
         return c[hi + 1] - c[lo]
 
-    count = hi - lo + 1
+    return window_sum, hi - lo + 1
+
+
+def _shoe_values(gyr: np.ndarray, acc: np.ndarray, half: int, acc_scale: float | np.ndarray,
+                 gyro_scale: float | np.ndarray) -> np.ndarray:
+    """The SHOE statistic (Skog 2010, :class:`ZeroVelocityDetector`) of every sample over its
+    ±``half`` window; the scales one for all or one per sample."""
+    window_sum, count = _window_sums(len(gyr), half)
     acc_part = (window_sum(np.sum(acc * acc, axis=1)) - 2.0 * GRAVITY_SHOE
                 * np.linalg.norm(window_sum(acc), axis=1) + count * GRAVITY_SHOE**2)
-    gyro_part = window_sum(np.sum(gyr * gyr, axis=1))
-    return (acc_part / (ADAPTIVE_ACC_PER_GYRO * scale) ** 2 + gyro_part / scale**2) / count <= 1.0
+    return (acc_part / acc_scale**2 + window_sum(np.sum(gyr * gyr, axis=1)) / gyro_scale**2) / count
 
 
 def _fixed_zero_velocity(gyr, acc, rate_hz, gyro_limit, jerk_limit, window_s, detector, acc_scale,
                          gyro_scale) -> np.ndarray:
     gyr = np.asarray(gyr, float)
     acc = np.asarray(acc, float)
-    n = len(gyr)
     half = window_half(rate_hz, window_s)
-    k = np.arange(n)
-    lo, hi = np.maximum(k - half, 0), np.minimum(k + half, n - 1)
-
-    def window_sum(x: np.ndarray) -> np.ndarray:
-        c = np.concatenate([np.zeros((1, *x.shape[1:])), np.cumsum(x, axis=0)])
-        return c[hi + 1] - c[lo]
-
     if detector == "shoe":
-        count = hi - lo + 1
-        acc_part = (window_sum(np.sum(acc * acc, axis=1)) - 2.0 * GRAVITY_SHOE
-                    * np.linalg.norm(window_sum(acc), axis=1) + count * GRAVITY_SHOE**2)
-        value = (acc_part / acc_scale**2 + window_sum(np.sum(gyr * gyr, axis=1)) / gyro_scale**2) / count
-        return value <= 1.0
+        return _shoe_values(gyr, acc, half, acc_scale, gyro_scale) <= 1.0
     if detector != "suh":
         raise ValueError(f"detector: one of {', '.join(DETECTORS)}, not {detector!r}")
     quiet = _quiet_samples(gyr, acc, rate_hz, gyro_limit, jerk_limit)
+    window_sum, _ = _window_sums(len(gyr), half)
     return window_sum((~quiet).astype(float)) == 0
 
 
