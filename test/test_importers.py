@@ -478,7 +478,8 @@ def test_hapt_csv_per_experiment_with_labels_per_sample(tmp_path: Path) -> None:
     assert recording.reference["activities"] == [("sitting", 0.02, 0.06)]
     with gzip.open(path, "wt") as f:
         f.write("acc-x,acc-y,acc-z,gyro-x,gyro-y,sequence,label\n1,0,0,0,0,0,-1\n")
-    with pytest.raises(ValueError, match=r"columns \['gyro-z'\] missing"):
+    with pytest.raises(ValueError, match=r"columns \['gyro-z'\] missing.*read as a UCI HAPT experiment; a "
+                       r"CSV of your own: `gait-biofeedback import csv .* --mapping map\.yaml`"):
         import_recording("hapt", path)
 
 

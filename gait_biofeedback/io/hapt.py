@@ -119,7 +119,9 @@ def _read_csv(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         header = f.readline().strip().split(",")
         missing = [c for c in CSV_COLUMNS if c not in header]
         if missing:
-            raise ValueError(f"{path}: columns {missing} missing from the header {header}")
+            raise ValueError(f"{path}: columns {missing} missing from the header {header} (a file named "
+                             "userUU_runK.csv is read as a UCI HAPT experiment; a CSV of your own: "
+                             f"`gait-biofeedback import csv {path} --mapping map.yaml`)")
         try:
             rows = np.loadtxt(f, delimiter=",", ndmin=2, max_rows=MAX_ROWS + 1)
         except ValueError as exc:
