@@ -1,6 +1,6 @@
 """Parameters are declared once: the stage dataclasses, what the nodes report over ROS, config/session.yaml
-and docs/parameters.md agree; a params file with a typo, a wrong type or a value out of range is refused before
-anything starts, naming the file, node, parameter and what is allowed."""
+and docs/parameters.md agree; a params file with a typo, a wrong type or a value out of range is refused
+before anything starts, naming the file, node, parameter and what is allowed."""
 
 from __future__ import annotations
 
