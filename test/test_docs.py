@@ -33,6 +33,7 @@ def test_site_builds_with_warnings_as_errors_and_api_pages_from_the_docstrings(t
     assert 'id="gait_biofeedback.batch.estimate_orientation"' in page
     text = re.sub(r"\s+", " ", html.unescape(re.sub(r"<[^>]+>", "", page)))
     assert first_words in text
+    assert ":class:" not in text and ":func:" not in text  # the reST roles shown as Sphinx shows them
     assert "| `max_gap_s` |" not in (site / "parameters" / "index.html").read_text()  # a table, not raw text
     assert "<code>max_gap_s</code>" in (site / "parameters" / "index.html").read_text()
     assert "cdnjs" not in (site / "index.html").read_text()  # opens offline: nothing fetched from a CDN
