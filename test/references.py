@@ -1,5 +1,5 @@
-"""What the docstrings of ``gait_biofeedback/`` and the pages of ``docs/`` point at, resolved without
-importing anything: file paths (``core/joints/alignment.py``, ``docs/conventions.md``, ``DESIGN.md``)
+"""What the docstrings of ``gait_biofeedback/`` (and ``benchmarks/``, ``scripts/``) and the pages of
+``docs/`` point at, resolved without importing anything: file paths (``core/joints/alignment.py``, ``docs/conventions.md``, ``DESIGN.md``)
 and Python symbols (``gait_biofeedback.core.params.RENAMED``, ``:class:`StreamSequencer```,
 ``:meth:`Released.gap_s```, ``core/calibration/walk.py: stance_phases``). Used by test_docs.py.
 
@@ -299,8 +299,10 @@ def broken(where: str, text: str, beside: Path, module: str | None = None,
 
 
 def broken_in_docstrings() -> list[Reference]:
+    """Of the package's docstrings, and of the benchmarks' and scripts' (their figures are cited)."""
     out = []
-    for path in sorted(PACKAGE.rglob("*.py")):
+    sources = [*PACKAGE.rglob("*.py"), *(REPO / "benchmarks").glob("*.py"), *(REPO / "scripts").glob("*.py")]
+    for path in sorted(sources):
         module = _module_of(path)
         for where, owner, doc in docstrings(path):
             out += broken(where, doc, path.parent, module, owner)
