@@ -1,7 +1,8 @@
 """What the docstrings of ``gait_biofeedback/`` (and ``benchmarks/``, ``scripts/``) and the pages of
-``docs/`` point at, resolved without importing anything: file paths (``core/joints/alignment.py``, ``docs/conventions.md``, ``DESIGN.md``)
-and Python symbols (``gait_biofeedback.core.params.RENAMED``, ``:class:`StreamSequencer```,
-``:meth:`Released.gap_s```, ``core/calibration/walk.py: stance_phases``). Used by test_docs.py.
+``docs/`` point at, resolved without importing anything: file paths (``core/joints/alignment.py``,
+``docs/conventions.md``, ``DESIGN.md``) and Python symbols (``gait_biofeedback.core.params.RENAMED``,
+``:class:`StreamSequencer```, ``:meth:`Released.gap_s```, ``core/calibration/walk.py: stance_phases``).
+Used by test_docs.py.
 
 A symbol is looked up in the modules' syntax trees: a module's top-level definitions, assignments and
 imports (an imported name is followed to the module it comes from), a class's methods, class-level
