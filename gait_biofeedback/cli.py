@@ -27,7 +27,7 @@ Wearable-IMU gait biofeedback (ROS 2 Jazzy). Typical use:
                                                the same processing offline, straight from the file
                                                (and its tables: output/mine_offline/tables/*.parquet)
   gait-biofeedback run --driver udp:5600 --record output/today
-                                               live sensors (README: Connecting sensors) through the graph
+                                               live sensors (docs/guide/live_sensors.md) through the graph
   gait-biofeedback stream-sim bags/demo_walk --to udp:127.0.0.1:5600
                                                send a recording as live sensors would (demos, tests)
   gait-biofeedback info output/mine            what is in a recording
@@ -333,7 +333,7 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     recording = read_recording_file(result.output)  # once, for the tables and the summary
     if not args.no_tables:
         files = write_tables(result.output, recording=recording)
-        print(f"wrote {files.folder}: {files.summary()} (Parquet; README: Tables for analysis)")
+        print(f"wrote {files.folder}: {files.summary()} (Parquet; docs/guide/report.md, Tables for analysis)")
     if result.calibration_file is not None:
         print(f"calibration in force saved as {result.calibration_file}")
     print("\n".join(format_report(summarise(recording))))
@@ -592,8 +592,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser(
         "tables", help="a session's strides, joint angles, events and activity as Parquet tables",
         description="Write strides.parquet, joint_angles.parquet, events.parquet and activity.parquet "
-        "(README: Tables for analysis) of a recording of the graph or an analyze output (analyze writes "
-        "them itself unless --no-tables).")
+        "(docs/guide/report.md, Tables for analysis) of a recording of the graph or an analyze output "
+        "(analyze writes them itself unless --no-tables).")
     p.add_argument("bag", help="recording of the graph or analyze output")
     p.add_argument("-o", "--output", default=None, help="folder for the tables [BAG/tables]")
     p.set_defaults(func=cmd_tables)
@@ -666,7 +666,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--driver", metavar="SPEC", help="also run imu_driver: udp:PORT, udp:ADDRESS:PORT, "
                    "serial:DEVICE[:BAUD] or simulated[:SCENARIO] (its other parameters: --params)")
     p.add_argument("--frame-key-file", metavar="PATH", help="with --driver: take only frames signed with "
-                   "the session key in PATH (imu_driver's 'frame_key_file'; README: Frame format)")
+                   "the session key in PATH (imu_driver's 'frame_key_file'; docs/guide/live_sensors.md)")
     p.add_argument("--record", help="also record every topic to this bag folder")
     p.add_argument("--params", default=None, help="ROS 2 parameter file, e.g. config/session.yaml")
     p.add_argument("--nodes", help="comma-separated processing nodes (default: all; '' = none)")
@@ -675,7 +675,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("stream-sim", help="send a recording as live sensors would, over UDP",
                        description="Send a recording's raw IMU samples in the imu_driver's wire format "
-                       "(README: Connecting sensors) in real time, each sensor with its own device clock "
+                       "(docs/guide/live_sensors.md) in real time, each sensor with its own device clock "
                        "(offset, drift), over a link with jitter, loss and reordering.")
     p.add_argument("bag", help="recording with /<segment>/imu/data_raw topics")
     p.add_argument("--to", required=True, metavar="udp:HOST:PORT", help="where the driver listens")

@@ -74,7 +74,7 @@ class DriverParams:
     clock_window_s: float = param(60.0, "device time → ROS time: offset and drift fitted over this long",
                                   "s", low=5.0, high=3600.0)
     frame_key_file: str = param("", "file holding the session key the sensors sign their frames with "
-                                "(GBI2, README: Frame format; mode 0600); '' = frames are not signed")
+                                "(GBI2, docs/guide/live_sensors.md; mode 0600); '' = frames are not signed")
     stale_after_s: float = param(1.0, "a mapped sensor silent for this long is reported missing, and "
                                  "another source that sends a confirmed chain may then take its id", "s",
                                  low=0.05, high=60.0)

@@ -12,8 +12,9 @@
   the same sample); ``from_ns = 0``, or a stamp the foot has already passed, takes effect at once. A
   new calibration resets the foot's detector and strides.
 - Bad input: a non-finite or zero quaternion is skipped; a stamp going backwards or a gap
-  > ``max_gap_s`` s resets that foot (detector and strides), counted and said (:attr:`notices`).
-  A stream that stopped (the node's wall-clock check) is reported with :meth:`stream_stopped`.
+  > ``max_gap_s`` s resets that foot (detector and strides), counted and said
+  (:attr:`GaitEventStream.notices`). A stream that stopped (the node's wall-clock check) is reported
+  with :meth:`GaitEventStream.stream_stopped`.
 - Rate: each foot's rate is measured from its first stamps
   (:class:`~gait_biofeedback.core.rate.RateCheck`); more than 10 % off ``rate_hz``, the detector
   counts its windows at the measured rate, and says so.

@@ -36,7 +36,7 @@ EXT, ``shock_stance_s``: the shock noise applies only in a swing whose stance be
 its shocks are many: with the shock noise in every swing pyshoe_vicon's 9 running trials scored a mean
 ARMSE of 0.139 m, without it 0.080 m. The foot-trajectory stage uses 0.05 s: running 0.077 m, and
 walking's stances (0.2-0.5 s) keep the noise (benchmarks/spatial.py; chosen on half of the trials,
-README).
+docs/benchmarks/spatial.md).
 
 Measurements at zero-velocity samples only: ``v = 0`` (Eq 13) and, with ``flat_floor``, ``r_z = 0``
 (Eq 14). The update is injected into the nominal state and the error mean reset (§3.3).

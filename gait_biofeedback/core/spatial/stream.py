@@ -18,7 +18,8 @@ Memory: the window holds one stride; a standing stance keeps its last ``KEEP_STA
 a live stride after standing reports that as its ``stance_start`` (offline: the whole standing).
 
 Bad input: a non-finite sample is skipped and counted; a stamp going back, or a gap over ``max_gap_s``
-s, restarts the foot at its next stance (counted in :attr:`counts`, said in :attr:`notices`). A shorter
+s, restarts the foot at its next stance (counted in :attr:`FootTrajectoryStream.counts`, said in
+:attr:`FootTrajectoryStream.notices`). A shorter
 gap (lost samples: a radio, a loaded DDS queue) is filled by linear interpolation of gyro and
 acceleration at the sample rate, so that the filter and the detector windows keep their step, and
 counted (``interpolated``). Interpolation only halves the error: on the simulator's walk at 100 Hz one
@@ -119,7 +120,7 @@ class FootTrajectoryParams:
     flat_floor: bool = param(True, "every stance at height 0 (Suh Eq 14): level ground only, turn off on "
                              "stairs and ramps")
     gyro_noise: float = param(1e-5, "gyro white-noise density R_g (Suh Table 1: 1e-3, far above a MEMS "
-                              "gyro's; README)", "rad^2/s", low=1e-9, high=1.0)
+                              "gyro's; docs/benchmarks/spatial.md)", "rad^2/s", low=1e-9, high=1.0)
     acc_noise: float = param(1e-2, "accelerometer white-noise density R_a (Suh Table 1)", "m^2/s^3",
                              low=1e-9, high=10.0)
     acc_shock: float = param(30.0, "a specific force this far off gravity is a shock (heel strike): the "
