@@ -361,7 +361,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     patient = patient_from_params(args.params) if args.params else Patient()
     patient = Patient(args.patient_id or patient.id, args.session_label or patient.session)
     files = write_report(args.sessions, args.output, patient, labels=args.labels, norms_file=args.norms,
-                         targets_file=args.targets, overwrite=args.overwrite)
+                         targets_file=args.targets, overwrite=args.overwrite, date=args.date)
     for note in files.analyses[-1].notes:
         print(note)
     for text in files.damage:
@@ -612,6 +612,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--norms", default=None, help="YAML of normative bands replacing the built-in ones")
     p.add_argument("--targets", default=None, help="targets of the offline cues [config/targets.yaml]")
     p.add_argument("--overwrite", action="store_true", help="replace a report already in the output folder")
+    p.add_argument("--date", default=None, metavar="'YYYY-MM-DD[ HH:MM]'",
+                   help="the last session's date, for a recording whose clock holds none (imported, "
+                   "simulated)")
     p.set_defaults(func=cmd_report)
 
     p = sub.add_parser(
