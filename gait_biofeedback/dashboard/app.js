@@ -506,8 +506,8 @@ function renderProgress() {
   box.hidden = false;
   const v = d.values, need = parseFloat(v.standing_needed_s), s = parseFloat(v.standing_s);
   const done = v.standing_done === "true";
-  document.getElementById("progress-standing").textContent = "Standing still: " +
-    Math.min(s, need).toFixed(1) + " of " + need + " s" + (done && s < need ? " (done earlier)" : "");
+  document.getElementById("progress-standing").textContent = done && s < need ? "Standing still: done" :
+    "Standing still: " + Math.min(s, need).toFixed(1) + " of " + need + " s";
   document.getElementById("progress-standing-bar").style.width = (done ? 100 : Math.min(100, s / need * 100)) + "%";
   const counts = SIDES.filter((side) => v[side + "_cycles"] !== "" && v[side + "_cycles"] !== undefined)
     .map((side) => side + " " + v[side + "_cycles"]);

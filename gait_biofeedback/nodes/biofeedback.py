@@ -326,8 +326,8 @@ class BiofeedbackNode(GuardedNode):
                          quantity=cue.quantity, side=cue.side, error=cue.error, unit=cue.unit,
                          measured=_finite(cue.measured), low=cue.band_low, high=cue.band_high,
                          label=quantity_label(cue.quantity, cue.side), advice=advice(cue))
-        changed = ("frequency", "rate", "quantity", "side", "calibrated")
-        if any(audio[k] != self._audio.get(k) for k in changed):
+        shown = ("frequency", "rate", "quantity", "side", "calibrated", "measured")  # the page shows each
+        if any(audio.get(k) != self._audio.get(k) for k in shown):
             self._audio = audio
             self._outbox.append(dict(audio))
 
