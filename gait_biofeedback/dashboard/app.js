@@ -349,6 +349,10 @@ function drawFigure() {
     g.beginPath(); g.arc(ox + x1 * scale, oy - y1 * scale, 3.5, 0, 2 * Math.PI); g.fill();
   }
   g.globalAlpha = 1;
+  if (!segs.some((s) => s[0] !== "pelvis")) {
+    g.fillStyle = "#666"; g.font = "14px sans-serif";
+    wrapText(g, "No leg angles at this instant (a sensor is missing or recovering).", 16, h / 2, w - 32, 20);
+  }
   // angle read-out
   const v = data.angles ? data.angles.values : {};
   g.font = "12px sans-serif";
