@@ -326,7 +326,7 @@ function wrapText(g, text, x, y, maxWidth, lineHeight) {
 
 function drawFigure() {
   const { g, w, h } = canvas2d("figure");
-  const scale = h / 1.25, ox = w * 0.5, oy = h * 0.12;
+  const scale = h / 1.45, ox = w * 0.5, oy = h * 0.1;  // the ground above the two lines of angles
   g.strokeStyle = "#ccc"; g.lineWidth = 1;
   g.beginPath(); g.moveTo(0, oy + 0.98 * scale); g.lineTo(w, oy + 0.98 * scale); g.stroke();
   if (!data.figure) {
