@@ -87,7 +87,9 @@ class _Stillness:
         a = math.sqrt(acc[0] ** 2 + acc[1] ** 2 + acc[2] ** 2)
         w = math.sqrt(gyr[0] ** 2 + gyr[1] ** 2 + gyr[2] ** 2)
         dt = math.inf if self.t is None else t - self.t
-        if not 0.0 < dt <= SILENT_AFTER_S:  # a first sample, a gap or time going back: start over
+        if -SILENT_AFTER_S < dt <= 0.0:
+            return  # a repeated or slightly older sample
+        if not dt <= SILENT_AFTER_S:  # a first sample, a gap or time gone back: start over
             self.gyro, self.acc_mean, self.acc_square = w, a, a * a
             self.still_since = None
             self.bias = list(gyr)
