@@ -141,7 +141,8 @@ def test_states_values_and_layout_in_headless_chromium(ros_context, tmp_path):
         state = browser.wait_for(lambda s: s.get("ended"), timeout=10)
         assert "Session ended" in _text(browser, "session-state") and not state["connected"]
         assert _text(browser, "stat-strides") == "3 / 3" and _text(browser, "stat-cadence") == "80 steps/min"
-        assert _text(browser, "audio-state") == "session ended: no sound"
+        audio = _until(browser, "audio-state", lambda t: t.startswith("session ended"))  # next refresh
+        assert audio == "session ended: no sound"
         shots += _fits(browser, tmp_path, "ended")
         print("\nscreenshots:\n" + "\n".join(shots))
     finally:
