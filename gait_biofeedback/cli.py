@@ -228,7 +228,7 @@ def _stream_sim_shimmer(args: argparse.Namespace) -> int:
           f"  gait-biofeedback run --driver shimmer:{spec}\nCtrl-C stops", flush=True)
     try:
         with stop_on_signals() as stop:
-            while not stop.is_set() and not (server.finished and all(f.streaming for f in fakes.values())):
+            while not stop.is_set() and not (server.finished and all(f.started for f in fakes.values())):
                 time.sleep(0.1)
     finally:
         server.close()

@@ -78,6 +78,7 @@ class _Device:
         except (serial.SerialException, OSError) as err:
             self._failed(f"cannot open {self.port} ({err}): is the Shimmer on and its rfcomm bound?")
             return
+        port.reset_input_buffer()  # nothing of an earlier connection
         shimmer = self.shimmer = pyshimmer.ShimmerBluetooth(port)
         try:
             shimmer.initialize()
@@ -123,13 +124,18 @@ class _Device:
         return float(v[0]), float(v[1]), float(v[2])
 
     def _on_packet(self, packet) -> None:
-        """pyshimmer's read thread: one data packet → a sample for the driver."""
+        """pyshimmer's read thread: one data packet → a sample for the driver (a packet without the
+        channels asked for is counted in ``bad_packets``: an exception here would end the thread)."""
         arrival = time.time_ns()
+        try:
+            ticks = self.unwrap(packet[self._timestamp])
+            sample = DeviceSample(self.sensor_id, sp.sequence_of(ticks, self.divider), sp.ticks_to_us(ticks),
+                                  self._si(packet, self.link.accelerometer), self._si(packet, "gyro"),
+                                  self._si(packet, "mag"))
+        except (KeyError, AttributeError, ValueError):
+            self.link.bad_packets += 1
+            return
         self.last_sample = time.monotonic()
-        ticks = self.unwrap(packet[self._timestamp])
-        sample = DeviceSample(self.sensor_id, sp.sequence_of(ticks, self.divider), sp.ticks_to_us(ticks),
-                              self._si(packet, self.link.accelerometer), self._si(packet, "gyro"),
-                              self._si(packet, "mag"))
         self.link.put(sample, arrival, self.source)
 
     def _failed(self, why: str) -> None:
@@ -179,6 +185,7 @@ class ShimmerLink:
         self.rate_hz, self.accelerometer = rate_hz, accelerometer
         self.reconnects = 0
         self.overflow = 0
+        self.bad_packets = 0
         self._queue: queue.SimpleQueue = queue.SimpleQueue()
         self.devices = [_Device(self, port, sid) for port, sid in devices.items()]
         self.description = (f"shimmer: {len(self.devices)} device(s) at "

@@ -54,12 +54,16 @@ class FakeShimmer:
         self.divider = sp.rate_divider(100.0)
         self.sensors = sp.SENSOR_BITS["wide_range"] | sp.SENSOR_BITS["gyro"] | sp.SENSOR_BITS["mag"]
         self.streaming = False
+        self.started = False
+        """Whether a client has started it streaming (once at least)."""
         self.sent = 0
         """Data packets written."""
         self.dropped = 0
         """Samples not sent (``loss``)."""
         self.due_ns: list[int] = []
         """Each sample's host time (ns) when the device measured it, lost ones too: the truth."""
+        self.out_of_range_until_ns = 0
+        """Until then (system clock, ns) nothing gets through either way: :meth:`go_out_of_range`."""
         self._in = bytearray()
         self._out = bytearray()
         self._k = 0
@@ -76,8 +80,18 @@ class FakeShimmer:
     def finished(self) -> bool:
         return self._k >= len(self.series.t)
 
+    def go_out_of_range(self, seconds: float) -> None:
+        """The Bluetooth link drops for ``seconds``, as when the wearer walks out of radio range: the
+        device stops streaming and hears nothing meanwhile; its clock runs on, so when a client starts
+        it again the samples of the time away are missing (counted in :attr:`dropped`)."""
+        self.out_of_range_until_ns = time.time_ns() + round(seconds * 1e9)
+        self.streaming = False
+        self._out.clear()
+
     def feed(self, data: bytes, now_ns: int) -> None:
         """Commands from the client: each answered (acknowledgement, then its response)."""
+        if now_ns < self.out_of_range_until_ns:
+            return
         self._in += data
         while self._in:
             command = self._in[0]
@@ -115,7 +129,14 @@ class FakeShimmer:
         return b""
 
     def _start(self, now_ns: int) -> None:
-        self.streaming = True
+        if self.started:  # started again: from the sample its clock is at now
+            self.streaming = True
+            while not self.finished and self.sample_due_ns(self._k) < now_ns:
+                self.due_ns.append(self.sample_due_ns(self._k))
+                self.dropped += 1
+                self._k += 1
+            return
+        self.streaming = self.started = True
         self._t0_ns = now_ns
         s = self.series
         values = {"low_noise": s.acc, "wide_range": s.acc, "gyro": np.degrees(s.gyr),
@@ -136,7 +157,7 @@ class FakeShimmer:
             k = self._k
             self._k += 1
             self.due_ns.append(self.sample_due_ns(k))
-            if self.loss and self._rng.random() < self.loss:
+            if now_ns < self.out_of_range_until_ns or (self.loss and self._rng.random() < self.loss):
                 self.dropped += 1
                 continue
             if self.jitter_s:  # a late packet holds the ones after it back: the line keeps order
