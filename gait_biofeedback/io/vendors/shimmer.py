@@ -125,7 +125,7 @@ class _Device:
 
     def _on_packet(self, packet) -> None:
         """pyshimmer's read thread: one data packet → a sample for the driver (a packet without the
-        channels asked for is counted in ``bad_packets``: an exception here would end the thread)."""
+        channels asked for is counted in ``bad_frames``: an exception here would end the thread)."""
         arrival = time.time_ns()
         try:
             ticks = self.unwrap(packet[self._timestamp])
@@ -133,7 +133,7 @@ class _Device:
                                   self._si(packet, self.link.accelerometer), self._si(packet, "gyro"),
                                   self._si(packet, "mag"))
         except (KeyError, AttributeError, ValueError):
-            self.link.bad_packets += 1
+            self.link.bad_frames += 1
             return
         self.last_sample = time.monotonic()
         self.link.put(sample, arrival, self.source)
@@ -185,7 +185,7 @@ class ShimmerLink:
         self.rate_hz, self.accelerometer = rate_hz, accelerometer
         self.reconnects = 0
         self.overflow = 0
-        self.bad_packets = 0
+        self.bad_frames = 0
         self._queue: queue.SimpleQueue = queue.SimpleQueue()
         self.devices = [_Device(self, port, sid) for port, sid in devices.items()]
         self.description = (f"shimmer: {len(self.devices)} device(s) at "
