@@ -111,6 +111,12 @@ class DotLink:
             pass
         except Exception as err:  # a bug here must not pass silently: the driver shows it
             self._failure = f"the dot backend stopped ({type(err).__name__}: {err})"
+        finally:  # the connects still trying, and anything else begun on the loop, end with it
+            pending = asyncio.all_tasks(self._loop)
+            for task in pending:
+                task.cancel()
+            self._loop.run_until_complete(asyncio.gather(*pending, return_exceptions=True))
+            self._loop.close()
 
     async def _session(self) -> None:
         connecting = {s.address: asyncio.create_task(self._connect(s, set_rate=True)) for s in self.sensors}

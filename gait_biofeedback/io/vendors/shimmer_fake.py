@@ -62,6 +62,8 @@ class FakeShimmer:
         """Samples not sent (``loss``)."""
         self.due_ns: list[int] = []
         """Each sample's host time (ns) when the device measured it, lost ones too: the truth."""
+        self.kept: list[bool] = []
+        """Per sample of :attr:`due_ns`: whether it was sent."""
         self.out_of_range_until_ns = 0
         """Until then (system clock, ns) nothing gets through either way: :meth:`go_out_of_range`."""
         self._in = bytearray()
@@ -133,6 +135,7 @@ class FakeShimmer:
             self.streaming = True
             while not self.finished and self.sample_due_ns(self._k) < now_ns:
                 self.due_ns.append(self.sample_due_ns(self._k))
+                self.kept.append(False)
                 self.dropped += 1
                 self._k += 1
             return
@@ -157,7 +160,9 @@ class FakeShimmer:
             k = self._k
             self._k += 1
             self.due_ns.append(self.sample_due_ns(k))
-            if now_ns < self.out_of_range_until_ns or (self.loss and self._rng.random() < self.loss):
+            lost = now_ns < self.out_of_range_until_ns or (self.loss and self._rng.random() < self.loss)
+            self.kept.append(not lost)
+            if lost:
                 self.dropped += 1
                 continue
             if self.jitter_s:  # a late packet holds the ones after it back: the line keeps order
@@ -232,11 +237,21 @@ class FakeShimmers:
             d.close()
 
 
+_AXES = {name: c.alignment for name, c in sp.DEFAULT_CALIBRATION.items()}
+WIDE_RANGES = {**sp.DEFAULT_CALIBRATION,
+               "wide_range": sp.Calibration((0.0, 0.0, 0.0), (408.0, 408.0, 408.0), _AXES["wide_range"]),
+               "gyro": sp.Calibration((0.0, 0.0, 0.0), (16.4, 16.4, 16.4), _AXES["gyro"])}
+"""A Shimmer3 set to the ranges gait needs, as Consensys configures it: wide-range accelerometer ±8 g
+(408 LSB per m/s²), gyroscope ±2000 °/s (16.4 LSB per °/s)."""
+
+
 def fakes_for_recording(series: dict[str, ImuSeries], *, offset_s: float = 0.0, drift_ppm: float = 0.0,
-                        jitter_s: float = 0.0, loss: float = 0.0, seed: int = 0) -> dict[str, FakeShimmer]:
+                        jitter_s: float = 0.0, loss: float = 0.0, seed: int = 0,
+                        calibration: dict[str, sp.Calibration] | None = None) -> dict[str, FakeShimmer]:
     """One fake Shimmer per segment of a recording, as ``stream-sim`` makes them: device ``k``'s clock
-    offset by ``offset_s + 0.1 k`` s and drifting ``+drift_ppm`` (even ``k``) or ``-drift_ppm`` (odd)."""
+    offset by ``offset_s + 0.1 k`` s and drifting ``+drift_ppm`` (even ``k``) or ``-drift_ppm`` (odd);
+    ranges :data:`WIDE_RANGES` unless ``calibration`` says otherwise."""
     return {segment: FakeShimmer(s, f"Shimmer3-{segment}", offset_s=offset_s + 0.1 * k,
                                  drift_ppm=drift_ppm if k % 2 == 0 else -drift_ppm, jitter_s=jitter_s,
-                                 loss=loss, seed=seed + k)
+                                 loss=loss, seed=seed + k, calibration=calibration or WIDE_RANGES)
             for k, (segment, s) in enumerate(series.items())}
