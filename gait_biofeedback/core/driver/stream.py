@@ -53,8 +53,9 @@ DEFAULT_SENSORS = tuple(f"{i}:{segment}" for i, segment in enumerate(SEGMENTS))
 class DriverParams:
     """Parameters of the ``imu_driver`` node."""
 
-    backend: str = param("udp", "where the samples come from: udp datagrams, a serial line, or the "
-                         "simulator paced in real time", choices=BACKENDS)
+    backend: str = param("udp", "where the samples come from: udp datagrams, a serial line, the "
+                         "simulator paced in real time, Shimmer3 devices (pyshimmer) or Movella DOT sensors "
+                         "(Bluetooth LE; docs/connecting_sensors.md)", choices=BACKENDS)
     address: str = param("127.0.0.1", "udp: address to listen on (127.0.0.1 = this computer only; "
                          "0.0.0.0 = every network interface, for sensors on the clinic's network)")
     port: int = param(5600, "udp: port to listen on (0 = any free port; the log says which)",
@@ -70,8 +71,8 @@ class DriverParams:
                                      "dot: its BLE address, e.g. 'D4:22:CD:00:12:34=left_foot'); the segment "
                                      "takes its sensor id from 'sensors'")
     device_rate_hz: float = param(100.0, "shimmer, dot: sampling rate set on each device (shimmer: 32768 Hz "
-                                  "over a whole number, the nearest is taken; dot: 1, 4, 10, 12, 15, 20, 30, "
-                                  "60 or 120)", "Hz", low=1.0, high=1024.0)
+                                  "over a whole number, the nearest is taken; dot: 1, 4, 10, 12, 15, 20, 30 "
+                                  "or 60)", "Hz", low=1.0, high=1024.0)
     shimmer_accelerometer: str = param("wide_range", "shimmer: the accelerometer streamed: the digital "
                                        "wide-range one (LSM303DLHC, range as configured on the device) or "
                                        "the analog low-noise one (KXRB5-2042, +-2 g: clips at heel strike)",
