@@ -4,6 +4,7 @@ into a recording."""
 
 from __future__ import annotations
 
+import os
 import signal
 import struct
 import subprocess
@@ -153,39 +154,45 @@ def test_parameters_and_driver_spec_map_devices_to_segments():
 
 @pytest.mark.ros
 @pytest.mark.timeout(120)
-def test_run_driver_shimmer_records_an_8_device_session_that_analyze_reads(tmp_path):
+def test_stream_sim_as_shimmer_and_run_driver_shimmer_record_8_devices_that_analyze_reads(tmp_path):
     from gait_biofeedback.core.segments import SEGMENTS
-    from gait_biofeedback.io.bag import read_imu_bag
-    from gait_biofeedback.io.vendors.shimmer_fake import FakeShimmers, fakes_for_recording
+    from gait_biofeedback.io.bag import read_imu_bag, write_imu_bag
 
     series = {segment: _series(segment, n=300, seed=k) for k, segment in enumerate(SEGMENTS)}
-    fakes = fakes_for_recording(series, offset_s=3.0, drift_ppm=80, jitter_s=0.003, loss=0.02, seed=4)
-    server = FakeShimmers(list(fakes.values())).start()
-    spec = "shimmer:" + ",".join(f"{f.path}={segment}" for segment, f in fakes.items())
+    for s in series.values():
+        s.t[:] += 1000.0
+    bag = write_imu_bag(tmp_path / "in", series)
     out = tmp_path / "rec"
     cli = [sys.executable, "-m", "gait_biofeedback.cli"]
-    run = subprocess.Popen([*cli, "run", "--driver", spec, "--nodes", "", "--record", str(out), "--duration",
-                            "60"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    link = ["--offset-s", "3", "--drift-ppm", "80", "--jitter-ms", "3", "--loss", "0.02", "--seed", "4"]
+    sim = subprocess.Popen([*cli, "stream-sim", str(bag), "--as", "shimmer", *link], stdout=subprocess.PIPE,
+                           stderr=subprocess.STDOUT, text=True, env=env)
+    run = None
     try:
-        end = time.monotonic() + 60
-        while not server.finished and time.monotonic() < end:  # the devices stream once it connects
-            time.sleep(0.1)
+        spec = next(word for line in sim.stdout for word in line.split() if word.startswith("shimmer:"))
+        run = subprocess.Popen([*cli, "run", "--driver", spec, "--nodes", "", "--record", str(out),
+                                "--duration", "60"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                               text=True)
+        sent = sim.communicate(timeout=60)[0]  # it ends once every device has streamed its recording
         time.sleep(0.5)  # the last packets reach the recorder
         run.send_signal(signal.SIGINT)  # Ctrl-C: the recording is closed
         output = run.communicate(timeout=30)[0]
     finally:
-        run.kill()
-        server.close()
-    assert run.returncode == 0, output[-3000:]
+        for p in (sim, run):
+            if p is not None:
+                p.kill()
+    assert sim.returncode == 0 and run.returncode == 0, sent[-2000:] + output[-3000:]
+    words = sent.split("sent ")[-1].split()
+    n_sent, n_dropped = int(words[0]), int(sent.split("dropped ")[-1].split()[0])
+    assert n_sent + n_dropped == 8 * 300 and n_dropped > 0
     recorded = read_imu_bag(out)
-    for segment, fake in fakes.items():
-        assert fake.finished
-        assert len(recorded[segment]) == fake.sent == 300 - fake.dropped  # every sample sent, once
-        err = np.abs(recorded[segment].acc[:, None, :] - series[segment].acc[None, :, :]).max(axis=2)
+    assert sum(len(r) for r in recorded.values()) == n_sent  # every sample sent, once
+    for segment, r in recorded.items():
+        err = np.abs(r.acc[:, None, :] - series[segment].acc[None, :, :]).max(axis=2)
         # each recorded sample is one the device measured (to half a count of its ±8 g range)
         assert err.min(axis=1).max() < 0.55 / 408 + 1e-6
         assert np.all(np.diff(err.argmin(axis=1)) >= 1)  # in order, none twice
-    assert sum(f.dropped for f in fakes.values()) > 0
     analyzed = subprocess.run([*cli, "analyze", str(out), "-o", str(tmp_path / "an"), "--no-tables"],
                               capture_output=True, text=True, timeout=90)
     assert analyzed.returncode == 0, analyzed.stderr[-2000:]
