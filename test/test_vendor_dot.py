@@ -204,3 +204,20 @@ def test_a_rate_a_dot_cannot_stream_is_refused_with_the_rates_it_can():
 
     with pytest.raises(ValueError, match="1, 4, 10, 12, 15, 20, 30, 60 Hz"):
         DotLink({"D4:22:CD:00:00:01": 0}, 100.0, client_factory=lambda a, cb: None)
+
+
+@pytest.mark.skipif(__import__("os").path.exists("/run/dbus/system_bus_socket"),
+                    reason="this computer has a system D-Bus (BlueZ may answer): the test is for one without")
+def test_without_bluetooth_the_real_bleak_path_names_what_is_missing_and_closes():
+    pytest.importorskip("bleak", reason="the dot backend's bleak")
+    from gait_biofeedback.core.driver.stream import DriverParams
+    from gait_biofeedback.nodes.imu_driver import open_link
+
+    link = open_link(DriverParams(backend="dot", device_rate_hz=60, devices=("D4:22:CD:00:00:01=left_foot",)))
+    try:
+        end = time.monotonic() + 5
+        while link.problem is None and time.monotonic() < end:
+            assert link.receive(0.05) == []
+    finally:
+        link.close()
+    assert "cannot connect to D4:22:CD:00:00:01 (no Bluetooth service on this computer" in link.problem

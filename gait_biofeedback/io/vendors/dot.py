@@ -47,6 +47,14 @@ def bleak_client(address: str, disconnected_callback: Callable) -> object:
     return BleakClient(address, disconnected_callback, timeout=DotLink.CONNECT_TIMEOUT_S)
 
 
+def _why(err: Exception) -> str:
+    """What a failed connect means, for the dashboard."""
+    if isinstance(err, (FileNotFoundError, ConnectionRefusedError)):  # no system D-Bus socket
+        return (f"no Bluetooth service on this computer ({type(err).__name__}: {err}): start bluetoothd "
+                "and check the adapter with 'bluetoothctl show'")
+    return f"{type(err).__name__}: {err}: is it on, charged and near?"
+
+
 class _Sensor:
     """One DOT: its client, clock and counts."""
 
@@ -139,8 +147,7 @@ class DotLink:
             except Exception as err:  # bleak's errors, a timeout, a sensor that went away meanwhile
                 s.failures += 1
                 wait = min(self.MAX_RETRY_S, self.RETRY_S * 2 ** (s.failures - 1))
-                s.problem = (f"cannot connect to {s.address} ({type(err).__name__}: {err}): is it on, "
-                             f"charged and near? trying again in {wait:g} s")
+                s.problem = f"cannot connect to {s.address} ({_why(err)}); trying again in {wait:g} s"
                 await self._disconnect(s)
                 await asyncio.sleep(wait)
                 continue
