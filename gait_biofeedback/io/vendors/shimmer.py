@@ -64,22 +64,38 @@ class _Device:
         self.divider = sp.rate_divider(link.rate_hz)
         self._matrices: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         self._channels: dict[str, list] = {}
+        self._lock = threading.RLock()
+        self._attempt = 0
 
     def connect(self) -> None:
-        self.state, self.since = "connecting", time.monotonic()
-        threading.Thread(target=self._connect, name=f"shimmer {self.port}", daemon=True).start()
+        with self._lock:
+            self._attempt += 1
+            self.state, self.since = "connecting", time.monotonic()
+            threading.Thread(target=self._connect, args=(self._attempt,), name=f"shimmer {self.port}",
+                             daemon=True).start()
 
-    def _connect(self) -> None:
+    def _current(self, attempt: int) -> bool:
+        """Whether ``attempt`` is the connect under way (the watchdog may have given up on it)."""
+        return attempt == self._attempt and self.state == "connecting"
+
+    def _connect(self, attempt: int) -> None:
         pyshimmer, serial = _import_pyshimmer()
         from pyshimmer.dev.channels import ESensorGroup
 
         try:
             port = serial.Serial(self.port, BAUD)  # pyshimmer reads without a timeout (it cancels reads)
         except (serial.SerialException, OSError) as err:
-            self._failed(f"cannot open {self.port} ({err}): is the Shimmer on and its rfcomm bound?")
+            with self._lock:
+                if self._current(attempt):
+                    self._failed(f"cannot open {self.port} ({err}): is the Shimmer on and its rfcomm bound?")
             return
         port.reset_input_buffer()  # nothing of an earlier connection
-        shimmer = self.shimmer = pyshimmer.ShimmerBluetooth(port)
+        shimmer = pyshimmer.ShimmerBluetooth(port)
+        with self._lock:
+            if not self._current(attempt):
+                port.close()
+                return
+            self.shimmer = shimmer
         try:
             shimmer.initialize()
             shimmer.set_sampling_rate(self.link.rate_hz)
@@ -93,17 +109,21 @@ class _Device:
             shimmer.add_stream_callback(self._on_packet)
             shimmer.start_streaming()
         except Exception as err:  # a device that answers nonsense, or the watchdog cancelled the reads
-            if self.state == "connecting":
-                self._failed(f"{self.port} did not answer as a Shimmer3 with LogAndStream firmware "
-                             f"({type(err).__name__}: {err})")
+            with self._lock:
+                if self._current(attempt):
+                    self._failed(f"{self.port} did not answer as a Shimmer3 with LogAndStream firmware "
+                                 f"({type(err).__name__}: {err})")
             return
-        if self.state != "connecting":  # the watchdog gave up on it meanwhile
-            return
-        if self.connected_once:
-            self.link.reconnects += 1
-        self.connected_once = True
-        self.failures, self.problem = 0, None
-        self.state, self.since, self.last_sample = "streaming", time.monotonic(), time.monotonic()
+        with self._lock:
+            if not self._current(attempt):  # the watchdog gave up on it meanwhile: it must not stream
+                with contextlib.suppress(Exception):
+                    shimmer.shutdown()
+                return
+            if self.connected_once:
+                self.link.reconnects += 1
+            self.connected_once = True
+            self.failures, self.problem = 0, None
+            self.state, self.since, self.last_sample = "streaming", time.monotonic(), time.monotonic()
 
     def _prepare(self, calibration: dict[str, sp.Calibration]) -> None:
         from pyshimmer import EChannelType as C
@@ -147,6 +167,10 @@ class _Device:
 
     def watch(self, now: float) -> None:
         """Connect when due; give up on a connect that hangs and on a stream that went silent."""
+        with self._lock:
+            self._watch(now)
+
+    def _watch(self, now: float) -> None:
         if self.state == "waiting" and now >= self.retry_at:
             self.connect()
         elif self.state == "connecting" and now - self.since > ShimmerLink.CONNECT_TIMEOUT_S:
