@@ -131,6 +131,30 @@ def test_a_device_out_of_range_is_reconnected_and_its_missed_samples_are_a_gap(m
     assert int(np.sum(np.diff(seq) - 1)) == fake.dropped > 50  # the ~1.2 s away: a gap the driver counts
 
 
+def test_a_device_that_does_not_answer_is_given_up_on_and_connected_once_it_does(monkeypatch):
+    from gait_biofeedback.io.vendors.shimmer import ShimmerLink
+    from gait_biofeedback.io.vendors.shimmer_fake import FakeShimmer, FakeShimmers
+
+    monkeypatch.setattr(ShimmerLink, "RETRY_S", 0.2)
+    monkeypatch.setattr(ShimmerLink, "CONNECT_TIMEOUT_S", 0.4)
+    fake = FakeShimmer(_series("left_foot", n=200))
+    link = ShimmerLink({fake.path: 3}, 100.0)  # nobody answers on the terminal yet
+    server = None
+    try:
+        assert _collect(link, 0.6) == []
+        assert link.problem == f"{fake.path} did not answer within 0.4 s; trying again in 0.2 s"
+        server = FakeShimmers([fake]).start()
+        got, end = [], time.monotonic() + 8.0
+        while not (fake.finished and len(got) == fake.sent) and time.monotonic() < end:
+            got += link.receive(0.05)
+    finally:
+        link.close()
+        if server is not None:
+            server.close()
+    assert link.problem is None and len(got) == fake.sent == 200  # streamed once, by one connection
+    assert len({item[0][0].sequence for item in got}) == 200
+
+
 def test_parameters_and_driver_spec_map_devices_to_segments():
     from gait_biofeedback.cli import parse_driver
     from gait_biofeedback.core.driver.stream import DriverParams
