@@ -139,9 +139,11 @@ def _link(dots, monkeypatch, **kwargs):
     return link
 
 
-def _collect(link, seconds):
+def _collect(link, seconds, until=None):
+    """What ``link`` gives for ``seconds``, or until ``until()`` is true (a loaded machine is slower:
+    the test waits for what it checks, not for a set time)."""
     got, end = [], time.monotonic() + seconds
-    while time.monotonic() < end:
+    while time.monotonic() < end and not (until is not None and until()):
         got.extend(link.receive(0.05))
     return got
 
@@ -150,12 +152,13 @@ def test_two_dots_are_synced_streamed_in_si_and_a_dropped_one_comes_back_with_it
     dots = [FakeDot("D4:22:CD:00:00:01"), FakeDot("D4:22:CD:00:00:02")]
     link = _link(dots, monkeypatch)
     try:
-        got = _collect(link, 1.0)
+        got = _collect(link, 10.0, lambda: all(len(d.notified) > 60 for d in dots))
         dots[1].refuse = 1  # one connect refused after the drop: the back-off
         link._loop.call_soon_threadsafe(dots[1].client.drop)
-        got += _collect(link, 0.05)
+        got += _collect(link, 5.0, lambda: link.problem is not None)
         away = link.problem or ""
-        got += _collect(link, 1.5)
+        got += _collect(link, 10.0, lambda: link.problem is None)
+        got += _collect(link, 0.5)
         assert link.problem is None and link.reconnects == 1
     finally:
         link.close()
@@ -171,7 +174,7 @@ def test_two_dots_are_synced_streamed_in_si_and_a_dropped_one_comes_back_with_it
         assert not dot.measuring
         samples = [item[0][0] for item in got if item[0][0].sensor_id == sid]
         assert {item[2] for item in got if item[0][0].sensor_id == sid} == {f"dot {dot.address}"}
-        assert len(samples) == len(dot.notified) > 100
+        assert len(samples) == len(dot.notified) > 60
         seq = np.array([s.sequence for s in samples])
         # gaps = samples unheard
         assert np.array_equal(seq - seq[0], np.array(dot.notified) - dot.notified[0])
@@ -190,9 +193,9 @@ def test_a_failed_sync_and_a_bad_notification_are_named_not_raised(monkeypatch):
     dots = [FakeDot("D4:22:CD:00:00:01"), FakeDot("D4:22:CD:00:00:02", sync_code=0x07)]
     link = _link(dots, monkeypatch)
     try:
-        got = _collect(link, 0.6)
+        got = _collect(link, 10.0, lambda: link.problem is not None and len(dots[0].notified) > 40)
         link._loop.call_soon_threadsafe(dots[0].client.notify, None, bytearray(b"\x01\x02"))
-        got += _collect(link, 0.2)
+        got += _collect(link, 5.0, lambda: link.bad_frames > 0)
     finally:
         link.close()
     assert link.bad_frames == 1 and len(got) > 40
