@@ -90,7 +90,8 @@ class DotLink:
         if rate_hz not in dp.STREAM_RATES_HZ:
             rates = ", ".join(map(str, dp.STREAM_RATES_HZ))
             raise ValueError(f"imu_driver: a Movella DOT streams at {rates} "
-                             f"Hz; set 'device_rate_hz' to one of them (not {rate_hz:g})")
+                             f"Hz; set imu_driver's 'device_rate_hz' to one of them in the --params file, "
+                             f"e.g. 60 (not {rate_hz:g})")
         if client_factory is None:
             client_factory = bleak_client
         self.rate_hz = int(rate_hz)
