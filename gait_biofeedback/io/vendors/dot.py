@@ -245,6 +245,8 @@ class DotLink:
         if self._sync:
             parts += [f"{s.address} not synced ({s.sync})" for s in self.sensors
                       if s.sync not in ("success", "not synced")]
+        if self.overflow:
+            parts.append(f"{self.overflow} samples dropped: the driver fell {_MAX_QUEUED} samples behind")
         return "; ".join(parts) or None
 
     def close(self) -> None:

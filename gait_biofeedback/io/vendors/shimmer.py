@@ -240,6 +240,8 @@ class ShimmerLink:
     def problem(self) -> str | None:
         """What is wrong with the devices not streaming, or None."""
         problems = [d.problem for d in self.devices if d.problem and d.state != "streaming"]
+        if self.overflow:
+            problems.append(f"{self.overflow} samples dropped: the driver fell {_MAX_QUEUED} samples behind")
         return "; ".join(problems) or None
 
     def close(self) -> None:
