@@ -54,6 +54,7 @@ class FakeDot:
         self.address, self.period_us = address, 1e6 / rate_hz
         self.clock_us, self.t0 = clock_us, time.monotonic()
         self.sync_code, self.refuse = sync_code, 0
+        self.gone_after_sync = False  # switched off once told to sync: never answers again
         self.log: list[tuple] = []
         self.client = None
         self.notified: list[int] = []  # sample numbers heard
@@ -101,6 +102,8 @@ class FakeClient:
 
     async def write_gatt_char(self, uuid, data, response=None):
         self.dot.log.append(("write", uuid, bytes(data)))
+        if uuid == dp.MESSAGE_CONTROL and self.dot.gone_after_sync:
+            self.dot.refuse = 1 << 30
         if uuid == dp.MEASUREMENT_CONTROL:
             self.dot.measuring = data[1] == 1
         elif uuid == dp.DEVICE_CONTROL and data[0] & 0x10:
@@ -200,6 +203,23 @@ def test_a_failed_sync_and_a_bad_notification_are_named_not_raised(monkeypatch):
         link.close()
     assert link.bad_frames == 1 and len(got) > 40
     assert link.problem == "D4:22:CD:00:00:02 not synced (clock skew too large)"
+
+
+def test_a_dot_that_does_not_come_back_after_sync_is_named_and_the_others_stream(monkeypatch):
+    from gait_biofeedback.io.vendors.dot import DotLink
+
+    monkeypatch.setattr(DotLink, "START_WAIT_S", 0.3)
+    dots = [FakeDot("D4:22:CD:00:00:01"), FakeDot("D4:22:CD:00:00:02"), FakeDot("D4:22:CD:00:00:03")]
+    dots[2].gone_after_sync = True
+    link = _link(dots, monkeypatch)
+    try:
+        got = _collect(link, 10.0, lambda: all(len(d.notified) > 30 for d in dots[:2]))
+    finally:
+        link.close()
+    assert {item[0][0].sensor_id for item in got} == {0, 1} and not dots[2].notified
+    assert "cannot connect to D4:22:CD:00:00:03" in link.problem
+    assert "D4:22:CD:00:00:03 not synced (no acknowledge" in link.problem
+    assert "00:01" not in link.problem and "00:02" not in link.problem
 
 
 def test_a_rate_a_dot_cannot_stream_is_refused_with_the_rates_it_can():

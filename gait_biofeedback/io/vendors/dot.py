@@ -166,7 +166,10 @@ class DotLink:
                 s.sync = f"StartSync not written ({type(err).__name__}: {err})"
             await self._disconnect(s)
         await asyncio.sleep(self.SYNC_WAIT_S)
-        await asyncio.gather(*(self._connect(s) for s in sensors))
+        back = [asyncio.create_task(self._connect(s)) for s in sensors]
+        await asyncio.wait(back, timeout=self.START_WAIT_S)
+        for task in back:  # one not back by then is connected again by its stream's loop
+            task.cancel()
         for s in sensors:
             try:
                 s.sync = dp.sync_result(bytes(await s.client.read_gatt_char(dp.MESSAGE_ACK)))
