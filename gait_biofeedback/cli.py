@@ -122,8 +122,11 @@ def _node_list(text: str | None) -> list[str] | None:
 
 def parse_driver(spec: str) -> dict[str, object]:
     """``--driver`` → imu_driver parameters: ``udp:PORT``, ``udp:ADDRESS:PORT``,
-    ``serial:DEVICE[:BAUD]``, ``simulated[:SCENARIO]``."""
+    ``serial:DEVICE[:BAUD]``, ``simulated[:SCENARIO]``, ``shimmer[:PORT=SEGMENT,...]``,
+    ``dot[:ADDRESS=SEGMENT,...]`` (no devices: the parameter file's ``devices``)."""
     kind, _, rest = spec.partition(":")
+    if kind in ("shimmer", "dot"):
+        return _vendor_driver(spec, kind, rest)
     parts = rest.split(":") if rest else []
     try:
         if kind == "udp" and len(parts) in (1, 2):
@@ -136,8 +139,22 @@ def parse_driver(spec: str) -> dict[str, object]:
         pass
     if kind == "simulated" and len(parts) <= 1:
         return {"backend": "simulated", **({"scenario": parts[0]} if parts else {})}
-    raise ValueError(f"--driver {spec!r}: expected udp:PORT, udp:ADDRESS:PORT, serial:DEVICE[:BAUD] or "
-                     "simulated[:SCENARIO]")
+    raise ValueError(f"--driver {spec!r}: expected {DRIVER_SPECS}")
+
+
+DRIVER_SPECS = ("udp:PORT, udp:ADDRESS:PORT, serial:DEVICE[:BAUD], simulated[:SCENARIO], "
+                "shimmer[:PORT=SEGMENT,...] (e.g. shimmer:/dev/rfcomm0=left_shank,/dev/rfcomm1=right_shank) "
+                "or "
+                "dot[:ADDRESS=SEGMENT,...] (e.g. dot:D4:22:CD:00:12:34=left_foot); without devices, the "
+                "--params file's imu_driver 'devices'")
+
+
+def _vendor_driver(spec: str, kind: str, rest: str) -> dict[str, object]:
+    """``shimmer:PORT=SEGMENT,...`` / ``dot:ADDRESS=SEGMENT,...`` → backend and devices."""
+    devices = [d.strip() for d in rest.split(",") if d.strip()]
+    if any("=" not in d for d in devices):
+        raise ValueError(f"--driver {spec!r}: each device is DEVICE_ID=SEGMENT; expected {DRIVER_SPECS}")
+    return {"backend": kind, **({"devices": devices} if devices else {})}
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -163,6 +180,10 @@ def cmd_stream_sim(args: argparse.Namespace) -> int:
     from gait_biofeedback.parameters import stage_parameters
     from gait_biofeedback.sim.sensor_link import FrameSchedule, LinkModel, send_udp
 
+    if args.as_kind == "shimmer":
+        return _stream_sim_shimmer(args)
+    if not args.to:
+        raise ValueError("stream-sim: give --to udp:HOST:PORT (or --as shimmer for fake Shimmer devices)")
     kind, _, rest = args.to.partition(":")
     host, _, port = rest.rpartition(":")
     if kind != "udp" or not host or not port.isdigit():
@@ -186,6 +207,34 @@ def cmd_stream_sim(args: argparse.Namespace) -> int:
     print(f"sent {report.samples_sent} samples in {report.frames_sent} datagrams, dropped "
           f"{report.samples_dropped} (--loss {args.loss:g}); the sender was at worst "
           f"{1e3 * report.worst_lateness_s:.1f} ms late")
+    return 0
+
+
+def _stream_sim_shimmer(args: argparse.Namespace) -> int:
+    """``stream-sim --as shimmer``: one fake Shimmer3 per segment on a pseudo-terminal, each streaming
+    the recording once a client connects and starts it (``run --driver shimmer:...``)."""
+    import time
+
+    from gait_biofeedback.io.imu_bag import read_imu_bag
+    from gait_biofeedback.io.vendors.shimmer_fake import FakeShimmers, fakes_for_recording
+    from gait_biofeedback.nodes.common import stop_on_signals
+
+    series = read_imu_bag(args.bag)
+    fakes = fakes_for_recording(series, offset_s=args.offset_s, drift_ppm=args.drift_ppm,
+                                jitter_s=args.jitter_ms * 1e-3, loss=args.loss, seed=args.seed)
+    spec = ",".join(f"{f.path}={segment}" for segment, f in fakes.items())
+    server = FakeShimmers(list(fakes.values())).start()
+    print(f"{len(fakes)} fake Shimmer3 devices wait for a client; connect them with\n"
+          f"  gait-biofeedback run --driver shimmer:{spec}\nCtrl-C stops", flush=True)
+    try:
+        with stop_on_signals() as stop:
+            while not stop.is_set() and not (server.finished and all(f.started for f in fakes.values())):
+                time.sleep(0.1)
+    finally:
+        server.close()
+    sent = sum(f.sent for f in fakes.values())
+    dropped = sum(f.dropped for f in fakes.values())
+    print(f"sent {sent} samples as data packets, dropped {dropped} (--loss {args.loss:g})")
     return 0
 
 
@@ -666,8 +715,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("run", help="run the processing graph on live sensors (--driver) or live topics "
                        "until Ctrl-C")
-    p.add_argument("--driver", metavar="SPEC", help="also run imu_driver: udp:PORT, udp:ADDRESS:PORT, "
-                   "serial:DEVICE[:BAUD] or simulated[:SCENARIO] (its other parameters: --params)")
+    p.add_argument("--driver", metavar="SPEC", help=f"also run imu_driver: {DRIVER_SPECS} (its other "
+                   "parameters, e.g. device_rate_hz: --params; docs/connecting_sensors.md)")
     p.add_argument("--frame-key-file", metavar="PATH", help="with --driver: take only frames signed with "
                    "the session key in PATH (imu_driver's 'frame_key_file'; docs/guide/live_sensors.md)")
     p.add_argument("--record", help="also record every topic to this bag folder")
@@ -681,7 +730,10 @@ def build_parser() -> argparse.ArgumentParser:
                        "(docs/guide/live_sensors.md) in real time, each sensor with its own device clock "
                        "(offset, drift), over a link with jitter, loss and reordering.")
     p.add_argument("bag", help="recording with /<segment>/imu/data_raw topics")
-    p.add_argument("--to", required=True, metavar="udp:HOST:PORT", help="where the driver listens")
+    p.add_argument("--to", metavar="udp:HOST:PORT", help="where the driver listens (udp)")
+    p.add_argument("--as", dest="as_kind", choices=("udp", "shimmer"), default="udp",
+                   help="udp: our frames to --to; shimmer: one fake Shimmer3 per segment on a "
+                   "pseudo-terminal (its path printed) for `run --driver shimmer:...` [udp]")
     p.add_argument("--offset-s", type=float, default=0.0,
                    help="device clock offset of the first sensor, s (sensor k: +0.1 k s)")
     p.add_argument("--drift-ppm", type=float, default=0.0,

@@ -1,7 +1,8 @@
 """Node ``imu_driver``: live sensors → ``<segment>/imu/data_raw`` and ``<segment>/imu/mag``.
 
 A receiving thread reads frames from the link (``backend``: udp, serial, simulated;
-:mod:`gait_biofeedback.io.sensor_links`), hands them to the core
+:mod:`gait_biofeedback.io.sensor_links`; or decoded samples from a vendor's devices: shimmer, dot;
+:mod:`gait_biofeedback.io.vendors`), hands them to the core
 (:class:`~gait_biofeedback.core.driver.stream.DriverCore`: sequence order, loss, device time → ROS
 time) and publishes each sample as the replayer would, stamped in ROS time, frame ``<segment>_imu``.
 The executor thread only publishes ``/diagnostics``: one status per mapped sensor (rate, loss,
@@ -42,6 +43,14 @@ def open_link(p: DriverParams, key: bytes | None = None):
         return sensor_links.UdpLink(p.address, p.port)
     if p.backend == "serial":
         return sensor_links.SerialLink(p.device, p.baud)
+    if p.backend == "shimmer":
+        from gait_biofeedback.io.vendors.shimmer import ShimmerLink
+
+        return ShimmerLink(p.device_ids(), p.device_rate_hz, p.shimmer_accelerometer)
+    if p.backend == "dot":
+        from gait_biofeedback.io.vendors.dot import DotLink
+
+        return DotLink(p.device_ids(), p.device_rate_hz)
     from gait_biofeedback.sim.sensor_link import simulated_schedules
 
     ids = {segment: sid for sid, segment in p.mapping().items()}
@@ -97,7 +106,8 @@ class ImuDriverNode(GuardedNode):
                 with self._lock:
                     out = []
                     for frame, arrival, source in received:
-                        out.extend(core.feed(frame, arrival, source))
+                        feed = core.feed if isinstance(frame, bytes) else core.feed_samples
+                        out.extend(feed(frame, arrival, source))
                     out.extend(core.expire(time.time_ns()))
                     notices = core.notices.pop()
                 for sample in out:

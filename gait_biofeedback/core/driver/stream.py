@@ -37,7 +37,7 @@ from gait_biofeedback.core.notices import Notices
 from gait_biofeedback.core.params import ParameterError, param, require
 from gait_biofeedback.core.segments import SEGMENTS
 
-BACKENDS = ("udp", "serial", "simulated")
+BACKENDS = ("udp", "serial", "simulated", "shimmer", "dot")
 MAX_CANDIDATES = 4
 """Sources per sensor id whose samples are held at once. A new one takes the place of the one heard
 from longest ago that has not sent 2 agreeing samples; if none has, its samples are dropped."""
@@ -53,8 +53,9 @@ DEFAULT_SENSORS = tuple(f"{i}:{segment}" for i, segment in enumerate(SEGMENTS))
 class DriverParams:
     """Parameters of the ``imu_driver`` node."""
 
-    backend: str = param("udp", "where the samples come from: udp datagrams, a serial line, or the "
-                         "simulator paced in real time", choices=BACKENDS)
+    backend: str = param("udp", "where the samples come from: udp datagrams, a serial line, the "
+                         "simulator paced in real time, Shimmer3 devices (pyshimmer) or Movella DOT sensors "
+                         "(Bluetooth LE; docs/connecting_sensors.md)", choices=BACKENDS)
     address: str = param("127.0.0.1", "udp: address to listen on (127.0.0.1 = this computer only; "
                          "0.0.0.0 = every network interface, for sensors on the clinic's network)")
     port: int = param(5600, "udp: port to listen on (0 = any free port; the log says which)",
@@ -64,6 +65,18 @@ class DriverParams:
     scenario: str = param("demo", "simulated: the simulator's scenario (gait-biofeedback simulate)")
     sim_rate_hz: float = param(100.0, "simulated: sampling rate", "Hz", low=10.0, high=2000.0)
     sim_loop: bool = param(True, "simulated: start the scenario again at its end (the sensors reboot)")
+    devices: tuple[str, ...] = param((), "vendor backends (shimmer, dot): each device → the segment it is "
+                                     "strapped to, as 'DEVICE_ID=SEGMENT' with the device id as the vendor "
+                                     "names it (shimmer: its serial port, e.g. '/dev/rfcomm0=left_shank'; "
+                                     "dot: its BLE address, e.g. 'D4:22:CD:00:12:34=left_foot'); the segment "
+                                     "takes its sensor id from 'sensors'")
+    device_rate_hz: float = param(100.0, "shimmer, dot: sampling rate set on each device (shimmer: 32768 Hz "
+                                  "over a whole number, the nearest is taken; dot: 1, 4, 10, 12, 15, 20, 30 "
+                                  "or 60)", "Hz", low=1.0, high=1024.0)
+    shimmer_accelerometer: str = param("wide_range", "shimmer: the accelerometer streamed: the digital "
+                                       "wide-range one (LSM303DLHC, range as configured on the device) or "
+                                       "the analog low-noise one (KXRB5-2042, +-2 g: clips at heel strike)",
+                                       choices=("wide_range", "low_noise"))
     sensors: tuple[str, ...] = param(DEFAULT_SENSORS, "sensor id → segment, as 'ID:SEGMENT' (the ids "
                                      "the sensors send; segments: pelvis, left_thigh, ... chest)")
     reorder_window_s: float = param(0.05, "how long a sample after a gap waits for the missing ones "
@@ -82,6 +95,7 @@ class DriverParams:
 
     def __post_init__(self) -> None:
         self.mapping()  # refuse a malformed mapping now
+        self.device_ids()
         require(self.clock_bin_s < self.clock_window_s,
                 f"parameter 'clock_bin_s' ({self.clock_bin_s:g} s) must be shorter than 'clock_window_s' "
                 f"({self.clock_window_s:g} s)")
@@ -104,6 +118,28 @@ class DriverParams:
             if sid_value in out or segment in out.values():
                 raise ParameterError(f"parameter 'sensors': {entry!r} maps a sensor id or a segment twice")
             out[sid_value] = segment
+        return out
+
+    def device_ids(self) -> dict[str, int]:
+        """Vendor device id → the sensor id of its segment (``devices`` and ``sensors``); ParameterError
+        for a malformed entry, an unknown or unmapped segment, or a device or segment given twice."""
+        ids = {segment: sid for sid, segment in self.mapping().items()}
+        out: dict[str, int] = {}
+        for entry in self.devices:
+            device, _, segment = entry.rpartition("=")
+            device, segment = device.strip(), segment.strip()
+            if not device or not segment:
+                raise ParameterError(f"parameter 'devices': {entry!r} is not 'DEVICE_ID=SEGMENT' "
+                                     "(e.g. '/dev/rfcomm0=left_shank')")
+            if segment not in SEGMENTS:
+                raise ParameterError(f"parameter 'devices': {entry!r} names no segment; segments: "
+                                     f"{', '.join(SEGMENTS)}")
+            if segment not in ids:
+                raise ParameterError(f"parameter 'devices': {entry!r}: {segment} has no sensor id in "
+                                     "'sensors' (add 'ID:SEGMENT' there)")
+            if device in out or ids[segment] in out.values():
+                raise ParameterError(f"parameter 'devices': {entry!r} maps a device or a segment twice")
+            out[device] = ids[segment]
         return out
 
 
