@@ -37,7 +37,7 @@ from gait_biofeedback.core.notices import Notices
 from gait_biofeedback.core.params import ParameterError, param, require
 from gait_biofeedback.core.segments import SEGMENTS
 
-BACKENDS = ("udp", "serial", "simulated")
+BACKENDS = ("udp", "serial", "simulated", "ximu3", "ngimu")
 MAX_CANDIDATES = 4
 """Sources per sensor id whose samples are held at once. A new one takes the place of the one heard
 from longest ago that has not sent 2 agreeing samples; if none has, its samples are dropped."""
@@ -53,8 +53,10 @@ DEFAULT_SENSORS = tuple(f"{i}:{segment}" for i, segment in enumerate(SEGMENTS))
 class DriverParams:
     """Parameters of the ``imu_driver`` node."""
 
-    backend: str = param("udp", "where the samples come from: udp datagrams, a serial line, or the "
-                         "simulator paced in real time", choices=BACKENDS)
+    backend: str = param("udp", "where the samples come from: udp datagrams, a serial line, the "
+                         "simulator paced in real time, or a vendor's sensors (ximu3: x-io x-IMU3 through its "
+                         "SDK; ngimu: x-io NGIMU over OSC on 'address':'port'; docs/connecting_sensors.md)",
+                         choices=BACKENDS)
     address: str = param("127.0.0.1", "udp: address to listen on (127.0.0.1 = this computer only; "
                          "0.0.0.0 = every network interface, for sensors on the clinic's network)")
     port: int = param(5600, "udp: port to listen on (0 = any free port; the log says which)",
@@ -66,6 +68,10 @@ class DriverParams:
     sim_loop: bool = param(True, "simulated: start the scenario again at its end (the sensors reboot)")
     sensors: tuple[str, ...] = param(DEFAULT_SENSORS, "sensor id → segment, as 'ID:SEGMENT' (the ids "
                                      "the sensors send; segments: pelvis, left_thigh, ... chest)")
+    devices: tuple[str, ...] = param((), "vendor backends: device → segment, as 'DEVICE_ID=SEGMENT', the "
+                                     "device as its vendor names it (ximu3: its connection, e.g. "
+                                     "'tcp:192.168.1.20:7000'; ngimu: its address 'IP' or 'IP:PORT'); the "
+                                     "segment's sensor id is the one 'sensors' gives it")
     reorder_window_s: float = param(0.05, "how long a sample after a gap waits for the missing ones "
                                     "(reordered on the way) before they are counted lost", "s",
                                     low=0.0, high=1.0)
@@ -82,6 +88,7 @@ class DriverParams:
 
     def __post_init__(self) -> None:
         self.mapping()  # refuse a malformed mapping now
+        self.device_ids()
         require(self.clock_bin_s < self.clock_window_s,
                 f"parameter 'clock_bin_s' ({self.clock_bin_s:g} s) must be shorter than 'clock_window_s' "
                 f"({self.clock_window_s:g} s)")
@@ -104,6 +111,29 @@ class DriverParams:
             if sid_value in out or segment in out.values():
                 raise ParameterError(f"parameter 'sensors': {entry!r} maps a sensor id or a segment twice")
             out[sid_value] = segment
+        return out
+
+
+    def device_ids(self) -> dict[str, int]:
+        """Vendor device id → sensor id (of its segment in :meth:`mapping`); ParameterError for a
+        malformed entry, an unknown or unmapped segment, or a device or segment given twice."""
+        sensor_of = {segment: sid for sid, segment in self.mapping().items()}
+        out: dict[str, int] = {}
+        for entry in self.devices:
+            device, _, segment = entry.rpartition("=")
+            device, segment = device.strip(), segment.strip()
+            if not device or not segment:
+                raise ParameterError(f"parameter 'devices': {entry!r} is not 'DEVICE_ID=SEGMENT' "
+                                     "(e.g. 'tcp:192.168.1.20:7000=left_foot')")
+            if segment not in SEGMENTS:
+                raise ParameterError(f"parameter 'devices': {entry!r} names no segment; segments: "
+                                     f"{', '.join(SEGMENTS)}")
+            if segment not in sensor_of:
+                raise ParameterError(f"parameter 'devices': {entry!r}: segment {segment} has no sensor id in "
+                                     "'sensors' (add 'ID:" + segment + "')")
+            if device in out or sensor_of[segment] in out.values():
+                raise ParameterError(f"parameter 'devices': {entry!r} maps a device or a segment twice")
+            out[device] = sensor_of[segment]
         return out
 
 
