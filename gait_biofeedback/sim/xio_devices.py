@@ -68,10 +68,12 @@ def ngimu_sensors_bundle(device_us: int, gyr_dps, acc_g, mag_ut, barometer_hpa: 
     """An OSC bundle (OSC 1.0: ``#bundle``, 64-bit NTP time tag, size-prefixed elements) holding one
     NGIMU ``/sensors`` message taken at ``device_us`` (µs since the NTP epoch)."""
     args = (*gyr_dps, *acc_g, *mag_ut, barometer_hpa)
-    message = _osc_string("/sensors") + _osc_string("," + "f" * len(args)) + struct.pack(f">{len(args)}f", *args)
+    message = (_osc_string("/sensors") + _osc_string("," + "f" * len(args))
+               + struct.pack(f">{len(args)}f", *args))
     seconds, micros = divmod(int(device_us), 1_000_000)
     fraction = (micros << 32) // 1_000_000
-    return _osc_string("#bundle") + struct.pack(">II", seconds, fraction) + struct.pack(">I", len(message)) + message
+    time_tag = struct.pack(">II", seconds, fraction)
+    return _osc_string("#bundle") + time_tag + struct.pack(">I", len(message)) + message
 
 
 def ngimu_datagram(sample: DeviceSample) -> bytes:

@@ -54,8 +54,9 @@ class DriverParams:
     """Parameters of the ``imu_driver`` node."""
 
     backend: str = param("udp", "where the samples come from: udp datagrams, a serial line, the "
-                         "simulator paced in real time, or a vendor's sensors (ximu3: x-io x-IMU3 through its "
-                         "SDK; ngimu: x-io NGIMU over OSC on 'address':'port'; docs/connecting_sensors.md)",
+                         "simulator paced in real time, or a vendor's sensors (ximu3: x-io x-IMU3 through "
+                         "its SDK; ngimu: x-io NGIMU over OSC on 'address':'port'; "
+                         "docs/connecting_sensors.md)",
                          choices=BACKENDS)
     address: str = param("127.0.0.1", "udp: address to listen on (127.0.0.1 = this computer only; "
                          "0.0.0.0 = every network interface, for sensors on the clinic's network)")

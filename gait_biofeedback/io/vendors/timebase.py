@@ -11,6 +11,7 @@ vendor to ppm, a rate not an integer number of µs) from accumulating into a wro
 from __future__ import annotations
 
 from collections.abc import Callable
+from itertools import pairwise
 
 LEARN_SAMPLES = 8
 SEQUENCE_MODULO = 1 << 32
@@ -33,7 +34,7 @@ class SequenceFromTime:
         if self.period_us is None:
             self._held.append((device_us, item))
             times = sorted({t for t, _ in self._held})
-            steps = sorted(b - a for a, b in zip(times, times[1:]))
+            steps = sorted(b - a for a, b in pairwise(times))
             if len(self._held) < LEARN_SAMPLES or not steps:
                 if len(self._held) > 4 * LEARN_SAMPLES:  # one timestamp again and again: no rate
                     self._held = self._held[-LEARN_SAMPLES:]

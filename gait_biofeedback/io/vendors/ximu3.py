@@ -84,8 +84,9 @@ def inertial_sample(sensor_id: int, sequence: int, timestamp_us: int, gyr_dps: t
                     mag_au: tuple[float, float, float] | None = None) -> DeviceSample:
     """An x-IMU3 inertial message (and the magnetometer reading riding on it) in SI units."""
     mag = None if mag_au is None else tuple(v * TESLA_PER_AU for v in mag_au)
-    return DeviceSample(sensor_id, sequence, int(timestamp_us),
-                        tuple(v * STANDARD_GRAVITY for v in acc_g), tuple(math.radians(v) for v in gyr_dps), mag)
+    acc = tuple(v * STANDARD_GRAVITY for v in acc_g)
+    gyr = tuple(math.radians(v) for v in gyr_dps)
+    return DeviceSample(sensor_id, sequence, int(timestamp_us), acc, gyr, mag)
 
 
 class _Device:
@@ -193,7 +194,7 @@ class XImu3Link:
                 self.reconnects += 1
         self.problem = (None if not failed else
                         f"x-IMU3 not connected: {'; '.join(failed)}; trying again every {self.RETRY_S:g} s: "
-                        "check that it is on, on this network (or plugged in) and the connection in 'devices'")
+                        "check that it is on, on this network (or plugged in), and its entry in 'devices'")
         self._retry_at = time.monotonic() + self.RETRY_S
 
     def receive(self, timeout_s: float) -> list[tuple[list[DeviceSample], int, str]]:
