@@ -232,7 +232,7 @@ def _stream_as_xio(args: argparse.Namespace, schedule, ids: dict[str, int], host
                 while not fake.wait_connected(0.5) and not STOP.is_set():
                     pass
     else:
-        fakes = xio_devices.FakeNgimus(sensor_ids, host, port)
+        fakes = xio_devices.FakeNgimus(sensor_ids, host, port, args.source_port)
         devices = xio_devices.device_entries({sid: f"127.0.0.1:{p}" for sid, p in fakes.ports.items()}, used)
         send = fakes.send_sample
         print(f"{len(sensor_ids)} NGIMUs sending to {host}:{port}; their devices: '{','.join(devices)}'",
@@ -746,6 +746,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "that the driver connects to; the command to run is printed) or ngimu (fake NGIMUs "
                    "sending OSC to --to); docs/connecting_sensors.md [ours]")
     p.add_argument("--ascii", action="store_true", help="--as x-imu3: ASCII data messages, not binary")
+    p.add_argument("--source-port", type=int, default=0, help="--as ngimu: the first NGIMU sends from this "
+                   "port of 127.0.0.1, the next from the port after, ... (0 = any free ports) [0]")
     p.add_argument("--offset-s", type=float, default=0.0,
                    help="device clock offset of the first sensor, s (sensor k: +0.1 k s)")
     p.add_argument("--drift-ppm", type=float, default=0.0,

@@ -165,15 +165,15 @@ class FakeXImu3:
 
 
 class FakeNgimus:
-    """NGIMUs, one UDP socket each on ``127.0.0.1`` (its own source port: :attr:`ports`), sending
-    to ``host:port``."""
+    """NGIMUs, one UDP socket each on ``127.0.0.1`` (its own source port: :attr:`ports`, from
+    ``first_port`` on if not 0), sending to ``host:port``."""
 
-    def __init__(self, sensor_ids: list[int], host: str, port: int) -> None:
+    def __init__(self, sensor_ids: list[int], host: str, port: int, first_port: int = 0) -> None:
         self.target = (host, port)
         self.sockets = {}
-        for sid in sensor_ids:
+        for k, sid in enumerate(sensor_ids):
             sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-            sock.bind(("127.0.0.1", 0))
+            sock.bind(("127.0.0.1", first_port + k if first_port else 0))
             self.sockets[sid] = sock
         self.ports = {sid: s.getsockname()[1] for sid, s in self.sockets.items()}
 
