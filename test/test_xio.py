@@ -138,7 +138,8 @@ def test_ximu3_a_device_that_is_not_there_is_named_and_tried_again():
 # ------------------------------------------------------------------ NGIMU
 
 
-def _osc_sensors_bundle(seconds: int, fraction: int, args: tuple[float, ...], address=b"/sensors\0\0\0\0") -> bytes:
+def _osc_sensors_bundle(seconds: int, fraction: int, args: tuple[float, ...],
+                        address: bytes = b"/sensors\0\0\0\0") -> bytes:
     """Written out from the OSC 1.0 specification: '#bundle', NTP time tag, size, message."""
     message = address + b"," + b"f" * len(args) + b"\0" * (4 - (1 + len(args)) % 4) + struct.pack(
         f">{len(args)}f", *args)
@@ -157,7 +158,8 @@ def test_ngimu_sensors_bundles_decoded_in_si_units_and_bad_datagrams_counted():
         source = f"127.0.0.1:{sender.getsockname()[1]}"
         args = (90.0, 0.0, -180.0, 0.0, 0.0, 1.0, 10.0, 20.0, -30.0, 1013.25)
         first = _osc_sensors_bundle(3_900_000_000, 1 << 31, args)  # 3.9e9 s after 1900 and a half
-        assert first == xio_devices.ngimu_sensors_bundle(3_900_000_000_500_000, args[:3], args[3:6], args[6:9])
+        fake = xio_devices.ngimu_sensors_bundle(3_900_000_000_500_000, args[:3], args[3:6], args[6:9])
+        assert first == fake
         sender.sendto(first, target)
         for k in range(1, 8):  # 100 Hz: fraction steps of 2^32 / 100
             sender.sendto(_osc_sensors_bundle(3_900_000_000, (1 << 31) + k * 42_949_673, args), target)
@@ -231,7 +233,7 @@ def test_ngimu_an_unmapped_sender_is_counted_and_named_with_what_to_do():
     finally:
         fake.close()
         link.close()
-    [(name, level, message, values)] = link.reports()
+    [(_name, level, message, values)] = link.reports()
     assert values == {"source": f"127.0.0.1:{fake.ports[1]}", "datagrams": 3} and level == 1
     assert "add '127.0.0.1=SEGMENT' to imu_driver's 'devices'" in message
     assert [n.level for n in link.notices.pop()] == ["warn"]  # said once
@@ -257,8 +259,8 @@ def _record_through_fake_devices(tmp_path, kind: str) -> None:
     sim = run = None
     try:
         if kind == "ximu3":
-            sim = subprocess.Popen([*CLI, "stream-sim", str(bag), "--as", "x-imu3", *link], stdout=subprocess.PIPE,
-                                   stderr=subprocess.STDOUT, text=True, env=env)
+            sim = subprocess.Popen([*CLI, "stream-sim", str(bag), "--as", "x-imu3", *link],
+                                   stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
             spec = next(re.search(r"--driver '([^']+)'", line).group(1) for line in sim.stdout
                         if "connect with" in line)
             run = subprocess.Popen([*CLI, "run", "--driver", spec, *run_args], stdout=subprocess.PIPE,
@@ -269,9 +271,9 @@ def _record_through_fake_devices(tmp_path, kind: str) -> None:
             run = subprocess.Popen([*CLI, "run", "--driver", f"ngimu:{port},{devices}", *run_args],
                                    stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
             next(line for line in run.stdout if "Ctrl-C stops" in line)
-            sim = subprocess.Popen([*CLI, "stream-sim", str(bag), "--as", "ngimu", "--to", f"udp:127.0.0.1:{port}",
-                                    "--source-port", str(first), *link], stdout=subprocess.PIPE,
-                                   stderr=subprocess.STDOUT, text=True, env=env)
+            sim = subprocess.Popen([*CLI, "stream-sim", str(bag), "--as", "ngimu", "--to",
+                                    f"udp:127.0.0.1:{port}", "--source-port", str(first), *link],
+                                   stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
         sent_text = sim.communicate(timeout=60)[0]
         assert sim.returncode == 0, sent_text
         time.sleep(0.5)  # the last samples reach the recorder
@@ -294,8 +296,8 @@ def _record_through_fake_devices(tmp_path, kind: str) -> None:
         np.testing.assert_allclose(recorded[seg].acc, series[seg].acc[kept], rtol=2e-7, atol=2e-6)
         np.testing.assert_allclose(recorded[seg].gyr, series[seg].gyr[kept], rtol=2e-7, atol=2e-7)
         assert recorded[seg].mag is not None
-    analyzed = subprocess.run([*CLI, "analyze", str(out), "-o", str(tmp_path / "analysis")], capture_output=True,
-                              text=True, timeout=120)
+    analyzed = subprocess.run([*CLI, "analyze", str(out), "-o", str(tmp_path / "analysis")],
+                              capture_output=True, text=True, timeout=120)
     assert analyzed.returncode == 0, analyzed.stderr
     assert "orientations and activity only" in analyzed.stdout
 
