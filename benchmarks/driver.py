@@ -138,6 +138,7 @@ def run_one(rate_hz: float, minutes: float, workdir: Path, backend: str = "udp")
         errors.append(err)
     diag = driver_diagnostics(out)
     lost = sum(int(v.get("lost", 0)) for k, v in diag.items() if "sensor_id" in v and "lost" in v)
+    late = sum(int(v.get("late", 0)) for k, v in diag.items() if "sensor_id" in v and "late" in v)
     drift_error = []
     for k, segment in enumerate(schedule.truth):
         _, drift = LinkModel(**LINK).clock(k)
@@ -148,7 +149,8 @@ def run_one(rate_hz: float, minutes: float, workdir: Path, backend: str = "udp")
     return {
         "rate": rate_hz, "sent": schedule.samples, "dropped": report.samples_dropped,
         "recorded": sum(len(s) for s in recorded.values()), "exact": counts_ok and values_ok,
-        "lost": lost, "p50": float(np.percentile(np.abs(e), 50)), "p99": float(np.percentile(np.abs(e), 99)),
+        "lost": lost, "late": late,
+        "p50": float(np.percentile(np.abs(e), 50)), "p99": float(np.percentile(np.abs(e), 99)),
         "max": float(np.abs(e).max()), "spread": max(offsets) - min(offsets) if offsets else float("nan"),
         "drift": max(drift_error) if drift_error else float("nan"),
         "thread_cpu": float(diag.get("imu_driver: receiving", {}).get("cpu_fraction", "nan")),
@@ -181,7 +183,7 @@ def main() -> int:
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         print(f"| {r['rate']:g} Hz | {r['sent']} | {r['dropped']} | {r['recorded']} | "
-              f"{'yes' if r['exact'] else 'NO'} | {r['lost']} | "
+              f"{'yes' if r['exact'] else 'NO'} | {r['lost']} ({r['late']} late) | "
               f"{r['p50']:.3f} / {r['p99']:.3f} / {r['max']:.2f} | "
               f"{r['spread']:.3f} | {r['drift']:.1f} | {100 * r['thread_cpu']:.1f} % | "
               f"{100 * r['process_cpu']:.1f} % |")

@@ -91,7 +91,11 @@ def test_ximu3_messages_through_the_real_sdk_in_si_units_and_bad_ones_counted():
     link = XImu3Link({device.spec: 7})
     try:
         assert link.problem is None
-        assert device.wait_connected(5) and "ping" in device.commands
+        assert device.wait_connected(5)
+        deadline = time.monotonic() + 5
+        while not link.devices[0].serial_number and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert "ping" in device.commands
         assert link.devices[0].serial_number == "0123ABCD"  # the ping response, read by the SDK
         manual = bytes.fromhex("C9 40420F0000000000 00000000 00000000 00000000 00000000 00000000 0000803F 0A")
         device.send(manual)  # the manual's example: 1 s, accelerometer z 1 g
@@ -117,6 +121,40 @@ def test_ximu3_messages_through_the_real_sdk_in_si_units_and_bad_ones_counted():
     assert last.gyr == pytest.approx((0, 0, math.pi), abs=1e-6) and last.acc == pytest.approx((0, -G, 0))
     assert last.mag == pytest.approx((50e-6, 0, -25e-6), abs=1e-12)  # 1 a.u. ≈ 50 µT (manual 3.3.3)
     assert link.bad_frames == 2
+
+
+@pytest.mark.timeout(60)
+def test_ximu3_a_connection_that_drops_is_opened_again_and_the_gap_counted_as_lost(monkeypatch):
+    from gait_biofeedback.io.vendors.ximu3 import XImu3Link
+
+    monkeypatch.setattr(XImu3Link, "RETRY_S", 0.2)
+    monkeypatch.setattr(XImu3Link, "SILENT_S", 0.5)
+    device = xio_devices.FakeXImu3("A1")
+    link = XImu3Link({device.spec: 1})
+
+    def send(ks):
+        for k in ks:
+            device.send_sample(DeviceSample(1, 0, 1_000_000 + 10_000 * k, (0.0, 0.0, G), (0.0, 0.0, 0.0)))
+
+    try:
+        assert device.wait_connected(5)
+        send(range(10))
+        assert len(_receive_until(link, 10)) == 10
+        device.drop_host()  # Wi-Fi out of range: the SDK still says connected
+        deadline = time.monotonic() + 5
+        while link.problem is None and time.monotonic() < deadline:
+            link.receive(0.05)
+        assert "connecting again" in link.problem
+        assert device.wait_connected(5)
+        while link.problem is not None and time.monotonic() < deadline + 5:
+            link.receive(0.05)
+        assert link.problem is None and link.reconnects == 1
+        send(range(15, 20))
+        got = _receive_until(link, 5)
+    finally:
+        link.close()
+        device.close()
+    assert [batch[0].sequence for batch, _, _ in got] == [15, 16, 17, 18, 19]  # 10-14 lost meanwhile
 
 
 def test_ximu3_a_device_that_is_not_there_is_named_and_tried_again():

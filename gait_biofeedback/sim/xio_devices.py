@@ -138,6 +138,12 @@ class FakeXImu3:
                         "name": "x-IMU3", "sn": self.serial_number}
             self.send(json.dumps({"ping": response}, separators=(",", ":")).encode() + b"\n")
 
+    def drop_host(self) -> None:
+        """Cut the host's connection (as Wi-Fi out of range does); the next host is accepted."""
+        with self._lock:
+            if self._client is not None:
+                self._client.shutdown(socket.SHUT_RDWR)
+
     def wait_connected(self, timeout_s: float) -> bool:
         return self._connected.wait(timeout_s)
 

@@ -18,8 +18,11 @@ inertial sample (the magnetometer samples at 20 Hz, the inertial sensors at 400 
 no sample counter, so sequence numbers come from its timestamps
 (:class:`~gait_biofeedback.io.vendors.timebase.SequenceFromTime`).
 
-A device that cannot be connected at start, or whose connection drops, is tried again every
-:attr:`XImu3Link.RETRY_S`; :attr:`XImu3Link.problem` names it meanwhile.
+A device that cannot be connected at start, or whose connection drops (silent for
+:attr:`XImu3Link.SILENT_S`: SDK 1.9.1 does not notice a TCP peer gone), is connected again in the SDK's
+threads, tried every :attr:`XImu3Link.RETRY_S`; :attr:`XImu3Link.problem` names it meanwhile and
+:attr:`XImu3Link.reconnects` counts the returns. Its numbering goes on across the gap, so the samples
+missed meanwhile are counted as lost.
 """
 
 from __future__ import annotations
@@ -101,9 +104,14 @@ class _Device:
         self.receive_errors = 0
         self.dropped = 0
         self.serial_number = ""
+        self.opening = False
+        self.was_lost = False
+        self.heard_at = time.monotonic()
         self._wake = wake
 
-    def open(self) -> None:
+    def open(self, blocking: bool = True) -> None:
+        """Connect (``blocking``: now, OSError if it fails; else in the SDK's thread, :attr:`opening`
+        until it has tried)."""
         import ximu3
 
         d = self.device
@@ -117,20 +125,36 @@ class _Device:
         connection.add_inertial_callback(self._inertial)
         connection.add_magnetometer_callback(self._magnetometer)
         connection.add_receive_error_callback(self._error)
+        self.mag = None  # the numbering goes on: a gap in the device's time is counted as lost
+        self.queue.clear()
+        if not blocking:
+            self.opening = True
+            self.connection = connection
+            connection.open_async(self._opened)
+            return
         try:
             connection.open()
         except RuntimeError as err:
             raise OSError(str(err)) from err
         self.connection = connection
-        self.numbering.reset()
-        self.mag = None
-        ping = connection.ping()
-        self.serial_number = "" if ping is None else ping.serial_number
+        self._opened(ximu3.RESULT_OK)
+
+    def _opened(self, result: int) -> None:
+        import ximu3
+
+        self.opening = False
+        if result == ximu3.RESULT_OK and self.connection is not None:
+            self.connection.ping_async(self._pinged)
+
+    def _pinged(self, response) -> None:
+        if response is not None:
+            self.serial_number = response.serial_number
 
     def _put(self, item: tuple[str, int, tuple[float, ...], int]) -> None:
         if len(self.queue) == self.queue.maxlen:
             self.dropped += 1
         self.queue.append(item)
+        self.heard_at = time.monotonic()
         self._wake.set()
 
     def _inertial(self, m) -> None:  # the SDK's thread
@@ -143,8 +167,10 @@ class _Device:
     def _error(self, _error: int) -> None:
         self.receive_errors += 1
 
-    def connected(self) -> bool:
-        if self.connection is None:
+    def connected(self, silent_s: float) -> bool:
+        """Whether the connection is open and the device sent something in the last ``silent_s`` (the
+        SDK 1.9.1 still says connected after a TCP peer has gone)."""
+        if self.connection is None or time.monotonic() - self.heard_at > silent_s:
             return False
         import ximu3
 
@@ -161,6 +187,8 @@ class XImu3Link:
     to its sensor id. ``source`` of a device's samples is its spec."""
 
     RETRY_S = 2.0
+    SILENT_S = 3.0
+    """s without a message after which a device's connection is opened anew."""
 
     def __init__(self, devices: dict[str, int]) -> None:
         try:
@@ -179,19 +207,30 @@ class XImu3Link:
         self._connect(first=True)
 
     def _connect(self, first: bool = False) -> None:
+        """Connect every device that is not (at start: now; later in the SDK's threads, so that one
+        device out of reach does not hold up the others' samples)."""
         failed = []
         for d in self.devices:
-            if d.connected():
+            if d.opening:
+                failed.append(f"{d.device.spec} (connecting)")
+                continue
+            if d.connected(self.SILENT_S):
+                if d.was_lost:
+                    d.was_lost = False
+                    self.reconnects += 1
                 continue
             if d.connection is not None:
                 d.close()
+                d.was_lost = True
+            d.heard_at = time.monotonic()  # a new connection has SILENT_S to send
             try:
-                d.open()
+                d.open(blocking=first)
             except OSError as err:
+                d.was_lost = True
                 failed.append(f"{d.device.spec} ({err})")
                 continue
             if not first:
-                self.reconnects += 1
+                failed.append(f"{d.device.spec} (connection lost, connecting again)")
         self.problem = (None if not failed else
                         f"x-IMU3 not connected: {'; '.join(failed)}; trying again every {self.RETRY_S:g} s: "
                         "check that it is on, on this network (or plugged in), and its entry in 'devices'")
@@ -200,7 +239,7 @@ class XImu3Link:
     def receive(self, timeout_s: float) -> list[tuple[list[DeviceSample], int, str]]:
         if time.monotonic() > self._retry_at:
             self._retry_at = time.monotonic() + self.RETRY_S
-            if any(not d.connected() for d in self.devices):
+            if self.problem is not None or any(not d.connected(self.SILENT_S) for d in self.devices):
                 self._connect()
         if not any(d.queue for d in self.devices):
             self._wake.wait(timeout_s)
