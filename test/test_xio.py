@@ -124,6 +124,28 @@ def test_ximu3_messages_through_the_real_sdk_in_si_units_and_bad_ones_counted():
 
 
 @pytest.mark.timeout(60)
+def test_ximu3_over_udp_through_the_real_sdk_with_the_manuals_port_names():
+    from gait_biofeedback.io.vendors.ximu3 import XImu3Link
+
+    device = xio_devices.FakeXImu3Udp("UDP1")  # 'udp:HOST:SEND:RECEIVE': the device's send, receive ports
+    link = XImu3Link({device.spec: 2})
+    try:
+        assert device.wait_connected(5)  # the SDK's ping reached the device's receive port
+        for k in range(10):
+            device.send_sample(DeviceSample(2, 0, 2_000_000 + 5_000 * k, (0.0, G, 0.0), (0.0, 0.0, -math.pi),
+                                            (0.0, 0.0, 25e-6)))
+        got = _receive_until(link, 10)
+    finally:
+        link.close()
+        device.close()
+    samples = [batch[0] for batch, _, source in got if source == device.spec]
+    assert [s.sequence for s in samples] == list(range(10))
+    assert samples[9].device_time_us == 2_045_000 and samples[9].acc == pytest.approx((0, G, 0))
+    assert samples[9].gyr == pytest.approx((0, 0, -math.pi))
+    assert samples[9].mag == pytest.approx((0, 0, 25e-6))
+
+
+@pytest.mark.timeout(60)
 def test_ximu3_a_connection_that_drops_is_opened_again_and_the_gap_counted_as_lost(monkeypatch):
     from gait_biofeedback.io.vendors.ximu3 import XImu3Link
 

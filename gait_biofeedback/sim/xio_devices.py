@@ -170,6 +170,59 @@ class FakeXImu3:
                 self._client.close()
 
 
+class FakeXImu3Udp(FakeXImu3):
+    """One x-IMU3 on UDP (User Manual v1.7, section 7.3): it listens for commands on its receive port
+    of 127.0.0.1 and sends data messages and responses to the host's port (its send port), each
+    message a datagram; the host counts as connected once it has sent a command."""
+
+    def __init__(self, serial_number: str, ascii_mode: bool = False) -> None:
+        self.serial_number, self.ascii_mode = serial_number, ascii_mode
+        self.server = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.server.bind(("127.0.0.1", 0))
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:  # a free port for the host
+            probe.bind(("127.0.0.1", 0))
+            self.send_port = probe.getsockname()[1]
+        self.port = self.server.getsockname()[1]
+        self.spec = f"udp:127.0.0.1:{self.send_port}:{self.port}"
+        self.commands = []
+        self._connected = threading.Event()
+        self._lock = threading.Lock()
+        self._closed = False
+        self._client = None
+        threading.Thread(target=self._serve_udp, name=f"fake x-IMU3 {serial_number}", daemon=True).start()
+
+    def _serve_udp(self) -> None:
+        while not self._closed:
+            try:
+                data = self.server.recv(65536)
+            except OSError:
+                return
+            with self._lock:
+                self._client = ("127.0.0.1", self.send_port)
+            self._connected.set()
+            for line in data.split(b"\n"):
+                if line.strip():
+                    self._command(line.strip())
+
+    def drop_host(self) -> None:
+        with self._lock:
+            self._client = None
+        self._connected.clear()
+
+    def send(self, data: bytes) -> bool:
+        with self._lock:
+            client = self._client
+        if client is None:
+            return False
+        for message in data.split(_END)[:-1]:  # one datagram per message (0x0A ends each, 8.2)
+            self.server.sendto(message + _END, client)
+        return True
+
+    def close(self) -> None:
+        self._closed = True
+        self.server.close()
+
+
 class FakeNgimus:
     """NGIMUs, one UDP socket each on ``127.0.0.1`` (its own source port: :attr:`ports`, from
     ``first_port`` on if not 0), sending to ``host:port``."""
