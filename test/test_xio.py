@@ -179,6 +179,34 @@ def test_ximu3_a_connection_that_drops_is_opened_again_and_the_gap_counted_as_lo
     assert [batch[0].sequence for batch, _, _ in got] == [15, 16, 17, 18, 19]  # 10-14 lost meanwhile
 
 
+@pytest.mark.timeout(60)
+def test_ximu3_a_device_named_by_its_serial_number_is_found_by_its_announcements(monkeypatch):
+    from gait_biofeedback.io.vendors.ximu3 import XImu3Link
+
+    monkeypatch.setattr(XImu3Link, "RETRY_S", 0.1)
+    device = xio_devices.FakeXImu3("65577B49")
+    try:
+        link = XImu3Link({"65577b49": 4})  # as a clinician may type it
+    except OSError as err:  # port 10000 is another program's
+        device.close()
+        pytest.skip(str(err))
+    try:
+        assert "not heard on this network yet" in link.problem
+        deadline = time.monotonic() + 10
+        while not device.wait_connected(0.05) and time.monotonic() < deadline:
+            device.announce()  # once a second on a real device; a new source port each time
+            link.receive(0.05)
+        assert device.wait_connected(0)
+        for k in range(8):
+            device.send_sample(DeviceSample(4, 0, 1_000_000 + 10_000 * k, (0.0, 0.0, G), (0.0, 0.0, 0.0)))
+        got = _receive_until(link, 8)
+    finally:
+        link.close()
+        device.close()
+    assert link.announced == {"65577B49": ("127.0.0.1", device.port)}
+    assert len(got) == 8 and {source for _, _, source in got} == {"65577b49"}
+
+
 def test_ximu3_a_device_that_is_not_there_is_named_and_tried_again():
     from gait_biofeedback.io.vendors.ximu3 import XImu3Link
 

@@ -138,6 +138,14 @@ class FakeXImu3:
                         "name": "x-IMU3", "sn": self.serial_number}
             self.send(json.dumps({"ping": response}, separators=(",", ":")).encode() + b"\n")
 
+    def announce(self, port: int = 10000) -> None:
+        """One network announcement (User Manual v1.7, section 10: a JSON object on UDP port 10000), to
+        127.0.0.1 from a new source port each time."""
+        message = {"sync": 0, "name": "x-IMU3", "sn": self.serial_number, "ip": "127.0.0.1",
+                   "port": self.port, "send": 8000, "receive": 9000, "rssi": 100, "battery": 100, "status": 2}
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+            sock.sendto(json.dumps(message, separators=(",", ":")).encode() + b"\n", ("127.0.0.1", port))
+
     def drop_host(self) -> None:
         """Cut the host's connection (as Wi-Fi out of range does); the next host is accepted."""
         with self._lock:

@@ -8,6 +8,9 @@ section 7 "Communication interfaces" and 10 "Network announcement message")::
                                  default) and receive port (where it listens, 9000 by default)
     serial:PATH[:BAUD]           USB (a virtual serial port; the baud rate is ignored) or the serial
                                  header (115200 Bd by default)
+    SERIAL_NUMBER                e.g. 65577B49: found on the network by its announcements (section 10,
+                                 UDP port 10000, once a second) and connected by TCP at the address
+                                 it announces, found again if that changes (DHCP)
 
 The SDK decodes the device's data messages (User Manual section 8.2, ASCII or binary): the inertial
 message (``I``: timestamp µs, gyroscope °/s, accelerometer g) and the magnetometer message (``M``:
@@ -28,6 +31,7 @@ missed meanwhile are counted as lost.
 from __future__ import annotations
 
 import math
+import re
 import threading
 import time
 from collections import deque
@@ -58,8 +62,10 @@ class XImu3Device:
 
 
 def parse_device(spec: str) -> XImu3Device:
-    """``tcp:HOST:PORT``, ``udp:HOST:SEND:RECEIVE`` or ``serial:PATH[:BAUD]`` → the device; ValueError
-    with the expected forms otherwise."""
+    """``tcp:HOST:PORT``, ``udp:HOST:SEND:RECEIVE``, ``serial:PATH[:BAUD]`` or a serial number → the
+    device; ValueError with the expected forms otherwise."""
+    if re.fullmatch(r"[0-9A-Fa-f]{4,}(-[0-9A-Fa-f]{4})*", spec):
+        return XImu3Device(spec, "announced")
     kind, _, rest = spec.partition(":")
     parts = rest.split(":")
     try:
@@ -72,7 +78,7 @@ def parse_device(spec: str) -> XImu3Device:
     except ValueError:
         pass
     raise ValueError(f"x-IMU3 device {spec!r}: expected tcp:HOST:PORT, udp:HOST:SEND:RECEIVE (the "
-                     "device's send and receive ports) or serial:PATH[:BAUD]")
+                     "device's send and receive ports), serial:PATH[:BAUD] or its serial number")
 
 
 def _port(text: str) -> int:
@@ -109,13 +115,17 @@ class _Device:
         self.heard_at = time.monotonic()
         self._wake = wake
 
-    def open(self, blocking: bool = True) -> None:
+    def open(self, blocking: bool = True, announced: tuple[str, int] | None = None) -> None:
         """Connect (``blocking``: now, OSError if it fails; else in the SDK's thread, :attr:`opening`
-        until it has tried)."""
+        until it has tried); a device known by its serial number at its ``announced`` (IP, TCP port)."""
         import ximu3
 
         d = self.device
-        if d.kind == "tcp":
+        if d.kind == "announced":
+            if announced is None:
+                raise OSError("not heard on this network yet (its announcements on UDP port 10000)")
+            config = ximu3.TcpConnectionConfig(*announced)
+        elif d.kind == "tcp":
             config = ximu3.TcpConnectionConfig(d.host, d.port)
         elif d.kind == "udp":  # the SDK names the ports from this computer's side
             config = ximu3.UdpConnectionConfig(d.host, d.receive_port, d.port)
@@ -204,7 +214,28 @@ class XImu3Link:
         self.reconnects = 0
         self.problem: str | None = None
         self._retry_at = 0.0
+        self.announced: dict[str, tuple[str, int]] = {}  # serial number → (IP, TCP port)
+        self._announcements = None
+        if any(d.device.kind == "announced" for d in self.devices):
+            self._listen_for_announcements()
         self._connect(first=True)
+
+    def _listen_for_announcements(self) -> None:
+        import ximu3
+
+        wanted = {d.device.spec.upper() for d in self.devices}
+
+        def heard(message) -> None:  # the SDK's thread
+            serial = message.serial_number.upper()
+            if serial in wanted:
+                self.announced[serial] = (message.ip_address, message.tcp_port)
+
+        try:
+            self._announcements = ximu3.NetworkAnnouncement()
+        except RuntimeError as err:
+            raise OSError(f"imu_driver: cannot hear x-IMU3 announcements on UDP port 10000 ({err}); give "
+                          "the devices as tcp:HOST:PORT instead of serial numbers") from err
+        self._announcements.add_callback(heard)
 
     def _connect(self, first: bool = False) -> None:
         """Connect every device that is not (at start: now; later in the SDK's threads, so that one
@@ -224,7 +255,7 @@ class XImu3Link:
                 d.was_lost = True
             d.heard_at = time.monotonic()  # a new connection has SILENT_S to send
             try:
-                d.open(blocking=first)
+                d.open(blocking=first, announced=self.announced.get(d.device.spec.upper()))
             except OSError as err:
                 d.was_lost = True
                 failed.append(f"{d.device.spec} ({err})")
@@ -267,3 +298,4 @@ class XImu3Link:
     def close(self) -> None:
         for d in self.devices:
             d.close()
+        self._announcements = None
