@@ -5,6 +5,7 @@ through python-osc, against hand-made packets (x-IMU3 User Manual v1.7 8.2; NGIM
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import re
@@ -235,7 +236,7 @@ def _osc_sensors_bundle(seconds: int, fraction: int, args: tuple[float, ...],
 
 
 def test_ngimu_sensors_bundles_decoded_in_si_units_and_bad_datagrams_counted():
-    from gait_biofeedback.io.vendors.ngimu import NgimuLink
+    from gait_biofeedback.io.vendors.ngimu import NgimuLink, OscError, sensors_messages, sensors_sample
 
     link = NgimuLink("127.0.0.1", 0, {"127.0.0.1": 5})
     sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -272,6 +273,9 @@ def test_ngimu_sensors_bundles_decoded_in_si_units_and_bad_datagrams_counted():
     assert s.mag == pytest.approx((10e-6, 20e-6, -30e-6))
     assert ours[7].device_time_us - s.device_time_us == 70_000
     assert link.bad_frames == 4
+    for cut in range(len(first)):  # every truncation of a bundle: no sample, an OscError, never a crash
+        with contextlib.suppress(OscError):
+            assert [sensors_sample(5, 0, t, args) for t, args in sensors_messages(first[:cut])] == []
     [notice] = link.notices.pop()  # the first named, the others counted
     assert notice.level == "warn" and "not an OSC packet" in notice.text
 

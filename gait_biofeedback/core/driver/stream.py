@@ -70,8 +70,9 @@ class DriverParams:
     sensors: tuple[str, ...] = param(DEFAULT_SENSORS, "sensor id → segment, as 'ID:SEGMENT' (the ids "
                                      "the sensors send; segments: pelvis, left_thigh, ... chest)")
     devices: tuple[str, ...] = param((), "vendor backends: device → segment, as 'DEVICE_ID=SEGMENT', the "
-                                     "device as its vendor names it (ximu3: its connection, e.g. "
-                                     "'tcp:192.168.1.20:7000'; ngimu: its address 'IP' or 'IP:PORT'); the "
+                                     "device as its vendor names it (ximu3: its serial number or its "
+                                     "connection, e.g. 'tcp:192.168.1.20:7000'; ngimu: its address 'IP' or "
+                                     "'IP:PORT'); the "
                                      "segment's sensor id is the one 'sensors' gives it")
     reorder_window_s: float = param(0.05, "how long a sample after a gap waits for the missing ones "
                                     "(reordered on the way) before they are counted lost", "s",

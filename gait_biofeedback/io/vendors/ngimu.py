@@ -57,6 +57,7 @@ def sensors_messages(datagram: bytes) -> list[tuple[int, list]]:
 
     try:
         if OscBundle.dgram_is_bundle(datagram):
+            _check_sizes(datagram)
             return _bundle_sensors(OscBundle(datagram))
         if OscMessage.dgram_is_message(datagram):
             if OscMessage(datagram).address == SENSORS_ADDRESS:
@@ -67,6 +68,17 @@ def sensors_messages(datagram: bytes) -> list[tuple[int, list]]:
     except Exception as err:  # python-osc's ParseError, and what a hostile datagram makes it raise
         raise OscError(f"not an OSC packet ({err})") from err
     raise OscError("not an OSC packet (neither '#bundle' nor an address)")
+
+
+def _check_sizes(datagram: bytes) -> None:
+    """A bundle's elements (OSC 1.0: a 32-bit size, then that many bytes) fill it exactly: python-osc
+    takes a message cut short as one with fewer arguments."""
+    offset = 16  # '#bundle\0' and the time tag
+    while offset + 4 <= len(datagram):
+        offset += 4 + int.from_bytes(datagram[offset:offset + 4], "big")  # unsigned: always forward
+    if offset != len(datagram):
+        raise OscError(f"a bundle cut short or padded: its elements say {offset} bytes, it has "
+                       f"{len(datagram)}")
 
 
 def _bundle_sensors(bundle) -> list[tuple[int, list]]:
