@@ -66,6 +66,10 @@ def test_devices_map_to_the_sensor_ids_of_their_segments_and_mistakes_are_refuse
             DriverParams(backend="ximu3", devices=devices)
     with pytest.raises(ParameterError, match="has no sensor id in 'sensors'"):
         DriverParams(backend="ximu3", sensors=("1:pelvis",), devices=("tcp:h:7000=chest",))
+    with pytest.raises(ParameterError, match="backend 'ngimu' needs parameter 'devices'"):
+        DriverParams(backend="ngimu")
+    with pytest.raises(ParameterError, match="leave it empty"):
+        DriverParams(backend="ximu3", devices=("tcp:h:7000=chest",), frame_key_file="/etc/key")
 
 
 # ------------------------------------------------------------------ x-IMU3

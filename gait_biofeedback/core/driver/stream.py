@@ -37,7 +37,8 @@ from gait_biofeedback.core.notices import Notices
 from gait_biofeedback.core.params import ParameterError, param, require
 from gait_biofeedback.core.segments import SEGMENTS
 
-BACKENDS = ("udp", "serial", "simulated", "ximu3", "ngimu")
+VENDOR_BACKENDS = ("ximu3", "ngimu")
+BACKENDS = ("udp", "serial", "simulated", *VENDOR_BACKENDS)
 MAX_CANDIDATES = 4
 """Sources per sensor id whose samples are held at once. A new one takes the place of the one heard
 from longest ago that has not sent 2 agreeing samples; if none has, its samples are dropped."""
@@ -91,6 +92,12 @@ class DriverParams:
     def __post_init__(self) -> None:
         self.mapping()  # refuse a malformed mapping now
         self.device_ids()
+        if self.backend in VENDOR_BACKENDS:
+            require(bool(self.devices), f"backend '{self.backend}' needs parameter 'devices': each device as "
+                    "'DEVICE_ID=SEGMENT' (docs/connecting_sensors.md)")
+            require(not self.frame_key_file, f"parameter 'frame_key_file' signs our own frames; backend "
+                    f"'{self.backend}' takes the vendor's, which are not signed (they are bound to their "
+                    "device instead): leave it empty")
         require(self.clock_bin_s < self.clock_window_s,
                 f"parameter 'clock_bin_s' ({self.clock_bin_s:g} s) must be shorter than 'clock_window_s' "
                 f"({self.clock_window_s:g} s)")
