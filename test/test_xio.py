@@ -338,10 +338,10 @@ def test_ngimu_an_unmapped_sender_is_counted_and_named_with_what_to_do():
 # ------------------------------------------------------------------ the command line, end to end
 
 
-def _record_through_fake_devices(tmp_path, kind: str) -> None:
+def _record_through_fake_devices(tmp_path, kind: str, report: bool = False) -> None:
     """An 8-sensor session (3 s at 100 Hz, 2 % loss, jitter, drifting clocks) sent by fake devices of
     ``kind`` into ``run --driver`` with ``--record``: every sample sent recorded with its values; then
-    ``analyze`` takes the recording."""
+    ``analyze`` takes the recording (and ``report`` its analysis)."""
     from gait_biofeedback.core.segments import SEGMENTS
     from gait_biofeedback.io.bag import read_imu_bag, write_imu_bag
     from gait_biofeedback.sim.sensor_link import FrameSchedule, LinkModel
@@ -396,12 +396,17 @@ def _record_through_fake_devices(tmp_path, kind: str) -> None:
                               capture_output=True, text=True, timeout=120)
     assert analyzed.returncode == 0, analyzed.stderr
     assert "orientations and activity only" in analyzed.stdout
+    if report:
+        reported = subprocess.run([*CLI, "report", str(tmp_path / "analysis"), "-o",
+                                   str(tmp_path / "report")], capture_output=True, text=True, timeout=120)
+        assert reported.returncode == 0, reported.stderr
+        assert (tmp_path / "report" / "report.pdf").stat().st_size > 0
 
 
 @pytest.mark.ros
 @pytest.mark.timeout(150)
-def test_run_driver_ximu3_records_a_fake_8_sensor_session_that_analyze_reads(tmp_path):
-    _record_through_fake_devices(tmp_path, "ximu3")
+def test_run_driver_ximu3_records_a_fake_8_sensor_session_that_analyze_and_report_take(tmp_path):
+    _record_through_fake_devices(tmp_path, "ximu3", report=True)
 
 
 @pytest.mark.ros
