@@ -261,6 +261,8 @@ def test_ngimu_sensors_bundles_decoded_in_si_units_and_bad_datagrams_counted():
         sender.sendto(_osc_sensors_bundle(3_900_000_001, 0, (1.0, 2.0, 3.0)), target)  # 3 arguments
         sender.sendto(first[20:], target)  # the /sensors message outside a bundle: no time tag
         sender.sendto(_osc_sensors_bundle(3_900_000_001, 0, (99.0,), b"/battery\0\0\0\0"), target)  # ignored
+        no_mag = (*args[:6], 0.0, 0.0, 0.0, args[9])  # a magnetometer reading 0 on every axis: none
+        sender.sendto(_osc_sensors_bundle(3_900_000_000, (1 << 31) + 8 * 42_949_673, no_mag), target)
         stranger.sendto(first, target)  # from another port of the mapped address: its own source
         got = _receive_until(link, 9)
         time.sleep(0.05)
@@ -270,7 +272,8 @@ def test_ngimu_sensors_bundles_decoded_in_si_units_and_bad_datagrams_counted():
         stranger.close()
         link.close()
     ours = [s for batch, _, src in got for s in batch if src == source]
-    assert [s.sequence for s in ours] == list(range(8))
+    assert [s.sequence for s in ours] == list(range(9))
+    assert ours[8].mag is None and ours[8].acc == pytest.approx((0, 0, G))
     s = ours[0]
     assert s.sensor_id == 5 and s.device_time_us == 3_900_000_000_500_000
     assert s.gyr == pytest.approx((math.pi / 2, 0, -math.pi)) and s.acc == pytest.approx((0, 0, G))

@@ -77,7 +77,8 @@ def ngimu_sensors_bundle(device_us: int, gyr_dps, acc_g, mag_ut, barometer_hpa: 
 
 
 def ngimu_datagram(sample: DeviceSample) -> bytes:
-    """One sample (SI units) as an NGIMU sends it: its ``/sensors`` bundle."""
+    """One sample (SI units) as an NGIMU sends it: its ``/sensors`` bundle (a sample without
+    magnetometer with 0 µT on every axis, which the backend reads as no reading)."""
     mag = (0.0, 0.0, 0.0) if sample.mag is None else tuple(v * 1e6 for v in sample.mag)
     return ngimu_sensors_bundle(sample.device_time_us, tuple(math.degrees(v) for v in sample.gyr),
                                 tuple(v / STANDARD_GRAVITY for v in sample.acc), mag)

@@ -5,7 +5,8 @@ over Wi-Fi (NGIMU User Manual v1.6, sections "Communication protocol" and "Senso
 message inside a bundle whose OSC time tag (NTP format: seconds since 1900 and a 2⁻³² s fraction) is
 the time of the measurement on the device's clock. ``/sensors`` carries gyroscope x, y, z (°/s),
 accelerometer x, y, z (g), magnetometer x, y, z (µT) and barometer (hPa); converted to SI here
-(rad/s, m/s², T; the barometer is not used). Other messages (quaternion, battery, ...) are ignored;
+(rad/s, m/s², T; the barometer is not used; a magnetometer reading exactly 0 on all three axes is
+taken as none). Other messages (quaternion, battery, ...) are ignored;
 a datagram that is not OSC, a ``/sensors`` message outside a bundle (no time tag) or with other
 arguments is counted (:attr:`NgimuLink.bad_frames`) and named once, never raised.
 
@@ -45,7 +46,8 @@ def sensors_sample(sensor_id: int, sequence: int, device_us: int, args: list) ->
                        f"magnetometer µT, then barometer hPa), got {args[:10]!r}")
     gyr = tuple(math.radians(v) for v in args[0:3])
     acc = tuple(v * STANDARD_GRAVITY for v in args[3:6])
-    mag = tuple(v * 1e-6 for v in args[6:9])
+    # all three exactly 0: no reading (a magnetometer off or failed; the fake device without one)
+    mag = tuple(v * 1e-6 for v in args[6:9]) if any(args[6:9]) else None
     return DeviceSample(sensor_id, sequence, device_us, acc, gyr, mag)
 
 
