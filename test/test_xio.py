@@ -341,6 +341,23 @@ def test_ngimu_an_unmapped_sender_is_counted_and_named_with_what_to_do():
 # ------------------------------------------------------------------ the command line, end to end
 
 
+def _diagnostics(bag) -> dict[str, tuple[int, dict[str, str], str]]:
+    """The last imu_driver status of each name in ``bag``: (level, values, message)."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.serialization import deserialize_message
+
+    from gait_biofeedback.io.bag import BagReader
+
+    last = {}
+    with BagReader(bag) as reader:
+        for _topic, _type, data, _ns in reader.raw_messages(["/diagnostics"]):
+            for s in deserialize_message(data, DiagnosticArray).status:
+                if s.name.startswith("imu_driver"):
+                    last[s.name] = (s.level[0] if isinstance(s.level, bytes) else s.level,
+                                    {kv.key: kv.value for kv in s.values}, s.message)
+    return last
+
+
 def _record_through_fake_devices(tmp_path, kind: str, report: bool = False) -> None:
     """An 8-sensor session (3 s at 100 Hz, 2 % loss, jitter, drifting clocks) sent by fake devices of
     ``kind`` into ``run --driver`` with ``--record``: every sample sent recorded with its values; then
@@ -370,6 +387,11 @@ def _record_through_fake_devices(tmp_path, kind: str, report: bool = False) -> N
             run = subprocess.Popen([*CLI, "run", "--driver", f"ngimu:{port},{devices}", *run_args],
                                    stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
             next(line for line in run.stdout if "Ctrl-C stops" in line)
+            with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as stranger:  # an NGIMU not mapped
+                for k in range(3):
+                    sample = DeviceSample(0, 0, 10_000 * k, (0.0, 0.0, G), (0.0, 0.0, 0.0), None)
+                    stranger.sendto(xio_devices.ngimu_datagram(sample), ("127.0.0.1", port))
+                unmapped = f"imu_driver: NGIMU 127.0.0.1:{stranger.getsockname()[1]}"
             sim = subprocess.Popen([*CLI, "stream-sim", str(bag), "--as", "ngimu", "--to",
                                     f"udp:127.0.0.1:{port}", "--source-port", str(first), *link],
                                    stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
@@ -395,6 +417,14 @@ def _record_through_fake_devices(tmp_path, kind: str, report: bool = False) -> N
         np.testing.assert_allclose(recorded[seg].acc, series[seg].acc[kept], rtol=2e-7, atol=2e-6)
         np.testing.assert_allclose(recorded[seg].gyr, series[seg].gyr[kept], rtol=2e-7, atol=2e-7)
         assert recorded[seg].mag is not None
+    statuses = _diagnostics(out)
+    level, values, message = statuses["imu_driver: left_foot"]
+    assert level == 1 and "lost" in message and "above 1 %" in message  # the 2 % the link model drops
+    assert values["source"].startswith("tcp:127.0.0.1:" if kind == "ximu3"
+                                                                      else "127.0.0.1:")
+    if kind == "ngimu":
+        level, values, message = statuses[unmapped]
+        assert level == 1 and values["datagrams"] == "3" and "add '127.0.0.1=SEGMENT'" in message
     analyzed = subprocess.run([*CLI, "analyze", str(out), "-o", str(tmp_path / "analysis")],
                               capture_output=True, text=True, timeout=120)
     assert analyzed.returncode == 0, analyzed.stderr
