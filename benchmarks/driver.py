@@ -13,6 +13,12 @@ Run: ``.venv/bin/python benchmarks/driver.py`` (about 22 min: 10 min of sending 
 4. the recording is read back and each sensor's recorded samples are matched in order with the ones
    sent (their values must be equal: a shifted match would show).
 
+``--backend ximu3|ngimu`` measures a vendor backend the same way: step 2 runs ``--driver ximu3:...``
+(fake x-IMU3s on TCP, the driver connecting through x-io's SDK) or ``--driver ngimu:...`` (fake NGIMUs
+sending OSC bundles), and step 3 sends the same walk, clocks and link through those fake devices
+(:mod:`gait_biofeedback.sim.xio_devices`); the values are compared to float32 rounding of their units
+(°/s, g). ``--duration S`` sends S seconds per rate instead of ``--minutes``.
+
 Printed per rate: samples sent (all the sensors took), dropped by the link, recorded, whether
 recorded = sent - dropped exactly and each recorded sample's values are the ones sent, the driver's
 own loss count (= dropped?); the stamp error against the sender's true sample
@@ -79,24 +85,52 @@ def driver_diagnostics(bag: Path) -> dict[str, dict[str, str]]:
     return last
 
 
-def run_one(rate_hz: float, minutes: float, workdir: Path) -> dict[str, object]:
+def _start_driver(backend: str, schedule: FrameSchedule, out: Path, seconds: float):
+    """The driver process of ``backend`` and how to send one sample through its devices (None: our UDP
+    frames), and what to close at the end."""
+    from gait_biofeedback.sim import xio_devices
+
+    args = ["--nodes", "", "--record", str(out), "--duration", f"{seconds:.1f}"]
+    sensor_ids = [t.sensor_id for t in schedule.truth.values()]
+    ids = {seg: t.sensor_id for seg, t in schedule.truth.items()}
+    if backend == "udp":
+        port = free_port()
+        return [*CLI, "run", "--driver", f"udp:{port}", *args], port, None, []
+    if backend == "ximu3":
+        fakes = xio_devices.ximu3_devices(sensor_ids)
+        devices = xio_devices.device_entries({sid: f.spec for sid, f in fakes.items()}, ids)
+        return ([*CLI, "run", "--driver", "ximu3:" + ",".join(devices), *args], None,
+                lambda s: fakes[s.sensor_id].send_sample(s), list(fakes.values()))
+    port = free_port()
+    fakes = xio_devices.FakeNgimus(sensor_ids, "127.0.0.1", port)
+    devices = xio_devices.device_entries({sid: f"127.0.0.1:{p}" for sid, p in fakes.ports.items()}, ids)
+    return ([*CLI, "run", "--driver", f"ngimu:{port}," + ",".join(devices), *args], None, fakes.send_sample,
+            [fakes])
+
+
+def run_one(rate_hz: float, minutes: float, workdir: Path, backend: str = "udp") -> dict[str, object]:
     config = walk(duration=minutes * 60.0)
     config.rate_hz = rate_hz
     session = simulate(config)
     ids = {segment: k for k, segment in enumerate(session.imu)}
     schedule = FrameSchedule(session.imu, ids, LinkModel(**LINK, seed=int(rate_hz)))
-    out = workdir / f"driver_{rate_hz:g}hz"
-    port = free_port()
+    out = workdir / f"driver_{backend}_{rate_hz:g}hz"
     duration = schedule.send_ns[-1] * 1e-9
-    proc = subprocess.Popen([*CLI, "run", "--driver", f"udp:{port}", "--nodes", "", "--record", str(out),
-                             "--duration", f"{duration + 8:.1f}"],
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    command, port, send, fakes = _start_driver(backend, schedule, out, duration + 8)
+    proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     for line in proc.stdout:  # wait until the driver listens
         if "Ctrl-C stops" in line:
             break
-    report = send_udp(schedule, "127.0.0.1", port)
+    if send is None:
+        report = send_udp(schedule, "127.0.0.1", port)
+    else:
+        from gait_biofeedback.sim.xio_devices import play
+
+        report = play(schedule, send)
     for _ in proc.stdout:
         pass
+    for fake in fakes:
+        fake.close()
     _, status, usage = os.wait4(proc.pid, 0)
     if status != 0:
         raise RuntimeError(f"the driver process ended with status {status}")
@@ -110,13 +144,16 @@ def run_one(rate_hz: float, minutes: float, workdir: Path) -> dict[str, object]:
         if len(rec) != int(kept.sum()):
             counts_ok = False
             continue
-        values_ok &= bool(np.allclose(rec.acc, session.imu[segment].acc[kept].astype(np.float32), atol=1e-5))
+        tolerance = {"atol": 1e-5} if backend == "udp" else {"rtol": 2e-7, "atol": 2e-6}  # float32 of g
+        sent_acc = session.imu[segment].acc[kept].astype(np.float32)
+        values_ok &= bool(np.allclose(rec.acc, sent_acc, **tolerance))
         true_ns = report.t0_ns + np.round(truth.t[kept] * 1e9)
         err = (rec.t - true_ns * 1e-9) * 1e3  # ms (float s of the stamps: 0.2 µs resolution)
         offsets.append(float(np.median(err)))
         errors.append(err)
     diag = driver_diagnostics(out)
     lost = sum(int(v.get("lost", 0)) for k, v in diag.items() if "sensor_id" in v and "lost" in v)
+    late = sum(int(v.get("late", 0)) for k, v in diag.items() if "sensor_id" in v and "late" in v)
     drift_error = []
     for k, segment in enumerate(schedule.truth):
         _, drift = LinkModel(**LINK).clock(k)
@@ -127,7 +164,8 @@ def run_one(rate_hz: float, minutes: float, workdir: Path) -> dict[str, object]:
     return {
         "rate": rate_hz, "sent": schedule.samples, "dropped": report.samples_dropped,
         "recorded": sum(len(s) for s in recorded.values()), "exact": counts_ok and values_ok,
-        "lost": lost, "p50": float(np.percentile(np.abs(e), 50)), "p99": float(np.percentile(np.abs(e), 99)),
+        "lost": lost, "late": late,
+        "p50": float(np.percentile(np.abs(e), 50)), "p99": float(np.percentile(np.abs(e), 99)),
         "max": float(np.abs(e).max()), "spread": max(offsets) - min(offsets) if offsets else float("nan"),
         "drift": max(drift_error) if drift_error else float("nan"),
         "thread_cpu": float(diag.get("imu_driver: receiving", {}).get("cpu_fraction", "nan")),
@@ -239,9 +277,10 @@ def main() -> int:
     parser.add_argument("--duration", type=float, default=None, help="sending time per rate, s (instead of "
                         "--minutes)")
     parser.add_argument("--rates", default="100,200", help="comma-separated rates, Hz [%(default)s]")
-    parser.add_argument("--backend", choices=("udp", "shimmer", "dot"), default="udp",
-                        help="udp: our frames; shimmer: fake Shimmer3 devices through pyshimmer; dot: the "
-                        "DOT decoder's CPU only [udp]")
+    parser.add_argument("--backend", choices=("udp", "ximu3", "ngimu", "shimmer", "dot"), default="udp",
+                        help="udp: our frames; ximu3: fake x-IMU3s through x-io's SDK; ngimu: fake NGIMUs "
+                        "over OSC; shimmer: fake Shimmer3 devices through pyshimmer; dot: the DOT decoder's "
+                        "CPU only [udp]")
     args = parser.parse_args()
     if args.duration is not None:
         args.minutes = args.duration / 60.0
@@ -251,29 +290,30 @@ def main() -> int:
         return 0
     t0 = time.monotonic()
     rows = []
-    one = run_shimmer if args.backend == "shimmer" else run_one
     with tempfile.TemporaryDirectory() as tmp:
         for rate in (float(r) for r in args.rates.split(",")):
-            rows.append(one(rate, args.minutes, Path(tmp)))
+            rows.append(run_shimmer(rate, args.minutes, Path(tmp)) if args.backend == "shimmer"
+                        else run_one(rate, args.minutes, Path(tmp), args.backend))
     if args.backend == "shimmer":
         print(f"imu_driver, shimmer backend (pyshimmer) reading 8 fake Shimmer3 on pseudo-terminals, "
               f"{args.minutes * 60:g} s per rate; devices: clock offset 5 s + 0.1 s per device, drift "
               "±100 ppm, packets delayed 0-5 ms in order, 1 % lost")
     else:
-        print(f"imu_driver, UDP loopback, 8 sensors, {args.minutes:g} min per rate; link: offset 5 s + 0.1 s "
-              "per sensor, drift ±100 ppm, jitter 0-5 ms, 1 % datagrams lost, 1 % reordered")
+        print(f"imu_driver, backend {args.backend}, loopback, 8 sensors, {60 * args.minutes:g} s per rate; "
+              "link: offset 5 s + 0.1 s per sensor, drift ±100 ppm, jitter 0-5 ms, 1 % datagrams lost, "
+              "1 % reordered")
     print("| rate | sent | dropped | recorded | = sent - dropped, same values | driver's lost count | "
           "stamp error p50 / p99 / max (ms) | sensor offsets spread (ms) | drift error (ppm) | "
           "receiving thread CPU | process CPU | process CPU per sample (µs) |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         print(f"| {r['rate']:g} Hz | {r['sent']} | {r['dropped']} | {r['recorded']} | "
-              f"{'yes' if r['exact'] else 'NO'} | {r['lost']} | "
+              f"{'yes' if r['exact'] else 'NO'} | {r['lost']} ({r.get('late', 0)} late) | "
               f"{r['p50']:.3f} / {r['p99']:.3f} / {r['max']:.2f} | "
               f"{r['spread']:.3f} | {r['drift']:.1f} | {100 * r['thread_cpu']:.1f} % | "
               f"{100 * r['process_cpu']:.1f} % | {r['cpu_us']:.0f} |")
     late = (f"the sender was at worst {max(r['late_s'] for r in rows) * 1e3:.1f} ms late; "
-            if args.backend == "udp" else "")
+            if args.backend in ("udp", "ximu3", "ngimu") else "")
     print(f"({late}{time.monotonic() - t0:.0f} s in all)")
     return 0
 

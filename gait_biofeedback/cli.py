@@ -120,13 +120,34 @@ def _node_list(text: str | None) -> list[str] | None:
     return None if text is None else [n for n in text.split(",") if n]
 
 
+DRIVER_SPECS = ("udp:PORT, udp:ADDRESS:PORT, serial:DEVICE[:BAUD], simulated[:SCENARIO], "
+                "ximu3[:DEVICE=SEGMENT,...] (DEVICE: tcp:HOST:PORT, udp:HOST:SEND:RECEIVE or serial:PATH), "
+                "ngimu:[ADDRESS:]PORT[,IP[:PORT]=SEGMENT,...], "
+                "shimmer[:PORT=SEGMENT,...] (e.g. shimmer:/dev/rfcomm0=left_shank,/dev/rfcomm1=right_shank) "
+                "or dot[:ADDRESS=SEGMENT,...] (e.g. dot:D4:22:CD:00:12:34=left_foot); without devices, the "
+                "--params file's imu_driver 'devices'")
+
+
 def parse_driver(spec: str) -> dict[str, object]:
     """``--driver`` → imu_driver parameters: ``udp:PORT``, ``udp:ADDRESS:PORT``,
-    ``serial:DEVICE[:BAUD]``, ``simulated[:SCENARIO]``, ``shimmer[:PORT=SEGMENT,...]``,
-    ``dot[:ADDRESS=SEGMENT,...]`` (no devices: the parameter file's ``devices``)."""
+    ``serial:DEVICE[:BAUD]``, ``simulated[:SCENARIO]``, ``ximu3[:DEVICE=SEGMENT,...]``,
+    ``ngimu:[ADDRESS:]PORT[,DEVICE=SEGMENT,...]``, ``shimmer[:PORT=SEGMENT,...]``,
+    ``dot[:ADDRESS=SEGMENT,...]`` (no devices: the parameter file's ``devices``;
+    docs/connecting_sensors.md)."""
     kind, _, rest = spec.partition(":")
     if kind in ("shimmer", "dot"):
         return _vendor_driver(spec, kind, rest)
+    if kind == "ximu3":
+        devices = [d for d in rest.split(",") if d]
+        if all("=" in d for d in devices):
+            return {"backend": "ximu3", **({"devices": devices} if devices else {})}
+    if kind == "ngimu":
+        listen, *devices = rest.split(",")
+        where = listen.split(":")
+        if len(where) in (1, 2) and where[-1].isdigit() and all("=" in d for d in devices):
+            address = {"address": where[0]} if len(where) == 2 else {}
+            return {"backend": "ngimu", "port": int(where[-1]), **address,
+                    **({"devices": devices} if devices else {})}
     parts = rest.split(":") if rest else []
     try:
         if kind == "udp" and len(parts) in (1, 2):
@@ -140,13 +161,6 @@ def parse_driver(spec: str) -> dict[str, object]:
     if kind == "simulated" and len(parts) <= 1:
         return {"backend": "simulated", **({"scenario": parts[0]} if parts else {})}
     raise ValueError(f"--driver {spec!r}: expected {DRIVER_SPECS}")
-
-
-DRIVER_SPECS = ("udp:PORT, udp:ADDRESS:PORT, serial:DEVICE[:BAUD], simulated[:SCENARIO], "
-                "shimmer[:PORT=SEGMENT,...] (e.g. shimmer:/dev/rfcomm0=left_shank,/dev/rfcomm1=right_shank) "
-                "or "
-                "dot[:ADDRESS=SEGMENT,...] (e.g. dot:D4:22:CD:00:12:34=left_foot); without devices, the "
-                "--params file's imu_driver 'devices'")
 
 
 def _vendor_driver(spec: str, kind: str, rest: str) -> dict[str, object]:
@@ -180,13 +194,13 @@ def cmd_stream_sim(args: argparse.Namespace) -> int:
     from gait_biofeedback.parameters import stage_parameters
     from gait_biofeedback.sim.sensor_link import FrameSchedule, LinkModel, send_udp
 
-    if args.as_kind == "shimmer":
+    if args.as_ == "shimmer":
         return _stream_sim_shimmer(args)
-    if not args.to:
-        raise ValueError("stream-sim: give --to udp:HOST:PORT (or --as shimmer for fake Shimmer devices)")
-    kind, _, rest = args.to.partition(":")
+    if not args.to and args.as_ != "x-imu3":
+        raise ValueError(f"stream-sim --as {args.as_}: give --to udp:HOST:PORT (where the driver listens)")
+    kind, _, rest = (args.to or "").partition(":")
     host, _, port = rest.rpartition(":")
-    if kind != "udp" or not host or not port.isdigit():
+    if args.as_ != "x-imu3" and (kind != "udp" or not host or not port.isdigit()):
         raise ValueError(f"--to {args.to!r}: expected udp:HOST:PORT, e.g. udp:127.0.0.1:5600")
     driver = stage_parameters("imu_driver", _session_parameters(args.params).get("imu_driver", {}))
     ids = {segment: sid for sid, segment in driver.mapping().items()}
@@ -196,6 +210,8 @@ def cmd_stream_sim(args: argparse.Namespace) -> int:
     schedule = FrameSchedule(read_imu_bag(args.bag), ids, link, key)
     if schedule.missing:
         print(f"note: the mapping's {', '.join(schedule.missing)} are not in {args.bag}")
+    if args.as_ != "ours":
+        return _stream_as_xio(args, schedule, ids, host, int(port) if port.isdigit() else 0)
     duration = schedule.send_ns[-1] * 1e-9
     signed = f", signed with the key of {args.frame_key_file}" if key is not None else ""
     print(f"sending {schedule.samples} samples of {len(schedule.series)} sensors ({duration:.1f} s) to "
@@ -235,6 +251,46 @@ def _stream_sim_shimmer(args: argparse.Namespace) -> int:
     sent = sum(f.sent for f in fakes.values())
     dropped = sum(f.dropped for f in fakes.values())
     print(f"sent {sent} samples as data packets, dropped {dropped} (--loss {args.loss:g})")
+def _stream_as_xio(args: argparse.Namespace, schedule, ids: dict[str, int], host: str, port: int) -> int:
+    """``stream-sim --as x-imu3|ngimu``: the recording through fake x-io devices
+    (:mod:`gait_biofeedback.sim.xio_devices`), each sensor one device."""
+    import time
+
+    from gait_biofeedback.nodes.common import STOP, stop_on_signals
+    from gait_biofeedback.sim import xio_devices
+
+    sensor_ids = [t.sensor_id for t in schedule.truth.values()]
+    used = {seg: sid for seg, sid in ids.items() if sid in sensor_ids}
+    if args.as_ == "x-imu3":
+        fakes = xio_devices.ximu3_devices(sensor_ids, ascii_mode=args.ascii)
+        devices = xio_devices.device_entries({sid: f.spec for sid, f in fakes.items()}, used)
+
+        def send(sample) -> bool:
+            return fakes[sample.sensor_id].send_sample(sample)
+
+        print(f"{len(fakes)} x-IMU3s listening; connect with: gait-biofeedback run --driver "
+              f"'ximu3:{','.join(devices)}'", flush=True)
+        with stop_on_signals():
+            for fake in fakes.values():
+                while not fake.wait_connected(0.5) and not STOP.is_set():
+                    pass
+    else:
+        fakes = xio_devices.FakeNgimus(sensor_ids, host, port, args.source_port)
+        devices = xio_devices.device_entries({sid: f"127.0.0.1:{p}" for sid, p in fakes.ports.items()}, used)
+        send = fakes.send_sample
+        print(f"{len(sensor_ids)} NGIMUs sending to {host}:{port}; their devices: '{','.join(devices)}'",
+              flush=True)
+    print(f"sending {schedule.samples} samples of {len(schedule.series)} sensors "
+          f"({schedule.send_ns[-1] * 1e-9:.1f} s) as {args.as_}; Ctrl-C stops", flush=True)
+    try:
+        with stop_on_signals():
+            report = xio_devices.play(schedule, send, stop=STOP.is_set)
+        time.sleep(0.5)  # let the last messages leave before the devices close
+    finally:
+        for fake in (fakes.values() if isinstance(fakes, dict) else [fakes]):
+            fake.close()
+    print(f"sent {report.samples_sent} samples, dropped {report.samples_dropped} (--loss {args.loss:g}); the "
+          f"sender was at worst {1e3 * report.worst_lateness_s:.1f} ms late")
     return 0
 
 
@@ -730,10 +786,15 @@ def build_parser() -> argparse.ArgumentParser:
                        "(docs/guide/live_sensors.md) in real time, each sensor with its own device clock "
                        "(offset, drift), over a link with jitter, loss and reordering.")
     p.add_argument("bag", help="recording with /<segment>/imu/data_raw topics")
-    p.add_argument("--to", metavar="udp:HOST:PORT", help="where the driver listens (udp)")
-    p.add_argument("--as", dest="as_kind", choices=("udp", "shimmer"), default="udp",
-                   help="udp: our frames to --to; shimmer: one fake Shimmer3 per segment on a "
-                   "pseudo-terminal (its path printed) for `run --driver shimmer:...` [udp]")
+    p.add_argument("--to", metavar="udp:HOST:PORT", help="where the driver listens (--as ours and ngimu)")
+    p.add_argument("--as", dest="as_", choices=("ours", "x-imu3", "ngimu", "shimmer"), default="ours",
+                   help="the devices' protocol: ours (docs/guide/live_sensors.md), x-imu3 (fake x-IMU3s on "
+                   "TCP that the driver connects to; the command to run is printed), ngimu (fake NGIMUs "
+                   "sending OSC to --to) or shimmer (one fake Shimmer3 per segment on a pseudo-terminal, its "
+                   "path printed, for `run --driver shimmer:...`); docs/connecting_sensors.md [ours]")
+    p.add_argument("--ascii", action="store_true", help="--as x-imu3: ASCII data messages, not binary")
+    p.add_argument("--source-port", type=int, default=0, help="--as ngimu: the first NGIMU sends from this "
+                   "port of 127.0.0.1, the next from the port after, ... (0 = any free ports) [0]")
     p.add_argument("--offset-s", type=float, default=0.0,
                    help="device clock offset of the first sensor, s (sensor k: +0.1 k s)")
     p.add_argument("--drift-ppm", type=float, default=0.0,

@@ -37,7 +37,8 @@ from gait_biofeedback.core.notices import Notices
 from gait_biofeedback.core.params import ParameterError, param, require
 from gait_biofeedback.core.segments import SEGMENTS
 
-BACKENDS = ("udp", "serial", "simulated", "shimmer", "dot")
+VENDOR_BACKENDS = ("ximu3", "ngimu", "shimmer", "dot")
+BACKENDS = ("udp", "serial", "simulated", *VENDOR_BACKENDS)
 MAX_CANDIDATES = 4
 """Sources per sensor id whose samples are held at once. A new one takes the place of the one heard
 from longest ago that has not sent 2 agreeing samples; if none has, its samples are dropped."""
@@ -54,8 +55,10 @@ class DriverParams:
     """Parameters of the ``imu_driver`` node."""
 
     backend: str = param("udp", "where the samples come from: udp datagrams, a serial line, the "
-                         "simulator paced in real time, Shimmer3 devices (pyshimmer) or Movella DOT sensors "
-                         "(Bluetooth LE; docs/connecting_sensors.md)", choices=BACKENDS)
+                         "simulator paced in real time, or a vendor's sensors (ximu3: x-io x-IMU3 through "
+                         "its SDK; ngimu: x-io NGIMU over OSC on 'address':'port'; shimmer: Shimmer3 through "
+                         "pyshimmer; dot: Movella DOT over Bluetooth LE; docs/connecting_sensors.md)",
+                         choices=BACKENDS)
     address: str = param("127.0.0.1", "udp: address to listen on (127.0.0.1 = this computer only; "
                          "0.0.0.0 = every network interface, for sensors on the clinic's network)")
     port: int = param(5600, "udp: port to listen on (0 = any free port; the log says which)",
@@ -65,11 +68,6 @@ class DriverParams:
     scenario: str = param("demo", "simulated: the simulator's scenario (gait-biofeedback simulate)")
     sim_rate_hz: float = param(100.0, "simulated: sampling rate", "Hz", low=10.0, high=2000.0)
     sim_loop: bool = param(True, "simulated: start the scenario again at its end (the sensors reboot)")
-    devices: tuple[str, ...] = param((), "vendor backends (shimmer, dot): each device → the segment it is "
-                                     "strapped to, as 'DEVICE_ID=SEGMENT' with the device id as the vendor "
-                                     "names it (shimmer: its serial port, e.g. '/dev/rfcomm0=left_shank'; "
-                                     "dot: its BLE address, e.g. 'D4:22:CD:00:12:34=left_foot'); the segment "
-                                     "takes its sensor id from 'sensors'")
     device_rate_hz: float = param(100.0, "shimmer, dot: sampling rate set on each device (shimmer: 32768 Hz "
                                   "over a whole number, the nearest is taken; dot: 1, 4, 10, 12, 15, 20, 30 "
                                   "or 60)", "Hz", low=1.0, high=1024.0)
@@ -79,6 +77,12 @@ class DriverParams:
                                        choices=("wide_range", "low_noise"))
     sensors: tuple[str, ...] = param(DEFAULT_SENSORS, "sensor id → segment, as 'ID:SEGMENT' (the ids "
                                      "the sensors send; segments: pelvis, left_thigh, ... chest)")
+    devices: tuple[str, ...] = param((), "vendor backends: device → segment, as 'DEVICE_ID=SEGMENT', the "
+                                     "device as its vendor names it (ximu3: its serial number or its "
+                                     "connection, e.g. 'tcp:192.168.1.20:7000'; ngimu: its address 'IP' or "
+                                     "'IP:PORT'; shimmer: its serial port, e.g. '/dev/rfcomm0'; dot: its BLE "
+                                     "address, e.g. 'D4:22:CD:00:12:34'); the segment's sensor id is the one "
+                                     "'sensors' gives it")
     reorder_window_s: float = param(0.05, "how long a sample after a gap waits for the missing ones "
                                     "(reordered on the way) before they are counted lost", "s",
                                     low=0.0, high=1.0)
@@ -96,6 +100,12 @@ class DriverParams:
     def __post_init__(self) -> None:
         self.mapping()  # refuse a malformed mapping now
         self.device_ids()
+        if self.backend in VENDOR_BACKENDS:
+            require(bool(self.devices), f"backend '{self.backend}' needs parameter 'devices': each device as "
+                    "'DEVICE_ID=SEGMENT' (docs/connecting_sensors.md)")
+            require(not self.frame_key_file, f"parameter 'frame_key_file' signs our own frames; backend "
+                    f"'{self.backend}' takes the vendor's, which are not signed (they are bound to their "
+                    "device instead): leave it empty")
         require(self.clock_bin_s < self.clock_window_s,
                 f"parameter 'clock_bin_s' ({self.clock_bin_s:g} s) must be shorter than 'clock_window_s' "
                 f"({self.clock_window_s:g} s)")
