@@ -53,6 +53,7 @@ Every step is kept as a :class:`KalmanStep` for the smoothers (:mod:`.smoother`)
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -134,6 +135,11 @@ def kernels(python: bool = False) -> tuple:
     return step, measure, run
 
 
+def floats(v: np.ndarray | Sequence[float]) -> list[float]:
+    """A 3-vector's values as Python floats (what a kernel's scalar arguments take)."""
+    return v.ravel().tolist() if isinstance(v, np.ndarray) else [float(x) for x in v]
+
+
 def shock_gain(f: np.ndarray, noise: KalmanNoise) -> float:
     """The factor of ``R_a`` for the specific force ``f`` (module docstring, shocks; its norm
     ``sqrt(x² + y² + z²)``, as the kernel's)."""
@@ -207,9 +213,10 @@ class FootKalman:
     def update(self, gyr: np.ndarray, acc: np.ndarray, dt: float, zero_velocity: bool) -> KalmanStep:
         """Propagate from the previous sample over ``dt`` and measure at this one, whose ``gyr``/``acc``
         act over the next interval."""
-        gx, gy, gz = (float(v) for v in np.ravel(gyr))
-        ax, ay, az = (float(v) for v in np.ravel(acc))
-        phi, q_noise, p_prior = (np.empty((STATES, STATES)) for _ in range(3))
+        gx, gy, gz = floats(gyr)
+        ax, ay, az = floats(acc)
+        one = (STATES, STATES)
+        phi, q_noise, p_prior = np.empty(one), np.empty(one), np.empty(one)
         p_post = np.empty((STATES, STATES)) if zero_velocity else p_prior
         dx = np.empty(STATES)
         self._step(self._s, self.p, self._kp, *self._zero_velocity, gx, gy, gz, ax, ay, az, float(dt),

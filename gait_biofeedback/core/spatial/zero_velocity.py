@@ -292,8 +292,8 @@ class StanceDetector:
         self._out = np.zeros(self.state.ring.shape[0] + self.half + 4, np.int64)
 
     def _codes(self, gyr: np.ndarray, acc: np.ndarray) -> np.ndarray:
-        gx, gy, gz = (float(v) for v in np.ravel(gyr))
-        ax, ay, az = (float(v) for v in np.ravel(acc))
+        gx, gy, gz = gyr.ravel().tolist() if isinstance(gyr, np.ndarray) else (float(v) for v in gyr)
+        ax, ay, az = acc.ravel().tolist() if isinstance(acc, np.ndarray) else (float(v) for v in acc)
         n = self._update(*self.state.arrays, gx, gy, gz, ax, ay, az, self._out, 0)
         return self._out[:n]
 
