@@ -153,3 +153,60 @@ def test_the_compiled_kernels_equal_their_python_twins(walk, monkeypatch, detect
     twin = _by_array(params, stamps, gyr, acc)
     _assert_same(compiled, twin)
     assert len(compiled[1]) >= 2 and compiled[0].counts["interpolated"] == 1
+
+
+@pytest.fixture(scope="module")
+def two_feet():
+    """(side, stamps ns, q, gyr, acc) of both feet of a 30 s simulated walk, orientations from the truth."""
+    sim = simulate(SCENARIOS["walk"](30.0, seed=4, segments=("left_foot", "right_foot")))
+    out = []
+    for side in ("left", "right"):
+        imu = sim.imu[f"{side}_foot"]
+        stamps = 1_700_000_000_000_000_000 + np.round(imu.t * 1e9).astype(np.int64)
+        q = sim.truth.sensor_orientation[f"{side}_foot"]
+        out.append((side, stamps, q, imu.gyr.copy(), imu.acc.copy()))
+    return out
+
+
+@pytest.mark.parametrize("case", ["clean", "faults"])
+def test_the_gait_stream_s_array_function_equals_its_rows(two_feet, case):
+    """GaitEventStream.update_batch of each foot against update row by row (left foot, then right): the
+    events and strides (with provisional and smoothed spatial values, revisions) and the rows they came
+    out at, counts and notices. Faults: NaN rows, a recovering stretch, lost samples, the left foot's
+    clock 2 s back (a reset of events and trajectory) and a 0.5 s gap in the right foot's."""
+    from gait_biofeedback.core.gait.stream import GaitEventsParams, GaitEventStream
+
+    feet = []
+    for side, stamps, q, gyr, acc in two_feet:
+        stamps, gyr, recovering = stamps.copy(), gyr.copy(), np.zeros(len(stamps), bool)
+        keep = np.ones(len(stamps), bool)
+        if case == "faults":
+            gyr[[900, 1700], 0] = np.nan
+            recovering[1200:1230] = True
+            keep[[1500, 2200, 2201]] = False
+            if side == "left":
+                stamps[2000:] -= 2_000_000_000
+            else:
+                stamps[1800:] += 500_000_000
+        feet.append((side, stamps[keep], q[keep], recovering[keep], gyr[keep], acc[keep]))
+    params = GaitEventsParams(use_standing_reference=True)
+    by_rows, by_array = GaitEventStream(params), GaitEventStream(params)
+    rows_out, array_out = [], []
+    for side, stamps, q, recovering, gyr, acc in feet:
+        for k in range(len(stamps)):
+            events, cycles = by_rows.update(side, int(stamps[k]), tuple(q[k].tolist()), bool(recovering[k]),
+                                            tuple(gyr[k].tolist()), tuple(acc[k].tolist()))
+            rows_out += [(side, k, repr(x)) for x in events + cycles]
+        events, cycles = by_array.update_batch(side, stamps, q, recovering, gyr, acc)
+        array_out += sorted([(side, k, repr(x)) for k, x in events + cycles], key=lambda row: row[1])
+    assert array_out == rows_out
+    assert by_rows.counts == by_array.counts
+    assert [vars(n) for n in by_rows.notices.pop()] == [vars(n) for n in by_array.notices.pop()]
+    for side in ("left", "right"):
+        assert by_rows.feet[side].counts == by_array.feet[side].counts
+    counts = by_rows.counts
+    assert sum(c["spatial_provisional"] for c in counts.values()) > 5, "provisional values asked of the foot"
+    assert sum(c["spatial_strides"] for c in counts.values()) > 20
+    if case == "faults":
+        assert counts["left"]["resets"] >= 1 and by_rows.feet["left"].counts["restarts"] == 1
+        assert by_rows.feet["right"].counts["interpolated"] >= 3
