@@ -3,9 +3,10 @@ the batch API over a long recording.
 
 ``PYTHONPATH=. .venv/bin/python benchmarks/foot_trajectory.py [--seconds 120] [--long-seconds 600]``
 
-Prints: µs of CPU per foot sample of :meth:`GaitEventStream.update` (both feet of a simulated walk, with
+Prints: µs of CPU per foot sample of
+:meth:`~gait_biofeedback.core.gait.stream.GaitEventStream.update` (both feet of a simulated walk, with
 orientations, gyro and acceleration: the ``gait_events`` node's and ``analyze``'s path), the part of it
-in :meth:`FootTrajectoryStream.update`, and the seconds of CPU of
+in :meth:`~gait_biofeedback.core.spatial.stream.FootTrajectoryStream.update`, and the seconds of CPU of
 :func:`gait_biofeedback.batch.estimate_foot_trajectory` on one foot of a ``--long-seconds`` walk (its
 ``live_strides`` count as a check). Runs on any revision with these APIs (run it with ``PYTHONPATH`` at
 another checkout to compare); numba's compilation is done before the clocks start.

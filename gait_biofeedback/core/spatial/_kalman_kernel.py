@@ -6,6 +6,13 @@ loops over the matrices' entries: numpy spent about 60 us per sample on some twe
 15 x 15 arrays (a tenth of ``analyze``), compiled this takes a few. Compiled by
 :func:`gait_biofeedback.core.jit.fast`; plain Python gives the same numbers (only +, -, *, / in a fixed
 order), much more slowly.
+
+The whole per-sample step (issue 46) is here too: :func:`foot_step` (strap-down propagation, shock
+gain, covariance, measurements and injection over a state array) and :func:`foot_run`, the same over
+whole arrays. They repeat :mod:`gait_biofeedback.core.orientation.filters._scalar`'s quaternion
+arithmetic term for term, so that the numbers are those of the numpy code before them, but for the
+shock gain's norm: ``sqrt(x² + y² + z²)`` here, numpy's a BLAS dot that may fuse multiply-adds
+(the machine's; ~1e-15 relative).
 """
 
 from __future__ import annotations
@@ -153,7 +160,8 @@ SHOCK_SCALE = 2.0  # m/s², :data:`.kalman.SHOCK_SCALE`
 
 
 def _turn(s: np.ndarray, wx: float, wy: float, wz: float, dt: float) -> tuple:
-    """``q ⊗ exp(½ ω dt)`` of the state's ``q`` (:func:`..orientation.filters._scalar.gyro_step`)."""
+    """``q ⊗ exp(½ ω dt)`` of the state's ``q``
+    (:func:`gait_biofeedback.core.orientation.filters._scalar.gyro_step`)."""
     c, k = half_turn(wx, wy, wz, dt)
     pw, px, py, pz = s[Q], s[Q + 1], s[Q + 2], s[Q + 3]
     qx, qy, qz = wx * k, wy * k, wz * k
@@ -162,7 +170,8 @@ def _turn(s: np.ndarray, wx: float, wy: float, wz: float, dt: float) -> tuple:
 
 
 def _set_q(s: np.ndarray, w: float, x: float, y: float, z: float) -> None:
-    """The state's ``q`` = the unit quaternion along (w, x, y, z) (:func:`.._scalar.normalized`)."""
+    """The state's ``q`` = the unit quaternion along (w, x, y, z)
+    (:func:`gait_biofeedback.core.orientation.filters._scalar.normalized`)."""
     n = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
     s[Q], s[Q + 1], s[Q + 2], s[Q + 3] = w * n, x * n, y * n, z * n
 
@@ -175,9 +184,10 @@ def shock_gain(fx: float, fy: float, fz: float, shock: float) -> float:
 
 def foot_measure(s: np.ndarray, p_prior: np.ndarray, kp: np.ndarray, rows: np.ndarray, variance: np.ndarray,
                  zero_velocity: bool, p_post: np.ndarray, dx: np.ndarray) -> int:
-    """The measurements of a sample (:meth:`.kalman.FootKalman._measure`): at zero velocity ``v = 0``
-    and with a flat floor ``r_z = 0`` (Suh Eq 13-14, Joseph form) into ``p_post`` and ``dx``, injected
-    into ``s``; else ``p_post`` = ``p_prior`` and ``dx`` = 0."""
+    """The measurements of a sample (as :meth:`.kalman.FootKalman.start` and
+    :meth:`~.kalman.FootKalman.update` measure): at zero velocity ``v = 0`` and with a flat floor
+    ``r_z = 0`` (Suh Eq 13-14, Joseph form) into ``p_post`` and ``dx``, injected into ``s``; else
+    ``p_post`` = ``p_prior`` and ``dx`` = 0."""
     if not zero_velocity:
         for i in range(N):
             dx[i] = 0.0

@@ -38,6 +38,12 @@ are within 4.1 cm of the lossless ones (0.8 cm p95); at 200 Hz 28 % and 0.7 cm
 
 A swing longer than ``max_swing_s`` s (no stance seen: running, a sensor off the foot, a shuffle) gives a
 stride with NaN values and a flag, never a number integrated over seconds.
+
+Kernels and array function (issue 46): the detector's and the filter's per-sample arithmetic are
+compiled kernels (:mod:`._zero_velocity_kernel`, :mod:`._kalman_kernel`) that
+:meth:`FootTrajectoryStream.update` calls once per sample, and :meth:`FootTrajectoryStream.update_batch`
+runs over whole arrays wherever the stream's control logic does not act, with the same outputs bit for
+bit (``test/test_foot_kernel.py``).
 """
 
 from __future__ import annotations
