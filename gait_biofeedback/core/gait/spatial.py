@@ -86,6 +86,12 @@ class SpatialPairing:
         self._revise: deque[GaitCycle] = deque()  # out with provisional values
         self._strides: deque[SpatialStride] = deque(maxlen=8)
 
+    @property
+    def waiting(self) -> bool:
+        """A stride or a revision is held: :meth:`due` looks at the trajectory strides and may ask for a
+        provisional value."""
+        return bool(self._held or self._revise)
+
     def add_cycle(self, cycle: GaitCycle) -> None:
         self._held.append(cycle)
 
