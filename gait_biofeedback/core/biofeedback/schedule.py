@@ -1,0 +1,110 @@
+"""Feedback schedules from motor learning (issue 49 item 5): on which strides the focus is given.
+
+Feedback on every trial guides performance but can hinder learning; less frequent, fading or summary
+feedback helps retention (the guidance hypothesis). :class:`FeedbackSchedule` gives, on each stride,
+the instruction in focus (:mod:`~gait_biofeedback.core.biofeedback.instruction`) or nothing:
+
+* ``every_stride``: every stride with a focus, in band too (knowledge of results each time);
+* ``bandwidth``: only strides whose focused quantity is outside its band (Sherwood DE. Effect of
+  bandwidth knowledge of results on movement consistency. Percept Mot Skills 1988;66:535-42);
+* ``faded``: a share of the strides with a focus that falls linearly from ``fade_start`` to
+  ``fade_end`` over ``fade_duration_s`` of the session (Winstein CJ, Schmidt RA. Reduced frequency of
+  knowledge of results enhances motor skill learning. J Exp Psychol Learn Mem Cogn 1990;16:677-91).
+  The strides are chosen without chance: each stride adds the share to a credit, and a stride is given
+  whenever the credit reaches 1 (then 1 is taken off), so a share of 0.5 gives every other stride;
+* ``summary``: after every ``summary_strides`` strides, the focus with how many of them had its
+  quantity in band (Schmidt RA et al. Summary knowledge of results for skill acquisition: support for
+  the guidance hypothesis. J Exp Psychol Learn Mem Cogn 1989;15:352-9).
+
+What is given is a :class:`Given`: the words (``KIND_INSTRUCTION``: shown and spoken) when the focused
+quantity is outside its band, or when a summary says it was outside on a stride of its block;
+otherwise a cue (``KIND_CUE``: the result shown, no words). Times are the strides' closing ICs, in s
+from the first stride the schedule saw.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+from gait_biofeedback.core.biofeedback.evaluator import SEVERITY_IN_BAND, Cue
+from gait_biofeedback.core.biofeedback.instruction import Instruction
+from gait_biofeedback.core.biofeedback.instruction_params import SCHEDULES, InstructionParams
+from gait_biofeedback.core.stamps import NS_PER_S
+
+KIND_CUE, KIND_INSTRUCTION = 0, 1  # as gait_biofeedback_msgs/FeedbackGiven
+
+
+@dataclass(frozen=True)
+class Given:
+    """Feedback given on one stride: the focus (``instruction``), ``kind``, the ``schedule``, the share of
+    strides given at this time (``rate``), and for a summary the strides summarised and those in band."""
+
+    instruction: Instruction
+    kind: int
+    schedule: str
+    rate: float
+    stride_index: int
+    stamp_ns: int
+    block_strides: int = 1
+    block_in_band: int = 0
+
+
+class FeedbackSchedule:
+    """Which strides get the focus (module docstring); :meth:`decide` once per stride, in order."""
+
+    def __init__(self, params: InstructionParams | None = None) -> None:
+        self.params = params or InstructionParams()
+        if self.params.feedback_schedule not in SCHEDULES:
+            raise ValueError(f"feedback_schedule {self.params.feedback_schedule!r}; use one of "
+                             f"{', '.join(SCHEDULES)}")
+        self.schedule = self.params.feedback_schedule
+        self._first_ns: int | None = None
+        self._credit = 0.0
+        self._block = 0
+        self._block_results: dict[tuple[str, str], list[int]] = {}  # (quantity, side) → [strides, in band]
+
+    def rate(self, t_s: float) -> float:
+        """Share of strides given feedback ``t_s`` into the session (1 but for ``faded``)."""
+        if self.schedule != "faded":
+            return 1.0
+        p = self.params
+        return p.fade_start + (p.fade_end - p.fade_start) * min(max(t_s, 0.0) / p.fade_duration_s, 1.0)
+
+    def decide(self, instruction: Instruction | None, cues: Iterable[Cue], stride_index: int,
+               stamp_ns: int) -> Given | None:
+        """The feedback given on the stride of ``cues`` closing at ``stamp_ns``, or None (silence)."""
+        if self._first_ns is None:
+            self._first_ns = stamp_ns
+        rate = self.rate((stamp_ns - self._first_ns) / NS_PER_S)
+        if self.schedule == "summary":
+            return self._summary(instruction, cues, stride_index, stamp_ns)
+        if instruction is None:
+            return None
+        kind = KIND_INSTRUCTION if instruction.outside else KIND_CUE
+        given = Given(instruction, kind, self.schedule, rate, stride_index, stamp_ns, 1,
+                      int(not instruction.outside))
+        if self.schedule == "bandwidth":
+            return given if instruction.outside else None
+        if self.schedule == "faded":
+            self._credit += rate
+            if self._credit < 1.0 - 1e-9:
+                return None
+            self._credit -= 1.0
+        return given
+
+    def _summary(self, instruction: Instruction | None, cues: Iterable[Cue], stride_index: int,
+                 stamp_ns: int) -> Given | None:
+        for c in cues:
+            counts = self._block_results.setdefault((c.quantity, c.side), [0, 0])
+            counts[0] += 1
+            counts[1] += c.severity == SEVERITY_IN_BAND
+        self._block += 1
+        if self._block < self.params.summary_strides:
+            return None
+        results, self._block_results, self._block = self._block_results, {}, 0
+        if instruction is None:
+            return None
+        strides, in_band = results.get((instruction.cue.quantity, instruction.cue.side), (0, 0))
+        kind = KIND_INSTRUCTION if in_band < strides or instruction.outside else KIND_CUE
+        return Given(instruction, kind, self.schedule, 1.0, stride_index, stamp_ns, strides, in_band)
