@@ -10,8 +10,9 @@ keeps one focus:
   ties go to the largest deviation, ``|error| / band width`` (band widths make angles, times and
   lengths comparable);
 * hysteresis: a focus holds for at least ``hold_strides`` strides (either foot's, as they come)
-  before another may take its place; after that the choice is made again, and no focus is kept
-  once none of the quantities fed back is outside its band;
+  before another may take its place; after that the choice is made again among the quantities
+  outside their band and the focus (if its own is still outside); when none is outside, the focus
+  stays, in band (the schedule decides whether to say so), until another rule takes it;
 * with ``paretic_side`` set, per-side quantities are fed back on the paretic side only, unless a rule
   names the other side (``non_paretic`` or that side); a rule on a bilateral quantity (a symmetry)
   names the leg its words speak of, and fires only for the paretic leg then.
@@ -207,7 +208,7 @@ class InstructionSelector:
         return out
 
     def update(self, cues: Iterable[Cue]) -> Instruction | None:
-        """The focus after one stride's ``cues`` (module docstring); None when there is nothing to say."""
+        """The focus after one stride's ``cues`` (module docstring); None until a rule first applies."""
         cues = list(cues)
         focus = self.focus
         if focus is not None:
@@ -221,9 +222,10 @@ class InstructionSelector:
         if focus is not None and focus.outside:  # still to say: it competes with this stride's cues
             ranked.append((focus.rule, focus.side, focus.cue))
             ranked.sort(key=lambda c: (c[0].priority, deviation(c[2])), reverse=True)
-        if not ranked:
-            self.focus = None
-            return None
+        if not ranked:  # nothing outside: the focus, if any, stays (in band)
+            self.focus = None if focus is None else Instruction(focus.rule, focus.side, focus.text, focus.cue,
+                                                                 False, focus.held + 1)
+            return self.focus
         rule, leg, cue = ranked[0]
         if focus is not None and (rule.id, leg) == (focus.rule.id, focus.side):
             self.focus = Instruction(rule, leg, focus.text, cue, False, focus.held + 1)

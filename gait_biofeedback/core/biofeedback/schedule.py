@@ -10,11 +10,12 @@ the instruction in focus (:mod:`~gait_biofeedback.core.biofeedback.instruction`)
 * ``faded``: a share of the strides with a focus that falls linearly from ``fade_start`` to
   ``fade_end`` over ``fade_duration_s`` of the session (Winstein CJ, Schmidt RA. Reduced frequency of
   knowledge of results enhances motor skill learning. J Exp Psychol Learn Mem Cogn 1990;16:677-91).
-  The strides are chosen without chance: each stride adds the share to a credit, and a stride is given
-  whenever the credit reaches 1 (then 1 is taken off), so a share of 0.5 gives every other stride;
-* ``summary``: after every ``summary_strides`` strides, the focus with how many of them had its
-  quantity in band (Schmidt RA et al. Summary knowledge of results for skill acquisition: support for
-  the guidance hypothesis. J Exp Psychol Learn Mem Cogn 1989;15:352-9).
+  The strides are chosen without chance: each stride adds the share to a credit (starting at 0.5), and
+  a stride is given whenever the credit reaches 1 (then 1 is taken off): after ``n`` strides
+  ``floor(0.5 + sum of the shares)`` have been given, and a share of 0.5 gives every other stride;
+* ``summary``: after every ``summary_strides`` strides, the focus with how many of the block's
+  strides had that quantity in band (Schmidt RA et al. Summary knowledge of results for skill
+  acquisition: support for the guidance hypothesis. J Exp Psychol Learn Mem Cogn 1989;15:352-9).
 
 What is given is a :class:`Given`: the words (``KIND_INSTRUCTION``: shown and spoken) when the focused
 quantity is outside its band, or when a summary says it was outside on a stride of its block;
@@ -60,9 +61,10 @@ class FeedbackSchedule:
                              f"{', '.join(SCHEDULES)}")
         self.schedule = self.params.feedback_schedule
         self._first_ns: int | None = None
-        self._credit = 0.0
+        self._credit = 0.5  # a stride is given when the credit reaches 1: the first one is
         self._block = 0
         self._block_results: dict[tuple[str, str], list[int]] = {}  # (quantity, side) → [strides, in band]
+        self._block_focus: Instruction | None = None
 
     def rate(self, t_s: float) -> float:
         """Share of strides given feedback ``t_s`` into the session (1 but for ``faded``)."""
@@ -100,8 +102,10 @@ class FeedbackSchedule:
             counts[0] += 1
             counts[1] += c.severity == SEVERITY_IN_BAND
         self._block += 1
+        self._block_focus = instruction or self._block_focus
         if self._block < self.params.summary_strides:
             return None
+        instruction = instruction or self._block_focus  # the block's last focus, if it ended in band
         results, self._block_results, self._block = self._block_results, {}, 0
         if instruction is None:
             return None
