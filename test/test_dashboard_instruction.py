@@ -14,7 +14,7 @@ import time
 
 import pytest
 from conftest import find_chromium
-from test_dashboard_layout import _cycle, _text, _until
+from test_dashboard_layout import _cycle, _fits, _text, _until
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(90),
               pytest.mark.skipif(find_chromium() is None, reason="chromium not installed: run "
@@ -76,8 +76,9 @@ def test_the_page_shows_and_speaks_the_instruction_and_the_dose_is_published(ros
         assert [(g.rule, g.text, g.quantity, g.schedule, g.kind) for g in given] == \
             [("quicker_steps", "Take quicker steps", "cadence", "bandwidth", 1)]
         assert abs(given[0].measured * 60 - 80) < 1e-9 and given[0].band_low * 60 == pytest.approx(96)
-        shot = tmp_path / "dashboard_instruction_1280x800.png"
-        browser.screenshot(shot)
+        shots = _fits(browser, tmp_path, "instruction")  # 1280x800 and 1024x768: no scrolling, no clipping
+        browser.call("Emulation.setDeviceMetricsOverride", width=1280, height=800, deviceScaleFactor=1,
+                     mobile=False)
 
         # muted: shown, not spoken
         browser.evaluate("document.getElementById('mute').click()")
@@ -93,7 +94,7 @@ def test_the_page_shows_and_speaks_the_instruction_and_the_dose_is_published(ros
         cycles.publish(_cycle("right", 2, 12.25))
         state = browser.wait_for(lambda s: s.get("instructionsReceived", 0) >= 3, timeout=10)
         assert (state["spoken"], state["toneFallbacks"]) == (1, 1)
-        print(f"\nscreenshot: {shot}")
+        print("\nscreenshots:\n" + "\n".join(shots))
     finally:
         stop.set()
         spinner.join(10)

@@ -121,3 +121,4 @@ def test_the_report_s_dose_section_counts_in_band_strides_cues_and_instructions(
                     + table.header + [c if isinstance(c, str) else c[0] for c in row])
     assert "on a share of the strides that fell over the session (faded): 100 instructions" in text
     assert not FORBIDDEN.findall(text)
+    assert section.blocks[-1].text.startswith("Schedule: Winstein CJ, Schmidt RA. Reduced frequency")

@@ -111,6 +111,7 @@ function onHello(msg) {
     data.cues.clear(); data.spatial = { left: null, right: null }; data.cycles = { left: null, right: null };
     data.strideCount = { left: 0, right: 0 }; data.events = []; data.samples = []; data.figure = null;
     data.angles = null; data.icCount = 0; data.activity = null;
+    state.instruction = null; document.getElementById("instruction").hidden = true;
   }
   state.ended = false; state.connectionLost = false;
   showSessionState(null);

@@ -14,7 +14,7 @@ from collections import Counter
 
 from gait_biofeedback.core.biofeedback.advice import quantity_label
 from gait_biofeedback.core.biofeedback.evaluator import SEVERITY_IN_BAND
-from gait_biofeedback.core.biofeedback.schedule import KIND_INSTRUCTION
+from gait_biofeedback.core.biofeedback.schedule import KIND_INSTRUCTION, SOURCES
 from gait_biofeedback.core.words import plural
 from gait_biofeedback.report.document import Paragraph, Section, Table
 from gait_biofeedback.report.extract import SessionData
@@ -73,4 +73,7 @@ def dose_section(data: SessionData) -> Section:
                      "; ".join(f"“{text}”" for text, _ in said.most_common(2))])
     section.add(Table(["target", f"in range, first {_minutes(window)}", f"in range, last {_minutes(window)}",
                        "cues given", "instructions given", "words"], rows))
+    cited = [SOURCES[s] for s in schedules if s in SOURCES]
+    if cited:
+        section.add(Paragraph("Schedule: " + " ".join(cited), "small"))
     return section

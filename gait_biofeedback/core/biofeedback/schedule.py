@@ -34,6 +34,16 @@ from gait_biofeedback.core.biofeedback.instruction_params import SCHEDULES, Inst
 from gait_biofeedback.core.stamps import NS_PER_S
 
 KIND_CUE, KIND_INSTRUCTION = 0, 1  # as gait_biofeedback_msgs/FeedbackGiven
+SOURCES = {
+    "bandwidth": "Sherwood DE. Effect of bandwidth knowledge of results on movement consistency. Percept Mot "
+                 "Skills 1988;66:535-42.",
+    "faded": "Winstein CJ, Schmidt RA. Reduced frequency of knowledge of results enhances motor skill "
+             "learning. J Exp Psychol Learn Mem Cogn 1990;16:677-91.",
+    "summary": "Schmidt RA, Young DE, Swinnen S, Shapiro DC. Summary knowledge of results for skill "
+               "acquisition: support for the guidance hypothesis. J Exp Psychol Learn Mem Cogn "
+               "1989;15:352-9.",
+}
+"""Each schedule's source (every stride: the thesis' minimum, feedback on each stride, has none)."""
 
 
 @dataclass(frozen=True)
