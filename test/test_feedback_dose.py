@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import math
 
-from conftest import rosbags_typestore
+import pytest
+from conftest import rosbags_typestore, spinning
 
 from gait_biofeedback.core.biofeedback.evaluator import Cue
 from gait_biofeedback.core.biofeedback.instruction import Instruction, Rule
@@ -122,3 +123,53 @@ def test_the_report_s_dose_section_counts_in_band_strides_cues_and_instructions(
     assert "on a share of the strides that fell over the session (faded): 100 instructions" in text
     assert not FORBIDDEN.findall(text)
     assert section.blocks[-1].text.startswith("Schedule: Winstein CJ, Schmidt RA. Reduced frequency")
+
+
+@pytest.mark.ros
+@pytest.mark.timeout(60)
+def test_the_recorded_dose_of_a_faded_schedule_falls(ros_context, tmp_path):
+    """The biofeedback node and the recorder: 40 strides 0.75 s apart, all at 80 steps/min (below the
+    band), after a calibration, with feedback fading from every stride to a quarter over 30 s.
+
+    Share at stride k (t = 0.75 k s, all within the 30 s): 1 - 0.75 t / 30 = 1 - 0.01875 k; given after
+    n strides: floor(0.5 + sum of the shares). First 20: 20 - 0.01875 x 190 = 16.44 → 16; all 40:
+    40 - 0.01875 x 780 = 25.38 → 25, so 9 in the last 20."""
+    from rclpy.node import Node
+    from test_dashboard_layout import _cycle
+    from test_interop import _decodes_everywhere
+
+    from gait_biofeedback.io.bag import BagReader
+    from gait_biofeedback.nodes.biofeedback import BiofeedbackNode
+    from gait_biofeedback.nodes.common import publisher, spin_until
+    from gait_biofeedback.nodes.recorder import Recorder
+    from gait_biofeedback.report.dose import dose_section
+    from gait_biofeedback.report.extract import read_session
+    from gait_biofeedback.wire import topics
+    from gait_biofeedback.wire.calibration import mounting_msg
+
+    bio = BiofeedbackNode(ros_context, serve_dashboard=False, stride_wait_s=0.0, feedback_schedule="faded",
+                          fade_start=1.0, fade_end=0.25, fade_duration_s=30.0)
+    recorder = Recorder(ros_context, output=str(tmp_path / "session"), flush_period_s=0.1,
+                        topics=[t.absolute() for t in (topics.GAIT_CYCLES, topics.CUES, topics.GIVEN,
+                                                       topics.CALIBRATION)])
+    source = Node("hand_made_inputs", context=ros_context)
+    cycles, calibration = (publisher(source, t) for t in (topics.GAIT_CYCLES, topics.CALIBRATION))
+    with spinning(ros_context, bio, recorder, source) as executor:
+        assert spin_until(executor, lambda: bio._given.get_subscription_count() > 0
+                          and cycles.get_subscription_count() >= 2, timeout=10)
+        calibration.publish(mounting_msg({"left_foot": [1.0, 0, 0, 0]}, 0, "walking", "explained_variance"))
+        assert spin_until(executor, lambda: bio.calibrated, timeout=10)
+        for k in range(40):
+            cycles.publish(_cycle(("left", "right")[k % 2], 1 + k // 2, 10.0 + 0.75 * k))
+            assert spin_until(executor, lambda n=k + 1: bio.counts["strides"] >= n, timeout=5)
+        published = 1 + 40 + bio.counts["cues"] + bio.counts["instructions_given"] + bio.counts["cues_given"]
+        assert spin_until(executor, lambda: recorder.written >= published, timeout=10)
+    given = [m for topic, m, _ in BagReader(tmp_path / "session").messages([topics.GIVEN.absolute()])]
+    strides = [m.stride_index for m in given]
+    halves = sum(s <= 10 for s in strides), sum(s > 10 for s in strides)  # stride index 1-10: k < 20
+    assert halves == (16, 9), strides
+    assert {(m.rule, m.schedule, m.kind) for m in given} == {("quicker_steps", "faded", KIND_INSTRUCTION)}
+    counts = _decodes_everywhere(tmp_path / "session", {topics.GIVEN.absolute(), topics.CUES.absolute()})
+    assert counts[topics.GIVEN.absolute()] == 25
+    section = dose_section(read_session(tmp_path / "session"))
+    assert section.blocks[1].rows[0][3:5] == ["0", "25"]
