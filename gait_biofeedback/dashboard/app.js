@@ -313,6 +313,9 @@ function showInstruction(m, fresh) {
   if (fresh && m.kind === "instruction") say(m.text);
 }
 
+// Browsers load their voices after the page: asking once at start has them ready for the first words.
+if (window.speechSynthesis) window.speechSynthesis.getVoices();
+
 const SCHEDULE_WORDS = { every_stride: "every stride", bandwidth: "only outside the target range",
   faded: "fading over the session", summary: "a summary every few strides" };
 
