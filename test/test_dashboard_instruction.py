@@ -40,7 +40,8 @@ def test_the_page_shows_and_speaks_the_instruction_and_the_dose_is_published(ros
     from gait_biofeedback.wire import topics
     from gait_biofeedback.wire.calibration import mounting_msg
 
-    bio = BiofeedbackNode(ros_context, port=0, stride_wait_s=0.0, feedback_schedule="bandwidth")
+    bio = BiofeedbackNode(ros_context, port=0, stride_wait_s=0.0, feedback_schedule="bandwidth",
+                          words_every=1)
     source = Node("hand_made_inputs", context=ros_context)
     cycles, calibration = (publisher(source, t) for t in (topics.GAIT_CYCLES, topics.CALIBRATION))
     given = []

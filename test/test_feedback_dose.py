@@ -133,7 +133,8 @@ def test_the_recorded_dose_of_a_faded_schedule_falls(ros_context, tmp_path):
 
     Share at stride k (t = 0.75 k s, all within the 30 s): 1 - 0.75 t / 30 = 1 - 0.01875 k; given after
     n strides: floor(0.5 + sum of the shares). First 20: 20 - 0.01875 x 190 = 16.44 → 16; all 40:
-    40 - 0.01875 x 780 = 25.38 → 25, so 9 in the last 20."""
+    40 - 0.01875 x 780 = 25.38 → 25, so 9 in the last 20. The words (words_every 4) on the 1st, 5th, ...
+    25th given: 7 instructions, 18 cues."""
     from rclpy.node import Node
     from test_dashboard_layout import _cycle
     from test_interop import _decodes_everywhere
@@ -168,8 +169,9 @@ def test_the_recorded_dose_of_a_faded_schedule_falls(ros_context, tmp_path):
     strides = [m.stride_index for m in given]
     halves = sum(s <= 10 for s in strides), sum(s > 10 for s in strides)  # stride index 1-10: k < 20
     assert halves == (16, 9), strides
-    assert {(m.rule, m.schedule, m.kind) for m in given} == {("quicker_steps", "faded", KIND_INSTRUCTION)}
+    assert {(m.rule, m.schedule) for m in given} == {("quicker_steps", "faded")}
+    assert [m.kind for m in given] == ([KIND_INSTRUCTION] + [KIND_CUE] * 3) * 6 + [KIND_INSTRUCTION]
     counts = _decodes_everywhere(tmp_path / "session", {topics.GIVEN.absolute(), topics.CUES.absolute()})
     assert counts[topics.GIVEN.absolute()] == 25
     section = dose_section(read_session(tmp_path / "session"))
-    assert section.blocks[1].rows[0][3:5] == ["0", "25"]
+    assert section.blocks[1].rows[0][3:5] == ["18", "7"]

@@ -153,7 +153,7 @@ def test_a_knowledge_base_file_is_refused_naming_the_file(tmp_path):
 def run_schedule(schedule: str, in_band: list[bool], **params) -> list:
     rules = rules_from_dict({"rules": [rule("quicker", "cadence", "below", 30)]})
     selector = InstructionSelector(rules, hold_strides=1)
-    plan = FeedbackSchedule(InstructionParams(feedback_schedule=schedule, **params))
+    plan = FeedbackSchedule(InstructionParams(feedback_schedule=schedule, **{"words_every": 1, **params}))
     out = []
     for k, ok in enumerate(in_band):
         cues = [cue("cadence", "", (110 if ok else 80) / 60, stride=k + 1, t_s=float(k))]
@@ -191,3 +191,19 @@ def test_a_summary_every_five_strides_counts_the_strides_in_band():
     # a block wholly in band is told so without words
     given = run_schedule("summary", [False] * 5 + [True] * 5, summary_strides=5)
     assert [(g.kind, g.block_in_band) for g in given if g] == [(KIND_INSTRUCTION, 0), (KIND_CUE, 5)]
+
+
+def test_the_words_come_on_a_new_focus_and_then_after_every_few_feedbacks_without_them():
+    kinds = [g.kind for g in run_schedule("bandwidth", [False] * 9, words_every=4)]
+    assert kinds == [KIND_INSTRUCTION, KIND_CUE, KIND_CUE, KIND_CUE] * 2 + [KIND_INSTRUCTION]
+
+
+def test_no_feedback_on_a_stride_without_a_new_value_of_the_focus():
+    """A left-hip focus: the right foot's stride (its cues stamped at its own closing IC) gives nothing."""
+    selector = InstructionSelector(SHIPPED, hold_strides=1)
+    plan = FeedbackSchedule(InstructionParams(feedback_schedule="every_stride"))
+    left = [cue("hip_extension_peak_stance", "left", 0.0, stride=1, t_s=1.0)]
+    right = [cue("cadence", "", 110 / 60, stride=1, t_s=1.55)]
+    assert plan.decide(selector.update(left), left, 1, round(1.0 * NS_PER_S)).kind == KIND_INSTRUCTION
+    assert selector.update(right).rule.id == "push_off_hip_extension"  # still the focus
+    assert plan.decide(selector.focus, right, 1, round(1.55 * NS_PER_S)) is None

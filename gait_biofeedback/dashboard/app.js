@@ -304,11 +304,11 @@ function showInstruction(m, fresh) {
   const summary = m.schedule === "summary" ?
     " — " + m.block_in_band + " of " + m.block_strides + " strides in the target range" : "";
   document.getElementById("instruction-text").textContent =
-    m.kind === "instruction" ? m.text : (m.label + ": in the target range");
+    m.in_band ? m.label + ": in the target range" : m.text;
   document.getElementById("instruction-detail").textContent = m.label + ": measured " +
     fmtQuantity(m.unit, m.measured, q) + ", target " + fmtQuantity(m.unit, m.low, q) + " to " +
     fmtQuantity(m.unit, m.high, q) + summary + " (feedback: " + SCHEDULE_WORDS[m.schedule] + ")";
-  box.className = m.kind === "instruction" ? "" : "in-band";
+  box.className = m.in_band ? "in-band" : "";
   box.hidden = false;
   if (fresh && m.kind === "instruction") say(m.text);
 }

@@ -28,3 +28,6 @@ class InstructionParams:
     fade_duration_s: float = param(600.0, "faded: time over which the share falls from fade_start to "
                                    "fade_end", "s", low=1.0, high=36000.0)
     summary_strides: int = param(10, "summary: strides per summary", "strides", low=1, high=1000)
+    words_every: int = param(4, "the focus's words are given on its first feedback and again after this "
+                             "many feedbacks without them (in between: a cue, shown without words; 1 = words "
+                             "each time)", "feedbacks", low=1, high=1000)

@@ -17,10 +17,14 @@ the instruction in focus (:mod:`~gait_biofeedback.core.biofeedback.instruction`)
   strides had that quantity in band (Schmidt RA et al. Summary knowledge of results for skill
   acquisition: support for the guidance hypothesis. J Exp Psychol Learn Mem Cogn 1989;15:352-9).
 
-What is given is a :class:`Given`: the words (``KIND_INSTRUCTION``: shown and spoken) when the focused
-quantity is outside its band, or when a summary says it was outside on a stride of its block;
-otherwise a cue (``KIND_CUE``: the result shown, no words). Times are the strides' closing ICs, in s
-from the first stride the schedule saw.
+Feedback is given only on a stride that measured the focused quantity (a per-side focus: the strides
+of its foot), not again on the other foot's stride about the same value; a summary comes after its
+block whatever stride closes it. What is given is a :class:`Given`: the words (``KIND_INSTRUCTION``:
+shown and spoken) when the focused quantity is outside its band, on the focus's first feedback and
+then after every ``words_every`` feedbacks given without them, or when a summary says it was outside
+on a stride of its block; otherwise a cue (``KIND_CUE``: the result shown, no words: in band, or
+outside between the words). Times are the strides' closing ICs, in s from the first stride the
+schedule saw.
 """
 
 from __future__ import annotations
@@ -75,6 +79,8 @@ class FeedbackSchedule:
         self._block = 0
         self._block_results: dict[tuple[str, str], list[int]] = {}  # (quantity, side) → [strides, in band]
         self._block_focus: Instruction | None = None
+        self._words_for: tuple[str, str] | None = None  # (rule, side) whose words were given last
+        self._without_words = 0  # feedbacks of that focus given since, without words
 
     def rate(self, t_s: float) -> float:
         """Share of strides given feedback ``t_s`` into the session (1 but for ``faded``)."""
@@ -91,19 +97,28 @@ class FeedbackSchedule:
         rate = self.rate((stamp_ns - self._first_ns) / NS_PER_S)
         if self.schedule == "summary":
             return self._summary(instruction, cues, stride_index, stamp_ns)
-        if instruction is None:
+        if instruction is None or instruction.cue.stamp_ns != stamp_ns:  # nothing new of the focus
             return None
-        kind = KIND_INSTRUCTION if instruction.outside else KIND_CUE
-        given = Given(instruction, kind, self.schedule, rate, stride_index, stamp_ns, 1,
-                      int(not instruction.outside))
-        if self.schedule == "bandwidth":
-            return given if instruction.outside else None
+        if self.schedule == "bandwidth" and not instruction.outside:
+            return None
         if self.schedule == "faded":
             self._credit += rate
             if self._credit < 1.0 - 1e-9:
                 return None
             self._credit -= 1.0
-        return given
+        return Given(instruction, self._kind(instruction), self.schedule, rate, stride_index, stamp_ns, 1,
+                     int(not instruction.outside))
+
+    def _kind(self, instruction: Instruction) -> int:
+        """Words or a cue for feedback given now on ``instruction`` (module docstring)."""
+        if not instruction.outside:
+            return KIND_CUE
+        focus = (instruction.rule.id, instruction.side)
+        if focus == self._words_for and self._without_words + 1 < self.params.words_every:
+            self._without_words += 1
+            return KIND_CUE
+        self._words_for, self._without_words = focus, 0
+        return KIND_INSTRUCTION
 
     def _summary(self, instruction: Instruction | None, cues: Iterable[Cue], stride_index: int,
                  stamp_ns: int) -> Given | None:
