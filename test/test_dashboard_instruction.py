@@ -95,6 +95,15 @@ def test_the_page_shows_and_speaks_the_instruction_and_the_dose_is_published(ros
         cycles.publish(_cycle("right", 2, 12.25))
         state = browser.wait_for(lambda s: s.get("instructionsReceived", 0) >= 3, timeout=10)
         assert (state["spoken"], state["toneFallbacks"]) == (1, 1)
+
+        # the therapist feeds back the knee only: cadence gives no instruction any more
+        browser.evaluate("const j = document.getElementById('joint'); j.value = 'knee';"
+                         "j.dispatchEvent(new Event('change')); true")
+        browser.wait_for(lambda s: (s.get("lastReply") or {}).get("action") == "feedback", timeout=5)
+        cycles.publish(_cycle("left", 3, 13.0))
+        assert _until(browser, "stat-strides", lambda t: t == "3 / 2") == "3 / 2"
+        time.sleep(0.3)  # a frame or two after the stride's
+        assert browser.state()["instructionsReceived"] == 3 and len(given) == 3
         print("\nscreenshots:\n" + "\n".join(shots))
     finally:
         stop.set()

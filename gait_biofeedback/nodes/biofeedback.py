@@ -25,7 +25,8 @@ shows) → ``calibration/calibrate`` (the reply adds ``looks_like``, which the p
 
 Instructions (issue 49 items 4-6): after each stride evaluated (once a calibration is in force) the
 :class:`~gait_biofeedback.core.biofeedback.instruction.InstructionSelector` keeps one instruction in focus
-(the knowledge base ``instructions_file``, on the ``paretic_side``), and the session's
+(the knowledge base ``instructions_file``, on the ``paretic_side``, among the cues of the side and joint
+chosen on the page, as the sound), and the session's
 :class:`~gait_biofeedback.core.biofeedback.schedule.FeedbackSchedule` (``feedback_schedule``) says whether
 it is given on this stride. What is given goes on ``biofeedback/given`` (FeedbackGiven: the dose, which
 the recorder records as every topic) and to the page as ``{"type": "instruction", "kind":
@@ -349,6 +350,8 @@ class BiofeedbackNode(GuardedNode):
 
     def _instruct(self, stride: Stride, cues: list[Cue]) -> None:
         """The instruction in focus after ``stride``, given if the session's schedule says so."""
+        side, joint = self.feedback["side"], self.feedback["joint"]
+        cues = [c for c in cues if (side == "both" or c.side in ("", side)) and joint in ("all", c.joint)]
         instruction = self.selector.update(cues)
         given = self.schedule.decide(instruction, cues, stride.index, stride.end_ns)
         if given is None:
