@@ -23,6 +23,7 @@ const state = {
   readOnly: true, calibrationInForce: null, proposedProtocol: null,
   lastAngleStamp: null, lastFrameWall: null, feedback: { side: "both", joint: "all" },
   ended: false, connectionLost: false, clippedLabels: 0, clippedLabelsNow: 0, calibrationProgress: "",
+  instruction: null, instructionsReceived: 0, spoken: 0, lastSpoken: "", toneFallbacks: 0, coaching: null,
 };
 window.dashboardState = state;
 
@@ -110,6 +111,7 @@ function onHello(msg) {
     data.cues.clear(); data.spatial = { left: null, right: null }; data.cycles = { left: null, right: null };
     data.strideCount = { left: 0, right: 0 }; data.events = []; data.samples = []; data.figure = null;
     data.angles = null; data.icCount = 0; data.activity = null;
+    state.instruction = null; document.getElementById("instruction").hidden = true;
   }
   state.ended = false; state.connectionLost = false;
   showSessionState(null);
@@ -124,6 +126,8 @@ function onHello(msg) {
   data.strides = { left: [], right: [] };
   for (const s of msg.strides || []) addStride(s);
   if (msg.audio) state.audio = msg.audio;
+  state.coaching = msg.coaching || null;
+  if (msg.instruction) showInstruction(msg.instruction, false);
   const src = (msg.targets.reference_sources || []).join(" · ");
   document.getElementById("sources").textContent = src ?
     "Reference curves: textbook key values of normal adult gait (" + src + "); band = reference ± tolerance set in config/targets.yaml, not a published SD." : "";
@@ -178,6 +182,7 @@ function onMessage(m) {
     case "spatial": data.spatial[m.side] = m; break;
     case "cue": data.cues.set(m.quantity + "|" + m.side, m); state.cuesReceived += 1; break;
     case "audio": state.audio = m; break;
+    case "instruction": state.instructionsReceived += 1; showInstruction(m, true); break;
     case "reply": showReply(m); break;
   }
 }
@@ -250,6 +255,7 @@ function setupControls() {
 
 function setMuted(muted, tell) {
   state.muted = muted;
+  if (muted && window.speechSynthesis) window.speechSynthesis.cancel();
   document.getElementById("mute").textContent = muted ? "Sound: muted" : "Sound: on";
   if (tell) send({ action: "mute", muted });
 }
@@ -287,6 +293,49 @@ const audio = {
     osc.start(t); osc.stop(t + dur + 0.01);
   },
 };
+
+// ---------------------------------------------------------------------------------------------- instruction
+// One instruction at a time (issue 49), as the node's schedule gives it: shown large; its words spoken
+// with the browser's speech synthesis, or two short tones where the browser has no voice; muted: shown only.
+function showInstruction(m, fresh) {
+  state.instruction = m;
+  const box = document.getElementById("instruction");
+  const q = m.quantity;
+  const summary = m.schedule === "summary" ?
+    " — " + m.block_in_band + " of " + m.block_strides + " strides in the target range" : "";
+  document.getElementById("instruction-text").textContent =
+    m.in_band ? m.label + ": in the target range" : m.text;
+  document.getElementById("instruction-detail").textContent = m.label + ": measured " +
+    fmtQuantity(m.unit, m.measured, q) + ", target " + fmtQuantity(m.unit, m.low, q) + " to " +
+    fmtQuantity(m.unit, m.high, q) + summary + " (feedback: " + SCHEDULE_WORDS[m.schedule] + ")";
+  box.className = m.in_band ? "in-band" : "";
+  box.hidden = false;
+  if (fresh && m.kind === "instruction") say(m.text);
+}
+
+// Browsers load their voices after the page: asking once at start has them ready for the first words.
+if (window.speechSynthesis) window.speechSynthesis.getVoices();
+
+const SCHEDULE_WORDS = { every_stride: "every stride", bandwidth: "only outside the target range",
+  faded: "fading over the session", summary: "a summary every few strides" };
+
+function say(text) {
+  if (state.muted || state.ended) return;
+  const synth = window.speechSynthesis;
+  if (synth && window.SpeechSynthesisUtterance && synth.getVoices().length > 0) {
+    if (synth.speaking || synth.pending) return;  // the words of the last one are still being said
+    const u = new SpeechSynthesisUtterance(text);
+    u.lang = "en-GB"; u.rate = 0.95;
+    synth.speak(u);
+    state.spoken += 1; state.lastSpoken = text;
+    return;
+  }
+  audio.resume();  // no voice: two short tones announce the words on screen
+  if (!audio.ctx) return;
+  const t = audio.ctx.currentTime + 0.02;
+  audio.beep(t, 880, 0.12); audio.beep(t + 0.18, 660, 0.12);
+  state.toneFallbacks += 1;
+}
 
 // ---------------------------------------------------------------------------------------------- drawing
 // A canvas sized to its box (CSS width, height from data-aspect) at the screen's pixel ratio; drawing

@@ -23,6 +23,15 @@ shows) → ``calibration/calibrate`` (the reply adds ``looks_like``, which the p
 "hip"|"knee"|"ankle"|"timing"|"spatial"|"all"}``;
 ``{"action": "mute", "muted": bool}``. Replies: ``{"type": "reply", "action", "success", "message"}``.
 
+Instructions (issue 49 items 4-6): after each stride evaluated (once a calibration is in force) the
+:class:`~gait_biofeedback.core.biofeedback.instruction.InstructionSelector` keeps one instruction in focus
+(the knowledge base ``instructions_file``, on the ``paretic_side``, among the cues of the side and joint
+chosen on the page, as the sound), and the session's
+:class:`~gait_biofeedback.core.biofeedback.schedule.FeedbackSchedule` (``feedback_schedule``) says whether
+it is given on this stride. What is given goes on ``biofeedback/given`` (FeedbackGiven: the dose, which
+the recorder records as every topic) and to the page as ``{"type": "instruction", "kind":
+"instruction"|"cue", "text", ...}``: the page shows it large and speaks the instruction's words.
+
 Audio: the cue to sound (largest error of the chosen side/joint among the latest cues, silent when all
 are in band, and silent before a calibration is in force: "not calibrated yet: no feedback") is sent
 to the page as ``{"type": "audio", "frequency", "rate", ...}``; the page beeps with
@@ -68,6 +77,8 @@ from gait_biofeedback.core.biofeedback.evaluator import (
     sagittal_stick_figure,
     select_audio_cue,
 )
+from gait_biofeedback.core.biofeedback.instruction import InstructionSelector, load_rules
+from gait_biofeedback.core.biofeedback.schedule import KIND_INSTRUCTION, FeedbackSchedule, Given
 from gait_biofeedback.core.calibration.sensor_to_segment import AUTO, REQUESTS
 from gait_biofeedback.core.segments import SIDES
 from gait_biofeedback.core.stamps import NS_PER_S
@@ -76,7 +87,7 @@ from gait_biofeedback.nodes.common import GuardedNode, publisher, subscribe
 from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
 from gait_biofeedback.wire import diagnostics, topics
 from gait_biofeedback.wire.activity import state_of
-from gait_biofeedback.wire.biofeedback import cue_msg
+from gait_biofeedback.wire.biofeedback import cue_msg, given_msg
 from gait_biofeedback.wire.gait import event_of, foot_frame, stride_of
 from gait_biofeedback.wire.joints import angles_of, recovering_of
 from gait_biofeedback.wire.stamps import stamp_to_ns
@@ -114,6 +125,19 @@ def cue_to_json(c: Cue, stride_side: str = "") -> dict[str, Any]:
             "t": c.stamp_ns / NS_PER_S}
 
 
+def given_to_json(g: Given) -> dict[str, Any]:
+    """Feedback given, for the page: ``kind`` "instruction" (show and speak ``text``) or "cue" (show the
+    result), the quantity in a clinician's words, its value and band (SI), the schedule."""
+    c = g.instruction.cue
+    return {"type": "instruction", "kind": "instruction" if g.kind == KIND_INSTRUCTION else "cue",
+            "text": g.instruction.text, "rule": g.instruction.rule.id, "new": g.instruction.new,
+            "quantity": c.quantity, "side": c.side, "label": quantity_label(c.quantity, c.side),
+            "unit": c.unit, "measured": _finite(c.measured), "low": c.band_low, "high": c.band_high,
+            "in_band": not g.instruction.outside, "schedule": g.schedule, "rate": g.rate,
+            "block_strides": g.block_strides, "block_in_band": g.block_in_band, "stride": g.stride_index,
+            "t": g.stamp_ns / NS_PER_S}
+
+
 class BiofeedbackNode(GuardedNode):
     """Biofeedback cues and the dashboard server (see module docstring)."""
 
@@ -131,6 +155,10 @@ class BiofeedbackNode(GuardedNode):
         self.feedback = {"side": p.feedback_side, "joint": p.feedback_joint}
         self.lengths = p.body
         self.evaluator = BiofeedbackEvaluator(self.targets, lengths=self.lengths)
+        self.selector = InstructionSelector(load_rules(p.instructions_file), p.instruction_hold_strides,
+                                            p.paretic_side)
+        self.schedule = FeedbackSchedule(p)
+        self._instruction: dict[str, Any] | None = None  # the last given, for a newly opened page
         self.muted = False
         # state shared with the server thread: references replaced whole, bounded deques
         self._latest: tuple[float, dict[str, float], tuple[str, ...]] | None = None
@@ -154,7 +182,8 @@ class BiofeedbackNode(GuardedNode):
         self._pending: list[tuple[Stride, float]] = []
         self._seq = 0
         self.counts = {"joint_states": 0, "recovering_joint_states": 0, "strides": 0,
-                       "strides_without_angles": 0, "implausible": 0, "cues": 0, "frames": 0, "commands": 0}
+                       "strides_without_angles": 0, "implausible": 0, "cues": 0, "frames": 0, "commands": 0,
+                       "instructions_given": 0, "cues_given": 0}
         self._index_names: tuple[str, ...] = ()
         self._index: list[int | None] = []
 
@@ -164,6 +193,7 @@ class BiofeedbackNode(GuardedNode):
                                 (topics.CALIBRATION, self._on_calibration)):
             subscribe(self, topic, callback)
         self._cues = publisher(self, topics.CUES)
+        self._given = publisher(self, topics.GIVEN)
         self._calibrate = self.create_client(Calibrate, topics.CALIBRATE_SERVICE)
         self._record = {"record_start": self.create_client(Trigger, topics.RECORDER_START_SERVICE),
                         "record_stop": self.create_client(Trigger, topics.RECORDER_STOP_SERVICE)}
@@ -307,6 +337,8 @@ class BiofeedbackNode(GuardedNode):
             self.counts["cues"] += 1
             self._latest_cues[(c.quantity, c.side)] = c
             self._outbox.append(cue_to_json(c, stride.side))
+        if self.calibrated:  # before a calibration: no feedback
+            self._instruct(stride, result.cues)
         if result.curves:
             entry = {"type": "stride", "side": stride.side, "stride": stride.index, "t": stride.t_end,
                      "tc_percent": 100.0 * (stride.t_tc - stride.t_start) / (stride.t_end - stride.t_start),
@@ -315,6 +347,19 @@ class BiofeedbackNode(GuardedNode):
             self._recent_strides.append(entry)
             self._outbox.append(entry)
         self._update_audio()
+
+    def _instruct(self, stride: Stride, cues: list[Cue]) -> None:
+        """The instruction in focus after ``stride``, given if the session's schedule says so."""
+        side, joint = self.feedback["side"], self.feedback["joint"]
+        cues = [c for c in cues if (side == "both" or c.side in ("", side)) and joint in ("all", c.joint)]
+        instruction = self.selector.update(cues)
+        given = self.schedule.decide(instruction, cues, stride.index, stride.end_ns)
+        if given is None:
+            return
+        self._given.publish(given_msg(given, foot_frame(stride.side)))
+        self.counts["instructions_given" if given.kind == KIND_INSTRUCTION else "cues_given"] += 1
+        self._instruction = given_to_json(given)
+        self._outbox.append(self._instruction)
 
     def _update_audio(self) -> None:
         cue = (select_audio_cue(self._latest_cues.values(), self.feedback["side"], self.feedback["joint"])
@@ -397,7 +442,9 @@ class BiofeedbackNode(GuardedNode):
         self._sent_activity_version = -1
         return {"type": "hello", "targets": self.targets_json, "feedback": dict(self.feedback),
                 "muted": self.muted, "protocols": list(REQUESTS), "audio": dict(self._audio),
-                "strides": list(self._recent_strides), "calibration": self._calibration, "time": time.time()}
+                "strides": list(self._recent_strides), "calibration": self._calibration, "time": time.time(),
+                "coaching": {"schedule": self.schedule.schedule, "paretic_side": self.selector.paretic_side},
+                "instruction": self._instruction}
 
     def build_frame(self) -> dict[str, Any] | None:
         """One websocket frame: new samples, latest angles and stick figure, queued messages, state."""

@@ -26,7 +26,7 @@ import yaml
 from gait_biofeedback.core.biofeedback.evaluator import default_targets_path, load_targets
 from gait_biofeedback.core.safe_yaml import describe, load_yaml_file
 from gait_biofeedback.parameters import PATIENT_BLOCK, PATIENT_KEYS, patient_block
-from gait_biofeedback.report import content, overview
+from gait_biofeedback.report import content, dose, overview
 from gait_biofeedback.report.analysis import SessionAnalysis, analyse_session
 from gait_biofeedback.report.document import Document
 from gait_biofeedback.report.extract import GAIT_CYCLE_FIELDS, SessionData, read_session
@@ -245,6 +245,7 @@ def write_report(
         *content.calibration_section(data, summary),
         *content.quality_section(data),
         *([content.cues_section(analysis, targets_path.name)] if data.cues else []),
+        *([dose.dose_section(data)] if dose.instructions_recorded(data) else []),
         content.sources_section(norms),
     ]
     doc = Document("Gait session report", header, sections)

@@ -16,6 +16,7 @@ from gait_biofeedback.core.biofeedback.evaluator import Stride
 from gait_biofeedback.report.recording import CALIBRATION, EVENTS, Recording, read_recording_file
 from gait_biofeedback.report.session import SessionReport, summarise
 from gait_biofeedback.wire import topics
+from gait_biofeedback.wire.biofeedback import given_of
 from gait_biofeedback.wire.gait import stride_of
 from gait_biofeedback.wire.stamps import stamp_to_ns
 
@@ -115,6 +116,7 @@ class SessionData:
     diagnostics: dict[str, StatusSummary]
     cues: list[dict]
     counts: dict[str, int]
+    given: list[dict] = field(default_factory=list)  # feedback given (the dose): given_of + "t" (s)
     stride_objects: list = field(default_factory=list)
     damage: list[str] = field(default_factory=list)  # the file was damaged: what was lost, in words
     summary: SessionReport = field(default_factory=SessionReport)  # its figures, from the same read
@@ -240,6 +242,7 @@ def session_data(recording: Recording) -> SessionData:
         diagnostics=diagnostics,
         cues=cues,
         counts=recording.counts,
+        given=[{**g, "t": (g["stamp_ns"] - start_ns) / 1e9} for g in map(given_of, recording.given)],
         stride_objects=stride_objects,
         damage=recording.damage,
         summary=summarise(recording),

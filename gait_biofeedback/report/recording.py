@@ -1,7 +1,8 @@
 """One read of a session recording for everything the report says of it (issue 46).
 
 The graph's outputs (``gait/cycles``, ``gait/stride_space``, ``gait/events``, ``joint_states``,
-``activity/state``, ``calibration/sensor_to_segment``, ``biofeedback/cues``, ``/diagnostics``) and,
+``activity/state``, ``calibration/sensor_to_segment``, ``biofeedback/cues``, ``biofeedback/given``,
+``/diagnostics``) and,
 for a simulated session, its ``/ground_truth/...`` topics, read once in log order into a
 :class:`Recording`: what :func:`~gait_biofeedback.report.extract.read_session` (the report's data) and
 :func:`~gait_biofeedback.report.session.summarise` (its figures against the truth) are made of.
@@ -30,7 +31,7 @@ CALIBRATION, TRUE_CALIBRATION = topics.CALIBRATION.absolute(), topics.truth(topi
 JOINTS, TRUE_JOINTS = topics.JOINT_STATES.absolute(), topics.truth(topics.JOINT_STATES)
 EVENTS, TRUE_EVENTS = topics.GAIT_EVENTS.absolute(), topics.truth(topics.GAIT_EVENTS)
 CYCLES, SPACE = topics.GAIT_CYCLES.absolute(), topics.STRIDE_SPACE.absolute()
-ACTIVITY, CUES = topics.ACTIVITY.absolute(), topics.CUES.absolute()
+ACTIVITY, CUES, GIVEN = topics.ACTIVITY.absolute(), topics.CUES.absolute(), topics.GIVEN.absolute()
 DIAGNOSTICS = topics.DIAGNOSTICS.absolute()
 
 
@@ -86,7 +87,8 @@ class Recording:
     kind, stamp) of the detected and true gait events; ``joints``: topic → rows (detected and true);
     ``activity``: (stamp, posture, locomotion, step count, trunk inclination) of each state and
     ``transitions`` (stamp, code), ``steps`` the most counted; ``calibrations``: (topic, message, log
-    time), estimated and true; ``cues``: the messages; ``diagnostics``: (message, log time);
+    time), estimated and true; ``cues``, ``given`` (the feedback given, the dose): the messages;
+    ``diagnostics``: (message, log time);
     ``event_messages``, ``activity_messages``: the detected events' and the activity states' messages
     (the tables, :mod:`~gait_biofeedback.report.tables`)."""
 
@@ -104,6 +106,7 @@ class Recording:
     steps: int = 0
     calibrations: list[tuple[str, Any, int]] = field(default_factory=list)
     cues: list[Any] = field(default_factory=list)
+    given: list[Any] = field(default_factory=list)
     diagnostics: list[tuple[Any, int]] = field(default_factory=list)
     event_messages: list[Any] = field(default_factory=list)
     activity_messages: list[Any] = field(default_factory=list)
@@ -125,7 +128,7 @@ def _summary_topics(recorded: dict[str, str]) -> set[str]:
     return wanted
 
 
-ALL_TOPICS = frozenset({CYCLES, SPACE, EVENTS, JOINTS, ACTIVITY, CALIBRATION, CUES, DIAGNOSTICS,
+ALL_TOPICS = frozenset({CYCLES, SPACE, EVENTS, JOINTS, ACTIVITY, CALIBRATION, CUES, GIVEN, DIAGNOSTICS,
                         TRUE_CALIBRATION, TRUE_EVENTS, TRUE_JOINTS})
 """What the report reads: the outputs and the truth."""
 
@@ -168,6 +171,8 @@ def read_recording(reader: BagReader, summary_only: bool = False) -> Recording:
             rec.calibrations.append((topic, msg, log_ns))
         elif topic == CUES:
             rec.cues.append(msg)
+        elif topic == GIVEN:
+            rec.given.append(msg)
         else:
             rec.diagnostics.append((msg, log_ns))
     rec.cycles = revised_cycles(cycles)

@@ -16,6 +16,7 @@ from visualization_msgs.msg import MarkerArray
 from gait_biofeedback_msgs.msg import (
     ActivityState,
     BiofeedbackCue,
+    FeedbackGiven,
     GaitCycle,
     GaitEvent,
     SegmentCalibrationArray,
@@ -95,6 +96,7 @@ GAIT_CYCLES = Topic("gait/cycles", GaitCycle, RELIABLE_QOS)
 STRIDE_SPACE = Topic("gait/stride_space", StrideSpace, RELIABLE_QOS)  # smoothed after provisional values
 ACTIVITY = Topic("activity/state", ActivityState, RELIABLE_QOS)
 CUES = Topic("biofeedback/cues", BiofeedbackCue, RELIABLE_QOS)
+GIVEN = Topic("biofeedback/given", FeedbackGiven, RELIABLE_QOS)  # the dose: each instruction and cue given
 DIAGNOSTICS = Topic("/diagnostics", DiagnosticArray, RELIABLE_QOS)
 
 CALIBRATE_SERVICE = "calibration/calibrate"  # gait_biofeedback_msgs/srv/Calibrate

@@ -59,6 +59,7 @@ from typing import Any
 import numpy as np
 
 from gait_biofeedback.core.biofeedback import normative as normative_gait
+from gait_biofeedback.core.biofeedback.instruction_params import InstructionParams
 from gait_biofeedback.core.body import BodyDimensions, StickFigureDimensions
 from gait_biofeedback.core.gait.cycles import TURN_LIMIT, symmetry_index
 from gait_biofeedback.core.joints.angles import joint_angle_names, relative_rotation_from_angles
@@ -374,8 +375,9 @@ when the session ends."""
 
 
 @dataclass(frozen=True)
-class BiofeedbackParams(StickFigureDimensions):
-    """Parameters of the biofeedback stage and its dashboard (node ``biofeedback``)."""
+class BiofeedbackParams(InstructionParams, StickFigureDimensions):
+    """Parameters of the biofeedback stage and its dashboard (node ``biofeedback``); the instructions'
+    and the feedback schedule's: :class:`InstructionParams`."""
 
     targets_file: str = param("", "the therapist's targets ('' = config/targets.yaml)")
     serve_dashboard: bool = param(True, "serve the clinician's dashboard")
@@ -394,6 +396,8 @@ class BiofeedbackParams(StickFigureDimensions):
     feedback_side: str = param("both", "side whose errors are sounded", choices=FEEDBACK_SIDES)
     feedback_joint: str = param("all", "joint (or timing) whose errors are sounded", choices=FEEDBACK_JOINTS)
     diagnostics_period_s: float = param(1.0, "period of the /diagnostics status", "s", low=0.1, high=60.0)
+    paretic_side: str = param("none", "the patient's paretic side: left, right or none",
+                              choices=("none", "left", "right"))
 
 
 class BiofeedbackEvaluator:
