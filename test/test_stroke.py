@@ -5,13 +5,16 @@ hemiparetic walker's truth through `simulate`, `analyze` and `report` as a user 
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
 import pytest
 from conftest import csv_rows, run_cli
 
+from gait_biofeedback.core.biofeedback.advice import advice
 from gait_biofeedback.core.biofeedback.evaluator import (
+    QUANTITIES,
     BiofeedbackEvaluator,
     BiofeedbackParams,
     Stride,
@@ -141,6 +144,7 @@ def test_paretic_ratios_over_the_window():
     assert result.kinematics["foot_strike_angle"] == 0.3 and result.kinematics["swing_foot_clearance"] == 0.12
     cue = next(c for c in result.cues if c.quantity == "stance_time_asymmetry_paretic")
     assert cue.side == "" and cue.error == pytest.approx(0.57 / 0.71 - 0.95, abs=1e-9)
+    assert advice(cue) == "Stay longer on your affected leg"  # too short a paretic stance
     none = BiofeedbackEvaluator(load_targets(default_targets_path()))
     for side in ("left", "right"):
         out = none.evaluate(Stride(side, 0, s_to_ns(10.0), s_to_ns(10.6), s_to_ns(11.0)))
@@ -236,3 +240,14 @@ def test_the_report_carries_the_stroke_quantities(hemiparetic_walk):
     left = np.median([float(r["knee_hyperextension_stance"]) for r in used if r["side"] == "left"])
     assert left < 0  # the paretic knee hyperextends
     assert any(r["stance_time_asymmetry_paretic"] not in ("", "nan") for r in used)
+
+
+def test_the_dashboard_groups_every_quantity_as_the_evaluator_does():
+    """The page's own lists (app.js: which quantities are one value for both sides, and each one's
+    joint group for the feedback selection) name every quantity of the evaluator, as it groups them."""
+    page = (Path(__file__).resolve().parents[1] / "gait_biofeedback" / "dashboard" / "app.js").read_text()
+    listed = re.search(r"const BILATERAL = new Set\(\[(.*?)\]\)", page, re.S)[1]
+    bilateral = set(re.findall(r'"(\w+)"', listed))
+    groups = dict(re.findall(r"(\w+): \"(\w+)\"", re.search(r"const groups = \{(.*?)\};", page, re.S)[1]))
+    assert bilateral == {q for q, (_, both, _) in QUANTITIES.items() if both}
+    assert groups == {q: group for q, (group, _, _) in QUANTITIES.items()}
