@@ -1,6 +1,7 @@
 """The stroke quantities (issue 49, docs/guide/stroke.md) against ground truth.
 
-Run: ``.venv/bin/python benchmarks/stroke.py`` (about 20 s per seed of CPU; ``--seeds 3 4 5`` for more).
+Run: ``.venv/bin/python benchmarks/stroke.py --seeds 3 4`` (about 25 s of CPU in all on this
+machine, gaitmap_example and qmt_fullbody included).
 
 1. The simulated hemiparetic walker (``simulate --scenario hemiparetic --duration 30``, paretic left),
    through ``analyze`` (calibration on the walk at 12 s) and the report's evaluator, against the
@@ -12,7 +13,11 @@ Run: ``.venv/bin/python benchmarks/stroke.py`` (about 20 s per seed of CPU; ``--
    heel → toe marker pitch (the same definition on the markers: the swing's largest pitch in its
    second half relative to the next stance), and its swing foot clearance (the sensor's highest rise)
    beside the heel and toe markers' highest rises above their stance (the sensor's own point has no
-   marker). qmt_fullbody has no reference; no recording here has hip markers.
+   marker). No recording here has hip markers.
+3. qmt_fullbody (a real healthy walk with 16 IMUs, no reference: plausibility only), through ``import``
+   and ``analyze`` as ``benchmarks/spatial.py`` runs it (walking calibration at 75 s): each per-side
+   quantity's median and range over the used strides, beside the healthy bands of config/targets.yaml
+   (about 60 s more; ``--no-qmt`` leaves it out).
 """
 
 from __future__ import annotations
@@ -155,14 +160,45 @@ def gaitmap_table() -> None:
           f"{np.corrcoef(o, t)[0, 1]:.2f}")
 
 
+def qmt_table() -> None:
+    qmt = DATA / "qmt_fullbody" / "full_body_example_data.mat"
+    if not qmt.exists():
+        print("\nqmt_fullbody: not found in ../shared/data, skipped")
+        return
+    targets = load_targets(default_targets_path())
+    with tempfile.TemporaryDirectory() as tmp:
+        root = Path(tmp)
+        _run("import", "qmt_fullbody", str(qmt), "-o", str(root / "qmt"))
+        (root / "qmt.yaml").write_text("/**/gait_events:\n  ros__parameters:\n"
+                                       "    use_standing_reference: true\n")
+        _run("analyze", str(root / "qmt"), "-o", str(root / "out"), "--params", str(root / "qmt.yaml"),
+             "--calibrate-at", "75:walking")
+        analysis = analyse_session(read_session(root / "out"), targets)
+    print(f"\n## qmt_fullbody (real healthy walk, no reference): {len(analysis.used)} strides used\n")
+    print("| quantity | left: median (range), n | right | healthy band (targets.yaml) |")
+    print("|---|---|---|---|")
+    for name, unit in PER_STRIDE[:-1]:
+        cells = []
+        for side in ("left", "right"):
+            v = np.array([r[name] for r in analysis.used if r["side"] == side
+                          and math.isfinite(r.get(name, math.nan))]) * SCALE[unit]
+            cells.append(f"{np.median(v):.1f} ({v.min():.1f} to {v.max():.1f}), {len(v)}" if len(v) else "–")
+        band = targets.band(name, "left")
+        print(f"| {name} ({unit}) | {cells[0]} | {cells[1]} | {band.low * SCALE[unit]:.1f} to "
+              f"{band.high * SCALE[unit]:.1f} |")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seeds", type=int, nargs="+", default=[3])
     parser.add_argument("--no-gaitmap", action="store_true")
+    parser.add_argument("--no-qmt", action="store_true")
     args = parser.parse_args()
     simulator_table(args.seeds)
     if not args.no_gaitmap:
         gaitmap_table()
+    if not args.no_qmt:
+        qmt_table()
 
 
 if __name__ == "__main__":
