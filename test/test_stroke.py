@@ -251,3 +251,10 @@ def test_the_dashboard_groups_every_quantity_as_the_evaluator_does():
     groups = dict(re.findall(r"(\w+): \"(\w+)\"", re.search(r"const groups = \{(.*?)\};", page, re.S)[1]))
     assert bilateral == {q for q, (_, both, _) in QUANTITIES.items() if both}
     assert groups == {q: group for q, (group, _, _) in QUANTITIES.items()}
+
+
+def test_the_simulator_refuses_a_wrong_paretic_setting():
+    with pytest.raises(ValueError, match="paretic_side must be None, 'left' or 'right'"):
+        simulate(hemiparetic(duration=5.0, paretic_side="both"))
+    with pytest.raises(ValueError, match=r"paretic_stance_fraction 0\.5 outside"):
+        simulate(hemiparetic(duration=5.0, paretic_stance_fraction=0.5))
