@@ -12,7 +12,8 @@ next IC (``t1``), with the other foot's IC ``t_o`` and S's TC ``t_c`` inside it:
 * ``propulsion`` (rad): ankle plantarflexion from ``t_o`` to the least dorsiflexion in
   [``t_o``, ``t_c`` + 10 % of the stride time].
 * ``knee_hyperextension_stance`` (rad): the least knee flexion from 1/6 to 5/6 of the stance time.
-* ``foot_strike_angle`` (rad): the foot's pitch (its x axis above the horizontal) at ``t0``.
+* ``foot_strike_angle`` (rad): the foot's pitch (its x axis above the horizontal) at ``t1`` (the strike
+  that ends the stride's swing, as the foot trajectory's ``foot_angle_ic``).
 * ``swing_foot_clearance`` (m): the foot sensor's highest position from ``t_c`` to ``t1`` above its
   position at foot flat (``t0`` + 20 % of the stride time).
 * ``step_length`` (m): forward distance (along the pelvis heading) from the other ankle at its foot flat
@@ -65,7 +66,7 @@ def stride_truth(session: SimulatedSession) -> list[dict[str, float | str]]:
             tc = tcs[(tcs > t0) & (tcs < t1)]
             to = other_ics[(other_ics > t0) & (other_ics < t1)]
             before = other_ics[other_ics < t1]
-            if len(tc) != 1 or len(to) != 1 or t1 + FLAT_AT * (t1 - t0) > t[-1]:
+            if len(tc) != 1 or len(to) != 1 or t1 + FLAT_AT * (t1 - t0) > t[-1] - 0.01:
                 continue
             tc, to, stride = float(tc[0]), float(to[0]), t1 - t0
             fwd = _at(t, forward, to)
@@ -74,7 +75,7 @@ def stride_truth(session: SimulatedSession) -> list[dict[str, float | str]]:
             push = (t >= to) & (t <= tc + 0.1 * stride)
             mid = (t >= t0 + (tc - t0) / 6) & (t <= t0 + 5 * (tc - t0) / 6)
             swing = (t >= tc) & (t <= t1)
-            x_axis = _at(t, foot_r[:, :, 0], t0)
+            x_axis = _at(t, foot_r[:, :, 0], t1)
             flat_t1, flat_other = t1 + FLAT_AT * stride, float(before[-1]) + FLAT_AT * stride
             other_ankle = truth.segment_position[f"{other}_foot"]
             step = float((_at(t, ankle, flat_t1) - _at(t, other_ankle, flat_other)) @ _at(t, forward, t1))
