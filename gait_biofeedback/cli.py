@@ -45,7 +45,7 @@ def _progress(total: int, desc: str):
                 disable=not sys.stderr.isatty())
 
 
-DURATION_SCENARIOS = ("training", "walk")
+DURATION_SCENARIOS = ("training", "walk", "hemiparetic")
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
@@ -466,7 +466,8 @@ def cmd_report(args: argparse.Namespace) -> int:
     patient = patient_from_params(args.params) if args.params else Patient()
     patient = Patient(args.patient_id or patient.id, args.session_label or patient.session)
     files = write_report(args.sessions, args.output, patient, labels=args.labels, norms_file=args.norms,
-                         targets_file=args.targets, overwrite=args.overwrite, date=args.date)
+                         targets_file=args.targets, overwrite=args.overwrite, date=args.date,
+                         paretic_side=args.paretic_side)
     for note in files.analyses[-1].notes:
         print(note)
     for text in files.damage:
@@ -647,7 +648,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--scenario", default="demo", help="what the subject does [%(default)s]")
     p.add_argument("--duration", type=float, default=None,
                    help="length, s, of a training session (the demo's calibration, then 50 s walking laps; "
-                   "the default scenario becomes 'training') or of the walk scenario's walking")
+                   "the default scenario becomes 'training') or of the walking of the walk and"
+                   " hemiparetic scenarios")
     p.add_argument("--rate", type=float, default=100.0, help="IMU sampling rate, Hz [%(default)s]")
     p.add_argument("--seed", type=int, default=0, help="random seed (same seed, same file) [%(default)s]")
     p.add_argument("--no-mag", action="store_true", help="sensors without magnetometer")
@@ -716,6 +718,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--params", default=None, help="parameter file whose patient: block gives the header")
     p.add_argument("--norms", default=None, help="YAML of normative bands replacing the built-in ones")
     p.add_argument("--targets", default=None, help="targets of the offline cues [config/targets.yaml]")
+    p.add_argument("--paretic-side", default="none", choices=("none", "left", "right"),
+                   help="the patient's paretic side: the targets' 'paretic' bands and the paretic "
+                   "asymmetry ratios refer to it [%(default)s]")
     p.add_argument("--overwrite", action="store_true", help="replace a report already in the output folder")
     p.add_argument("--date", default=None, metavar="'YYYY-MM-DD[ HH:MM]'",
                    help="the last session's date, for a recording whose clock holds none (imported, "

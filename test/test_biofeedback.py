@@ -103,8 +103,11 @@ def test_hand_made_stride_gives_the_expected_cues():
     assert evaluator.covers(stride)
     result = evaluator.evaluate(stride)
     cues = {c.quantity: c for c in result.cues}
+    # no step time: no trailing limb angle nor push-off (they need the other foot's IC); no foot trajectory
     assert set(cues) == {"knee_flexion_peak_swing", "knee_flexion_at_ic", "hip_extension_peak_stance",
-                         "ankle_dorsiflexion_at_ic", "stance_fraction", "cadence", "step_time_symmetry"}
+                         "ankle_dorsiflexion_at_ic", "stance_fraction", "cadence", "step_time_symmetry",
+                         "knee_hyperextension_stance"}
+    assert cues["knee_hyperextension_stance"].measured == pytest.approx(3 * DEG, abs=1e-6)  # flat 3° stance
     knee = cues["knee_flexion_peak_swing"]
     assert knee.measured == pytest.approx(45 * DEG, abs=0.1 * DEG)
     assert knee.error == pytest.approx(-10 * DEG, abs=0.1 * DEG) and knee.severity == SEVERITY_MILD

@@ -144,16 +144,19 @@ def test_node_cues_frames_and_commands(ros_context, session):
                 assert spin_until(executor, lambda target=target: node.counts["joint_states"] >= target,
                                   timeout=5)
         assert spin_until(executor, lambda: node.counts["strides"] >= len(strides), timeout=5)
-        # 7 kinematic and temporal cues per stride; 3 spatial ones but on each foot's first stride of the
-        # walk (gait initiation); and the step-length symmetry once both sides have a step
-        expected = 7 * len(strides) + 3 * (len(strides) - 2) + len(strides) - 3
+        # 7 kinematic and temporal cues per stride and 5 stroke ones (trailing limb angle, push-off, knee
+        # in stance, strike angle, foot clearance; no paretic side: no paretic ratio); 3 spatial ones but
+        # on each foot's first stride of the walk (gait initiation); and the step-length symmetry once
+        # both sides have a step
+        expected = 12 * len(strides) + 3 * (len(strides) - 2) + len(strides) - 3
         assert spin_until(executor, lambda: len(cues) >= expected, timeout=5)
         assert len(strides) >= 8 and len(cues) == expected
         t = truth.t
         for k, (side, index, t0, tc, t1) in enumerate(strides):
             got = {c.quantity: c for c in cues
                    if c.stride_index == index and c.header.frame_id == f"{side}_foot"}
-            assert len(got) == (7 if k < 2 else 10 if k == 2 else 11), (k, sorted(got))
+            assert len(got) == (12 if k < 2 else 15 if k == 2 else 16), (k, sorted(got))
+            assert got["foot_strike_angle"].measured == pytest.approx(0.3 + 0.01 * index)  # the cycle's
             # the step: from the other foot's footprint to this one's (walking east, along x; the foot
             # is flat 0.15 s after its IC); measured 1.4-2.5 mm short
             other = "right" if side == "left" else "left"

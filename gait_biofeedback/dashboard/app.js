@@ -521,7 +521,8 @@ function fmtQuantity(unit, v, quantity) {
 // ---------------------------------------------------------------------------------------------- values
 // One source for every value shown: the latest evaluated stride of each side ("spatial" messages, with
 // every quantity in .values). The Gait panel and the Targets table both read it through valueOf.
-const BILATERAL = new Set(["cadence", "step_time_symmetry", "gait_speed", "step_length_symmetry"]);
+const BILATERAL = new Set(["cadence", "step_time_symmetry", "gait_speed", "step_length_symmetry",
+  "step_length_asymmetry_paretic", "stance_time_asymmetry_paretic"]);
 const UNITS = { stance_fraction: "1", step_time_symmetry: "1", cadence: "Hz", stride_length: "m", gait_speed: "m/s",
   step_length: "m", step_length_symmetry: "1" };
 
@@ -626,7 +627,9 @@ function updateTables() {
   const rows = [...data.cues.values()].sort((x, y) => (x.quantity + x.side).localeCompare(y.quantity + y.side));
   const groups = { knee_flexion_peak_swing: "knee", knee_flexion_at_ic: "knee", hip_extension_peak_stance: "hip",
     ankle_dorsiflexion_at_ic: "ankle", stance_fraction: "timing", step_time_symmetry: "timing", cadence: "timing",
-    stride_length: "spatial", gait_speed: "spatial", step_length: "spatial", step_length_symmetry: "spatial" };
+    stride_length: "spatial", gait_speed: "spatial", step_length: "spatial", step_length_symmetry: "spatial",
+    trailing_limb_angle: "hip", propulsion: "ankle", knee_hyperextension_stance: "knee", foot_strike_angle: "ankle",
+    swing_foot_clearance: "spatial", step_length_asymmetry_paretic: "spatial", stance_time_asymmetry_paretic: "timing" };
   body.textContent = "";
   for (const c of rows) {
     const record = latestRecord(c.quantity, c.side);

@@ -148,7 +148,7 @@ class BiofeedbackNode(GuardedNode):
         super().__init__(self.NODE_NAME, context=context, parameter_overrides=node_overrides(overrides))
         self.params: BiofeedbackParams = declare_parameters(self, BiofeedbackParams, params)
         p = self.params
-        self.targets = load_targets(p.targets_file or str(default_targets_path()))
+        self.targets = load_targets(p.targets_file or str(default_targets_path()), p.paretic_side)
         self.targets_json = self.targets.to_json()
         self.stride_wait_s = p.stride_wait_s
         self.curve_strides = p.curve_strides

@@ -299,6 +299,7 @@ def analyse_session(data: SessionData, targets: Targets) -> SessionAnalysis:
         row = dict(
             row,
             step_length=result.spatial.get("step_length", math.nan),
+            step_length_asymmetry_paretic=result.spatial.get("step_length_asymmetry_paretic", math.nan),
             **{k: v for k, v in result.kinematics.items()},
         )
         used.append(row)

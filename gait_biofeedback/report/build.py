@@ -23,7 +23,7 @@ from pathlib import Path
 
 import yaml
 
-from gait_biofeedback.core.biofeedback.evaluator import default_targets_path, load_targets
+from gait_biofeedback.core.biofeedback.evaluator import STROKE, default_targets_path, load_targets
 from gait_biofeedback.core.safe_yaml import describe, load_yaml_file
 from gait_biofeedback.parameters import PATIENT_BLOCK, PATIENT_KEYS, patient_block
 from gait_biofeedback.report import content, dose, overview
@@ -41,6 +41,7 @@ KINEMATIC = (
     "knee_flexion_at_ic",
     "hip_extension_peak_stance",
     "ankle_dorsiflexion_at_ic",
+    *STROKE,
 )
 JOINT_VALUES = ("at_ic", "at_tc", "min", "max", "range_of_motion", "peak_swing")
 
@@ -185,10 +186,12 @@ def write_report(
     targets_file: str | Path | None = None,
     overwrite: bool = False,
     date: str | None = None,
+    paretic_side: str = "none",
 ) -> ReportFiles:
     """The report files of ``sessions`` in ``output`` (module docstring). A folder that already holds a
     report is refused unless ``overwrite``; so is a session given twice. ``date``: the last session's
-    (``YYYY-MM-DD[ HH:MM]``), for a recording whose clock holds none."""
+    (``YYYY-MM-DD[ HH:MM]``), for a recording whose clock holds none. ``paretic_side``: the patient's
+    ("none", "left", "right"), for the targets' paretic bands and the paretic asymmetry ratios."""
     if not sessions:
         raise ValueError("report: give at least one session (a recording of the graph or an analyze output)")
     resolved = [Path(s).resolve() for s in sessions]
@@ -211,7 +214,7 @@ def write_report(
         labels[-1] = patient.session
     norms = load_norms(norms_file) if norms_file else dict(NORMS)
     targets_path = Path(targets_file) if targets_file else default_targets_path()
-    targets = load_targets(targets_path)
+    targets = load_targets(targets_path, paretic_side)
     datas = [read_session(s) for s in sessions]
     analyses = [analyse_session(d, targets) for d in datas]
     data, analysis = datas[-1], analyses[-1]

@@ -14,6 +14,14 @@ ascent lands with hip ~62° and knee ~58° flexed on a nearly flat foot and exte
 the body one step; descent lands toe first with a nearly straight knee that flexes to ~85° by TC to lower
 the body one step. The trunk leans forward going up.
 
+Hemiparetic leg (``GaitPattern.paretic``, the ``hemiparetic`` scenario): the paretic side's knee and
+foot pitch curves are replaced (EXT: typical post-stroke deviations, Perry & Burnfield 2010 ch. 20;
+Balaban & Tok 2014 Gait disturbances in patients with stroke, PM&R 6:635): the knee hyperextends in
+mid and terminal stance (-7°), flexes only ~36° in swing (stiff knee); the foot lands nearly flat (toe-up
+4° instead of 22°) and pushes off weakly (toe-down -34° instead of -62°); the hip abducts ~8° in swing
+(circumduction). The hip flexion range is scaled by ``hip_range`` like the other side's, so a smaller
+scale shortens the paretic step and its trailing limb angle.
+
 All curves are defined on a normalised cycle ``u`` with TC at 0.6; an actual stance fraction is mapped by the
 smooth monotone warp ``u = p + c sin(2πp)/(2π)`` (valid for stance fractions 0.56-0.75).
 """
@@ -102,6 +110,13 @@ _KNEE_INTERNAL = [(0.0, -2), (0.25, 4), (0.6, 0), (0.8, -5)]
 # through swing (ankle near neutral, toe clearance >= 2 cm).
 _FOOT_PITCH = [(0.0, 22, 0, -5000), (0.10, 0, 0), (0.30, 0, 0), (0.45, -12, -160, -1500), (0.57, -45, -520),
                (0.608, -62, 0, 15000), (0.70, -48, 240), (0.82, -13, 280), (0.91, 10, 190)]
+# Paretic leg (module docstring): knee hyperextension in stance, stiff knee in swing; flat landing,
+# weak push-off.
+_PARETIC_KNEE = [(0.0, 3), (0.08, 6), (0.2, 0), (0.32, -6), (0.45, -7), (0.53, 0), (0.6, 18), (0.7, 34),
+                 (0.75, 36), (0.84, 26), (0.92, 10), (0.97, 3)]
+_PARETIC_FOOT = [(0.0, 4, 0, -1500), (0.08, 0, 0), (0.32, 0, 0), (0.47, -8, -110, -1200), (0.57, -27, -300),
+                 (0.608, -34, 0, 9000), (0.70, -26, 130), (0.82, -8, 170), (0.91, 3, 90)]
+PARETIC_CIRCUMDUCTION = 8.0  # deg, peak hip abduction added in swing
 # Stair gait (u, deg); frontal/transverse components stay those of level walking.
 _STAIRS_HIP = {
     "up": [(0.0, 62), (0.1, 58), (0.3, 32), (0.5, 12), (0.6, 14), (0.72, 40), (0.85, 66), (0.95, 64)],
@@ -135,6 +150,9 @@ class GaitPattern:
     knee_range: float = 1.0
     foot_range: float = 1.0
     frontal_range: float = 1.0
+    paretic: bool = False  # the hemiparetic leg's curves (module docstring)
+    other_stance_fraction: float | None = None  # the other leg's, when it differs (hemiparetic gait)
+    hip_offset: float = 0.0  # rad added to the hip flexion curve (the non-paretic leg's shorter trail)
 
 
 PATHOLOGIES: dict[str, dict[str, float]] = {
@@ -151,6 +169,7 @@ _CURVES = {
     "knee_internal_rotation": PeriodicCurve(_KNEE_INTERNAL),
 }
 _FOOT = QuinticKnots(_FOOT_PITCH)
+_PARETIC_CURVES = {"knee_flexion": PeriodicCurve(_PARETIC_KNEE), "foot_pitch": QuinticKnots(_PARETIC_FOOT)}
 _STAIRS_CURVES = {d: {"hip_flexion": PeriodicCurve(_STAIRS_HIP[d]),
                       "knee_flexion": PeriodicCurve(_STAIRS_KNEE[d]),
                       "foot_pitch": QuinticKnots(_STAIRS_FOOT[d])} for d in ("up", "down")}
@@ -177,8 +196,16 @@ def leg_angles(phase: np.ndarray, pattern: GaitPattern) -> dict[str, np.ndarray]
             scale = pattern.hip_range
         elif name == "knee_flexion":
             scale = pattern.knee_range
+        if pattern.paretic and name in _PARETIC_CURVES:
+            curve = _PARETIC_CURVES[name]
         out[name] = DEG * (curve.mean + scale * (curve(u) - curve.mean))
-    out["foot_pitch"] = DEG * pattern.foot_range * _FOOT(u)
+    out["hip_flexion"] = out["hip_flexion"] + pattern.hip_offset
+    out["foot_pitch"] = DEG * pattern.foot_range * (_PARETIC_CURVES["foot_pitch"] if pattern.paretic
+                                                    else _FOOT)(u)
+    if pattern.paretic:
+        swing = np.clip((u - NOMINAL_STANCE) / (1.0 - NOMINAL_STANCE), 0.0, 1.0)
+        out["hip_adduction"] = out["hip_adduction"] - DEG * PARETIC_CIRCUMDUCTION * 64.0 * (
+            swing * (1.0 - swing)) ** 3
     return out
 
 
@@ -214,10 +241,14 @@ def stairs_angles(phase: np.ndarray, pattern: GaitPattern, direction: str) -> di
     return {name: DEG * curve(u) for name, curve in _STAIRS_CURVES[direction].items()}
 
 
-def contact_weight(phase: np.ndarray, stance_fraction: float) -> np.ndarray:
-    """Share (0..1) of the body weight on this foot: 1 in single support, 0 in swing, C² in double support."""
+def contact_weight(phase: np.ndarray, stance_fraction: float,
+                   other_stance_fraction: float | None = None) -> np.ndarray:
+    """Share (0..1) of the body weight on this foot: 1 in single support, 0 in swing, C² in double support.
+    The load comes on until the other foot's TC (its stance fraction - 0.5 after this IC, the other leg
+    half a cycle later) and goes off from the other foot's IC (0.5) to this TC."""
     p = np.mod(phase, 1.0)
     ds = stance_fraction - 0.5
-    rise = smootherstep(p / ds)
+    other = stance_fraction if other_stance_fraction is None else other_stance_fraction
+    rise = smootherstep(p / (other - 0.5))
     fall = 1.0 - smootherstep((p - 0.5) / ds)
     return np.where(p < stance_fraction, np.minimum(rise, fall), 0.0)

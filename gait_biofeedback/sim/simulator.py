@@ -144,6 +144,13 @@ class SimulationConfig:
     toe_length: float = 0.14  # ankle → metatarsal heads, forwards
     trunk_length: float = 0.15  # pelvis origin → chest segment origin (lumbar joint)
     stair_height: float = 0.17  # m, riser of the stairs_up / stairs_down phases
+    # Hemiparetic gait (kinematics module docstring): the paretic leg's curves on this side (None: both
+    # legs alike), its own stance fraction and hip flexion range (times the other side's).
+    paretic_side: str | None = None
+    paretic_stance_fraction: float = 0.6
+    paretic_hip_range: float = 0.75
+    paretic_hip_offset: float = 0.0  # rad added to the paretic hip flexion (-: more extended)
+    nonparetic_hip_offset: float = 0.0  # rad, the other leg's hip flexion offset (+: flexed, shorter trail)
 
     def without_errors(self) -> SimulationConfig:
         """Copy with no noise, no bias and no magnetic disturbance (for consistency tests)."""
@@ -261,6 +268,7 @@ class _Plan:
     def __init__(self, cfg: SimulationConfig, pattern: GaitPattern) -> None:
         self.cfg = cfg
         self.pattern = pattern
+        self.patterns = _side_patterns(cfg, pattern)
         self.bounds = np.concatenate([[0.0], np.cumsum([p.duration for p in cfg.phases])])
         self.duration = float(self.bounds[-1])
         self.turns = [(self.bounds[i], p.duration, float(p.params.get("angle", 0.0)))
@@ -277,7 +285,7 @@ class _Plan:
         self.stride_freq = cfg.cadence / 2.0
         # per bout: (t0, t1, ts, tf): stepping accelerates from ts, decelerates from tf, frozen at a phase
         # of mid double support (both feet loaded half-half, so standing weights need no ramp)
-        self.freeze_phase = (pattern.stance_fraction - 0.5) / 2.0
+        self.freeze_phase = (self.patterns["right"].stance_fraction - 0.5) / 2.0
         self.stepping: list[tuple[float, float, float, float]] = []
         for t0, t1 in self.bouts:
             ts = t0 + 0.6 * _GAIT_RAMP
@@ -412,15 +420,16 @@ class _Plan:
         up, down = self.stairs_blend(t)
         walk = dict(pelvis_angles(p_left, self.pattern, up, down))
         for side, p in (("left", p_left), ("right", p_left + 0.5)):
-            angles = leg_angles(p, self.pattern)
+            angles = leg_angles(p, self.patterns[side])
             for direction, f in (("up", up), ("down", down)):
                 if np.any(f > 0):
                     for name, value in stairs_angles(p, self.pattern, direction).items():
                         angles[name] = angles[name] + (value - angles[name]) * f
             for name, value in angles.items():
                 walk[f"{side}_{name}"] = value
-            walk[f"{side}_foot_yaw"] = self._foot_yaw(t, p)
-            walk[f"w_{side}"] = contact_weight(p, self.pattern.stance_fraction)
+            walk[f"{side}_foot_yaw"] = self._foot_yaw(t, p, self.patterns[side].stance_fraction)
+            walk[f"w_{side}"] = contact_weight(p, self.patterns[side].stance_fraction,
+                                               self.patterns[side].other_stance_fraction)
             walk[f"{side}_ground"] = np.ones_like(t)
         out = _blend(stand, walk, s_angle)
         for side in SIDES:
@@ -428,9 +437,8 @@ class _Plan:
         out["w_free"] = np.zeros_like(t)
         return out
 
-    def _foot_yaw(self, t: np.ndarray, p: np.ndarray) -> np.ndarray:
+    def _foot_yaw(self, t: np.ndarray, p: np.ndarray, st: float) -> np.ndarray:
         """Foot heading relative to the pelvis heading: fixed during stance, turns during swing."""
-        st = self.pattern.stance_fraction
         frac = np.mod(p, 1.0)
         t_ic = t - frac / self.stride_freq
         psi_prev, psi_next = self.heading(t_ic), self.heading(t_ic + 1.0 / self.stride_freq)
@@ -574,6 +582,13 @@ def _validate(cfg: SimulationConfig) -> None:
         raise ValueError(f"stance_fraction {cfg.stance_fraction} outside [{MIN_STANCE}, {MAX_STANCE}]")
     if not (np.isfinite(cfg.stair_height) and 0.0 <= cfg.stair_height <= 0.25):
         raise ValueError(f"stair_height {cfg.stair_height} m outside [0, 0.25]")
+    if cfg.paretic_side not in (None, *SIDES):
+        raise ValueError(f"paretic_side must be None, 'left' or 'right', got {cfg.paretic_side!r}")
+    if not MIN_STANCE <= cfg.paretic_stance_fraction <= MAX_STANCE:
+        raise ValueError(f"paretic_stance_fraction {cfg.paretic_stance_fraction} outside [{MIN_STANCE}, "
+                         f"{MAX_STANCE}]")
+    if not 0.2 <= cfg.paretic_hip_range <= 1.5:
+        raise ValueError(f"paretic_hip_range {cfg.paretic_hip_range} outside [0.2, 1.5]")
     if cfg.pathology is not None and cfg.pathology not in PATHOLOGIES:
         raise ValueError(f"unknown pathology {cfg.pathology!r}; expected None or one of "
                          f"{sorted(PATHOLOGIES)}")
@@ -608,6 +623,18 @@ def _pattern(cfg: SimulationConfig, hip_range: float = 1.0) -> GaitPattern:
                        hip_range=hip_range * scales.get("hip_range", 1.0),
                        knee_range=scales.get("knee_range", 1.0), foot_range=scales.get("foot_range", 1.0),
                        frontal_range=scales.get("frontal_range", 1.0))
+
+
+def _side_patterns(cfg: SimulationConfig, pattern: GaitPattern) -> dict[str, GaitPattern]:
+    """Each leg's pattern: both ``pattern``, or the paretic side's own curves, stance and hip range."""
+    if cfg.paretic_side is None:
+        return dict.fromkeys(SIDES, pattern)
+    paretic = replace(pattern, paretic=True, stance_fraction=cfg.paretic_stance_fraction,
+                      hip_range=pattern.hip_range * cfg.paretic_hip_range, hip_offset=cfg.paretic_hip_offset,
+                      other_stance_fraction=pattern.stance_fraction)
+    other = replace(pattern, other_stance_fraction=cfg.paretic_stance_fraction,
+                    hip_offset=cfg.nonparetic_hip_offset)
+    return {side: paretic if side == cfg.paretic_side else other for side in SIDES}
 
 
 def _kinematics(cfg: SimulationConfig, pattern: GaitPattern, t: np.ndarray, offsets: tuple[float, ...]):
@@ -670,11 +697,11 @@ def _events(plan: _Plan, t_end: float) -> tuple[dict[str, np.ndarray], dict[str,
     0.1 ms grid with linear interpolation, inside the stepping part of each walking bout."""
     ics: dict[str, list[float]] = {s: [] for s in SIDES}
     tcs: dict[str, list[float]] = {s: [] for s in SIDES}
-    st = plan.pattern.stance_fraction
     for _t0, t1, ts, tf in plan.stepping:
         tt = np.arange(ts, min(tf + _CADENCE_RAMP, t1, t_end), 1e-4)
         p = plan.gait_phase(tt, ts, tf)
         for side, shift in (("left", 0.0), ("right", 0.5)):
+            st = plan.patterns[side].stance_fraction
             for target, store in ((0.0, ics[side]), (st, tcs[side])):
                 level = np.floor(p + shift - target)
                 k = np.flatnonzero(np.diff(level) > 0)
@@ -854,6 +881,19 @@ def magnet_near_thigh(**kw) -> SimulationConfig:
                  Phase("stand", 3.0)], **kw)
 
 
+def hemiparetic(duration: float = 40.0, **kw) -> SimulationConfig:
+    """A walker after a stroke, paretic left leg (kinematics module docstring): standing 5 s, straight
+    walking ``duration`` s at 0.8 m/s and 1.6 steps/s, standing 3 s. The paretic leg: shorter stance
+    (60 % vs 66 %), hip range x 0.7 about a mean 6° more extended, the other hip 6° more flexed (it
+    trails less: a shorter paretic step; both trailing limb angles about half the simulated healthy
+    walk's 13°), knee hyperextension in stance, a flat landing, weak push-off, circumduction. Its true
+    per-stride values: :func:`gait_biofeedback.sim.stride_truth.stride_truth`."""
+    kw = {"speed": 0.8, "cadence": 1.6, "stance_fraction": 0.66, "paretic_side": "left",
+          "paretic_stance_fraction": 0.6, "paretic_hip_range": 0.7, "paretic_hip_offset": -6 * DEG,
+          "nonparetic_hip_offset": 6 * DEG, **kw}
+    return _cfg([Phase("stand", 5.0), Phase("walk", duration), Phase("stand", 3.0)], **kw)
+
+
 SCENARIOS: dict[str, Callable[..., SimulationConfig]] = {
     "demo": demo,
     "walk": walk,
@@ -864,4 +904,5 @@ SCENARIOS: dict[str, Callable[..., SimulationConfig]] = {
     "slow_gait": slow_gait,
     "stairs": stairs,
     "magnet_near_thigh": magnet_near_thigh,
+    "hemiparetic": hemiparetic,
 }

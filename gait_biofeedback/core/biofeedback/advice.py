@@ -21,6 +21,11 @@ LABELS: dict[str, str] = {
     "step_time_symmetry": "Step timing symmetry", "cadence": "Cadence", "stride_length": "Stride length",
     "gait_speed": "Walking speed", "step_length": "Step length",
     "step_length_symmetry": "Step length symmetry",
+    "trailing_limb_angle": "Leg angle behind the body at the end of stance", "propulsion": "Push-off",
+    "knee_hyperextension_stance": "Knee in stance (below 0: bent backwards)",
+    "foot_strike_angle": "Heel first at foot strike", "swing_foot_clearance": "Foot lift in swing",
+    "step_length_asymmetry_paretic": "Affected step length / other side's",
+    "stance_time_asymmetry_paretic": "Time on the affected leg / other side's",
 }
 
 # quantity → (advice when below the band, advice when above); {side} is "left" or "right"
@@ -42,6 +47,17 @@ _ADVICE: dict[str, tuple[str, str]] = {
     "step_length": ("Take a longer step with your {side} leg", "Take a shorter step with your {side} leg"),
     "step_length_symmetry": ("Even out your steps: your right steps are longer",
                              "Even out your steps: your left steps are longer"),
+    "trailing_limb_angle": ("Let your {side} leg trail further behind you before it swings",
+                            "Let your {side} leg trail less far behind you"),
+    "propulsion": ("Push off more with your {side} foot", "Push off less with your {side} foot"),
+    "knee_hyperextension_stance": ("Keep your {side} knee soft: do not let it snap back",
+                                   "Straighten your {side} knee more when you stand on it"),
+    "foot_strike_angle": ("Land on your {side} heel", "Land flatter on your {side} foot"),
+    "swing_foot_clearance": ("Lift your {side} foot higher in swing", "Lift your {side} foot less high"),
+    "step_length_asymmetry_paretic": ("Take a longer step with your affected leg",
+                                      "Take a shorter step with your affected leg"),
+    "stance_time_asymmetry_paretic": ("Stay longer on your affected leg",
+                                      "Move off your affected leg sooner"),
 }
 
 

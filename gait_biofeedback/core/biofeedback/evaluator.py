@@ -12,6 +12,12 @@ EXT (gait.md §5.2 "DERIVED-possible"):
   IC to TC: "hip extension in late stance"), ``ankle_dorsiflexion_at_ic``;
 * temporal, from the GaitCycle: ``stance_fraction`` (per side), ``cadence`` and ``step_time_symmetry``
   (bilateral, side "");
+* stroke gait training (issue 49), :mod:`~gait_biofeedback.core.biofeedback.stroke`:
+  ``trailing_limb_angle``, ``propulsion``, ``knee_hyperextension_stance`` (per side, from the angles),
+  ``foot_strike_angle``, ``swing_foot_clearance`` (per side, from the foot trajectory, with a stride
+  whose ``spatial_flag`` is empty), and with a paretic side (``paretic_side``)
+  ``step_length_asymmetry_paretic`` and ``stance_time_asymmetry_paretic`` (bilateral: paretic /
+  non-paretic means over the last ``symmetry_window`` strides of each side);
 * spatial (issue 16), from the GaitCycle's foot trajectory: ``stride_length`` (per side), ``gait_speed``
   (bilateral), and ``step_length`` (per side) with ``step_length_symmetry`` (bilateral, ``(L - R) /
   (0.5 (L + R))`` of the mean step lengths over the last ``symmetry_window`` steps of each side).
@@ -60,6 +66,7 @@ import numpy as np
 
 from gait_biofeedback.core.biofeedback import normative as normative_gait
 from gait_biofeedback.core.biofeedback.instruction_params import InstructionParams
+from gait_biofeedback.core.biofeedback.stroke import paretic_ratio, stroke_kinematics
 from gait_biofeedback.core.body import BodyDimensions, StickFigureDimensions
 from gait_biofeedback.core.gait.cycles import TURN_LIMIT, symmetry_index
 from gait_biofeedback.core.joints.angles import joint_angle_names, relative_rotation_from_angles
@@ -86,7 +93,18 @@ QUANTITIES: dict[str, tuple[str, bool, str]] = {
     "gait_speed": ("spatial", True, "m/s"),
     "step_length": ("spatial", False, "m"),
     "step_length_symmetry": ("spatial", True, "1"),
+    # stroke gait training (issue 49; :mod:`~gait_biofeedback.core.biofeedback.stroke`)
+    "trailing_limb_angle": ("hip", False, "rad"),
+    "propulsion": ("ankle", False, "rad"),
+    "knee_hyperextension_stance": ("knee", False, "rad"),
+    "foot_strike_angle": ("ankle", False, "rad"),
+    "swing_foot_clearance": ("spatial", False, "m"),
+    "step_length_asymmetry_paretic": ("spatial", True, "1"),
+    "stance_time_asymmetry_paretic": ("timing", True, "1"),
 }
+STROKE = ("trailing_limb_angle", "propulsion", "knee_hyperextension_stance", "foot_strike_angle",
+          "swing_foot_clearance", "step_length_asymmetry_paretic", "stance_time_asymmetry_paretic")
+PARETIC_SIDES = ("none", *SIDES)
 SPATIAL = ("stride_length", "gait_speed", "step_length", "step_length_symmetry")
 KINEMATIC = ("knee_flexion_peak_swing", "knee_flexion_at_ic", "hip_extension_peak_stance",
              "ankle_dorsiflexion_at_ic")
@@ -137,13 +155,15 @@ class AudioRule:
 
 @dataclass
 class Targets:
-    """Bands per (quantity, side) (side "" for bilateral quantities), audio rule, reference curves."""
+    """Bands per (quantity, side) (side "" for bilateral quantities), audio rule, reference curves, and
+    the session's paretic side ("none", "left", "right") the bands named ``paretic`` were given for."""
 
     bands: dict[tuple[str, str], Band]
     audio: AudioRule = field(default_factory=AudioRule)
     reference_enabled: bool = True
     reference_tolerance: dict[str, float] = field(default_factory=lambda: {
         k: v * normative_gait.DEG for k, v in normative_gait.DEFAULT_TOLERANCE_DEG.items()})
+    paretic_side: str = "none"
 
     def band(self, quantity: str, side: str) -> Band | None:
         return self.bands.get((quantity, "" if QUANTITIES[quantity][1] else side))
@@ -173,13 +193,57 @@ def _to_si(value: Any, unit: str, where: str) -> float:
     return float(value) * _UNITS[unit][0]
 
 
-def targets_from_dict(config: Mapping[str, Any]) -> Targets:
-    """Targets from the parsed config/targets.yaml (format documented in that file)."""
+_ENTRY_KEYS = {"low", "high", "unit", "enabled", "sides", *SIDES, "paretic", "non_paretic"}
+
+
+def _side_bands(quantity: str, spec: Mapping[str, Any], paretic_side: str) -> dict[str, Mapping[str, Any]]:
+    """A per-side entry's own band of each side (``left``/``right``, or ``paretic``/``non_paretic``
+    resolved with ``paretic_side``); ValueError for a malformed or contradictory one."""
+    own: dict[str, Mapping[str, Any]] = {}
+    for key in (*SIDES, "paretic", "non_paretic"):
+        if key not in spec:
+            continue
+        if not isinstance(spec[key], Mapping) or set(spec[key]) - {"low", "high"}:
+            raise ValueError(f"targets: {quantity}: {key} must be a mapping with low and/or high, got "
+                             f"{spec[key]!r}")
+        side = key
+        if key in ("paretic", "non_paretic"):
+            if paretic_side not in SIDES:
+                raise ValueError(f"targets: {quantity}: a {key!r} band needs the session's paretic_side "
+                                 f"(left or right); it is {paretic_side!r}")
+            side = paretic_side if key == "paretic" else SIDES[1 - SIDES.index(paretic_side)]
+        if side in own:
+            raise ValueError(f"targets: {quantity}: the {side} side's band is given twice ({key!r} is the "
+                             f"{side} side with paretic_side {paretic_side!r})")
+        own[side] = spec[key]
+    return own
+
+
+def _number(value: Any, unit: str, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(float(value)):
+        raise ValueError(f"{where}: expected a finite number, got {value!r}")
+    return _to_si(value, unit, where)
+
+
+def targets_from_dict(config: Mapping[str, Any], paretic_side: str = "none") -> Targets:
+    """Targets from the parsed config/targets.yaml (format documented in that file) for a session whose
+    paretic side is ``paretic_side`` ("none", "left", "right"); ValueError naming a malformed entry."""
+    if paretic_side not in PARETIC_SIDES:
+        raise ValueError(f"targets: paretic_side {paretic_side!r}; use one of {PARETIC_SIDES}")
     bands: dict[tuple[str, str], Band] = {}
-    for quantity, spec in (config.get("quantities") or {}).items():
+    quantities = config.get("quantities") or {}
+    if not isinstance(quantities, Mapping):
+        raise ValueError(f"targets: 'quantities' must be a mapping of quantity → band, got {quantities!r}")
+    for quantity, spec in quantities.items():
         if quantity not in QUANTITIES:
             raise ValueError(f"targets: unknown quantity {quantity!r}; known: {sorted(QUANTITIES)}")
         spec = spec or {}
+        if not isinstance(spec, Mapping):
+            raise ValueError(f"targets: {quantity}: expected a mapping (low, high, unit, ...), got {spec!r}")
+        unknown = set(spec) - _ENTRY_KEYS
+        if unknown:
+            raise ValueError(f"targets: {quantity}: unknown keys {sorted(unknown)}; allowed: "
+                             f"{sorted(_ENTRY_KEYS)}")
         if not spec.get("enabled", True):
             continue
         unit = str(spec.get("unit", QUANTITIES[quantity][2]))
@@ -187,13 +251,19 @@ def targets_from_dict(config: Mapping[str, Any]) -> Targets:
         if si_unit != QUANTITIES[quantity][2]:
             raise ValueError(f"targets: {quantity} in {unit!r}, expected a unit of {QUANTITIES[quantity][2]}")
         bilateral = QUANTITIES[quantity][1]
-        sides = [""] if bilateral else [s for s in spec.get("sides", SIDES)]
-        for side in sides:
-            own = spec.get(side, {}) if side else {}
-            low = _to_si(own.get("low", spec.get("low")), unit, f"targets: {quantity}")
-            high = _to_si(own.get("high", spec.get("high")), unit, f"targets: {quantity}")
+        own = {} if bilateral else _side_bands(quantity, spec, paretic_side)
+        if bilateral and set(spec) & {*SIDES, "paretic", "non_paretic", "sides"}:
+            raise ValueError(f"targets: {quantity} is one value for both sides: give low and high only")
+        sides = spec.get("sides", SIDES)
+        if not bilateral and (isinstance(sides, str) or not set(sides) <= set(SIDES)):
+            raise ValueError(f"targets: {quantity}: sides must be a list of {SIDES}, got {sides!r}")
+        for side in [""] if bilateral else sides:
+            band = own.get(side, {})
+            where = f"targets: {quantity}" + (f" {side}" if side else "")
+            low = _number(band.get("low", spec.get("low")), unit, f"{where} low")
+            high = _number(band.get("high", spec.get("high")), unit, f"{where} high")
             if not low <= high:
-                raise ValueError(f"targets: {quantity} {side}: low {low} > high {high}")
+                raise ValueError(f"{where}: low {low} > high {high}")
             bands[(quantity, side)] = Band(low, high, QUANTITIES[quantity][2])
     audio_cfg = config.get("audio") or {}
     audio = AudioRule(**{k: float(v) for k, v in audio_cfg.items() if k in AudioRule.__dataclass_fields__})
@@ -201,12 +271,12 @@ def targets_from_dict(config: Mapping[str, Any]) -> Targets:
     tol = {k: v * normative_gait.DEG for k, v in normative_gait.DEFAULT_TOLERANCE_DEG.items()}
     tol.update({k: float(v) * normative_gait.DEG for k, v in (ref.get("tolerance") or {}).items()
                 if k in tol})
-    return Targets(bands, audio, bool(ref.get("enabled", True)), tol)
+    return Targets(bands, audio, bool(ref.get("enabled", True)), tol, paretic_side)
 
 
-def load_targets(path: str | Path) -> Targets:
-    """Targets from a YAML file (config/targets.yaml)."""
-    return targets_from_dict(load_yaml_file(path) or {})
+def load_targets(path: str | Path, paretic_side: str = "none") -> Targets:
+    """Targets from a YAML file (config/targets.yaml) for a session with ``paretic_side``."""
+    return targets_from_dict(load_yaml_file(path) or {}, paretic_side)
 
 
 def default_targets_path() -> Path:
@@ -395,9 +465,11 @@ class BiofeedbackParams(InstructionParams, StickFigureDimensions):
     curve_strides: int = param(5, "strides per side a newly opened page receives", "strides", low=0, high=100)
     feedback_side: str = param("both", "side whose errors are sounded", choices=FEEDBACK_SIDES)
     feedback_joint: str = param("all", "joint (or timing) whose errors are sounded", choices=FEEDBACK_JOINTS)
+    paretic_side: str = param("none", "the patient's paretic side (after a stroke): the targets' "
+                              "'paretic' bands and the paretic asymmetry ratios refer to it, and the "
+                              "instructions are given for it alone (config/instructions.yaml)",
+                              choices=PARETIC_SIDES)
     diagnostics_period_s: float = param(1.0, "period of the /diagnostics status", "s", low=0.1, high=60.0)
-    paretic_side: str = param("none", "the patient's paretic side: left, right or none",
-                              choices=("none", "left", "right"))
 
 
 class BiofeedbackEvaluator:
@@ -413,6 +485,7 @@ class BiofeedbackEvaluator:
         self.percent = normative_gait.percent_grid(2.0)
         self.lengths = lengths or BodyDimensions()
         self.steps: dict[str, deque[float]] = {side: deque(maxlen=symmetry_window) for side in SIDES}
+        self.stance_times: dict[str, deque[float]] = {side: deque(maxlen=symmetry_window) for side in SIDES}
         self._last_end_ns: dict[str, int] = {}  # closing IC of each foot's last stride evaluated
 
     def _lead(self, side: str, t: float) -> float:
@@ -442,6 +515,35 @@ class BiofeedbackEvaluator:
         if math.isfinite(step):
             self.steps[stride.side].append(step)
             out["step_length_symmetry"] = symmetry_index(self.steps["left"], self.steps["right"])
+            ratio = self._paretic_ratio(self.steps)
+            if math.isfinite(ratio):
+                out["step_length_asymmetry_paretic"] = ratio
+        return out
+
+    def _paretic_ratio(self, values: Mapping[str, Iterable[float]]) -> float:
+        """Paretic / non-paretic mean of ``values`` per side; NaN without a paretic side."""
+        side = self.targets.paretic_side
+        if side not in SIDES:
+            return math.nan
+        return paretic_ratio(list(values[side]), list(values[SIDES[1 - SIDES.index(side)]]))
+
+    def _stroke(self, stride: Stride, t: np.ndarray | None, angles: np.ndarray | None) -> dict[str, float]:
+        """The stroke quantities of ``stride`` (module docstring); ``t``/``angles``: its complete angles
+        or None."""
+        out: dict[str, float] = {}
+        if t is not None and angles is not None:
+            out.update(stroke_kinematics(t, angles, stride.t_start, stride.t_tc,
+                                         stride.t_end - stride.step_time, stride.t_end, self.lengths))
+        if not stride.spatial_flag:
+            for name, value in (("foot_strike_angle", stride.foot_angle_ic),
+                                ("swing_foot_clearance", stride.max_foot_height)):
+                if math.isfinite(value):
+                    out[name] = value
+        if stride.t_start < stride.t_tc < stride.t_end:
+            self.stance_times[stride.side].append(stride.t_tc - stride.t_start)
+            ratio = self._paretic_ratio(self.stance_times)
+            if math.isfinite(ratio):
+                out["stance_time_asymmetry_paretic"] = ratio
         return out
 
     def add_angles(self, side: str, stamp_ns: int, hip: float, knee: float, ankle: float,
@@ -468,7 +570,9 @@ class BiofeedbackEvaluator:
                     and float(np.diff(t).max()) <= self.max_gap_s)
         if complete:
             result.kinematics = stride_kinematics(t, angles, stride)
-            measured.update(result.kinematics)
+        result.kinematics.update(self._stroke(stride, t if complete else None, angles if complete else None))
+        measured.update(result.kinematics)
+        if complete:
             result.percent = self.percent
             result.curves = {name: normalise_stride(t, angles[:, k], stride.t_start, stride.t_end,
                                                     self.percent) for k, name in enumerate(SAGITTAL)}

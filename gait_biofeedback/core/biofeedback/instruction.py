@@ -30,7 +30,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from gait_biofeedback.core.biofeedback.evaluator import QUANTITIES, SEVERITY_IN_BAND, Cue
+from gait_biofeedback.core.biofeedback.evaluator import PARETIC_SIDES, QUANTITIES, SEVERITY_IN_BAND, Cue
 from gait_biofeedback.core.safe_yaml import load_yaml_file, shown
 from gait_biofeedback.core.segments import SIDES
 from gait_biofeedback.resources import config_path
@@ -41,7 +41,6 @@ PLANNED_QUANTITIES = ("trailing_limb_angle", "propulsion", "knee_hyperextension_
 """Per-stride quantities of issue 49 item 2, which rules may name before a stage measures them."""
 DIRECTIONS = ("below", "above")
 RULE_SIDES = ("any", "paretic", "non_paretic", *SIDES)
-PARETIC_SIDES = ("none", *SIDES)
 _REQUIRED = ("id", "quantity", "direction", "priority", "text", "source")
 _OPTIONAL = ("side",)
 _ID = re.compile(r"[a-z][a-z0-9_]{0,63}")
