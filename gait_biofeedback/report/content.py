@@ -11,6 +11,7 @@ import re
 from collections import Counter
 
 from gait_biofeedback.core.biofeedback import normative
+from gait_biofeedback.core.biofeedback.advice import quantity_label
 from gait_biofeedback.core.biofeedback.evaluator import Targets
 from gait_biofeedback.core.gait.cycles import TURN_LIMIT, WHOLE_TURN_LIMIT, flag_kinds
 from gait_biofeedback.core.segments import SIDES
@@ -349,7 +350,7 @@ def quality_section(data: SessionData) -> list[Section]:
                                       "unknown.", "warning"))]
     rows = []
     for name, summary in sorted(data.diagnostics.items()):
-        if summary.fine:
+        if summary.fine(data.duration_s):
             continue
         counters = ", ".join(f"{k.replace('_', ' ')} {v:g}" for k, v in summary.counted().items())
         base = summary.counters.get("samples", summary.counters.get("received", math.nan))
@@ -373,7 +374,7 @@ def quality_section(data: SessionData) -> list[Section]:
     problems = [
         f"{status_name(name)}: {line}"
         for name, s in sorted(data.diagnostics.items())
-        for line in grouped_problems(s.news(), s.seen)
+        for line in grouped_problems(s.news(data.duration_s), s.seen)
     ]
     recovering = int(data.recovering.sum())
     if recovering:
@@ -386,17 +387,6 @@ def quality_section(data: SessionData) -> list[Section]:
     return [section] if rows or problems or data.damage else []
 
 
-_QUANTITY_WORDS = (("_at_ic", " at initial contact"), ("_peak_swing", ", peak in swing"),
-                   ("_peak_stance", ", peak in stance"), ("stance_fraction", "stance"), ("_", " "))
-
-
-def quantity_name(quantity: str) -> str:
-    """A feedback quantity in words: ``knee_flexion_at_ic`` → ``knee flexion at initial contact``."""
-    for code, words in _QUANTITY_WORDS:
-        quantity = quantity.replace(code, words)
-    return quantity
-
-
 def cues_section(analysis: SessionAnalysis, targets_name: str) -> Section:
     """Per quantity, the share of strides in the target band, each side in one row."""
     section = Section("Time in the target band")
@@ -407,7 +397,7 @@ def cues_section(analysis: SessionAnalysis, targets_name: str) -> Section:
         by_quantity.setdefault(quantity, {})[side.rstrip(")") or "both"] = entry
     rows = []
     for quantity, sides in sorted(by_quantity.items()):
-        row: list = [quantity_name(quantity)]
+        row: list = [quantity_label(quantity)]
         for side in (*SIDES, "both"):
             e = sides.get(side)
             row.append((f"{e['in_band_percent']:.0f} % of {e['cues']}", "in" if e["in_band_percent"] >= 80

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -66,6 +67,9 @@ COUNTERS = (
 )
 """The counters of the ``/diagnostics`` statuses the report sums up as data quality."""
 LEVELS = {0: "OK", 1: "WARN", 2: "ERROR", 3: "STALE"}
+RESOLVED_S = 5.0
+"""s: a stage's "waiting for its data" that stopped this long before the end was the start, not a fault."""
+_WAITING = re.compile(r"\byet\b|\bwaiting for\b")
 
 
 class NotASessionError(ValueError):
@@ -83,18 +87,22 @@ class StatusSummary:
     problems: dict[str, float] = field(default_factory=dict)
     seen: dict[str, tuple[float, int]] = field(default_factory=dict)
 
-    def news(self) -> dict[str, float]:
-        """The problems besides the orientation filters' start-up (expected at every start)."""
-        return {text: t for text, t in self.problems.items() if "start-up" not in text}
+    def news(self, end_s: float = math.inf) -> dict[str, float]:
+        """The problems besides what every start says: the orientation filters' start-up, and a stage
+        waiting for its first data ("no ... yet", "waiting for ...") that stopped saying so more than
+        :data:`RESOLVED_S` before ``end_s`` (the session's end, s): the data came. A wait that lasted to
+        the end is news (the data never came)."""
+        return {text: t for text, t in self.problems.items() if "start-up" not in text
+                and not (_WAITING.search(text) and self.seen.get(text, (t, 1))[0] < end_s - RESOLVED_S)}
 
     def counted(self) -> dict[str, float]:
         """The problem counters that are not zero (samples and messages counted are no problem)."""
         return {k: v for k, v in self.counters.items() if v and k not in ("samples", "published", "received")}
 
-    @property
-    def fine(self) -> bool:
-        """Nothing to report: no problem but the start-up, no problem counted."""
-        return not self.news() and not self.counted()
+    def fine(self, end_s: float = math.inf) -> bool:
+        """Nothing to report until ``end_s``: no problem but those of every start (:meth:`news`), no
+        problem counted."""
+        return not self.news(end_s) and not self.counted()
 
 
 @dataclass

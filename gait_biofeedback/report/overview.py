@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 
+from gait_biofeedback.core.biofeedback.advice import quantity_label
 from gait_biofeedback.core.segments import SIDES
 from gait_biofeedback.report.analysis import SessionAnalysis
 from gait_biofeedback.report.document import Bullets, Section
@@ -124,7 +125,7 @@ def _feedback(data: SessionData, analysis: SessionAnalysis) -> list[str]:
     if not data.cues:
         return ["Feedback: none was given live in this session."]
     rates = sorted((entry["in_band_percent"], quantity) for quantity, entry in analysis.cues.items())
-    low = ", ".join(f"{q.replace('_', ' ')} {p:.0f} %" for p, q in rates[:3])
+    low = ", ".join(f"{quantity_label(*key.rstrip(')').split(' ('))} {p:.0f} %" for p, key in rates[:3])
     return [f"Feedback given live: {len(data.cues)} cues; the least often in the target band: {low} of their "
             "strides (see Time in the target band)."]
 
@@ -147,7 +148,7 @@ def _trust(data: SessionData) -> list[str]:
     elif not any(seg.endswith(LEG_JOINT_SEGMENTS) for seg in kit_segments(data)):
         lines.append("Calibration: none needed: this kit has no leg or foot sensor, and the activity monitor "
                      "finds its own upright reference.")
-    problems = sorted(name for name, s in data.diagnostics.items() if not s.fine)
+    problems = sorted(name for name, s in data.diagnostics.items() if not s.fine(data.duration_s))
     if data.damage:
         lines.append("Data quality: the recording is damaged; this report covers only what could be read.")
     elif data.diagnostics:
