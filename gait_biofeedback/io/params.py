@@ -5,8 +5,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from gait_biofeedback.core.body import StickFigureDimensions
-from gait_biofeedback.core.params import param, require
+from gait_biofeedback.core.body import BodyDimensions, StickFigureDimensions
+from gait_biofeedback.core.params import param, require, same_as
 
 COMPRESSIONS = ("zstd", "lz4", "none")
 
@@ -55,3 +55,16 @@ class RecorderParams(StickFigureDimensions):
     body_frames: bool = param(True, "write the segment frames as /tf (tf2_msgs/TFMessage) beside each "
                               "joint_states, from the recorded angles and pelvis orientation (a /tf on the "
                               "network is then not recorded)")
+
+
+@dataclass(frozen=True)
+class FoxgloveParams(StickFigureDimensions):
+    """Parameters of the ``foxglove`` node (the Foxglove live view); the body dimensions place and draw
+    the segments."""
+
+    host: str = param("127.0.0.1", "address the Foxglove WebSocket server binds (keep 127.0.0.1 unless "
+                      "behind an authenticating proxy: the view has no login)")
+    port: int = param(8765, "Foxglove WebSocket port (0 = any free port)", low=0, high=65535)
+    trunk_length_m: float = same_as(BodyDimensions, "trunk_length_m")
+    scene_period_s: float = param(1.0, "the body's 3D scene is sent again this often, for viewers that "
+                                  "connect later", "s", low=0.1, high=60.0)
