@@ -37,7 +37,7 @@ from gait_biofeedback.io.schemas import schema_text
 from gait_biofeedback.nodes.common import GuardedNode, subscribe
 from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
 from gait_biofeedback.wire import topics
-from gait_biofeedback.wire.body import BodyFrameTracker, BodyPose
+from gait_biofeedback.wire.body import INPUTS, BodyFrameTracker, BodyPose
 from gait_biofeedback.wire.gait import event_of
 from gait_biofeedback.wire.joints import joint_state_of
 from gait_biofeedback_msgs.msg import GaitEvent
@@ -72,7 +72,7 @@ class FoxgloveView(GuardedNode):
 
         p: FoxgloveParams = declare_parameters(self, FoxgloveParams, params)
         self.params = p
-        self.tracker = BodyFrameTracker(p.body)
+        self.tracker = BodyFrameTracker(p.body, self.resolve_topic_name)
         self.served = 0  # frame transforms sent
         self.foot_in_stance: dict[str, bool | None] = {"left": None, "right": None}
         self._fox = foxglove.Context()
@@ -90,11 +90,12 @@ class FoxgloveView(GuardedNode):
                 schema=foxglove.Schema(name=topic.type_name, encoding="ros2msg",
                                        data=schema_text(topic.type_name).encode()))
             subscribe(self, topic, lambda data, name=name: self._pass_on(name, data), raw=True)
-        for topic in (topics.orientation("pelvis"), topics.orientation("chest"), topics.CALIBRATION):
+        for topic in INPUTS:
+            if topic is topics.JOINT_STATES:
+                subscribe(self, topic, self._on_joint_states, raw=True)
+                continue
             name = self.resolve_topic_name(topic.name)
             subscribe(self, topic, lambda data, name=name: self.tracker.feed(name, data), raw=True)
-        self._joint_states = self.resolve_topic_name(topics.JOINT_STATES.name)
-        subscribe(self, topics.JOINT_STATES, self._on_joint_states, raw=True)
         self.server = foxglove.start_server(name="gait_biofeedback", host=p.host, port=p.port,
                                             capabilities=[], context=self._fox)
         self.port = self.server.port
@@ -107,7 +108,7 @@ class FoxgloveView(GuardedNode):
     def _on_joint_states(self, data: bytes) -> None:
         if not (self._tf.has_sinks() or self._angles.has_sinks()):
             return
-        pose = self.tracker.feed(self._joint_states, data)
+        pose = self.tracker.feed(self.tracker.joint_states, data)
         parsed = joint_state_of(data)
         if parsed is not None and self._angles.has_sinks():
             stamp, angles, _ = parsed

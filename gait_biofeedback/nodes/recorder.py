@@ -37,7 +37,7 @@ from gait_biofeedback.io.params import RecorderParams
 from gait_biofeedback.nodes.common import GuardedNode
 from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
 from gait_biofeedback.wire import diagnostics, topics
-from gait_biofeedback.wire.body import INPUT_TOPICS, BodyFrameTracker
+from gait_biofeedback.wire.body import BodyFrameTracker
 from gait_biofeedback.wire.cdr import header_stamp_ns
 from gait_biofeedback.wire.tf import TF_TOPIC, TF_TYPE, tf_messages
 from gait_biofeedback.wire.topics import RELIABLE_QOS, SENSOR_QOS
@@ -63,7 +63,7 @@ class Recorder(GuardedNode):
         self.excluded = {*ALWAYS_EXCLUDED, *(t for t in p.exclude if t)}
         if p.body_frames:
             self.excluded.add(TF_TOPIC)  # written from the body's frames, not recorded twice
-        self._body = BodyFrameTracker(p.body) if p.body_frames else None
+        self._body = BodyFrameTracker(p.body, self.resolve_topic_name) if p.body_frames else None
         self._writer_options = {
             "compression": p.compression,
             "flush_period_s": p.flush_period_s,
@@ -275,7 +275,7 @@ class Recorder(GuardedNode):
                 continue
             try:
                 self.writer.write_serialized(*item)
-                if self._body is not None and item[0].endswith(INPUT_TOPICS):
+                if self._body is not None and item[0] in self._body.topics:
                     self._write_body(item[0], item[2], item[3])
             except OSError as err:
                 self._write_failed(err)

@@ -12,6 +12,7 @@ not decode is counted in :attr:`BodyFrameTracker.refused`, never raised.
 from __future__ import annotations
 
 from collections import OrderedDict
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
@@ -41,23 +42,21 @@ class BodyPose(NamedTuple):
     present: np.ndarray
 
 
-def _suffix(topic: str) -> str:
-    return "/" + topic.lstrip("/")
-
-
-JOINT_STATES = _suffix(topics.JOINT_STATES.name)
-CALIBRATION = _suffix(topics.CALIBRATION.name)
-PELVIS = _suffix(topics.orientation("pelvis").name)
-CHEST = _suffix(topics.orientation("chest").name)
-INPUT_TOPICS = (JOINT_STATES, CALIBRATION, PELVIS, CHEST)
-"""Topic name endings the tracker reads (a namespaced graph's topics end the same way)."""
+INPUTS = (topics.JOINT_STATES, topics.CALIBRATION, topics.orientation("pelvis"), topics.orientation("chest"))
+"""The topics the tracker reads."""
 
 
 class BodyFrameTracker:
-    """Feed it the messages of :data:`INPUT_TOPICS` (:meth:`feed`); each joint state gives a pose."""
+    """Feed it the messages of :data:`INPUTS` (:meth:`feed`); each joint state gives a pose.
+    ``resolve``: a topic's name as the graph has it (a node's ``resolve_topic_name``: its namespace);
+    default: the absolute form of recordings."""
 
-    def __init__(self, body: BodyDimensions | None = None) -> None:
+    def __init__(self, body: BodyDimensions | None = None,
+                 resolve: Callable[[str], str] | None = None) -> None:
         self.body = body or BodyDimensions()
+        names = [resolve(t.name) if resolve is not None else t.absolute() for t in INPUTS]
+        self.joint_states, self.calibration, self.pelvis, self.chest = names
+        self.topics = frozenset(names)
         self._pelvis: OrderedDict[int, tuple[float, float, float, float]] = OrderedDict()
         self._chest: np.ndarray | None = None
         self._calibrations: list[tuple[int, dict[str, np.ndarray]]] = []  # (from ns, segment → r)
@@ -67,16 +66,16 @@ class BodyFrameTracker:
     def feed(self, topic: str, data: bytes) -> BodyPose | None:
         """One message of ``topic`` (CDR bytes); the pose it completes, if any."""
         try:
-            if topic.endswith(JOINT_STATES):
+            if topic == self.joint_states:
                 return self._joint_states(data)
-            if topic.endswith(PELVIS):
+            if topic == self.pelvis:
                 ns, q = _orientation(data)
                 self._pelvis[ns] = q
                 while len(self._pelvis) > KEPT_STAMPS:
                     self._pelvis.popitem(last=False)
-            elif topic.endswith(CHEST):
+            elif topic == self.chest:
                 self._chest = np.array(_orientation(data)[1])
-            elif topic.endswith(CALIBRATION):
+            elif topic == self.calibration:
                 self._calibration(data)
         except Exception:  # a message that does not decode: counted, the stream goes on
             self.refused[topic] = self.refused.get(topic, 0) + 1
