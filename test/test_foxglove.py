@@ -18,6 +18,7 @@ import json
 import math
 import struct
 import threading
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -302,3 +303,39 @@ def test_a_foxglove_client_gets_the_channels_and_the_body_of_a_live_replay_at_th
             if conn.topic == "/tf":
                 assert {t.child_frame_id for t in msg.transforms} <= SEGMENTS8
     assert counts["/tf"] == counts["/joint_states"] > 500
+
+
+def test_the_layout_shows_only_what_the_view_serves_or_a_recording_holds():
+    from gait_biofeedback.nodes.foxglove_view import (
+        ANGLES_CHANNEL,
+        ANGLES_SCHEMA,
+        PASSED_ON,
+        SCENE_CHANNEL,
+        TF_CHANNEL,
+    )
+    from gait_biofeedback.wire import topics
+
+    layout = json.loads((Path(__file__).parents[1] / "config" / "foxglove_layout.json").read_text())
+    served = {TF_CHANNEL, SCENE_CHANNEL, ANGLES_CHANNEL, *(t.absolute() for t in PASSED_ON),
+              topics.SKELETON.absolute()}
+
+    def panels(node) -> list[str]:
+        return [node] if isinstance(node, str) else panels(node["first"]) + panels(node["second"])
+
+    assert sorted(panels(layout["layout"])) == sorted(layout["configById"])
+    shown = set()
+    for panel_id, config in layout["configById"].items():
+        kind = panel_id.split("!")[0]
+        if kind == "3D":
+            shown |= set(config["topics"])
+        elif kind == "Plot":
+            for path in config["paths"]:
+                topic, field = path["value"].split(".")
+                assert field in ANGLES_SCHEMA["properties"], field
+                shown.add(topic)
+        elif kind == "RawMessages":
+            shown.add(config["topicPath"])
+        elif kind == "DiagnosticSummary":
+            shown.add(config["topicToRender"])
+    assert shown <= served, shown - served
+    assert {"Plot!hip", "Plot!knee", "Plot!ankle", "3D!body"} <= set(layout["configById"])
