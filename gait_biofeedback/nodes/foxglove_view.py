@@ -95,7 +95,7 @@ class FoxgloveView(GuardedNode):
                 subscribe(self, topic, self._on_joint_states, raw=True)
                 continue
             name = self.resolve_topic_name(topic.name)
-            subscribe(self, topic, lambda data, name=name: self.tracker.feed(name, data), raw=True)
+            subscribe(self, topic, lambda data, name=name: self._track(name, data), raw=True)
         self.server = foxglove.start_server(name="gait_biofeedback", host=p.host, port=p.port,
                                             capabilities=[], context=self._fox)
         self.port = self.server.port
@@ -104,6 +104,11 @@ class FoxgloveView(GuardedNode):
                                "Foxglove WebSocket), layout config/foxglove_layout.json")
         self._last_stamp = 0
         self.create_timer(p.scene_period_s, self._send_scene)
+
+    def _track(self, topic: str, data: bytes) -> None:
+        """An orientation is kept only while someone watches; a calibration always."""
+        if topic == self.tracker.calibration or self._tf.has_sinks():
+            self.tracker.feed(topic, data)
 
     def _on_joint_states(self, data: bytes) -> None:
         if not (self._tf.has_sinks() or self._angles.has_sinks()):
