@@ -100,6 +100,43 @@ def test_the_frames_rebuild_a_simulated_walk_from_its_true_angles(tmp_path):
     assert np.abs(pos[:, 0, 2] - truth.segment_position["pelvis"][:, 2]).max() < 0.025
 
 
+def test_one_instant_in_floats_is_the_array_form_of_it_and_packs_to_the_same_bytes():
+    from gait_biofeedback.core.joints.body_pose import body_transforms_at
+    from gait_biofeedback.wire.tf import _template, tf_message, tf_messages
+
+    rng = np.random.default_rng(5)
+    pelvis = quat.normalize(rng.normal(size=(40, 4)))
+    chest = quat.normalize(rng.normal(size=(40, 4)))
+    chest[3] = np.nan  # no chest at that instant
+    angles = rng.uniform(-1.0, 1.0, size=(40, len(JOINT_NAMES)))
+    angles[7, JOINT_NAMES.index("right_knee_flexion")] = np.nan
+    angles[9, JOINT_NAMES.index("left_hip_adduction")] = np.nan
+    body = BodyDimensions(thigh_length_m=0.4, foot_length_m=0.2)
+    trans, rot, present = body_transforms(pelvis, angles, chest, body)
+    stamps = 1_000_000_000 * np.arange(40) + 7
+    bulk = tf_messages(stamps, trans, rot, present)
+    for i in range(40):
+        named = {n: v for n, v in zip(JOINT_NAMES, angles[i].tolist(), strict=True) if not math.isnan(v)}
+        t, r, p = body_transforms_at(tuple(pelvis[i]), named, tuple(chest[i]), body)
+        assert p == present[i].tolist()
+        assert np.array(t)[p] == pytest.approx(trans[i][p], abs=1e-12)
+        assert np.array(r)[p] == pytest.approx(rot[i][p], abs=1e-12)
+        one = tf_message(int(stamps[i]), t, r, p)
+        doubles = [slice(at, at + 56) for _, _, at in _template(sum(1 << k for k in range(8) if p[k]))[1]]
+        assert len(one) == len(bulk[i])
+        assert _blank(one, doubles) == _blank(bulk[i], doubles)  # stamps, names, counts, padding
+        for cut in doubles:  # the two forms round differently in the last bit
+            expected = np.frombuffer(bulk[i][cut], "<f8")
+            assert np.frombuffer(one[cut], "<f8") == pytest.approx(expected, abs=1e-12)
+
+
+def _blank(data: bytes, cuts: list[slice]) -> bytes:
+    out = bytearray(data)
+    for cut in cuts:
+        out[cut] = bytes(56)
+    return bytes(out)
+
+
 def test_tf_messages_decode_in_rosbags_and_mcap_ros2(tmp_path):
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory

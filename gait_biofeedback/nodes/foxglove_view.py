@@ -153,8 +153,8 @@ def _frame_transforms(pose: BodyPose):  # -> foxglove.messages.FrameTransforms
     for k, (child, parent) in enumerate(BODY_FRAMES):
         if not pose.present[k]:
             continue
-        x, y, z = pose.trans[k].tolist()
-        w, qx, qy, qz = pose.rot[k].tolist()
+        x, y, z = pose.trans[k]
+        w, qx, qy, qz = pose.rot[k]
         out.append(FrameTransform(timestamp=stamp, parent_frame_id=parent, child_frame_id=child,
                                   translation=Vector3(x=x, y=y, z=z),
                                   rotation=Quaternion(x=qx, y=qy, z=qz, w=w)))

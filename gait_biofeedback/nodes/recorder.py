@@ -39,7 +39,7 @@ from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
 from gait_biofeedback.wire import diagnostics, topics
 from gait_biofeedback.wire.body import BodyFrameTracker
 from gait_biofeedback.wire.cdr import header_stamp_ns
-from gait_biofeedback.wire.tf import TF_TOPIC, TF_TYPE, tf_messages
+from gait_biofeedback.wire.tf import TF_TOPIC, TF_TYPE, tf_message
 from gait_biofeedback.wire.topics import RELIABLE_QOS, SENSOR_QOS
 
 ALWAYS_EXCLUDED = ("/parameter_events", "/rosout", "/clock")
@@ -294,7 +294,7 @@ class Recorder(GuardedNode):
         pose = self._body.feed(topic, data)
         if pose is None:
             return
-        tf = tf_messages([pose.ns], pose.trans[None], pose.rot[None], pose.present[None])[0]
+        tf = tf_message(*pose)
         if tf:
             self.writer.write_serialized(TF_TOPIC, TF_TYPE, tf, log_ns, padded=True)
 

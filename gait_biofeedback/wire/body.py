@@ -19,9 +19,8 @@ import numpy as np
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 
-from gait_biofeedback.core import quaternion as quat
 from gait_biofeedback.core.body import BodyDimensions
-from gait_biofeedback.core.joints.body_pose import angle_rows, body_transforms
+from gait_biofeedback.core.joints.body_pose import body_transforms_at
 from gait_biofeedback.wire import topics
 from gait_biofeedback.wire.calibration import rotations
 from gait_biofeedback.wire.cdr import ORIENTATION, decode_imu, unpack_imu
@@ -34,12 +33,13 @@ KEPT_CALIBRATIONS = 8
 
 
 class BodyPose(NamedTuple):
-    """One instant's frames: stamp ns, translations (8, 3), rotations (8, 4) w, x, y, z, present (8,)."""
+    """One instant's frames (:data:`~gait_biofeedback.core.joints.body_pose.BODY_FRAMES` order): stamp
+    ns, translations (x, y, z), rotations (w, x, y, z), present flags."""
 
     ns: int
-    trans: np.ndarray
-    rot: np.ndarray
-    present: np.ndarray
+    trans: list[tuple[float, float, float]]
+    rot: list[tuple[float, float, float, float]]
+    present: list[bool]
 
 
 INPUTS = (topics.JOINT_STATES, topics.CALIBRATION, topics.orientation("pelvis"), topics.orientation("chest"))
@@ -58,7 +58,7 @@ class BodyFrameTracker:
         self.joint_states, self.calibration, self.pelvis, self.chest = names
         self.topics = frozenset(names)
         self._pelvis: OrderedDict[int, tuple[float, float, float, float]] = OrderedDict()
-        self._chest: np.ndarray | None = None
+        self._chest: tuple[float, float, float, float] | None = None
         self._calibrations: list[tuple[int, dict[str, np.ndarray]]] = []  # (from ns, segment → r)
         self.refused: dict[str, int] = {}
         self.poses = 0
@@ -74,7 +74,7 @@ class BodyFrameTracker:
                 while len(self._pelvis) > KEPT_STAMPS:
                     self._pelvis.popitem(last=False)
             elif topic == self.chest:
-                self._chest = np.array(_orientation(data)[1])
+                self._chest = _orientation(data)[1]
             elif topic == self.calibration:
                 self._calibration(data)
         except Exception:  # a message that does not decode: counted, the stream goes on
@@ -107,12 +107,17 @@ class BodyFrameTracker:
         pelvis = self._pelvis.get(ns) or (next(reversed(self._pelvis.values())) if self._pelvis else None)
         if pelvis is None or "pelvis" not in r:
             return None
-        pelvis_q = quat.multiply(np.array(pelvis), r["pelvis"])
-        chest_q = (quat.multiply(self._chest, r["chest"]) if self._chest is not None and "chest" in r
-                   else np.full(4, np.nan))
-        trans, rot, present = body_transforms(pelvis_q[None], angle_rows([angles]), chest_q[None], self.body)
+        chest = _mul(self._chest, r["chest"]) if self._chest is not None and "chest" in r else None
         self.poses += 1
-        return BodyPose(ns, trans[0], rot[0], present[0])
+        return BodyPose(ns, *body_transforms_at(_mul(pelvis, r["pelvis"]), angles, chest, self.body))
+
+
+def _mul(q: tuple[float, float, float, float], r: np.ndarray) -> tuple[float, float, float, float]:
+    """``q ⊗ r`` (a sensor's orientation and its calibration: the segment's) in floats."""
+    w, x, y, z = q
+    rw, rx, ry, rz = r.tolist()
+    return (w * rw - x * rx - y * ry - z * rz, w * rx + x * rw + y * rz - z * ry,
+            w * ry - x * rz + y * rw + z * rx, w * rz + x * ry - y * rx + z * rw)
 
 
 def _orientation(data: bytes) -> tuple[int, tuple[float, float, float, float]]:

@@ -12,6 +12,8 @@ from the end of the 4-byte encapsulation, translation x, y, z and rotation x, y,
 
 from __future__ import annotations
 
+import struct
+
 import numpy as np
 
 from gait_biofeedback.core.joints.body_pose import BODY_FRAMES
@@ -87,3 +89,40 @@ def tf_messages(stamps_ns: np.ndarray, trans: np.ndarray, rot: np.ndarray, prese
         for j, i in enumerate(rows.tolist()):
             out[i] = blob[j * size:(j + 1) * size]
     return out
+
+
+
+def tf_message(stamp_ns: int, trans: list, rot: list, present: list) -> bytes:
+    """One instant's TFMessage (:func:`~gait_biofeedback.core.joints.body_pose.body_transforms_at`'s
+    translations, rotations w, x, y, z and present flags): the bytes :func:`tf_messages` gives, its
+    stamps and doubles packed into a copy of the layout's constant bytes (b"" when no frame is present)."""
+    mask = sum(1 << k for k, here in enumerate(present) if here)
+    if not mask:
+        return b""
+    found = _templates.get(mask)
+    if found is None:
+        found = _templates[mask] = _template(mask)
+    template, places = found
+    sec, nanosec = divmod(int(stamp_ns), NS_PER_S)
+    out = bytearray(template)
+    for k, at_stamp, at_doubles in places:
+        (x, y, z), (w, qx, qy, qz) = trans[k], rot[k]
+        _STAMP.pack_into(out, at_stamp, sec, nanosec)
+        _DOUBLES.pack_into(out, at_doubles, x, y, z, qx, qy, qz, w)
+    return bytes(out)
+
+
+_STAMP = struct.Struct("<iI")
+_DOUBLES = struct.Struct("<7d")
+_templates: dict[int, tuple[bytes, list[tuple[int, int, int]]]] = {}
+
+
+def _template(mask: int) -> tuple[bytes, list[tuple[int, int, int]]]:
+    """(the record of ``mask`` with its constant fields and zero stamps and doubles, [(frame index, offset
+    of its stamp, offset of its doubles)])."""
+    dtype = tf_dtype(mask)
+    frames = [k for k in range(len(BODY_FRAMES)) if mask >> k & 1]
+    record = tf_messages([0], np.zeros((1, len(BODY_FRAMES), 3)), np.zeros((1, len(BODY_FRAMES), 4)),
+                         np.array([[bool(mask >> k & 1) for k in range(len(BODY_FRAMES))]]))[0]
+    places = [(k, dtype.fields[f"sec{k}"][1], dtype.fields[f"d{k}"][1]) for k in frames]
+    return record, places
