@@ -39,7 +39,6 @@ from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
 from gait_biofeedback.wire import topics
 from gait_biofeedback.wire.body import INPUTS, BodyFrameTracker, BodyPose
 from gait_biofeedback.wire.gait import event_of
-from gait_biofeedback.wire.joints import joint_state_of
 from gait_biofeedback_msgs.msg import GaitEvent
 
 TF_CHANNEL = "/tf"
@@ -113,10 +112,10 @@ class FoxgloveView(GuardedNode):
     def _on_joint_states(self, data: bytes) -> None:
         if not (self._tf.has_sinks() or self._angles.has_sinks()):
             return
+        before = self.tracker.angles
         pose = self.tracker.feed(self.tracker.joint_states, data)
-        parsed = joint_state_of(data)
-        if parsed is not None and self._angles.has_sinks():
-            stamp, angles, _ = parsed
+        if self.tracker.angles is not before and self._angles.has_sinks():
+            stamp, angles = self.tracker.angles
             self._angles.log({"stamp_ns": stamp, **{f"{k}_deg": math.degrees(v) for k, v in angles.items()}},
                              log_time=stamp)
         if pose is not None:

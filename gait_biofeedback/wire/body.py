@@ -62,6 +62,8 @@ class BodyFrameTracker:
         self._calibrations: list[tuple[int, dict[str, np.ndarray]]] = []  # (from ns, segment → r)
         self.refused: dict[str, int] = {}
         self.poses = 0
+        self.angles: tuple[int, dict[str, float]] = (0, {})
+        """The last joint states read: (stamp ns, name → rad)."""
 
     def feed(self, topic: str, data: bytes) -> BodyPose | None:
         """One message of ``topic`` (CDR bytes); the pose it completes, if any."""
@@ -103,6 +105,7 @@ class BodyFrameTracker:
             ns, angles = angles_of(deserialize_message(data, JointState))
         else:
             ns, angles, _ = parsed
+        self.angles = (ns, angles)
         r = self.rotations_at(ns)
         pelvis = self._pelvis.get(ns) or (next(reversed(self._pelvis.values())) if self._pelvis else None)
         if pelvis is None or "pelvis" not in r:
