@@ -376,3 +376,25 @@ def test_the_layout_shows_only_what_the_view_serves_or_a_recording_holds():
             shown.add(config["topicToRender"])
     assert shown <= served, shown - served
     assert {"Plot!hip", "Plot!knee", "Plot!ankle", "3D!body"} <= set(layout["configById"])
+
+
+@pytest.mark.ros
+def test_a_recording_with_body_frames_replays_without_them(ros_context, tmp_path):
+    """tf2_msgs has no PyPI wheel: the replayer cannot publish /tf, so it names and skips it."""
+    from gait_biofeedback.io.bag import BagWriter
+    from gait_biofeedback.nodes.imu_replayer import ImuReplayer
+    from gait_biofeedback.wire.cdr import pack_imu
+    from gait_biofeedback.wire.imu import raw_imu_values
+    from gait_biofeedback.wire.tf import TF_TOPIC, TF_TYPE, tf_messages
+
+    trans, rot, present = body_transforms(UPRIGHT[None], _angles(), UPRIGHT[None])
+    with BagWriter(tmp_path / "bag") as writer:
+        writer.write_serialized("/pelvis/imu/data_raw", "sensor_msgs/msg/Imu",
+                                pack_imu(10, "pelvis_imu", raw_imu_values((0.0,) * 3, (0.0, 0.0, 9.81))), 10)
+        writer.write_serialized(TF_TOPIC, TF_TYPE, tf_messages([10], trans, rot, present)[0], 10, padded=True)
+    replayer = ImuReplayer(ros_context, bag=str(tmp_path / "bag"))
+    try:
+        assert replayer.skipped == {TF_TOPIC: TF_TYPE}
+        assert list(replayer.topics) == ["/pelvis/imu/data_raw"]
+    finally:
+        replayer.destroy_node()
