@@ -7,7 +7,7 @@ export ROS_DOMAIN_ID ?= 42
 export OPENBLAS_NUM_THREADS ?= 1
 export OMP_NUM_THREADS ?= 1
 
-.PHONY: setup demo test lint bench clean
+.PHONY: setup demo test lint docs bench clean
 
 setup:
 	@bash scripts/setup_env.sh
@@ -25,6 +25,11 @@ test: setup
 
 lint: setup
 	$(PY) -m ruff check gait_biofeedback test benchmarks scripts
+
+# the documentation site (mkdocs.yml) into build/docs; --strict: a warning (a broken link, a missing
+# symbol of an API page) fails the build
+docs: setup
+	$(PY) -m mkdocs build --strict --site-dir build/docs
 
 clean:
 	rm -rf build .venv output .pytest_cache

@@ -1,6 +1,7 @@
 """``gait-biofeedback analyze``: a recording → the live graph's outputs, offline, without DDS.
 
-The offline twin of replaying a bag through the node graph (DESIGN.md "Two paths, one core"): the raw
+The offline twin of replaying a bag through the node graph (``docs/architecture.md``, "One core, two
+paths"): the raw
 IMU messages are read from the MCAP in log-time order and handed to the same core objects, through the
 same message-conversion helpers, in the same order the nodes use them:
 
@@ -12,7 +13,7 @@ same message-conversion helpers, in the same order the nodes use them:
    ``calibrate_at`` request calibrates on the window ending at that instant, exactly as
    :meth:`CalibrationNode.calibrate_at <gait_biofeedback.nodes.calibration.CalibrationNode.calibrate_at>`
    does in a replay → ``/calibration/sensor_to_segment``;
-3. joint angles: :class:`~gait_biofeedback.core.joints.angles.JointAngleStream` → ``/joint_states``,
+3. joint angles: :class:`~gait_biofeedback.core.joints.stream.JointAngleStream` → ``/joint_states``,
    ``/skeleton``, and the body's segment frames ``/tf`` (:mod:`~gait_biofeedback.core.joints.body_pose`,
    one per joint state, encoded in bulk before each write of the output);
 4. gait events and strides: :class:`~gait_biofeedback.core.gait.stream.GaitEventStream` →

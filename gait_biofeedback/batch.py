@@ -3,7 +3,7 @@
 ``from gait_biofeedback.batch import estimate_orientation, detect_gait_events, classify_activity``.
 Scripts outside the package (your analyses, ``benchmarks/``) import from here only, so the
 package's internal layout can change without breaking them; these names are kept stable and
-documented in the README (section *Batch API*). Units SI, quaternions (w, x, y, z) Hamilton
+documented in ``docs/api/index.md`` (the Batch API). Units SI, quaternions (w, x, y, z) Hamilton
 sensor → world ENU, times in s from the first sample unless a stamp (int ns) is asked for
 (``docs/conventions.md``).
 

@@ -28,7 +28,7 @@ Wearable-IMU gait biofeedback (ROS 2 Jazzy). Typical use:
                                                the same processing offline, straight from the file
                                                (and its tables: output/mine_offline/tables/*.parquet)
   gait-biofeedback run --driver udp:5600 --record output/today
-                                               live sensors (README: Connecting sensors) through the graph
+                                               live sensors (docs/guide/live_sensors.md) through the graph
   gait-biofeedback stream-sim bags/demo_walk --to udp:127.0.0.1:5600
                                                send a recording as live sensors would (demos, tests)
   gait-biofeedback info output/mine            what is in a recording
@@ -121,10 +121,34 @@ def _node_list(text: str | None) -> list[str] | None:
     return None if text is None else [n for n in text.split(",") if n]
 
 
+DRIVER_SPECS = ("udp:PORT, udp:ADDRESS:PORT, serial:DEVICE[:BAUD], simulated[:SCENARIO], "
+                "ximu3[:DEVICE=SEGMENT,...] (DEVICE: tcp:HOST:PORT, udp:HOST:SEND:RECEIVE or serial:PATH), "
+                "ngimu:[ADDRESS:]PORT[,IP[:PORT]=SEGMENT,...], "
+                "shimmer[:PORT=SEGMENT,...] (e.g. shimmer:/dev/rfcomm0=left_shank,/dev/rfcomm1=right_shank) "
+                "or dot[:ADDRESS=SEGMENT,...] (e.g. dot:D4:22:CD:00:12:34=left_foot); without devices, the "
+                "--params file's imu_driver 'devices'")
+
+
 def parse_driver(spec: str) -> dict[str, object]:
     """``--driver`` → imu_driver parameters: ``udp:PORT``, ``udp:ADDRESS:PORT``,
-    ``serial:DEVICE[:BAUD]``, ``simulated[:SCENARIO]``."""
+    ``serial:DEVICE[:BAUD]``, ``simulated[:SCENARIO]``, ``ximu3[:DEVICE=SEGMENT,...]``,
+    ``ngimu:[ADDRESS:]PORT[,DEVICE=SEGMENT,...]``, ``shimmer[:PORT=SEGMENT,...]``,
+    ``dot[:ADDRESS=SEGMENT,...]`` (no devices: the parameter file's ``devices``;
+    docs/connecting_sensors.md)."""
     kind, _, rest = spec.partition(":")
+    if kind in ("shimmer", "dot"):
+        return _vendor_driver(spec, kind, rest)
+    if kind == "ximu3":
+        devices = [d for d in rest.split(",") if d]
+        if all("=" in d for d in devices):
+            return {"backend": "ximu3", **({"devices": devices} if devices else {})}
+    if kind == "ngimu":
+        listen, *devices = rest.split(",")
+        where = listen.split(":")
+        if len(where) in (1, 2) and where[-1].isdigit() and all("=" in d for d in devices):
+            address = {"address": where[0]} if len(where) == 2 else {}
+            return {"backend": "ngimu", "port": int(where[-1]), **address,
+                    **({"devices": devices} if devices else {})}
     parts = rest.split(":") if rest else []
     try:
         if kind == "udp" and len(parts) in (1, 2):
@@ -137,8 +161,15 @@ def parse_driver(spec: str) -> dict[str, object]:
         pass
     if kind == "simulated" and len(parts) <= 1:
         return {"backend": "simulated", **({"scenario": parts[0]} if parts else {})}
-    raise ValueError(f"--driver {spec!r}: expected udp:PORT, udp:ADDRESS:PORT, serial:DEVICE[:BAUD] or "
-                     "simulated[:SCENARIO]")
+    raise ValueError(f"--driver {spec!r}: expected {DRIVER_SPECS}")
+
+
+def _vendor_driver(spec: str, kind: str, rest: str) -> dict[str, object]:
+    """``shimmer:PORT=SEGMENT,...`` / ``dot:ADDRESS=SEGMENT,...`` → backend and devices."""
+    devices = [d.strip() for d in rest.split(",") if d.strip()]
+    if any("=" not in d for d in devices):
+        raise ValueError(f"--driver {spec!r}: each device is DEVICE_ID=SEGMENT; expected {DRIVER_SPECS}")
+    return {"backend": kind, **({"devices": devices} if devices else {})}
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -164,9 +195,13 @@ def cmd_stream_sim(args: argparse.Namespace) -> int:
     from gait_biofeedback.parameters import stage_parameters
     from gait_biofeedback.sim.sensor_link import FrameSchedule, LinkModel, send_udp
 
-    kind, _, rest = args.to.partition(":")
+    if args.as_ == "shimmer":
+        return _stream_sim_shimmer(args)
+    if not args.to and args.as_ != "x-imu3":
+        raise ValueError(f"stream-sim --as {args.as_}: give --to udp:HOST:PORT (where the driver listens)")
+    kind, _, rest = (args.to or "").partition(":")
     host, _, port = rest.rpartition(":")
-    if kind != "udp" or not host or not port.isdigit():
+    if args.as_ != "x-imu3" and (kind != "udp" or not host or not port.isdigit()):
         raise ValueError(f"--to {args.to!r}: expected udp:HOST:PORT, e.g. udp:127.0.0.1:5600")
     driver = stage_parameters("imu_driver", _session_parameters(args.params).get("imu_driver", {}))
     ids = {segment: sid for sid, segment in driver.mapping().items()}
@@ -176,6 +211,8 @@ def cmd_stream_sim(args: argparse.Namespace) -> int:
     schedule = FrameSchedule(read_imu_bag(args.bag), ids, link, key)
     if schedule.missing:
         print(f"note: the mapping's {', '.join(schedule.missing)} are not in {args.bag}")
+    if args.as_ != "ours":
+        return _stream_as_xio(args, schedule, ids, host, int(port) if port.isdigit() else 0)
     duration = schedule.send_ns[-1] * 1e-9
     signed = f", signed with the key of {args.frame_key_file}" if key is not None else ""
     print(f"sending {schedule.samples} samples of {len(schedule.series)} sensors ({duration:.1f} s) to "
@@ -187,6 +224,74 @@ def cmd_stream_sim(args: argparse.Namespace) -> int:
     print(f"sent {report.samples_sent} samples in {report.frames_sent} datagrams, dropped "
           f"{report.samples_dropped} (--loss {args.loss:g}); the sender was at worst "
           f"{1e3 * report.worst_lateness_s:.1f} ms late")
+    return 0
+
+
+def _stream_sim_shimmer(args: argparse.Namespace) -> int:
+    """``stream-sim --as shimmer``: one fake Shimmer3 per segment on a pseudo-terminal, each streaming
+    the recording once a client connects and starts it (``run --driver shimmer:...``)."""
+    import time
+
+    from gait_biofeedback.io.imu_bag import read_imu_bag
+    from gait_biofeedback.io.vendors.shimmer_fake import FakeShimmers, fakes_for_recording
+    from gait_biofeedback.nodes.common import stop_on_signals
+
+    series = read_imu_bag(args.bag)
+    fakes = fakes_for_recording(series, offset_s=args.offset_s, drift_ppm=args.drift_ppm,
+                                jitter_s=args.jitter_ms * 1e-3, loss=args.loss, seed=args.seed)
+    spec = ",".join(f"{f.path}={segment}" for segment, f in fakes.items())
+    server = FakeShimmers(list(fakes.values())).start()
+    print(f"{len(fakes)} fake Shimmer3 devices wait for a client; connect them with\n"
+          f"  gait-biofeedback run --driver shimmer:{spec}\nCtrl-C stops", flush=True)
+    try:
+        with stop_on_signals() as stop:
+            while not stop.is_set() and not (server.finished and all(f.started for f in fakes.values())):
+                time.sleep(0.1)
+    finally:
+        server.close()
+    sent = sum(f.sent for f in fakes.values())
+    dropped = sum(f.dropped for f in fakes.values())
+    print(f"sent {sent} samples as data packets, dropped {dropped} (--loss {args.loss:g})")
+def _stream_as_xio(args: argparse.Namespace, schedule, ids: dict[str, int], host: str, port: int) -> int:
+    """``stream-sim --as x-imu3|ngimu``: the recording through fake x-io devices
+    (:mod:`gait_biofeedback.sim.xio_devices`), each sensor one device."""
+    import time
+
+    from gait_biofeedback.nodes.common import STOP, stop_on_signals
+    from gait_biofeedback.sim import xio_devices
+
+    sensor_ids = [t.sensor_id for t in schedule.truth.values()]
+    used = {seg: sid for seg, sid in ids.items() if sid in sensor_ids}
+    if args.as_ == "x-imu3":
+        fakes = xio_devices.ximu3_devices(sensor_ids, ascii_mode=args.ascii)
+        devices = xio_devices.device_entries({sid: f.spec for sid, f in fakes.items()}, used)
+
+        def send(sample) -> bool:
+            return fakes[sample.sensor_id].send_sample(sample)
+
+        print(f"{len(fakes)} x-IMU3s listening; connect with: gait-biofeedback run --driver "
+              f"'ximu3:{','.join(devices)}'", flush=True)
+        with stop_on_signals():
+            for fake in fakes.values():
+                while not fake.wait_connected(0.5) and not STOP.is_set():
+                    pass
+    else:
+        fakes = xio_devices.FakeNgimus(sensor_ids, host, port, args.source_port)
+        devices = xio_devices.device_entries({sid: f"127.0.0.1:{p}" for sid, p in fakes.ports.items()}, used)
+        send = fakes.send_sample
+        print(f"{len(sensor_ids)} NGIMUs sending to {host}:{port}; their devices: '{','.join(devices)}'",
+              flush=True)
+    print(f"sending {schedule.samples} samples of {len(schedule.series)} sensors "
+          f"({schedule.send_ns[-1] * 1e-9:.1f} s) as {args.as_}; Ctrl-C stops", flush=True)
+    try:
+        with stop_on_signals():
+            report = xio_devices.play(schedule, send, stop=STOP.is_set)
+        time.sleep(0.5)  # let the last messages leave before the devices close
+    finally:
+        for fake in (fakes.values() if isinstance(fakes, dict) else [fakes]):
+            fake.close()
+    print(f"sent {report.samples_sent} samples, dropped {report.samples_dropped} (--loss {args.loss:g}); the "
+          f"sender was at worst {1e3 * report.worst_lateness_s:.1f} ms late")
     return 0
 
 
@@ -334,7 +439,7 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     recording = read_recording_file(result.output)  # once, for the tables and the summary
     if not args.no_tables:
         files = write_tables(result.output, recording=recording)
-        print(f"wrote {files.folder}: {files.summary()} (Parquet; README: Tables for analysis)")
+        print(f"wrote {files.folder}: {files.summary()} (Parquet; docs/guide/report.md, Tables for analysis)")
     if result.calibration_file is not None:
         print(f"calibration in force saved as {result.calibration_file}")
     print("\n".join(format_report(summarise(recording))))
@@ -362,7 +467,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     patient = patient_from_params(args.params) if args.params else Patient()
     patient = Patient(args.patient_id or patient.id, args.session_label or patient.session)
     files = write_report(args.sessions, args.output, patient, labels=args.labels, norms_file=args.norms,
-                         targets_file=args.targets, overwrite=args.overwrite)
+                         targets_file=args.targets, overwrite=args.overwrite, date=args.date)
     for note in files.analyses[-1].notes:
         print(note)
     for text in files.damage:
@@ -600,8 +705,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser(
         "tables", help="a session's strides, joint angles, events and activity as Parquet tables",
         description="Write strides.parquet, joint_angles.parquet, events.parquet and activity.parquet "
-        "(README: Tables for analysis) of a recording of the graph or an analyze output (analyze writes "
-        "them itself unless --no-tables).")
+        "(docs/guide/report.md, Tables for analysis) of a recording of the graph or an analyze output "
+        "(analyze writes them itself unless --no-tables).")
     p.add_argument("bag", help="recording of the graph or analyze output")
     p.add_argument("-o", "--output", default=None, help="folder for the tables [BAG/tables]")
     p.set_defaults(func=cmd_tables)
@@ -620,6 +725,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--norms", default=None, help="YAML of normative bands replacing the built-in ones")
     p.add_argument("--targets", default=None, help="targets of the offline cues [config/targets.yaml]")
     p.add_argument("--overwrite", action="store_true", help="replace a report already in the output folder")
+    p.add_argument("--date", default=None, metavar="'YYYY-MM-DD[ HH:MM]'",
+                   help="the last session's date, for a recording whose clock holds none (imported, "
+                   "simulated)")
     p.set_defaults(func=cmd_report)
 
     p = sub.add_parser(
@@ -671,10 +779,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("run", help="run the processing graph on live sensors (--driver) or live topics "
                        "until Ctrl-C")
-    p.add_argument("--driver", metavar="SPEC", help="also run imu_driver: udp:PORT, udp:ADDRESS:PORT, "
-                   "serial:DEVICE[:BAUD] or simulated[:SCENARIO] (its other parameters: --params)")
+    p.add_argument("--driver", metavar="SPEC", help=f"also run imu_driver: {DRIVER_SPECS} (its other "
+                   "parameters, e.g. device_rate_hz: --params; docs/connecting_sensors.md)")
     p.add_argument("--frame-key-file", metavar="PATH", help="with --driver: take only frames signed with "
-                   "the session key in PATH (imu_driver's 'frame_key_file'; README: Frame format)")
+                   "the session key in PATH (imu_driver's 'frame_key_file'; docs/guide/live_sensors.md)")
     p.add_argument("--record", help="also record every topic to this bag folder")
     p.add_argument("--params", default=None, help="ROS 2 parameter file, e.g. config/session.yaml")
     p.add_argument("--nodes", help="comma-separated processing nodes (default: all; '' = none)")
@@ -684,10 +792,18 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("stream-sim", help="send a recording as live sensors would, over UDP",
                        description="Send a recording's raw IMU samples in the imu_driver's wire format "
-                       "(README: Connecting sensors) in real time, each sensor with its own device clock "
+                       "(docs/guide/live_sensors.md) in real time, each sensor with its own device clock "
                        "(offset, drift), over a link with jitter, loss and reordering.")
     p.add_argument("bag", help="recording with /<segment>/imu/data_raw topics")
-    p.add_argument("--to", required=True, metavar="udp:HOST:PORT", help="where the driver listens")
+    p.add_argument("--to", metavar="udp:HOST:PORT", help="where the driver listens (--as ours and ngimu)")
+    p.add_argument("--as", dest="as_", choices=("ours", "x-imu3", "ngimu", "shimmer"), default="ours",
+                   help="the devices' protocol: ours (docs/guide/live_sensors.md), x-imu3 (fake x-IMU3s on "
+                   "TCP that the driver connects to; the command to run is printed), ngimu (fake NGIMUs "
+                   "sending OSC to --to) or shimmer (one fake Shimmer3 per segment on a pseudo-terminal, its "
+                   "path printed, for `run --driver shimmer:...`); docs/connecting_sensors.md [ours]")
+    p.add_argument("--ascii", action="store_true", help="--as x-imu3: ASCII data messages, not binary")
+    p.add_argument("--source-port", type=int, default=0, help="--as ngimu: the first NGIMU sends from this "
+                   "port of 127.0.0.1, the next from the port after, ... (0 = any free ports) [0]")
     p.add_argument("--offset-s", type=float, default=0.0,
                    help="device clock offset of the first sensor, s (sensor k: +0.1 k s)")
     p.add_argument("--drift-ppm", type=float, default=0.0,

@@ -57,7 +57,8 @@ def summarize(input_bag: Path, output: Path, wall_time: float, published: int,
     """The one-screen summary of a demo run (replayed at ``speed``; ``cut_short``: why the replay or
     the recording ended early, if it did): raw samples the recording lacks are said, with what to do
     (on a slow or busy machine the graph falls behind and drops them, and every figure above
-    suffers), and ``graph_note``, what the processing graph lost (:meth:`ReplayResult.loss_note`)."""
+    suffers), and ``graph_note``, what the processing graph lost
+    (:meth:`~gait_biofeedback.graph.ReplayResult.loss_note`)."""
     source = BagReader(input_bag)
     result = BagReader(output)
     counts = result.message_counts()

@@ -1,22 +1,20 @@
 #!/usr/bin/env python3
-"""Rewrite the README's parameter tables from the stage dataclasses (test_parameters.py checks them)."""
+"""Rewrite the parameter reference of the docs (docs/parameters.md, below its marker) from the stage
+dataclasses (gait_biofeedback.parameters.parameter_reference; test_parameters.py checks the page)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from gait_biofeedback.parameters import NODE_PARAMETERS, parameter_table
+from gait_biofeedback.parameters import PARAMETER_PAGE_MARKER, parameter_reference
 
-README = Path(__file__).resolve().parents[1] / "README.md"
+PAGE = Path(__file__).resolve().parents[1] / "docs" / "parameters.md"
 
 
 def main() -> None:
-    text = README.read_text()
-    for node in NODE_PARAMETERS:
-        start = text.index(f"#### `{node}`\n")
-        end = text.index("\n\n", start)
-        text = text[:start] + f"#### `{node}`\n" + "\n".join(parameter_table(node)) + text[end:]
-    README.write_text(text)
+    text = PAGE.read_text()
+    head = text[:text.index(PARAMETER_PAGE_MARKER) + len(PARAMETER_PAGE_MARKER)]
+    PAGE.write_text(head + "\n\n" + parameter_reference())
 
 
 if __name__ == "__main__":

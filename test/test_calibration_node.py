@@ -35,6 +35,7 @@ def _imu_msgs(session, segment):
 
 
 def test_service_calibrates_and_latched_result_reaches_late_subscriber(ros_context, tmp_path):
+    from diagnostic_msgs.msg import DiagnosticArray
     from rclpy.node import Node
     from sensor_msgs.msg import Imu
 
@@ -48,6 +49,10 @@ def test_service_calibrates_and_latched_result_reaches_late_subscriber(ros_conte
     node = CalibrationNode(ros_context, segments=SEGMENTS, session_dir=str(tmp_path))
     source = Node("source", context=ros_context)
     pubs = {s: source.create_publisher(Imu, f"{s}/imu/data", RELIABLE_QOS) for s in SEGMENTS}
+    progress = []  # the live protocol progress the dashboard shows
+    source.create_subscription(DiagnosticArray, "/diagnostics", lambda m: progress.extend(
+        {kv.key: kv.value for kv in s.values} for s in m.status if s.name == "calibration: progress"),
+        RELIABLE_QOS)
     client = source.create_client(Calibrate, "calibration/calibrate")
     with spinning(ros_context, node, source) as executor:
         assert spin_until(executor, lambda: all(p.get_subscription_count() for p in pubs.values()), timeout=5)
@@ -74,6 +79,14 @@ def test_service_calibrates_and_latched_result_reaches_late_subscriber(ros_conte
             r = np.array([m.rotation.w, m.rotation.x, m.rotation.y, m.rotation.z])
             assert helical_angle(r, session.truth.mounting[m.segment]) < np.radians(1.0), m.segment
         assert (tmp_path / "calibration.yaml").exists()
+        # the progress counted, live, the cycles the calibration then found on each leg's thigh
+        found = {seg: r.details["cycles"] for seg, r in node.last_attempt.calibration.segments.items()
+                 if seg.endswith("thigh")}
+        assert found["left_thigh"] >= 10 and found["right_thigh"] >= 10, found
+        live = node.progress.progress()
+        assert live.ready and live.cycles == {"left": found["left_thigh"], "right": found["right_thigh"]}
+        assert spin_until(executor, lambda: any(p.get("left_cycles") == str(found["left_thigh"])
+                                                for p in progress), timeout=3), progress[-1:]
 
         received = []
         late = Node("late", context=ros_context)

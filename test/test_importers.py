@@ -291,7 +291,7 @@ def test_gaitmap_not_rotated_is_the_same_motion_in_other_axes(gaitmap_recording:
 def test_gaitmap_events_in_seconds_inside_their_strides(gaitmap_recording: Recording) -> None:
     events = load_gaitmap_events(shared_data("gaitmap_example", "stride_events_sample.csv"))
     assert set(events) == {"left", "right"}
-    assert len(events["left"]["ic"]) + len(events["right"]["ic"]) == 57  # README: 57 strides
+    assert len(events["left"]["ic"]) + len(events["right"]["ic"]) == 57  # 57 strides (benchmarks/gait_events)
     duration = gaitmap_recording.imu["left_foot"].t[-1]
     for foot in ("left", "right"):
         ic, tc = events[foot]["ic"], events[foot]["tc"]

@@ -10,6 +10,12 @@ from gait_biofeedback.core.spatial import _kalman_kernel as kernel
 from gait_biofeedback.core.spatial.kalman import _ROWS_FLOOR, kernels
 
 
+def _covariance_kernels():
+    """(propagate, measure): compiled once :func:`kernels` has compiled the foot's step that calls them."""
+    kernels()
+    return kernel.propagate, kernel.measure
+
+
 def _skew(v):
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
@@ -48,7 +54,7 @@ def _by_numpy(p, omega, f, rot, dt, density, residual):
 @pytest.mark.parametrize("seed", range(20))
 def test_the_kernel_gives_suh_s_equations(seed):
     p, omega, f, rot, dt, density, residual = _case(seed)
-    propagate, measure = kernels()
+    propagate, measure = _covariance_kernels()
     phi, q_noise, p_next = (np.empty((15, 15)) for _ in range(3))
     propagate(p, omega, f, rot, dt, density, phi, q_noise, p_next)
     dx, p_post = np.empty(15), np.empty((15, 15))
@@ -61,7 +67,7 @@ def test_the_kernel_gives_suh_s_equations(seed):
 
 
 def test_compiled_and_plain_python_give_the_same_bits(monkeypatch):
-    propagate, measure = kernels()
+    propagate, measure = _covariance_kernels()
     if not hasattr(propagate, "py_func"):
         pytest.skip("numba is not available: the plain-Python kernel is the only one")
     p, omega, f, rot, dt, density, residual = _case(99)

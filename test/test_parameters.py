@@ -1,6 +1,6 @@
 """Parameters are declared once: the stage dataclasses, what the nodes report over ROS, config/session.yaml
-and the README agree; a params file with a typo, a wrong type or a value out of range is refused before
-anything starts, naming the file, node, parameter and what is allowed."""
+and docs/parameters.md agree; a params file with a typo, a wrong type or a value out of range is refused
+before anything starts, naming the file, node, parameter and what is allowed."""
 
 from __future__ import annotations
 
@@ -12,7 +12,14 @@ from pathlib import Path
 import pytest
 
 from gait_biofeedback.core.params import RENAMED, ParameterError, from_mapping, specs
-from gait_biofeedback.parameters import NODE_PARAMETERS, load_params_file, parameter_table, stage_parameters
+from gait_biofeedback.parameters import (
+    NODE_PARAMETERS,
+    PARAMETER_PAGE_MARKER,
+    load_params_file,
+    parameter_reference,
+    parameter_table,
+    stage_parameters,
+)
 
 REPO = Path(__file__).resolve().parents[1]
 SESSION = REPO / "config" / "session.yaml"
@@ -43,13 +50,17 @@ def test_session_yaml_names_real_parameters_at_their_defaults():
     assert "thigh_length_m" not in loaded["gait_events"]
 
 
-def test_readme_lists_every_parameter_as_declared():
-    readme = (REPO / "README.md").read_text()
-    for node in NODE_PARAMETERS:
+def test_docs_list_every_parameter_as_declared():
+    page = (REPO / "docs" / "parameters.md").read_text()
+    assert PARAMETER_PAGE_MARKER in page
+    generated = page.split(PARAMETER_PAGE_MARKER, 1)[1].strip("\n")
+    assert generated == parameter_reference().strip("\n"), (
+        "docs/parameters.md differs from the stage dataclasses; regenerate it with "
+        "`.venv/bin/python scripts/parameter_tables.py`")
+    for node in NODE_PARAMETERS:  # each node's table, whole, under its own heading
         table = "\n".join(parameter_table(node))
-        assert f"#### `{node}`\n{table}\n" in readme, (
-            f"README's parameter table of {node} differs from its dataclass; regenerate the tables with "
-            "`.venv/bin/python scripts/parameter_tables.py`")
+        assert f"## `{node}`\n\n{table}\n" in page
+    assert "| `max_gap_s` | `0.15` |" in page  # one row by hand: the orientation filter's bridged holes
 
 
 def _write(tmp_path: Path, text: str) -> Path:

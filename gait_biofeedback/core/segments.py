@@ -1,6 +1,7 @@
 """Body segments, frame names and the in-memory form of one IMU's recording.
 
-Segment and frame names follow DESIGN.md: sensor frame ``<segment>_imu``, anatomical frame
+Segment and frame names follow ``docs/conventions.md`` (Segments and frames): sensor frame
+``<segment>_imu``, anatomical frame
 ``<segment>`` (ISB: x anterior, y superior/proximal, z right-lateral), world ``world`` (ENU).
 """
 

@@ -15,7 +15,7 @@ A body network delivers a sensor's samples late, twice, out of order, or with a 
   with :attr:`Released.gap_s` (ahead: the sensor was silent) or :attr:`Released.restart_s` (back: a
   recording replayed again, a driver or sensor restarted).
 
-A stream that ends holds its last ``window`` s: :meth:`flush` releases them. Time is int ns
+A stream that ends holds its last ``window`` s: :meth:`StreamSequencer.flush` releases them. Time is int ns
 (``docs/conventions.md``). READING of issue 13 ("a single late or early stamp is dropped and counted;
 a reset happens only on a real time jump"): a jump is real when ``confirm`` (3) samples in a row,
 each within the jump threshold of the one before, are on its far side.

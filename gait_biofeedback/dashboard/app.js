@@ -13,13 +13,7 @@ const COLORS = { left: "#1f77b4", right: "#e4572e", pelvis: "#555" };
 const STRIDES_KEPT = 5;
 const SAMPLES_KEPT = 600;     // ~6 s at 100 Hz
 const EVENT_WINDOW = 6.0;     // s shown on the IC/TC strip
-const QUANTITY_LABELS = {
-  knee_flexion_peak_swing: "Peak knee flexion (swing)", knee_flexion_at_ic: "Knee flexion at IC",
-  hip_extension_peak_stance: "Hip extension (late stance)", ankle_dorsiflexion_at_ic: "Ankle dorsiflexion at IC",
-  stance_fraction: "Stance", step_time_symmetry: "Step-time symmetry", cadence: "Cadence",
-  stride_length: "Stride length", gait_speed: "Gait speed", step_length: "Step length",
-  step_length_symmetry: "Step-length symmetry",
-};
+const PROGRESS_STATUS = "calibration: progress";  // the calibration node's /diagnostics status
 
 // Everything the page knows; exposed for the browser test.
 const state = {
@@ -28,6 +22,7 @@ const state = {
   events: 0, cuesReceived: 0, lastCalibration: null, lastReply: null, audio: null, muted: false,
   readOnly: true, calibrationInForce: null, proposedProtocol: null,
   lastAngleStamp: null, lastFrameWall: null, feedback: { side: "both", joint: "all" },
+  ended: false, connectionLost: false, clippedLabels: 0, clippedLabelsNow: 0, calibrationProgress: "",
 };
 window.dashboardState = state;
 
@@ -48,7 +43,12 @@ function connect() {
     (token ? "?token=" + encodeURIComponent(token) : "");
   ws = new WebSocket(url);
   ws.onopen = () => { state.connected = true; setBadge(true); };
-  ws.onclose = () => { state.connected = false; setBadge(false); setTimeout(connect, 1000); };
+  ws.onclose = () => {
+    const was = state.connected;
+    state.connected = false; setBadge(false);
+    if (was && !state.ended) showSessionState("lost");
+    setTimeout(connect, state.ended ? 3000 : 1000);
+  };
   ws.onmessage = (ev) => { try { handle(JSON.parse(ev.data)); } catch (e) { console.error(e); } };
 }
 
@@ -60,13 +60,34 @@ function send(obj) {
 
 function setBadge(on) {
   const b = document.getElementById("connection");
-  b.textContent = on ? "live" : "disconnected";
+  b.textContent = on ? "live" : (state.ended ? "session ended" : "disconnected");
   b.className = "badge " + (on ? "on" : "off");
+}
+
+// The graph stopped (an "end" message) or the connection broke: the page keeps the last values and says so.
+function showSessionState(kind, msg) {
+  const el = document.getElementById("session-state");
+  const clock = new Date((msg && msg.wall ? msg.wall * 1000 : Date.now())).toLocaleTimeString();
+  if (kind === "ended") {
+    state.ended = true;
+    const t = msg && msg.t !== null && msg.t !== undefined ? " (recording time " + msg.t.toFixed(1) + " s)" : "";
+    el.textContent = "Session ended at " + clock + t + ": the last values stay on screen.";
+    el.className = "ended";
+    for (const c of document.querySelectorAll(".controls button, .controls select")) c.disabled = true;
+  } else if (kind === "lost") {
+    state.connectionLost = true;
+    el.textContent = "Connection to the session lost at " + clock +
+      ": the values below are the last received; reconnecting…";
+    el.className = "";
+  }
+  el.hidden = !kind;
+  setBadge(state.connected);
 }
 
 function handle(msg) {
   if (msg.type === "hello") return onHello(msg);
   if (msg.type === "error") return showReply({ action: "?", success: false, message: msg.message });
+  if (msg.type === "end") { showSessionState("ended", msg); dirty = true; return; }
   if (msg.type !== "frame") return;
   state.framesReceived += 1;
   state.lastFrameWall = msg.wall;
@@ -85,6 +106,13 @@ function handle(msg) {
 }
 
 function onHello(msg) {
+  if (state.ended) {  // a new session on this port: start from a clean page
+    data.cues.clear(); data.spatial = { left: null, right: null }; data.cycles = { left: null, right: null };
+    data.strideCount = { left: 0, right: 0 }; data.events = []; data.samples = []; data.figure = null;
+    data.angles = null; data.icCount = 0; data.activity = null;
+  }
+  state.ended = false; state.connectionLost = false;
+  showSessionState(null);
   state.hello = true;
   setReadOnly(msg.read_only);
   showCalibrationInForce(msg.calibration);
@@ -112,7 +140,7 @@ function showCalibrationInForce(c) {
   state.calibrationInForce = c || null;
   const el = document.getElementById("calibration-in-force");
   if (!c) {
-    el.textContent = "No calibration in force: stand still, perform the protocol, press Calibrate.";
+    el.textContent = "Not calibrated yet: no feedback. Stand still, do the calibration moves, then press Calibrate.";
     el.className = "fail";
     return;
   }
@@ -240,7 +268,7 @@ const audio = {
   },
   tick() {
     const a = state.audio;
-    if (!this.ctx || state.muted || !a || !(a.rate > 0) || !(a.frequency > 0)) return;
+    if (!this.ctx || state.ended || state.muted || !a || !(a.rate > 0) || !(a.frequency > 0)) return;
     const now = this.ctx.currentTime;
     if (this.nextBeep < now) this.nextBeep = now + 0.02;
     while (this.nextBeep < now + 0.2) {
@@ -261,16 +289,50 @@ const audio = {
 };
 
 // ---------------------------------------------------------------------------------------------- drawing
-function drawFigure() {
-  const c = document.getElementById("figure");
+// A canvas sized to its box (CSS width, height from data-aspect) at the screen's pixel ratio; drawing
+// is in CSS pixels, so labels keep their size whatever the window.
+function canvas2d(id) {
+  const c = document.getElementById(id);
+  const dpr = window.devicePixelRatio || 1;
+  const w = Math.max(120, c.clientWidth), h = Math.round(w * parseFloat(c.dataset.aspect || "0.5"));
+  if (c.width !== Math.round(w * dpr) || c.height !== Math.round(h * dpr)) {
+    c.width = Math.round(w * dpr); c.height = Math.round(h * dpr); c.style.height = h + "px";
+  }
   const g = c.getContext("2d");
-  g.clearRect(0, 0, c.width, c.height);
-  const scale = c.height / 1.25, ox = c.width * 0.5, oy = c.height * 0.12;
+  g.setTransform(dpr, 0, 0, dpr, 0, 0);
+  g.clearRect(0, 0, w, h);
+  return { c, g, w, h };
+}
+
+// An axis label kept inside the canvas: aligned left at the left edge, right at the right edge.
+function label(g, text, x, y, w, align) {
+  const width = g.measureText(text).width;
+  let x0 = align === "center" ? x - width / 2 : align === "right" ? x - width : x;
+  x0 = Math.max(1, Math.min(w - width - 1, x0));
+  g.textAlign = "left";
+  g.fillText(text, x0, y);
+  if (x0 < 0 || x0 + width > w) state.clippedLabels += 1;
+}
+
+function wrapText(g, text, x, y, maxWidth, lineHeight) {
+  let line = "";
+  for (const word of text.split(" ")) {
+    const next = line ? line + " " + word : word;
+    if (g.measureText(next).width > maxWidth && line) { g.fillText(line, x, y); y += lineHeight; line = word; }
+    else line = next;
+  }
+  if (line) g.fillText(line, x, y);
+}
+
+function drawFigure() {
+  const { g, w, h } = canvas2d("figure");
+  const scale = h / 1.45, ox = w * 0.5, oy = h * 0.1;  // the ground above the two lines of angles
   g.strokeStyle = "#ccc"; g.lineWidth = 1;
-  g.beginPath(); g.moveTo(0, oy + 0.98 * scale); g.lineTo(c.width, oy + 0.98 * scale); g.stroke();
+  g.beginPath(); g.moveTo(0, oy + 0.98 * scale); g.lineTo(w, oy + 0.98 * scale); g.stroke();
   if (!data.figure) {
-    g.fillStyle = "#888"; g.font = "14px sans-serif";
-    g.fillText("waiting for joint angles (calibrate first)", 20, c.height / 2);
+    g.fillStyle = "#666"; g.font = "14px sans-serif";
+    wrapText(g, calibrated() ? "waiting for joint angles" :
+      "The stick figure appears once a calibration is in force (joint angles need it).", 16, h / 2 - 20, w - 32, 20);
     return;
   }
   // far (left) leg first, then pelvis, then the near (right) leg
@@ -287,16 +349,20 @@ function drawFigure() {
     g.beginPath(); g.arc(ox + x1 * scale, oy - y1 * scale, 3.5, 0, 2 * Math.PI); g.fill();
   }
   g.globalAlpha = 1;
+  if (!segs.some((s) => s[0] !== "pelvis")) {
+    g.fillStyle = "#666"; g.font = "14px sans-serif";
+    wrapText(g, "No leg angles at this instant (a sensor is missing or recovering).", 16, h / 2, w - 32, 20);
+  }
   // angle read-out
   const v = data.angles ? data.angles.values : {};
-  g.font = "13px sans-serif";
+  g.font = "12px sans-serif";
   SIDES.forEach((side, k) => {
     g.fillStyle = COLORS[side];
     const txt = CURVES.map((n) => {
       const a = v[side + "_" + n];
       return n.split("_")[0] + " " + (a === undefined ? "–" : (a * DEG).toFixed(0) + "°");
     }).join("  ");
-    g.fillText(side + ": " + txt, 10, c.height - 28 + 16 * k);
+    label(g, side + ": " + txt, 8, h - 24 + 15 * k, w, "left");
   });
   const recovering = data.angles && data.angles.recovering && data.angles.recovering.length
     ? "  — sensor dropout, recovering: " + data.angles.recovering.join(", ") + " (no feedback)" : "";
@@ -305,22 +371,20 @@ function drawFigure() {
 }
 
 function drawEvents() {
-  const c = document.getElementById("events");
-  const g = c.getContext("2d");
-  g.clearRect(0, 0, c.width, c.height);
+  const { g, w, h } = canvas2d("events");
   const tNow = data.angles ? data.angles.t : (data.events.length ? data.events[data.events.length - 1].t : 0);
-  const x = (t) => c.width - 10 - (tNow - t) / EVENT_WINDOW * (c.width - 50);
+  const x = (t) => w - 10 - (tNow - t) / EVENT_WINDOW * (w - 50);
   g.font = "11px sans-serif";
   SIDES.forEach((side, k) => {
-    const y = 20 + k * 28;
+    const y = h * (0.3 + 0.4 * k);
     g.fillStyle = COLORS[side]; g.fillText(side[0].toUpperCase(), 6, y + 4);
-    g.strokeStyle = "#ddd"; g.beginPath(); g.moveTo(30, y); g.lineTo(c.width - 5, y); g.stroke();
+    g.strokeStyle = "#ddd"; g.beginPath(); g.moveTo(30, y); g.lineTo(w - 5, y); g.stroke();
     for (const e of data.events) {
       if (e.side !== side || tNow - e.t > EVENT_WINDOW || e.t > tNow + 0.5) continue;
       const px = x(e.t);
       g.beginPath();
-      if (e.kind === "IC") { g.moveTo(px, y - 9); g.lineTo(px - 6, y + 7); g.lineTo(px + 6, y + 7); g.closePath(); g.fillStyle = COLORS[side]; g.fill(); }
-      else { g.moveTo(px, y + 9); g.lineTo(px - 6, y - 7); g.lineTo(px + 6, y - 7); g.closePath(); g.strokeStyle = COLORS[side]; g.lineWidth = 1.5; g.stroke(); g.lineWidth = 1; }
+      if (e.kind === "IC") { g.moveTo(px, y - 8); g.lineTo(px - 5, y + 6); g.lineTo(px + 5, y + 6); g.closePath(); g.fillStyle = COLORS[side]; g.fill(); }
+      else { g.moveTo(px, y + 8); g.lineTo(px - 5, y - 6); g.lineTo(px + 5, y - 6); g.closePath(); g.strokeStyle = COLORS[side]; g.lineWidth = 1.5; g.stroke(); g.lineWidth = 1; }
     }
   });
 }
@@ -328,21 +392,20 @@ function drawEvents() {
 function chosenSides() { return state.feedback.side === "both" ? SIDES : [state.feedback.side]; }
 
 function drawCurve(name) {
-  const c = document.getElementById("curve-" + name);
-  const g = c.getContext("2d");
-  g.clearRect(0, 0, c.width, c.height);
+  const { g, w, h } = canvas2d("curve-" + name);
   const [lo, hi] = CURVE_RANGE[name];
-  const L = 38, R = 8, T = 18, B = 18, W = c.width - L - R, H = c.height - T - B;
+  const L = 34, R = 6, T = 18, B = 16, W = w - L - R, H = h - T - B;
   const px = (p) => L + p / 100 * W;
   const py = (deg) => T + (hi - Math.max(lo, Math.min(hi, deg))) / (hi - lo) * H;
   // axes
   g.strokeStyle = "#e3e3e3"; g.fillStyle = "#666"; g.font = "11px sans-serif"; g.lineWidth = 1;
   for (let d = Math.ceil(lo / 15) * 15; d <= hi; d += 15) {
-    g.beginPath(); g.moveTo(L, py(d)); g.lineTo(L + W, py(d)); g.stroke(); g.fillText(d + "°", 4, py(d) + 4);
+    g.beginPath(); g.moveTo(L, py(d)); g.lineTo(L + W, py(d)); g.stroke();
+    label(g, d + "°", L - 4, py(d) + 4, w, "right");
   }
-  for (let p = 0; p <= 100; p += 20) g.fillText(p + "%", px(p) - 8, c.height - 4);
+  for (let p = 0; p <= 100; p += 20) label(g, p + " %", px(p), h - 3, w, p === 0 ? "left" : p === 100 ? "right" : "center");
   g.fillStyle = "#1d2430"; g.font = "bold 12px sans-serif";
-  g.fillText(CURVE_TITLES[name] + " (" + chosenSides().join(" + ") + ")", L + 4, 13);
+  label(g, CURVE_TITLES[name] + " (" + chosenSides().join(" + ") + ")", L + 4, 13, w, "left");
   // reference band
   const ref = data.targets && data.targets.reference ? data.targets.reference[name] : null;
   if (ref) {
@@ -369,14 +432,15 @@ function drawCurve(name) {
       points += ys.length;
     });
     g.globalAlpha = 1;
-    // TC marker of the latest stride
+    // toe-off marker of the latest stride
     const tc = data.tcPercent[side];
     g.strokeStyle = COLORS[side]; g.setLineDash([2, 3]);
     g.beginPath(); g.moveTo(px(tc), T); g.lineTo(px(tc), T + H); g.stroke(); g.setLineDash([]);
-    g.fillStyle = COLORS[side]; g.font = "10px sans-serif"; g.fillText("TC", px(tc) + 2, T + 9 + (side === "right" ? 10 : 0));
-    // live stride since the last IC of this side
+    g.fillStyle = COLORS[side]; g.font = "10px sans-serif";
+    label(g, "toe off", px(tc) + 2, T + 9 + (side === "right" ? 10 : 0), w, "left");
+    // live stride since the last heel strike of this side
     const t0 = data.lastIC[side];
-    if (t0 !== null) {
+    if (t0 !== null && !state.ended) {
       const col = 1 + SIDES.indexOf(side) * 3 + CURVES.indexOf(name);
       const Ts = data.strideTime[side];
       g.strokeStyle = COLORS[side]; g.lineWidth = 2.6; g.beginPath();
@@ -391,93 +455,175 @@ function drawCurve(name) {
       g.stroke(); g.lineWidth = 1;
     }
   }
-  // IC marker at 0 %
+  // heel strike at 0 %
   g.strokeStyle = "#333"; g.beginPath(); g.moveTo(px(0), T); g.lineTo(px(0), T + H); g.stroke();
-  g.fillStyle = "#333"; g.font = "10px sans-serif"; g.fillText("IC", px(0) + 2, T + H - 3);
+  g.fillStyle = "#333"; g.font = "10px sans-serif"; label(g, "heel strike", px(0) + 2, T + H - 3, w, "left");
   return points;
 }
 
 function fmtQuantity(unit, v, quantity) {
   if (v === null || v === undefined) return "–";
   if (unit === "rad") return (v * DEG).toFixed(1) + "°";
-  if (quantity === "cadence") return (v * 60).toFixed(0) + " /min";
+  if (quantity === "cadence") return (v * 60).toFixed(0) + " steps/min";
   if (unit === "1") return (v * 100).toFixed(1) + " %";
   return v.toFixed(2) + " " + unit;
 }
 
+// ---------------------------------------------------------------------------------------------- values
+// One source for every value shown: the latest evaluated stride of each side ("spatial" messages, with
+// every quantity in .values). The Gait panel and the Targets table both read it through valueOf.
+const BILATERAL = new Set(["cadence", "step_time_symmetry", "gait_speed", "step_length_symmetry"]);
+const UNITS = { stance_fraction: "1", step_time_symmetry: "1", cadence: "Hz", stride_length: "m", gait_speed: "m/s",
+  step_length: "m", step_length_symmetry: "1" };
+
+function latestRecord(quantity, side) {
+  if (!BILATERAL.has(quantity)) return data.spatial[side] || null;
+  return [data.spatial.left, data.spatial.right].filter(Boolean).sort((a, b) => b.t - a.t)[0] || null;
+}
+
+function valueOf(quantity, side) {
+  const r = latestRecord(quantity, side);
+  if (!r || !r.values) return null;
+  const v = r.values[quantity];
+  return v === undefined ? null : v;
+}
+
+function shown(quantity, side) { return fmtQuantity(UNITS[quantity], valueOf(quantity, side), quantity); }
+
+// Why the latest stride has no value of a quantity (a clinician's words).
+function whyNone(r) {
+  if (!r) return "no stride yet";
+  if (r.flag) return "latest stride doubtful: " + r.flag;
+  if (r.turning) return "latest stride turning";
+  return "no value from the latest stride";
+}
+
+function calibrated() {
+  const c = state.calibrationInForce;
+  return !!(c && c.valid && c.valid.length);
+}
+
+function renderProgress() {
+  const box = document.getElementById("calibration-progress");
+  const d = data.diagnostics.find((x) => x.name === PROGRESS_STATUS);
+  if (!d) { box.hidden = true; state.calibrationProgress = ""; return; }
+  box.hidden = false;
+  const v = d.values, need = parseFloat(v.standing_needed_s), s = parseFloat(v.standing_s);
+  const done = v.standing_done === "true";
+  document.getElementById("progress-standing").textContent = done && s < need ? "Standing still: done" :
+    "Standing still: " + Math.min(s, need).toFixed(1) + " of " + need + " s";
+  document.getElementById("progress-standing-bar").style.width = (done ? 100 : Math.min(100, s / need * 100)) + "%";
+  const counts = SIDES.filter((side) => v[side + "_cycles"] !== "" && v[side + "_cycles"] !== undefined)
+    .map((side) => side + " " + v[side + "_cycles"]);
+  document.getElementById("progress-moves").textContent = done ?
+    "Moves since the standing: " + (counts.join(", ") || "no leg sensor") + " (hip flexion: " +
+    v.hip_flexion_cycles_needed + " per leg; walking: " + v.walking_swings_needed + " steps per leg)" :
+    "Moves: counted once the standing is done";
+  state.calibrationProgress = box.textContent.replace(/\s+/g, " ").trim();
+}
+
+function updateAudio() {
+  const el = document.getElementById("audio-state");
+  const s = state.audio;
+  const mute = state.muted ? " (sound off)" : "";
+  if (state.ended) { el.textContent = "session ended: no sound"; el.removeAttribute("title"); return; }
+  if (!calibrated()) {
+    el.textContent = "not calibrated yet: no feedback"; el.removeAttribute("title"); return;
+  }
+  if (!s || !(s.rate > 0)) {
+    el.textContent = (data.cues.size ? "in the target range: no sound" : "no stride evaluated yet: no sound") + mute;
+    el.removeAttribute("title"); return;
+  }
+  const unit = s.unit, q = s.quantity;
+  el.textContent = (s.advice || s.label || q) + mute + " — target " + fmtQuantity(unit, s.low, q) + " to " +
+    fmtQuantity(unit, s.high, q) + ", measured " + fmtQuantity(unit, s.measured, q);
+  el.title = "Tone: " + s.frequency.toFixed(0) + " Hz, " + s.rate.toFixed(1) +
+    " beeps/s (higher pitch: too much; lower pitch: too little; faster beeps: further off)";
+}
+
 function updateTables() {
-  // gait parameters
-  const cl = data.cycles.left, cr = data.cycles.right;
-  const latest = [cl, cr].filter(Boolean).sort((a, b) => b.t - a.t)[0];
-  const pct = (c) => (c && c.stance_fraction !== null ? (c.stance_fraction * 100).toFixed(1) + " %" : "–");
-  document.getElementById("stat-cadence").textContent = latest && latest.cadence ? (latest.cadence * 60).toFixed(0) + " steps/min" : "–";
-  document.getElementById("stat-stance").textContent = pct(cl) + " / " + pct(cr);
-  document.getElementById("stat-symmetry").textContent = latest && latest.symmetry !== null ? (latest.symmetry * 100).toFixed(1) + " %" : "–";
-  // spatial values of the latest evaluated stride of each side (none when flagged doubtful)
   const sl = data.spatial.left, sr = data.spatial.right;
-  const metres = (s, key) => (s && s[key] !== null ? s[key].toFixed(2) + " m" : "–");
   const newest = [sl, sr].filter(Boolean).sort((a, b) => b.t - a.t)[0];
-  document.getElementById("stat-speed").textContent = newest && newest.gait_speed !== null ? newest.gait_speed.toFixed(2) + " m/s" : "–";
-  document.getElementById("stat-stride-length").textContent = metres(sl, "stride_length") + " / " + metres(sr, "stride_length");
-  document.getElementById("stat-step-length").textContent = metres(sl, "step_length") + " / " + metres(sr, "step_length");
+  const set = (id, text) => { document.getElementById(id).textContent = text; };
+  // the gait parameters of the latest stride (of each side, or the newest for bilateral ones)
+  set("stat-cadence", shown("cadence", ""));
+  set("stat-stance", shown("stance_fraction", "left") + " / " + shown("stance_fraction", "right"));
+  set("stat-symmetry", shown("step_time_symmetry", ""));
+  set("stat-speed", shown("gait_speed", ""));
+  set("stat-stride-length", shown("stride_length", "left") + " / " + shown("stride_length", "right"));
+  set("stat-step-length", shown("step_length", "left") + " / " + shown("step_length", "right"));
+  set("stat-step-symmetry", shown("step_length_symmetry", ""));
   const cm = (s) => (s && s.max_foot_height !== null && s.max_foot_height !== undefined ?
     (s.max_foot_height * 100).toFixed(1) + " cm" : "–");
   const deg = (s) => (s && s.foot_angle_ic !== null && s.foot_angle_ic !== undefined ?
     (s.foot_angle_ic * DEG).toFixed(0) + "°" : "–");
-  document.getElementById("stat-foot-height").textContent = cm(sl) + " / " + cm(sr);
-  document.getElementById("stat-foot-angle").textContent = deg(sl) + " / " + deg(sr);
-  document.getElementById("stat-step-symmetry").textContent = newest && newest.step_length_symmetry !== null ?
-    (newest.step_length_symmetry * 100).toFixed(1) + " %" : "–";
+  set("stat-foot-height", cm(sl) + " / " + cm(sr));
+  set("stat-foot-angle", deg(sl) + " / " + deg(sr));
   const turn = (s) => (s.turning_angle !== null && s.turning_angle !== undefined ?
     "turning " + Math.abs(s.turning_angle * DEG).toFixed(0) + "°" : "turn not known yet") + ": no spatial cue";
-  document.getElementById("stat-spatial-flag").textContent = !newest ? "–" :
-    (newest.flag ? newest.side + ": " + newest.flag : (newest.turning ? newest.side + ": " + turn(newest) : "ok"));
+  set("stat-spatial-flag", !newest ? "–" :
+    (newest.flag ? newest.side + ": " + newest.flag : (newest.turning ? newest.side + ": " + turn(newest) : "ok")));
   const steps = data.activity ? data.activity.step_count : data.icCount;
-  document.getElementById("stat-steps").textContent = String(steps);
-  document.getElementById("stat-strides").textContent = data.strideCount.left + " / " + data.strideCount.right;
+  set("stat-steps", String(steps));
+  set("stat-strides", data.strideCount.left + " / " + data.strideCount.right);
   // activity
   const a = data.activity;
-  document.getElementById("activity").textContent = a ?
-    a.posture + (a.locomotion !== "none" ? ", " + a.locomotion : "") + " · trunk " + (a.trunk_inclination * DEG).toFixed(0) +
-    "° · last transition: " + a.last_transition : "no activity monitor data";
-  // audio
-  const s = state.audio;
-  document.getElementById("audio-state").textContent = !s || !(s.rate > 0) ? "silent (all chosen quantities in band)" :
-    (state.muted ? "[muted] " : "") + QUANTITY_LABELS[s.quantity] + (s.side ? " (" + s.side + ")" : "") + ": " +
-    s.frequency.toFixed(0) + " Hz, " + s.rate.toFixed(1) + " beeps/s";
-  // cues
+  set("activity", a ? a.posture + (a.locomotion !== "none" ? ", " + a.locomotion : "") + " · trunk " +
+    (a.trunk_inclination * DEG).toFixed(0) + "° · last transition: " + a.last_transition : "no activity monitor data");
+  updateAudio();
+  renderProgress();
+  // cues: a row is the latest stride's only when the cue came from that stride (else its value is "–")
   const body = document.querySelector("#cues tbody");
   const rows = [...data.cues.values()].sort((x, y) => (x.quantity + x.side).localeCompare(y.quantity + y.side));
   const groups = { knee_flexion_peak_swing: "knee", knee_flexion_at_ic: "knee", hip_extension_peak_stance: "hip",
     ankle_dorsiflexion_at_ic: "ankle", stance_fraction: "timing", step_time_symmetry: "timing", cadence: "timing",
     stride_length: "spatial", gait_speed: "spatial", step_length: "spatial", step_length_symmetry: "spatial" };
-  body.innerHTML = "";
+  body.textContent = "";
   for (const c of rows) {
+    const record = latestRecord(c.quantity, c.side);
+    const current = record && record.side === c.stride_side && record.stride === c.stride;
     const chosen = (state.feedback.side === "both" || c.side === "" || c.side === state.feedback.side) &&
       (state.feedback.joint === "all" || groups[c.quantity] === state.feedback.joint);
     const tr = document.createElement("tr");
-    tr.className = "sev" + c.severity + (chosen ? "" : " dim");
+    tr.className = (current ? "sev" + c.severity : "") + (chosen && current ? "" : " dim");
     const span = (c.high - c.low) || 1, lo = c.low - span, hi = c.high + span;
     const pos = (v) => Math.max(0, Math.min(100, (v - lo) / (hi - lo) * 100));
-    const err = c.error ? (c.error > 0 ? "+" : "") + fmtQuantity(c.unit, c.error, c.quantity) : "in band";
-    tr.innerHTML = "<td>" + (QUANTITY_LABELS[c.quantity] || c.quantity) + "</td><td>" + (c.side || "both") + "</td><td>" +
-      fmtQuantity(c.unit, c.measured, c.quantity) + "</td><td>" + fmtQuantity(c.unit, c.low, c.quantity) + " … " +
-      fmtQuantity(c.unit, c.high, c.quantity) + "</td><td>" + err + "</td><td><div class='bar'><div class='band' style='left:" +
-      pos(c.low) + "%;width:" + (pos(c.high) - pos(c.low)) + "%'></div><div class='dot' style='left:" +
-      (c.measured === null ? 0 : pos(c.measured)) + "%'></div></div></td>";
+    const cells = [c.label || c.quantity, current ? fmtQuantity(c.unit, c.measured, c.quantity) : "–",
+      fmtQuantity(c.unit, c.low, c.quantity) + " to " + fmtQuantity(c.unit, c.high, c.quantity), null,
+      current ? (c.advice || "") : whyNone(record)];
+    cells.forEach((text, i) => {
+      const td = document.createElement("td");
+      if (i === 4) td.className = "cue";
+      if (text === null) {
+        const bar = document.createElement("div"); bar.className = "bar";
+        const band = document.createElement("div"); band.className = "band";
+        band.style.left = pos(c.low) + "%"; band.style.width = (pos(c.high) - pos(c.low)) + "%";
+        bar.appendChild(band);
+        if (current && c.measured !== null) {
+          const dot = document.createElement("div"); dot.className = "dot"; dot.style.left = pos(c.measured) + "%";
+          bar.appendChild(dot);
+        }
+        td.appendChild(bar);
+      } else td.textContent = text;
+      tr.appendChild(td);
+    });
     body.appendChild(tr);
   }
-  // diagnostics
+  // diagnostics (the calibration progress has its own view)
   const dbody = document.querySelector("#diagnostics tbody");
-  dbody.innerHTML = "";
+  dbody.textContent = "";
   const names = ["OK", "WARN", "ERROR", "STALE"];
   const interesting = /rate|drop|gap|batter|missing|stale|hz|latency|published/i;
   for (const d of [...data.diagnostics].sort((x, y) => x.name.localeCompare(y.name))) {
+    if (d.name === PROGRESS_STATUS) continue;
     const vals = Object.entries(d.values).filter(([k]) => interesting.test(k)).slice(0, 4)
       .map(([k, v]) => k + " " + v).join(", ");
     const tr = document.createElement("tr");
-    tr.innerHTML = "<td class='lvl" + d.level + "'>" + (names[d.level] || d.level) + "</td><td>" + d.name +
-      "</td><td>" + d.message + (vals ? "<br><small>" + vals + "</small>" : "") + "</td>";
+    const level = document.createElement("td"); level.className = "lvl" + d.level; level.textContent = names[d.level] || d.level;
+    const name = document.createElement("td"); name.textContent = d.name;
+    const text = document.createElement("td"); text.textContent = d.message;
+    if (vals) { const small = document.createElement("small"); small.textContent = vals; text.appendChild(document.createElement("br")); text.appendChild(small); }
+    tr.append(level, name, text);
     dbody.appendChild(tr);
   }
 }
@@ -492,6 +638,7 @@ function render() {
   let points = 0;
   for (const name of CURVES) points += drawCurve(name);
   state.curvePoints = points;
+  state.clippedLabelsNow = state.clippedLabels; state.clippedLabels = 0;
   if (dirty && now - lastTables > 200) { updateTables(); lastTables = now; dirty = false; }
   state.framesRendered += 1;
   fpsCount += 1;

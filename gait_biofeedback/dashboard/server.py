@@ -122,6 +122,7 @@ class DashboardServer:
         self._loop: asyncio.AbstractEventLoop | None = None
         self._stop: asyncio.Event | None = None
         self._thread: threading.Thread | None = None
+        self._final: dict | None = None
 
     @property
     def clients(self) -> int:
@@ -154,8 +155,10 @@ class DashboardServer:
             raise RuntimeError(f"dashboard server: {self.error}") from self.error
         return int(self.port)
 
-    def stop(self, timeout: float = 3.0) -> None:
-        """Close every connection and end the thread."""
+    def stop(self, timeout: float = 3.0, final: dict | None = None) -> None:
+        """Close every connection and end the thread; ``final``: a last message sent to every page
+        first (the node's "session ended", so the page keeps its values and says so)."""
+        self._final = final
         if self._loop is not None and self._stop is not None and not self._loop.is_closed():
             with contextlib.suppress(RuntimeError):  # the loop has just closed
                 self._loop.call_soon_threadsafe(self._stop.set)
@@ -211,6 +214,11 @@ class DashboardServer:
                     next_t = time.monotonic()
                     delay = 0.0
                 await asyncio.sleep(delay)
+            if self._final is not None and self._clients:
+                self._send_frame()  # what was queued before the end
+                text = json.dumps(self._final, separators=(",", ":"), allow_nan=False)
+                broadcast(list(self._clients), text)
+                await asyncio.sleep(0.05)  # let the transports write it before the close frames
             server.close()
 
     def _send_frame(self) -> None:

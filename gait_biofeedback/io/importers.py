@@ -47,7 +47,7 @@ GAUSS_TO_TESLA = 1e-4
 GAITMAP_RATE_HZ = 204.8
 QMT_FULLBODY_RATE_HZ = 100.0
 
-# qmt struct name -> project segment (DESIGN.md segments).
+# qmt struct name -> project segment (docs/conventions.md, Segments and frames).
 QMT_SEGMENT_OF_STRUCT: dict[str, str] = {
     "hip": "pelvis",
     "upper_back": "chest",
@@ -857,7 +857,7 @@ def detect_kind(path: str | Path, **options: Any) -> str:
             return "csv"
         raise ValueError(f"cannot tell the kind of {path}: a CSV of your own needs a column mapping (the "
                          f"command line: import csv {path} --mapping map.yaml; Python: mapping=...), see "
-                         "the README, Replaying your own recording")
+                         "docs/guide/sessions.md, Replaying your own recording")
     raise ValueError(f"cannot tell the kind of {path} from its name; name the kind, one of "
                      f"{list(IMPORTERS)} (known names: full_body*.mat, NN_*.mat (BROAD), imu_sample*.csv "
                      "(gaitmap), S-T.json (ipol_gait), acc_expXX_userYY.txt or userUU_runK.csv.gz (hapt); "
@@ -904,7 +904,7 @@ def import_recording(kind: str, path: str | Path, **options: Any) -> Recording:
     if kind == "csv" and "mapping" not in options:
         raise ValueError(f"{path}: a CSV of your own needs a column mapping (the command line: --mapping "
                          "map.yaml; Python: mapping=...) naming the time column and each segment's acc/gyr "
-                         "columns; see the README, Replaying your own recording")
+                         "columns; see docs/guide/sessions.md, Replaying your own recording")
     return IMPORTERS[kind](path, **options)
 
 

@@ -11,10 +11,11 @@ header; schema and channel records inside the chunk in which they are registered
 message index record per channel after it; data end; a summary with the schemas, channels,
 statistics and chunk indexes and their summary offsets; a footer whose CRC covers the summary.
 
-Interface (what :class:`~gait_biofeedback.io.bag_writer.BagWriter` uses): :meth:`start`,
-:meth:`register_schema`, :meth:`register_channel`, :meth:`add_messages` (:meth:`add_message`: one),
-:attr:`on_chunk` (told of each chunk written), :meth:`flush` (the open chunk to the stream, the stream
-to the OS: the crash-safety point) and :meth:`finish`.
+Interface (what :class:`~gait_biofeedback.io.bag_writer.BagWriter` uses): :meth:`McapWriter.start`,
+:meth:`McapWriter.register_schema`, :meth:`McapWriter.register_channel`, :meth:`McapWriter.add_messages`
+(:meth:`McapWriter.add_message`: one), :attr:`McapWriter.on_chunk` (told of each chunk written),
+:meth:`McapWriter.flush` (the open chunk to the stream, the stream to the OS: the crash-safety point)
+and :meth:`McapWriter.finish`.
 """
 
 from __future__ import annotations
@@ -114,8 +115,8 @@ class McapWriter:
 
     def add_message(self, channel_id: int, log_time: int, data: bytes, publish_time: int,
                     sequence: int = 0) -> None:
-        """One message of a registered channel (log and publish time in ns): :meth:`add_messages` of
-        one."""
+        """One message of a registered channel (log and publish time in ns): :meth:`McapWriter.add_messages`
+        of one."""
         self.add_messages(((log_time, channel_id, publish_time, sequence, data),))
 
     def add_messages(self, messages: Iterable[tuple[int, int, int, int, bytes]]) -> None:

@@ -24,8 +24,15 @@ shows) → ``calibration/calibrate`` (the reply adds ``looks_like``, which the p
 ``{"action": "mute", "muted": bool}``. Replies: ``{"type": "reply", "action", "success", "message"}``.
 
 Audio: the cue to sound (largest error of the chosen side/joint among the latest cues, silent when all
-are in band) is sent to the page as ``{"type": "audio", "frequency", "rate", ...}``; the page beeps with
-WebAudio, so the robot side needs no sound hardware.
+are in band, and silent before a calibration is in force: "not calibrated yet: no feedback") is sent
+to the page as ``{"type": "audio", "frequency", "rate", ...}``; the page beeps with
+WebAudio, so the robot side needs no sound hardware. Cues and the sounded one carry their advice in a
+clinician's words (:mod:`~gait_biofeedback.core.biofeedback.advice`); the tone stays a detail.
+
+Each evaluated stride goes to the page as one ``{"type": "spatial", ..., "values": {quantity: value}}``
+(every quantity, null when the stride has none): the Gait panel and the Targets table both read the
+values of the latest stride from it, so they cannot disagree. When the node stops, the page gets
+``{"type": "end"}`` and keeps the last values on screen under "session ended".
 
 Parameters: :class:`~gait_biofeedback.core.biofeedback.evaluator.BiofeedbackParams` (the body
 dimensions draw the stick figure).
@@ -46,8 +53,10 @@ from rclpy.context import Context
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
+from gait_biofeedback.core.biofeedback.advice import advice, quantity_label
 from gait_biofeedback.core.biofeedback.evaluator import (
     DASHBOARD_LINK_FILE,
+    QUANTITIES,
     SPATIAL,
     BiofeedbackEvaluator,
     BiofeedbackParams,
@@ -93,9 +102,12 @@ def _drain(queue: deque) -> list:
             return out
 
 
-def cue_to_json(c: Cue) -> dict[str, Any]:
-    """A cue for the page (SI; NaN → null)."""
+def cue_to_json(c: Cue, stride_side: str = "") -> dict[str, Any]:
+    """A cue for the page (SI; NaN → null), with its words; ``stride_side``: the side of the stride it
+    comes from (a bilateral cue has side "")."""
     return {"type": "cue", "quantity": c.quantity, "side": c.side, "unit": c.unit,
+            "label": quantity_label(c.quantity, c.side), "advice": advice(c),
+            "stride_side": stride_side or c.side,
             "measured": _finite(c.measured), "low": c.band_low, "high": c.band_high,
             "error": _finite(c.error), "severity": c.severity,
             "frequency": c.audio_frequency, "rate": c.audio_rate, "stride": c.stride_index,
@@ -137,7 +149,7 @@ class BiofeedbackNode(GuardedNode):
         self._sent_diag_version = -1
         self._last_diag_sent = 0.0
         self._audio: dict[str, Any] = {"type": "audio", "frequency": 0.0, "rate": 0.0, "severity": 0,
-                                       "quantity": "", "side": ""}
+                                       "quantity": "", "side": "", "calibrated": False}
         self._latest_cues: dict[tuple[str, str], Cue] = {}
         self._pending: list[tuple[Stride, float]] = []
         self._seq = 0
@@ -237,6 +249,12 @@ class BiofeedbackNode(GuardedNode):
                              "computed_at": computed / NS_PER_S if computed else None,
                              "in_force_from": stamp_to_ns(msg.header.stamp) / NS_PER_S,
                              "valid": valid, "segments": len(msg.segments)}
+        self._update_audio()
+
+    @property
+    def calibrated(self) -> bool:
+        """A calibration with at least one valid segment is in force (joint angles can follow)."""
+        return bool(self._calibration and self._calibration["valid"])
 
     def _on_diagnostics(self, msg: DiagnosticArray) -> None:
         for s in msg.status:
@@ -275,9 +293,12 @@ class BiofeedbackNode(GuardedNode):
         if not result.curves:
             self.counts["strides_without_angles"] += 1
         doubtful = bool(stride.spatial_flag) or not stride.plausible
+        measured = {"stance_fraction": stride.stance_fraction, "cadence": stride.cadence,
+                    "step_time_symmetry": stride.step_time_symmetry, **result.kinematics, **result.spatial}
+        values = {q: _finite(measured.get(q, math.nan)) for q in QUANTITIES}
         self._outbox.append({"type": "spatial", "side": stride.side, "stride": stride.index,
                              "t": stride.t_end, "flag": stride.spatial_flag, "turning": stride.turning,
-                             "turning_angle": _finite(stride.turning_angle),
+                             "turning_angle": _finite(stride.turning_angle), "values": values,
                              **{k: _finite(result.spatial.get(k, math.nan)) for k in SPATIAL},
                              **{k: None if doubtful else _finite(getattr(stride, k))
                                 for k in ("max_foot_height", "foot_angle_ic")}})
@@ -285,7 +306,7 @@ class BiofeedbackNode(GuardedNode):
             self._cues.publish(cue_msg(c, foot_frame(stride.side)))
             self.counts["cues"] += 1
             self._latest_cues[(c.quantity, c.side)] = c
-            self._outbox.append(cue_to_json(c))
+            self._outbox.append(cue_to_json(c, stride.side))
         if result.curves:
             entry = {"type": "stride", "side": stride.side, "stride": stride.index, "t": stride.t_end,
                      "tc_percent": 100.0 * (stride.t_tc - stride.t_start) / (stride.t_end - stride.t_start),
@@ -296,13 +317,17 @@ class BiofeedbackNode(GuardedNode):
         self._update_audio()
 
     def _update_audio(self) -> None:
-        cue = select_audio_cue(self._latest_cues.values(), self.feedback["side"], self.feedback["joint"])
+        cue = (select_audio_cue(self._latest_cues.values(), self.feedback["side"], self.feedback["joint"])
+               if self.calibrated else None)  # before a calibration: no feedback
         audio = {"type": "audio", "frequency": 0.0, "rate": 0.0, "severity": 0, "quantity": "", "side": "",
-                 "error": 0.0, "unit": ""}
+                 "error": 0.0, "unit": "", "calibrated": self.calibrated}
         if cue is not None:
             audio.update(frequency=cue.audio_frequency, rate=cue.audio_rate, severity=cue.severity,
-                         quantity=cue.quantity, side=cue.side, error=cue.error, unit=cue.unit)
-        if any(audio[k] != self._audio.get(k) for k in ("frequency", "rate", "quantity", "side")):
+                         quantity=cue.quantity, side=cue.side, error=cue.error, unit=cue.unit,
+                         measured=_finite(cue.measured), low=cue.band_low, high=cue.band_high,
+                         label=quantity_label(cue.quantity, cue.side), advice=advice(cue))
+        shown = ("frequency", "rate", "quantity", "side", "calibrated", "measured")  # the page shows each
+        if any(audio.get(k) != self._audio.get(k) for k in shown):
             self._audio = audio
             self._outbox.append(dict(audio))
 
@@ -427,7 +452,9 @@ class BiofeedbackNode(GuardedNode):
 
     def destroy_node(self) -> None:
         if self.server is not None:
-            self.server.stop()
+            latest = self._latest
+            self.server.stop(final={"type": "end", "wall": time.time(),
+                                    "t": latest[0] if latest is not None else None})
             self.server = None
         if self.url_file is not None:  # the token dies with the server
             self.url_file.unlink(missing_ok=True)

@@ -13,7 +13,11 @@ it puts that file in force only when asked (``reload_calibration``: a file found
 belong to another patient or dataset), after checking it (:mod:`~gait_biofeedback.core.calibration.file`:
 complete, unedited, every value valid); otherwise it says the file is there and not used;
 ``calibration_file`` names a file to put in force instead (an unusable one is refused at start with the
-reason). A file without entries for some of ``segments`` is put in force for the others, those named in
+reason). While the patient performs the protocol, a status ``calibration: progress`` on
+``/diagnostics`` every ``PROGRESS_PERIOD_S`` s says how far it has got (seconds of quiet standing,
+then each leg's movement cycles: :mod:`~gait_biofeedback.core.calibration.progress`; its key-values
+are what the dashboard shows, and the recorder keeps them with the session). A file without
+entries for some of ``segments`` is put in force for the others, those named in
 a WARN status ``calibration`` on ``/diagnostics`` (every second; OK once a calibration computed in this
 session replaces it), in the message's source and as invalid entries (the dashboard counts them).
 The message's header.stamp is the sample stamp from which the calibration is in force: ``apply_delay_s``
@@ -40,6 +44,7 @@ from gait_biofeedback.core.calibration.file import (
     missing_text,
     placeholder,
 )
+from gait_biofeedback.core.calibration.progress import CalibrationProgress
 from gait_biofeedback.core.calibration.sensor_to_segment import SessionCalibration
 from gait_biofeedback.core.calibration.stream import (
     CALIBRATION_FILE,
@@ -56,6 +61,9 @@ from gait_biofeedback.wire.cdr import decode_imu
 from gait_biofeedback.wire.imu import has_heading, orientation_sample
 from gait_biofeedback_msgs.srv import Calibrate
 
+PROGRESS_PERIOD_S = 0.5
+PROGRESS_STATUS = "calibration: progress"
+
 
 class CalibrationNode(GuardedNode):
     """Sensor-to-segment calibration service (see module docstring)."""
@@ -69,6 +77,7 @@ class CalibrationNode(GuardedNode):
         self.segments = list(self.params.segments)
         self.session_dir = Path(self.params.session_dir or "session")
         self.core = CalibrationBuffer(self.params)
+        self.progress = CalibrationProgress(self.segments, self.params.default_standing_duration_s)
         self.current: SessionCalibration | None = None
         self.last_attempt: CalibrationAttempt | None = None
         self.attempts: list[CalibrationAttempt] = []  # every request's outcome, in order
@@ -78,6 +87,7 @@ class CalibrationNode(GuardedNode):
             subscribe(self, topics.orientation(seg), lambda m, s=seg: self._on_imu(s, m), raw=True)
         self._pub = publisher(self, topics.CALIBRATION)
         self.create_service(Calibrate, topics.CALIBRATE_SERVICE, self._on_calibrate)
+        self.create_timer(PROGRESS_PERIOD_S, self._publish_progress)
         self._reload()
 
     @property
@@ -142,9 +152,18 @@ class CalibrationNode(GuardedNode):
         if self.file_status is not None:
             self.publish_diagnostics([self.file_status])
 
+    def _publish_progress(self) -> None:
+        if not any(self.core.buffers.values()):
+            return  # no sensor yet
+        now = self.progress.progress()
+        self.publish_diagnostics([diagnostics.status(PROGRESS_STATUS, diagnostics.OK, now.text(),
+                                                     values=now.values())])
+
     def _on_imu(self, segment: str, data: bytes) -> None:
         imu = decode_imu(data)
-        self.core.add(segment, *orientation_sample(imu), heading=has_heading(imu))
+        stamp_ns, acc, gyr, q = orientation_sample(imu)
+        self.core.add(segment, stamp_ns, acc, gyr, q, heading=has_heading(imu))
+        self.progress.add(segment, stamp_ns, acc, gyr)
         if self.core.scheduled:
             for attempt in self.core.run_due():
                 self._accept(attempt)

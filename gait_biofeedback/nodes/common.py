@@ -4,8 +4,8 @@ Topics, QoS and message conversion are :mod:`gait_biofeedback.wire`; parameters
 :mod:`gait_biofeedback.nodes.parameters`.
 
 Nodes stay thin: they convert messages, hold parameters and call the core. Executor choice is
-measured (ROS_FROM_PYPI.md): an ``EventsExecutor`` driven by ``spin_once`` in a loop is about 3×
-cheaper than the ``SingleThreadedExecutor``; its ``spin()`` is broken in rclpy 7.1.6, so it is never
+measured: an ``EventsExecutor`` driven by ``spin_once`` in a loop is about 3× cheaper than the
+``SingleThreadedExecutor``; its ``spin()`` is broken in rclpy 7.1.6, so it is never
 called. ``GAIT_EXECUTOR=single`` selects the fallback.
 """
 

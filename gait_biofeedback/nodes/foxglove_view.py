@@ -45,7 +45,7 @@ TF_CHANNEL = "/tf"
 SCENE_CHANNEL = "/body"
 ANGLES_CHANNEL = "/joint_angles"
 ANGLES_SCHEMA = {
-    "title": "gait_biofeedback.JointAngles",
+    "title": "gait_biofeedback/JointAngles",
     "type": "object",
     "properties": {"stamp_ns": {"type": "integer", "description": "the joint states' stamp, ns"},
                    **{f"{name}_deg": {"type": "number", "description": f"{name}, degrees"}

@@ -1,7 +1,8 @@
 """Node ``imu_driver``: live sensors → ``<segment>/imu/data_raw`` and ``<segment>/imu/mag``.
 
 A receiving thread reads frames from the link (``backend``: udp, serial, simulated;
-:mod:`gait_biofeedback.io.sensor_links`), hands them to the core
+:mod:`gait_biofeedback.io.sensor_links`; or decoded samples from a vendor's devices: ximu3, ngimu,
+shimmer, dot; :mod:`gait_biofeedback.io.vendors`), hands them to the core
 (:class:`~gait_biofeedback.core.driver.stream.DriverCore`: sequence order, loss, device time → ROS
 time) and publishes each sample as the replayer would, stamped in ROS time, frame ``<segment>_imu``.
 The executor thread only publishes ``/diagnostics``: one status per mapped sensor (rate, loss,
@@ -42,6 +43,22 @@ def open_link(p: DriverParams, key: bytes | None = None):
         return sensor_links.UdpLink(p.address, p.port)
     if p.backend == "serial":
         return sensor_links.SerialLink(p.device, p.baud)
+    if p.backend == "shimmer":
+        from gait_biofeedback.io.vendors.shimmer import ShimmerLink
+
+        return ShimmerLink(p.device_ids(), p.device_rate_hz, p.shimmer_accelerometer)
+    if p.backend == "dot":
+        from gait_biofeedback.io.vendors.dot import DotLink
+
+        return DotLink(p.device_ids(), p.device_rate_hz)
+    if p.backend == "ximu3":
+        from gait_biofeedback.io.vendors.ximu3 import XImu3Link
+
+        return XImu3Link(p.device_ids())
+    if p.backend == "ngimu":
+        from gait_biofeedback.io.vendors.ngimu import NgimuLink
+
+        return NgimuLink(p.address, p.port, p.device_ids())
     from gait_biofeedback.sim.sensor_link import simulated_schedules
 
     ids = {segment: sid for sid, segment in p.mapping().items()}
@@ -90,6 +107,7 @@ class ImuDriverNode(GuardedNode):
 
     def _receive(self) -> None:
         receive, core = self.link.receive, self.core
+        link_notices = getattr(self.link, "notices", None)
         next_cpu = 0.0
         while not self._stop.is_set():
             try:
@@ -97,9 +115,12 @@ class ImuDriverNode(GuardedNode):
                 with self._lock:
                     out = []
                     for frame, arrival, source in received:
-                        out.extend(core.feed(frame, arrival, source))
+                        feed = core.feed if isinstance(frame, bytes) else core.feed_samples
+                        out.extend(feed(frame, arrival, source))
                     out.extend(core.expire(time.time_ns()))
                     notices = core.notices.pop()
+                    if link_notices is not None:
+                        notices += link_notices.pop()
                 for sample in out:
                     imu, mag = self._packers[sample.segment]
                     self._imu[sample.segment].publish(
@@ -120,8 +141,11 @@ class ImuDriverNode(GuardedNode):
         now = time.time_ns()
         with self._lock:
             reports = self.core.reports(now)
+            link_reports = self.link.reports() if hasattr(self.link, "reports") else []
         statuses = [diagnostics.status(r.name, r.level, r.message, hardware_id=self.link.description,
                                        values=r.values) for r in reports]
+        statuses += [diagnostics.status(name, level, message, hardware_id=self.link.description,
+                                        values=values) for name, level, message, values in link_reports]
         elapsed = time.monotonic() - self._started_at
         cpu = self._thread_cpu_s / elapsed if elapsed > 0 and self._thread is not None else 0.0
         bad = getattr(self.link, "bad_frames", 0)

@@ -2,7 +2,7 @@
 
 Subscribes ``<segment>/imu/data`` of the pelvis and both legs and ``calibration/sensor_to_segment``
 (latched; in force from its header stamp, 0 = at once). Synchronisation, calibration switching and
-offset removal are :class:`~gait_biofeedback.core.joints.angles.JointAngleStream`: samples are
+offset removal are :class:`~gait_biofeedback.core.joints.stream.JointAngleStream`: samples are
 synchronised by exact header stamp (the IMUs are sampled together); a stamp is published when every
 calibrated segment has it, when a newer stamp is complete, or ``max_wait_s`` s after its first sample
 arrived; then with the joints whose two segments are present (the missing segments are counted and

@@ -59,7 +59,8 @@ def node_overrides(overrides: dict[str, object]) -> list[Parameter]:
 def declare_parameters(node: Node, cls: type, checked: Any = None) -> Any:
     """Declare every parameter of the stage dataclass ``cls`` on ``node``; return the instance built
     from their values (see module docstring). ``checked``: an instance of ``cls`` whose values were
-    checked already (the in-process graph checks a params file once, :func:`load_params_file`): they
+    checked already (the in-process graph checks a params file once,
+    :func:`~gait_biofeedback.parameters.load_params_file`): they
     are declared as they are, and only a value the node's own overrides change is checked here."""
     where = f"node {node.get_fully_qualified_name()}"
     overrides = node._parameter_overrides

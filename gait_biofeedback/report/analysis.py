@@ -343,12 +343,12 @@ def analyse_session(data: SessionData, targets: Targets) -> SessionAnalysis:
     gps["overall"] = gait_profile_score([v for side in SIDES for v in gvs[side].values()])
     durations = {(r["side"], r["stride_index"]): r["stride_time"] for r in used}
     if data.cues:
-        cue_source = "recorded: the cues the biofeedback node gave during the session"
+        cue_source = "the cues given live during the session"
         cue_rows = [dict(c, stride_side=c["side"] or _stride_side(used, c)) for c in data.cues]
     else:
         cue_source = (
-            "none recorded (offline analysis, or no biofeedback node): computed here from the "
-            "recording with the targets below, as the biofeedback node would have given them"
+            "none were given live in this session: computed from the recording against the targets, as "
+            "the live feedback would have given them"
         )
         cue_rows = offline_cues
     return SessionAnalysis(

@@ -1,7 +1,8 @@
 """``gait-biofeedback report SESSION [SESSION ...] -o DIR``: report.html, report.pdf, strides.csv, joints.csv.
 
-The last session is reported in full; with several (one patient's, in the order given, the first the
-baseline) a progress page follows. The CSVs hold every session's strides, with a ``session`` column.
+The last session is reported in full, its summary first; with several (one patient's, in the order
+given, the first the baseline) the progress across them follows the summary. The CSVs hold every
+session's strides, with a ``session`` column.
 strides.csv: one row per stride, every GaitCycle field as on the wire (SI), the side, the stamps as s
 into the session, ``used`` (plausible and inside a walking bout), ``step_length`` and the kinematic cue
 quantities (rad). joints.csv: per stride and joint angle, the values at IC and TC, min, max, range of
@@ -25,7 +26,7 @@ import yaml
 from gait_biofeedback.core.biofeedback.evaluator import default_targets_path, load_targets
 from gait_biofeedback.core.safe_yaml import describe, load_yaml_file
 from gait_biofeedback.parameters import PATIENT_BLOCK, PATIENT_KEYS, patient_block
-from gait_biofeedback.report import content
+from gait_biofeedback.report import content, overview
 from gait_biofeedback.report.analysis import SessionAnalysis, analyse_session
 from gait_biofeedback.report.document import Document
 from gait_biofeedback.report.extract import GAIT_CYCLE_FIELDS, SessionData, read_session
@@ -86,10 +87,28 @@ class ReportFiles:
     sessions: list[SessionData]  # what was read of each session (once)
 
 
-def _recorded(data: SessionData) -> str:
-    if data.start_ns < 946684800 * 10**9:  # before 2000: a simulated or replayed time base
-        return "no date (the recording's clock starts near 0: simulated, imported or replayed)"
+def _recorded(data: SessionData, date: str | None = None) -> str:
+    """The session's date: ``date`` when given, else the recording's clock, unless that starts before
+    2000 (a simulated or imported time base, which holds no date)."""
+    if date:
+        return date
+    if data.start_ns < 946684800 * 10**9:
+        return "not in the recording (imported or simulated); give it with the report's date option"
     return dt.datetime.fromtimestamp(data.start_ns * 1e-9, dt.UTC).strftime("%Y-%m-%d %H:%M UTC")
+
+
+_DATE = re.compile(r"^\d{4}-\d{2}-\d{2}( \d{2}:\d{2})?$")
+
+
+def check_date(date: str) -> str:
+    """A session date as given (``YYYY-MM-DD`` or ``YYYY-MM-DD HH:MM``), checked."""
+    if not _DATE.match(date):
+        raise ValueError(f"report: date {date!r}: write it as YYYY-MM-DD or 'YYYY-MM-DD HH:MM'")
+    try:
+        dt.datetime.strptime(date, "%Y-%m-%d %H:%M" if " " in date else "%Y-%m-%d")
+    except ValueError:
+        raise ValueError(f"report: date {date!r} is no calendar date") from None
+    return date
 
 
 def _write_csvs(out: Path, labels: list[str], analyses: list[SessionAnalysis]) -> tuple[Path, Path]:
@@ -165,9 +184,11 @@ def write_report(
     norms_file: str | Path | None = None,
     targets_file: str | Path | None = None,
     overwrite: bool = False,
+    date: str | None = None,
 ) -> ReportFiles:
     """The report files of ``sessions`` in ``output`` (module docstring). A folder that already holds a
-    report is refused unless ``overwrite``; so is a session given twice."""
+    report is refused unless ``overwrite``; so is a session given twice. ``date``: the last session's
+    (``YYYY-MM-DD[ HH:MM]``), for a recording whose clock holds none."""
     if not sessions:
         raise ValueError("report: give at least one session (a recording of the graph or an analyze output)")
     resolved = [Path(s).resolve() for s in sessions]
@@ -181,6 +202,7 @@ def write_report(
     if taken and not overwrite:
         raise FileExistsError(f"report: {out} already holds a report ({', '.join(taken)}): write to another "
                               "folder, or pass --overwrite to replace it")
+    date = check_date(date) if date else None
     patient = patient or Patient()
     labels = list(labels) if labels else [Path(s).name for s in sessions]
     if len(labels) != len(sessions):
@@ -196,34 +218,35 @@ def write_report(
     summary = data.summary
     out.mkdir(parents=True, exist_ok=True)
     header = [
-        ("patient", patient.id or "not given (--patient-id or a patient: block)"),
+        ("patient", patient.id or "not given"),
         ("session", labels[-1]),
-        ("recorded", _recorded(data)),
-        ("duration", f"{data.duration_s:.1f} s"),
+        ("recorded", _recorded(data, date)),
+        ("duration", f"{data.duration_s:.0f} s"),
         ("recording", data.path.name + (" (DAMAGED: only what could be read, see Data quality)"
                                         if data.damage else "")),
         ("report made", dt.datetime.now(dt.UTC).strftime("%Y-%m-%d %H:%M UTC")),
     ]
     if len(sessions) > 1:
         header.append(("sessions compared", ", ".join(labels)))
-    if not data.strides:
-        gait = [content.no_strides(data)]
-    else:
+    curves = content.has_joint_curves(analysis)
+    gait = []  # none without strides: the summary says why
+    if data.strides:
         gait = [content.spatiotemporal(analysis, norms),
-                *((content.joint_curves(analysis, targets), content.profile_score(analysis))
-                  if content.has_joint_curves(analysis) else (content.no_joint_curves(analysis),)),
+                *((content.profile_score(analysis), content.joint_curves(analysis, targets))
+                  if curves else content.no_joint_curves(analysis)),
                 content.strides_section(data, analysis)]
+    why_none = "" if data.strides else content.no_strides_reason(data)
     sections = [
-        content.summary_section(summary),
+        overview.summary(data, analysis, norms, shown=content.shown, band_text=content.band_text,
+                         has_curves=curves, no_strides=why_none),
+        *([progress_section(labels, analyses)] if len(sessions) > 1 else []),
         *gait,
         content.activity_section(data),
-        content.calibration_section(data, summary),
-        content.quality_section(data),
-        content.cues_section(analysis, targets_path.name),
+        *content.calibration_section(data, summary),
+        *content.quality_section(data),
+        *([content.cues_section(analysis, targets_path.name)] if data.cues else []),
+        content.sources_section(norms),
     ]
-    if len(sessions) > 1:
-        sections.append(progress_section(labels, analyses))
-    sections.append(content.sources_section(norms))
     doc = Document("Gait session report", header, sections)
     html = out / "report.html"
     html.write_text(render_html(doc))

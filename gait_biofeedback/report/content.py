@@ -1,6 +1,8 @@
-"""What the session report says (issue 18): header, spatiotemporal table against the normative bands,
-joint curves over the reference, GPS and MAP, strides and events over time, activity, calibration,
-data quality, cues and time in band, sources. Degrees, % and steps/min only here, for display."""
+"""What the session report says (issues 18, 48): after the summary (:mod:`.overview`), the
+spatiotemporal table against the normative bands, joint curves over the reference with the contacts
+marked, GPS and MAP, strides and events over time, activity, calibration, data quality, time in band,
+sources; sections without data are one sentence, and what is all well is one line, not a table.
+Degrees, % and steps/min only here, for display; clinical words, not the software's."""
 
 from __future__ import annotations
 
@@ -18,8 +20,8 @@ from gait_biofeedback.report.analysis import GPS_MISSING, NO_CURVES, TABLE, Sess
 from gait_biofeedback.report.document import Bullets, Figure, Paragraph, Section, Table
 from gait_biofeedback.report.extract import LEVELS, SessionData
 from gait_biofeedback.report.norms import BAKER_2009, BAKER_2012, MCID, NormBand
-from gait_biofeedback.report.session import SessionReport, calibration_outcome, format_report
-from gait_biofeedback.wire.topics import segment_of
+from gait_biofeedback.report.overview import kit_segments
+from gait_biofeedback.report.session import SessionReport, calibration_outcome
 
 # parameter → (label, display factor from SI, display unit, decimals)
 DISPLAY: dict[str, tuple[str, float, str, int]] = {
@@ -82,95 +84,78 @@ def grouped_problems(problems: dict[str, float], seen: dict[str, tuple[float, in
     return lines
 
 
-def _band_text(name: str, band: NormBand) -> str:
+def band_text(name: str, band: NormBand) -> str:
+    """A normative band as displayed: ``low–high unit``."""
     return f"{shown(name, band.low)}–{shown(name, band.high)} {DISPLAY[name][2]}"
+
+
+_AUTHOR_YEAR = re.compile(r"^(\w+).*?\b((?:19|20)\d\d)\b", re.S)
+
+
+def short_source(band: NormBand) -> str:
+    """``Perry 2010`` of a band's source (how the band was made from it: :func:`range_notes`)."""
+    match = _AUTHOR_YEAR.search(band.source)
+    return f"{match.group(1)} {match.group(2)}" if match else band.source
+
+
+def range_notes(norms: dict[str, NormBand], names: tuple[str, ...]) -> str:
+    """How the ranges of ``names`` were made from their sources, one clause per way."""
+    ways: dict[str, list[str]] = {}
+    for name in names:
+        if norms[name].note:
+            ways.setdefault(norms[name].note, []).append(DISPLAY[name][0])
+    return "; ".join(f"{', '.join(labels)}: {note}" for note, labels in ways.items())
 
 
 def spatiotemporal(analysis: SessionAnalysis, norms: dict[str, NormBand]) -> Section:
     section = Section("Spatiotemporal parameters")
-    where = (
-        "the plausible ones inside the activity monitor's walking bouts"
-        if analysis.walking_bouts is not None
-        else "every plausible one: no activity/state in the recording"
-    )
-    section.add(
-        Paragraph(
-            f"{plural(len(analysis.used), 'stride')}: {where}"
-            + (
-                f"; {plural(analysis.left_out_outside_walking, 'plausible stride')} outside walking left out "
-                "(the summary above counts them)"
-                if analysis.left_out_outside_walking
-                else ""
-            )
-            + (
-                f"; {plural(analysis.left_out_turning, 'turning stride')} (in a turn) left out: steady "
-                "straight walking"
-                if analysis.left_out_turning
-                else ""
-            )
-            + (
-                f"; {plural(analysis.left_out_ends, 'stride')} starting or ending a walk left out"
-                if analysis.left_out_ends
-                else ""
-            )
-            + ". The summary gives medians, the table means.",
-            "note",
-        )
-    )
+    where = ("steady, straight walking inside the walking bouts" if analysis.walking_bouts is not None
+             else "steady, straight walking (no activity monitor in this recording)")
+    used = plural(len(analysis.used), "stride")
+    section.add(Paragraph(f"Mean ± SD (number of strides) of the {used} used: {where}; what was left out is "
+                          "under Strides over time.", "note"))
     rows = []
     for name in TABLE:
+        if not any(analysis.table[name][side][2] for side in SIDES):
+            continue  # no value on either side (step length without joint angles)
         band = norms[name]
         cells = [f"{DISPLAY[name][0]} ({DISPLAY[name][2]})"]
         for side in SIDES:
             mean, sd, n = analysis.table[name][side]
             text = f"{shown(name, mean)} ± {shown(name, sd)} ({n})" if n else "–"
             cells.append((text, band.status(mean)))
-        cells += [_band_text(name, band), band.note or "see sources"]
+        cells += [band_text(name, band), short_source(band)]
         rows.append(cells)
     section.add(
         Table(
-            [
-                "parameter",
-                "left: mean ± SD (strides)",
-                "right: mean ± SD (strides)",
-                "normative band",
-                "band",
-            ],
+            ["parameter", "left", "right", "normal range", "range from"],
             rows,
         )
     )
     band = norms["symmetry"]
-    sym_rows = [
-        [
-            f"{n.replace('_', ' ')} symmetry index (%)",
-            (shown("symmetry", v), band.status(v)),
-            _band_text("symmetry", band),
-        ]
-        for n, v in analysis.symmetry.items()
-    ]
-    section.add(Table(["symmetry (L - R) / (0.5 (L + R))", "value", "band"], sym_rows))
+    values = ", ".join(f"{n.replace('_', ' ')} {shown('symmetry', v)} %"
+                       + ("" if band.status(v) == "in" else " (asymmetric)")
+                       for n, v in analysis.symmetry.items() if math.isfinite(v))
+    within = (f"±{shown('symmetry', band.high)} %" if band.low == -band.high else band_text("symmetry", band))
+    section.add(Paragraph(f"Symmetry index (L − R) / (0.5 (L + R)), symmetric within {within}: {values}.",
+                          "note"))
     section.add(
         Paragraph(
-            "Colours: green inside the normative band, orange below, red above. Gait speed and "
-            "stride length come from each foot's trajectory; step length splits the stride by "
-            "the legs' angles at the two initial contacts (as the biofeedback node does).",
+            "Colours: green inside the normal range, orange below, red above. Ranges: "
+            f"{range_notes(norms, TABLE)}. Gait speed and stride length come from each foot's trajectory; "
+            "step length splits the stride by the legs' angles at the two initial contacts (as the live "
+            "feedback does).",
             "note",
         )
     )
     return section
 
 
-def _kit(data: SessionData) -> set[str]:
-    """The segments whose IMU topics the recording has."""
-    return {seg for t in data.counts if (seg := segment_of(t)) is not None}
-
-
-def no_strides(data: SessionData) -> Section:
-    """The gait sections of a recording without any stride: one sentence instead of empty tables."""
-    feet = [seg for seg in _kit(data) if seg.endswith("_foot")]
-    why = ("the foot sensors gave no gait events (no walking, or no calibration in force)" if feet
-           else "this kit has no foot sensor, and gait events and strides come from the feet")
-    return Section("Spatiotemporal parameters").add(Paragraph(f"No strides: {why}.", "note"))
+def no_strides_reason(data: SessionData) -> str:
+    """Why a recording has no stride, in one sentence."""
+    if any(seg.endswith("_foot") for seg in kit_segments(data)):
+        return "no strides: the foot sensors gave no gait events (no walking, or no calibration in force)."
+    return "not measured: this kit has no foot sensor, and gait events and strides come from the feet."
 
 
 def has_joint_curves(analysis: SessionAnalysis) -> bool:
@@ -178,35 +163,44 @@ def has_joint_curves(analysis: SessionAnalysis) -> bool:
     return any(len(curve) for side in analysis.curves.values() for curve in side.values())
 
 
-def no_joint_curves(analysis: SessionAnalysis) -> Section:
-    """The joint-angle sections of a recording without any: one sentence instead of empty plots."""
+def no_joint_curves(analysis: SessionAnalysis) -> list[Section]:
+    """The joint-angle sections of a recording without any: one sentence instead of empty plots;
+    nothing when the kit lacks the sensors (the summary says which)."""
+    if set(analysis.strides_without_curves) <= {"no_sensors"}:
+        return []
     section = Section("Joint angles over the stride")
     reasons = "; ".join(f"{plural(n, 'stride')}: {NO_CURVES[r]}"
                         for r, n in analysis.strides_without_curves.items())
     section.add(Paragraph("No joint angles: no stride used has hip, knee and ankle angles"
                           + (f" ({reasons})" if reasons else "") + ". The Gait Profile Score needs them too.",
                           "note"))
-    return section
+    return [section]
+
+
+def toe_off_percent(analysis: SessionAnalysis) -> dict[str, float]:
+    """Per side, the mean terminal contact of the strides used, in % of the stride (NaN without)."""
+    out = {}
+    for side in SIDES:
+        values = [100.0 * (r["terminal_contact_s"] - r["start_s"]) / (r["end_s"] - r["start_s"])
+                  for r in analysis.used if r["side"] == side and r["end_s"] > r["start_s"]
+                  and math.isfinite(r["terminal_contact_s"])]
+        out[side] = float(sum(values) / len(values)) if values else math.nan
+    return out
 
 
 def joint_curves(analysis: SessionAnalysis, targets: Targets) -> Section:
-    section = Section("Joint angles over the stride", new_page=True)
+    section = Section("Joint angles over the stride")
     tol = {n: math.degrees(v) for n, v in targets.reference_tolerance.items()}
     section.add(
         Figure(
-            figures.joint_curves(analysis, targets.reference_tolerance),
-            "Sagittal hip, knee and ankle angles, time-normalised from initial contact to the next "
-            "one of the same foot: mean ± SD of the strides used, on the reference curve (dashed) "
-            f"± the tolerance of the targets (hip {tol['hip_flexion']:.0f}°, knee "
-            f"{tol['knee_flexion']:.0f}°, ankle {tol['ankle_dorsiflexion']:.0f}°).",
-        )
-    )
-    section.add(
-        Paragraph(
-            "Coarse reference: the curves are typed in from textbook key values every 5 % of the "
-            "stride (Perry & Burnfield 2010; Kadaba et al. 1990) and the band is a tolerance, not "
-            "a published standard deviation. Check them before training a patient towards them.",
-            "warning",
+            figures.joint_curves(analysis, targets.reference_tolerance, toe_off_percent(analysis)),
+            "Sagittal hip, knee and ankle angles from initial contact (IC) to the next one of the same "
+            "foot, toe-off (TC) at its mean: mean ± SD of the strides used, on the reference curve "
+            f"(dashed) ± the tolerance of the targets (hip {tol['hip_flexion']:.0f}°, knee "
+            f"{tol['knee_flexion']:.0f}°, ankle {tol['ankle_dorsiflexion']:.0f}°). Coarse reference: "
+            "textbook key values every 5 % of the stride (Perry & Burnfield 2010; Kadaba et al. 1990), "
+            "the band a tolerance, not a published SD: check it before training a patient towards it.",
+            width=0.6,
         )
     )
     for reason, count in analysis.strides_without_curves.items():
@@ -221,64 +215,45 @@ def profile_score(analysis: SessionAnalysis) -> Section:
         Figure(
             figures.movement_analysis_profile(analysis),
             "Movement Analysis Profile: the Gait Variable Score (RMS difference of the mean curve "
-            "from the reference over the stride) of each variable and side, and the GPS.",
-        )
-    )
-    rows = []
-    for side in SIDES:
-        rows.append(
-            [side]
-            + [
-                shown("gait_profile_score", analysis.gvs[side].get(n, math.nan))
-                for n in ("hip_flexion", "knee_flexion", "ankle_dorsiflexion")
-            ]
-            + [shown("gait_profile_score", analysis.gps[side])]
-        )
-    rows.append(["both", "", "", "", shown("gait_profile_score", analysis.gps["overall"])])
-    section.add(
-        Table(
-            ["side", "hip flexion GVS (°)", "knee flexion GVS (°)", "ankle dorsiflexion GVS (°)", "GPS (°)"],
-            rows,
-        )
-    )
-    mcid = math.degrees(MCID["gait_profile_score"].value)
-    section.add(
-        Paragraph(
-            f"Gait Profile Score as defined by Baker et al. 2009 over the 3 of its 9 variables that have a "
-            f"reference here; missing: {', '.join(GPS_MISSING)}. Its minimal clinically important difference "
-            f"is {mcid:.1f}° (Baker et al. 2012). Against the coarse reference curves the score is for "
-            "following one patient over sessions, not for comparing with a laboratory's GPS.",
-            "note",
+            "from the reference over the stride) of each variable and side, and the Gait Profile Score "
+            f"(GPS; both sides: {shown('gait_profile_score', analysis.gps['overall'])}°), as defined by "
+            f"Baker et al. 2009 over the 3 of its 9 variables that have a reference here (missing: "
+            f"{', '.join(GPS_MISSING)}). Its minimal clinically important difference is "
+            f"{math.degrees(MCID['gait_profile_score'].value):.1f}° (Baker et al. 2012). Against the coarse "
+            "reference curves it is for following one patient over sessions, not for comparing with a "
+            "laboratory's GPS.",
+            width=0.6,
         )
     )
     return section
 
 
 def strides_section(data: SessionData, analysis: SessionAnalysis) -> Section:
-    section = Section("Strides and events over time", new_page=True)
+    section = Section("Strides over time")
     section.add(
         Figure(
             figures.strides_over_time(data, analysis),
             "Each stride at its closing initial contact (filled: used; hollow: left out), the "
-            "walking bouts of the activity monitor shaded, the detected IC and TC below.",
+            "walking bouts of the activity monitor shaded.",
+            width=0.75,
         )
     )
     plausible = sum(r["plausible"] for r in data.strides)
     items = [
-        f"{len(data.strides)} strides detected, {plausible} plausible, {len(analysis.used)} used",
-        f"{sum(1 for _, k, _ in data.events if k == 'ic')} initial and "
-        f"{sum(1 for _, k, _ in data.events if k == 'tc')} terminal contacts",
+        f"{len(data.strides)} strides detected ({sum(1 for _, k, _ in data.events if k == 'ic')} initial and "
+        f"{sum(1 for _, k, _ in data.events if k == 'tc')} terminal contacts), {plausible} plausible, "
+        f"{len(analysis.used)} used",
     ]
     if analysis.walking_bouts is not None:
         bouts = ", ".join(f"{a:.1f}–{b:.1f} s" for a, b in analysis.walking_bouts) or "none"
-        items.append(
-            f"walking bouts (activity monitor): {bouts}; {analysis.left_out_outside_walking} plausible "
-            "strides outside them left out (e.g. events of calibration moves)"
-        )
+        outside = analysis.left_out_outside_walking
+        items.append(f"walking bouts (activity monitor): {bouts}" + (
+            f"; {outside} plausible strides outside them left out (e.g. events of calibration moves)"
+            if outside else ""))
     if analysis.left_out_turning:
-        items.append(f"{plural(analysis.left_out_turning, 'turning stride')} left out (the foot's heading "
-                     f"changed by more than {math.degrees(TURN_LIMIT):.0f}° in the stride, or a foot's by "
-                     f"more than {math.degrees(WHOLE_TURN_LIMIT):.0f}° over it and the strides around it)")
+        items.append(f"{plural(analysis.left_out_turning, 'turning stride')} left out (the foot turned by "
+                     f"over {math.degrees(TURN_LIMIT):.0f}° in the stride, or over "
+                     f"{math.degrees(WHOLE_TURN_LIMIT):.0f}° with the strides around it)")
     if analysis.left_out_ends:
         items.append(f"{plural(analysis.left_out_ends, 'stride')} starting or ending a walk left out (each "
                      "foot's first stride after a standing and last before a stop)")
@@ -287,40 +262,37 @@ def strides_section(data: SessionData, analysis: SessionAnalysis) -> Section:
     spatial = Counter(r["spatial_flag"].split(":")[0] for r in analysis.used if r["spatial_flag"])
     items += [f"no spatial values: {n} × {flag}" for flag, n in spatial.most_common()]
     items += analysis.notes
-    section.add(Bullets(items))
+    section.add(Bullets(items, "note"))
     return section
 
 
 def activity_section(data: SessionData) -> Section:
     section = Section("Activity")
+    if not data.activity:
+        return section.add(Paragraph("No activity in this recording.", "note"))
+    changes = "".join(f"; {figures.TRANSITIONS.get(code, code)} at {t:.1f} s" for t, code in data.transitions)
     section.add(
         Figure(
             figures.activity_timeline(data),
-            "Posture and locomotion of the trunk activity monitor, "
-            "its postural transitions and the steps it counted.",
-        )
-    )
-    items = [f"{figures.TRANSITIONS.get(code, code)} at {t:.1f} s" for t, code in data.transitions]
-    section.add(
-        Bullets(
-            [f"{data.steps} steps counted", *items]
-            if data.activity
-            else ["no activity/state in this recording"]
+            "Posture and locomotion of the trunk activity monitor, its postural transitions and the steps "
+            f"it counted: {data.steps} steps{changes}.",
+            width=0.7,
         )
     )
     return section
 
 
-def calibration_section(data: SessionData, report: SessionReport) -> Section:
+def calibration_section(data: SessionData, report: SessionReport) -> list[Section]:
+    """The calibration's table, or nothing when every segment was accepted (the summary says so in a
+    line; a simulated session keeps its table, for the error to the true mounting)."""
     section = Section("Calibration quality")
     if not data.calibration:
-        legs = [seg for seg in _kit(data) if seg.endswith(("_thigh", "_shank", "_foot"))]
-        if not legs:  # a trunk sensor alone needs none: information
-            return section.add(Paragraph("No calibration: this kit has no leg or foot sensor, and the "
-                                         "activity monitor finds its own upright reference.", "note"))
-        return section.add(
+        legs = [seg for seg in kit_segments(data) if seg.endswith(("_thigh", "_shank", "_foot"))]
+        if not legs:  # a trunk sensor alone needs none: information, in the summary
+            return []
+        return [section.add(
             Paragraph("No calibration in force: no joint angles and no gait events.", "warning")
-        )
+        )]
     rows = []
     for seg, entry in data.calibration.items():
         error = report.calibration.get(seg, {}).get("error")
@@ -335,30 +307,55 @@ def calibration_section(data: SessionData, report: SessionReport) -> Section:
             ]
         )
     header = ["segment", "status", "quality (0-1)", "message", "error to true mounting (°, simulated)"]
-    if not any(report.calibration.get(seg, {}).get("error") is not None for seg in data.calibration):
+    simulated = any(report.calibration.get(seg, {}).get("error") is not None for seg in data.calibration)
+    if not simulated:
+        if all(calibration_outcome(e["valid"], e["message"] or "") != "REFUSED"
+               for e in data.calibration.values()):
+            return []  # the summary's line says so, and what the kit lacks
         header, rows = header[:-1], [row[:-1] for row in rows]  # a real recording: no true mounting
-    section.add(Table(header, rows))
-    return section
+    return [section.add(Table(header, rows))]
 
 
-def quality_section(data: SessionData) -> Section:
+STAGE_WORDS = {
+    "orientation_filter": "orientation",
+    "imu_driver": "sensor link",
+    "imu_replayer": "replay",
+    "calibration": "calibration",
+    "joint_angles": "joint angles",
+    "gait_events": "gait events",
+    "activity_monitor": "activity monitor",
+    "biofeedback": "feedback",
+    "recorder": "recording",
+}
+
+
+def status_name(name: str) -> str:
+    """A status of the recording's sensor and processing reports in words: ``orientation_filter: left_foot``
+    → ``left foot (orientation)``."""
+    stage, _, what = name.partition(": ")
+    stage_words = STAGE_WORDS.get(stage, stage.replace("_", " "))
+    return f"{what.replace('_', ' ')} ({stage_words})" if what else stage_words
+
+
+def quality_section(data: SessionData) -> list[Section]:
+    """The sensor and processing reports of the session: a table of those that reported a problem, one
+    line for the others; nothing when none did (the summary says so in a line)."""
     section = Section("Data quality")
     for text in data.damage:
         section.add(Paragraph(f"DAMAGED RECORDING: {text}. This report covers only what could be read.",
                               "warning"))
     if not data.diagnostics:
-        return section.add(Paragraph("No /diagnostics in the recording: data quality unknown.", "warning"))
+        return [section.add(Paragraph("The recording holds no sensor or processing reports: data quality "
+                                      "unknown.", "warning"))]
     rows = []
     for name, summary in sorted(data.diagnostics.items()):
-        counters = ", ".join(
-            f"{k} {v:g}"
-            for k, v in summary.counters.items()
-            if v and k not in ("samples", "published", "received")
-        )
+        if summary.fine:
+            continue
+        counters = ", ".join(f"{k.replace('_', ' ')} {v:g}" for k, v in summary.counted().items())
         base = summary.counters.get("samples", summary.counters.get("received", math.nan))
         rows.append(
             [
-                name,
+                status_name(name),
                 (
                     LEVELS.get(summary.worst, str(summary.worst)),
                     "in" if summary.worst == 0 else "warn" if summary.worst == 1 else "bad",
@@ -367,53 +364,71 @@ def quality_section(data: SessionData) -> Section:
                 counters or "none",
             ]
         )
-    section.add(Table(["status (/diagnostics)", "worst level", "samples", "problems counted"], rows))
+    fine = len(data.diagnostics) - len(rows)
+    if rows:
+        section.add(Table(["sensor or stage", "worst level", "samples", "problems counted"], rows))
+    if fine:
+        which = plural(fine, "sensor or stage", "sensors or stages")
+        section.add(Paragraph(f"{'The other' if rows else 'All'} {which} reported no problem.", "note"))
     problems = [
-        f"{name}: {line}"
+        f"{status_name(name)}: {line}"
         for name, s in sorted(data.diagnostics.items())
-        for line in grouped_problems({t: v for t, v in s.problems.items() if "start-up" not in t}, s.seen)
+        for line in grouped_problems(s.news(), s.seen)
     ]
     recovering = int(data.recovering.sum())
     if recovering:
         problems.append(
-            f"{recovering} joint_states marked recovering (a sensor back from a dropout): shown, "
+            f"{recovering} joint-angle samples marked recovering (a sensor back from a dropout): shown, "
             "never evaluated"
         )
-    section.add(Bullets(problems or ["no warning or error besides the filters' start-up"]))
-    return section
+    if problems:
+        section.add(Bullets(problems))
+    return [section] if rows or problems or data.damage else []
+
+
+_QUANTITY_WORDS = (("_at_ic", " at initial contact"), ("_peak_swing", ", peak in swing"),
+                   ("_peak_stance", ", peak in stance"), ("stance_fraction", "stance"), ("_", " "))
+
+
+def quantity_name(quantity: str) -> str:
+    """A feedback quantity in words: ``knee_flexion_at_ic`` → ``knee flexion at initial contact``."""
+    for code, words in _QUANTITY_WORDS:
+        quantity = quantity.replace(code, words)
+    return quantity
 
 
 def cues_section(analysis: SessionAnalysis, targets_name: str) -> Section:
-    section = Section("Biofeedback cues and time in band")
-    section.add(Paragraph(f"Cues: {analysis.cue_source} (targets: {targets_name}).", "note"))
-    rows = [
-        [
-            q,
-            str(e["cues"]),
-            (f"{e['in_band_percent']:.0f} %", "in" if e["in_band_percent"] >= 80 else "warn"),
-            str(e["severe"]),
-            f"{e['time_in_band_s']:.0f} of {e['time_s']:.0f} s",
-        ]
-        for q, e in sorted(analysis.cues.items())
-    ]
+    """Per quantity, the share of strides in the target band, each side in one row."""
+    section = Section("Time in the target band")
+    section.add(Paragraph(f"Feedback: {analysis.cue_source} (targets: {targets_name}).", "note"))
+    by_quantity: dict[str, dict[str, dict]] = {}
+    for key, entry in analysis.cues.items():
+        quantity, _, side = key.partition(" (")
+        by_quantity.setdefault(quantity, {})[side.rstrip(")") or "both"] = entry
+    rows = []
+    for quantity, sides in sorted(by_quantity.items()):
+        row: list = [quantity_name(quantity)]
+        for side in (*SIDES, "both"):
+            e = sides.get(side)
+            row.append((f"{e['in_band_percent']:.0f} % of {e['cues']}", "in" if e["in_band_percent"] >= 80
+                        else "warn") if e else "")
+        severe = sum(e["severe"] for e in sides.values())
+        row.append(str(severe))
+        rows.append(row)
     if rows:
-        section.add(
-            Table(["quantity", "strides compared", "in band", "severe", "walking time in band"], rows)
-        )
+        section.add(Table(["quantity", "left: strides in band", "right: strides in band",
+                           "both feet: strides in band", "far outside"], rows))
     else:
         section.add(Paragraph("No stride was compared with a target.", "note"))
     return section
 
 
 def sources_section(norms: dict[str, NormBand]) -> Section:
-    refs = sorted(
-        {b.source for b in norms.values()}
-        | {m.source for m in MCID.values()}
-        | set(normative.REFERENCE_SOURCES)
-        | {BAKER_2009, BAKER_2012}
-    )
-    return Section("Sources").add(Bullets(refs))
-
-
-def summary_section(report: SessionReport) -> Section:
-    return Section("Summary (as `gait-biofeedback analyze` prints it)").add(Bullets(format_report(report)))
+    """Every source the report cites, once (a source cited with what was taken from it, such as Perry's
+    figures, is listed as the reference alone)."""
+    refs = {
+        re.sub(r" \([^()]*\)\.$", ".", source)
+        for source in {b.source for b in norms.values()} | {m.source for m in MCID.values()}
+        | set(normative.REFERENCE_SOURCES) | {BAKER_2009, BAKER_2012}
+    }
+    return Section("Sources").add(Paragraph(" · ".join(sorted(refs)), "small"))

@@ -12,7 +12,7 @@ Cell = str | tuple[str, str]
 @dataclass
 class Paragraph:
     text: str
-    style: str = ""  # "", "note" (small), "warning"
+    style: str = ""  # "", "note" (smaller), "small" (smallest: sources), "warning"
 
 
 @dataclass
@@ -25,11 +25,13 @@ class Table:
 class Figure:
     svg: str
     caption: str
+    width: float = 1.0  # of the text width, centred (the PDF page; the HTML column)
 
 
 @dataclass
 class Bullets:
     items: list[str]
+    style: str = ""  # "", "note" (small)
 
 
 Block = Paragraph | Table | Figure | Bullets

@@ -82,6 +82,19 @@ class StatusSummary:
     problems: dict[str, float] = field(default_factory=dict)
     seen: dict[str, tuple[float, int]] = field(default_factory=dict)
 
+    def news(self) -> dict[str, float]:
+        """The problems besides the orientation filters' start-up (expected at every start)."""
+        return {text: t for text, t in self.problems.items() if "start-up" not in text}
+
+    def counted(self) -> dict[str, float]:
+        """The problem counters that are not zero (samples and messages counted are no problem)."""
+        return {k: v for k, v in self.counters.items() if v and k not in ("samples", "published", "received")}
+
+    @property
+    def fine(self) -> bool:
+        """Nothing to report: no problem but the start-up, no problem counted."""
+        return not self.news() and not self.counted()
+
 
 @dataclass
 class SessionData:

@@ -42,10 +42,13 @@ def _svg(fig) -> str:
     return re.sub(r"<metadata>.*?</metadata>", "", text[text.index("<svg") :], flags=re.S)
 
 
-def joint_curves(analysis: SessionAnalysis, tolerance: dict[str, float]) -> str:
-    """Hip, knee and ankle (rows) per side (columns): mean ± SD over the strides on the reference band."""
+def joint_curves(analysis: SessionAnalysis, tolerance: dict[str, float],
+                 toe_off: dict[str, float] | None = None) -> str:
+    """Hip, knee and ankle (rows) per side (columns): mean ± SD over the strides on the reference band;
+    the initial contacts at 0 and 100 %, ``toe_off`` (side → % of the stride) marked TC."""
     pct = analysis.percent
-    fig, axes = plt.subplots(3, 2, figsize=(7.2, 6.0), sharex=True)
+    toe_off = toe_off or {}
+    fig, axes = plt.subplots(3, 2, figsize=(7.2, 4.6), sharex=True)
     for col, side in enumerate(SIDES):
         for row, name in enumerate(SAGITTAL):
             ax = axes[row][col]
@@ -69,20 +72,30 @@ def joint_curves(analysis: SessionAnalysis, tolerance: dict[str, float]) -> str:
                 ax.text(50, 0, "no strides with angles", ha="center", va="center")
             ax.set_title(f"{side} {name.replace('_', ' ')}")
             ax.grid(alpha=0.3)
+            marks = [(0.0, "IC"), (100.0, "IC")]
+            if math.isfinite(toe_off.get(side, math.nan)):
+                marks.append((toe_off[side], "TC"))
+            for x, label in marks:
+                ax.axvline(x, color="k", lw=0.6, ls=":")
+                ax.text(x, 1.0, label, transform=ax.get_xaxis_transform(), ha="center", va="bottom",
+                        fontsize=6)
             if col == 0:
                 ax.set_ylabel("deg")
             if row == 2:
                 ax.set_xlabel("% of stride (IC to IC)")
-            if row == 0:
-                ax.legend(loc="upper left", fontsize=6, frameon=False)
-    fig.tight_layout()
+    handles: dict[str, object] = {}
+    for ax in axes[0]:
+        for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
+            handles.setdefault(label, handle)
+    fig.legend(list(handles.values()), list(handles), loc="upper center", ncol=3, fontsize=7, frameon=False)
+    fig.tight_layout(rect=(0.0, 0.0, 1.0, 0.95))  # the legend above the panels, outside the data
     return _svg(fig)
 
 
 def movement_analysis_profile(analysis: SessionAnalysis) -> str:
     """Gait Variable Scores per variable and side, and the GPS (Baker et al. 2009), in degrees."""
     labels = [n.replace("_", " ") for n in SAGITTAL] + ["GPS"]
-    fig, ax = plt.subplots(figsize=(7.2, 2.4))
+    fig, ax = plt.subplots(figsize=(7.2, 2.2))
     x = np.arange(len(labels))
     for k, side in enumerate(SIDES):
         values = [analysis.gvs[side].get(n, math.nan) for n in SAGITTAL] + [analysis.gps[side]]
@@ -99,15 +112,15 @@ def movement_analysis_profile(analysis: SessionAnalysis) -> str:
                 )
     ax.set_xticks(x, labels)
     ax.set_ylabel("deg (RMS from reference)")
-    ax.legend(frameon=False, fontsize=7)
+    ax.legend(frameon=False, fontsize=7, loc="upper left", bbox_to_anchor=(1.0, 1.0))  # beside the bars
     ax.grid(axis="y", alpha=0.3)
     fig.tight_layout()
     return _svg(fig)
 
 
 def strides_over_time(data: SessionData, analysis: SessionAnalysis) -> str:
-    """Stride time and stride length of every stride (used: filled; left out: hollow), events below."""
-    fig, axes = plt.subplots(3, 1, figsize=(7.2, 4.6), sharex=True, gridspec_kw={"height_ratios": [3, 3, 1]})
+    """Stride time and stride length of every stride (used: filled; left out: hollow)."""
+    fig, axes = plt.subplots(2, 1, figsize=(7.2, 2.8), sharex=True)
     used = {(r["side"], r["stride_index"]) for r in analysis.used}
     for side in SIDES:
         rows = [r for r in data.strides if r["side"] == side]
@@ -146,24 +159,9 @@ def strides_over_time(data: SessionData, analysis: SessionAnalysis) -> str:
                          color=line.get_color())
     axes[0].set_ylim(0, top)
     axes[1].set_ylim(bottom=0)
-    axes[0].legend(fontsize=6, frameon=False, ncol=4, loc="upper left")
-    for k, side in enumerate(SIDES):
-        for kind, marker in (("ic", "|"), ("tc", "x")):
-            ts = [t for s, kd, t in data.events if s == side and kd == kind]
-            axes[2].plot(
-                ts,
-                [k + (0.25 if kind == "tc" else 0.0)] * len(ts),
-                marker,
-                ms=5,
-                color=SIDE_COLOUR[side],
-                ls="none",
-                label=f"{side} {kind.upper()}",
-            )
-    axes[2].set_yticks([0, 1], ["left", "right"])
-    axes[2].set_ylim(-0.5, 1.8)
-    axes[2].set_xlabel("time into the session (s)")
-    axes[2].legend(fontsize=6, frameon=False, ncol=4, loc="lower left", bbox_to_anchor=(0.0, 1.0),
-                   borderaxespad=0.0)  # above the events, not on them
+    axes[0].legend(fontsize=6, frameon=False, ncol=4, loc="lower left", bbox_to_anchor=(0.0, 1.0),
+                   borderaxespad=0.0)  # above the plot, outside the data
+    axes[1].set_xlabel("time into the session (s)")
     for a, b in analysis.walking_bouts or []:
         for ax in axes:
             ax.axvspan(a, b, color="#2ecc71", alpha=0.08, lw=0)
@@ -174,7 +172,7 @@ def strides_over_time(data: SessionData, analysis: SessionAnalysis) -> str:
 def activity_timeline(data: SessionData) -> str:
     """Posture and locomotion over time, the transitions, and the step count."""
     fig, (ax, steps) = plt.subplots(
-        2, 1, figsize=(7.2, 2.6), sharex=True, gridspec_kw={"height_ratios": [2, 1]}
+        2, 1, figsize=(7.2, 2.2), sharex=True, gridspec_kw={"height_ratios": [2, 1]}
     )
     if not data.activity:
         ax.text(0.5, 0.5, "no activity/state in this recording", ha="center", transform=ax.transAxes)
@@ -207,11 +205,14 @@ def activity_timeline(data: SessionData) -> str:
                     fontsize=7,
                 )
             k = j + 1
-    for when, code in data.transitions:
+    last_label, level = -math.inf, 0
+    for when, code in data.transitions:  # labels close together stacked, not overlapping
+        level = (level + 1) % 3 if when - last_label < 0.08 * end else 0
+        last_label = when
         ax.axvline(when, color="k", lw=0.8)
-        ax.text(when, 1.55, TRANSITIONS.get(code, "?"), fontsize=6, ha="center")
+        ax.text(when, 1.45 + 0.3 * level, TRANSITIONS.get(code, "?"), fontsize=6, ha="center")
     ax.set_yticks([1, 0], ["posture", "locomotion"])
-    ax.set_ylim(-0.6, 1.8)
+    ax.set_ylim(-0.6, 2.2)
     steps.step(t, [a[3] for a in data.activity], where="post", color="k", lw=1)
     steps.set_ylabel("steps")
     steps.set_xlabel("time into the session (s)")
@@ -227,6 +228,9 @@ def progress_plots(labels: list[str], panels: list[tuple[str, str, list[float]]]
     fig, axes = plt.subplots(rows, cols, figsize=(7.2, 2.0 * rows), squeeze=False)
     for ax, (title, unit, values) in zip(axes.flat, panels, strict=False):
         ax.plot(range(len(labels)), values, "o-", color="k", ms=3)
+        finite = [v for v in values if math.isfinite(v)]
+        if all(v >= 0 for v in finite):  # the full range from 0, not a truncated axis
+            ax.set_ylim(0, 1.15 * max(finite, default=1.0) or 1.0)
         ax.set_xticks(range(len(labels)), labels, rotation=20, fontsize=6)
         ax.set_title(title)
         ax.set_ylabel(unit)

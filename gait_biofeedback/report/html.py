@@ -25,7 +25,8 @@ table { border-collapse: collapse; margin: 0.6em 0; } th, td { border: 1px solid
 td.in { background: #d5f5e3; } td.low { background: #fdebd0; } td.high { background: #fadbd8; }
 td.warn { background: #fcf3cf; } td.bad { background: #f5b7b1; }
 table.header td { border: none; padding: 1px 12px 1px 0; }
-p.note { font-size: 8.5pt; color: #444; } p.warning { border-left: 4px solid #e67e22; padding-left: 8px; }
+p.note, ul.note { font-size: 8.5pt; color: #444; } p.small { font-size: 7.5pt; color: #444; }
+p.warning { border-left: 4px solid #e67e22; padding-left: 8px; }
 figure { margin: 0.6em 0; } figure svg { max-width: 100%; height: auto; } figcaption { font-size: 8.5pt; }
 @media print { section.new-page { break-before: page; } }
 """
@@ -35,9 +36,11 @@ def _block(block) -> str:
     if isinstance(block, Paragraph):
         return f'<p class="{block.style}">{escape(block.text)}</p>'
     if isinstance(block, Bullets):
-        return "<ul>" + "".join(f"<li>{escape(item)}</li>" for item in block.items) + "</ul>"
+        items = "".join(f"<li>{escape(item)}</li>" for item in block.items)
+        return f'<ul class="{block.style}">{items}</ul>'
     if isinstance(block, Figure):
-        return f"<figure>{block.svg}<figcaption>{escape(block.caption)}</figcaption></figure>"
+        return (f'<figure style="max-width: {100 * block.width:.0f}%">{block.svg}'
+                f"<figcaption>{escape(block.caption)}</figcaption></figure>")
     if isinstance(block, Table):
         head = "".join(f"<th>{escape(h)}</th>" for h in block.header)
         body = "".join(

@@ -1,7 +1,7 @@
 """Normative bands of the spatiotemporal parameters and the minimal clinically important differences.
 
 Every band names its source. Where a source gives a mean and no range, the band is that mean ± a
-margin this project chose (EXT, said in ``note``); a clinic replaces any band with its own data in a
+margin this project chose (said in ``note``); a clinic replaces any band with its own data in a
 YAML file (``gait-biofeedback report --norms FILE``, :func:`load_norms`). The joint-angle curves'
 reference is :mod:`gait_biofeedback.core.biofeedback.normative` (coarse: textbook key values every 5 %,
 a band of ± tolerance, not a published SD), and the report repeats that warning.
@@ -66,23 +66,23 @@ class NormBand:
         return "low" if value < self.low else "high" if value > self.high else "in"
 
 
-_MARGIN = "band = the source's mean ± 10 % (EXT: the source gives no range)"
+_MARGIN = "the source's mean ± 10 % (it gives no range)"
 NORMS: dict[str, NormBand] = {
     "gait_speed": NormBand(0.94, 1.43, "m/s", BOHANNON),
     "stride_length": NormBand(1.27, 1.55, "m", PERRY, _MARGIN),
-    "step_length": NormBand(0.63, 0.78, "m", PERRY, "half the stride, ± 10 % (EXT)"),
+    "step_length": NormBand(0.63, 0.78, "m", PERRY, "half the stride, ± 10 %"),
     "cadence": NormBand(1.70, 2.07, "Hz", PERRY, _MARGIN + " (113 steps/min)"),
-    "stride_time": NormBand(0.96, 1.17, "s", PERRY, "2 / cadence, ± 10 % (EXT)"),
-    "step_time": NormBand(0.48, 0.59, "s", PERRY, "1 / cadence, ± 10 % (EXT)"),
-    "stance_fraction": NormBand(0.57, 0.63, "1", PERRY, "60 % ± 3 points (EXT)"),
-    "swing_fraction": NormBand(0.37, 0.43, "1", PERRY, "40 % ± 3 points (EXT)"),
-    "double_support_fraction": NormBand(0.16, 0.24, "1", PERRY, "20 % ± 4 points (EXT)"),
+    "stride_time": NormBand(0.96, 1.17, "s", PERRY, "2 / cadence, ± 10 %"),
+    "step_time": NormBand(0.48, 0.59, "s", PERRY, "1 / cadence, ± 10 %"),
+    "stance_fraction": NormBand(0.57, 0.63, "1", PERRY, "60 % ± 3 points"),
+    "swing_fraction": NormBand(0.37, 0.43, "1", PERRY, "40 % ± 3 points"),
+    "double_support_fraction": NormBand(0.16, 0.24, "1", PERRY, "20 % ± 4 points"),
     "symmetry": NormBand(
         -0.10,
         0.10,
         "1",
         ROBINSON,
-        "|SI| <= 10 % taken as symmetric (EXT: the definition's source gives no threshold)",
+        "|SI| ≤ 10 % taken as symmetric (the definition's source gives no threshold)",
     ),
 }
 """Parameter → band; ``symmetry`` applies to every symmetry index."""

@@ -10,6 +10,7 @@ matplotlib, for °, ±, – and →.
 from __future__ import annotations
 
 import io
+import re
 from pathlib import Path
 
 import matplotlib
@@ -34,6 +35,22 @@ FILL = {
     "bad": (245, 183, 177),
 }
 FONT_DIR = Path(matplotlib.get_data_path()) / "fonts" / "ttf"
+TITLE_MM = 10.0  # a section title with the space above it
+_SVG_SIZE = re.compile(r'<svg[^>]*?width="([\d.]+)pt" height="([\d.]+)pt"')
+
+
+def _figure_height(pdf: FPDF, figure: Figure) -> float:
+    """The height (mm) ``figure`` takes on the page (its SVG's aspect at its width), 0 if unknown."""
+    match = _SVG_SIZE.search(figure.svg)
+    return pdf.epw * figure.width * float(match.group(2)) / float(match.group(1)) if match else 0.0
+
+
+def _starts_on_this_page(pdf: FPDF, section) -> bool:
+    """Whether ``section``'s title and its first block (a figure: all of it; else a few lines) fit
+    below the cursor: a title is never left alone at the foot of a page."""
+    first = section.blocks[0] if section.blocks else None
+    needed = TITLE_MM + (_figure_height(pdf, first) + 8.0 if isinstance(first, Figure) else 12.0)
+    return pdf.get_y() + needed <= pdf.page_break_trigger
 
 
 class _Pdf(FPDF):
@@ -53,6 +70,7 @@ class _Pdf(FPDF):
 def _table(pdf: _Pdf, table: Table) -> None:
     pdf.set_font("DejaVu", "", 7)
     with pdf.table(
+        text_align="LEFT",
         first_row_as_headings=True,
         line_height=4,
         padding=0.8,
@@ -80,31 +98,34 @@ def render_pdf(doc: Document, path: str | Path) -> Path:
         pdf.set_font("DejaVu", "B", 8.5)
         pdf.cell(40, 4.5, key)
         pdf.set_font("DejaVu", "", 8.5)
-        pdf.multi_cell(0, 4.5, value, new_x="LMARGIN", new_y="NEXT")
+        pdf.multi_cell(0, 4.5, value, new_x="LMARGIN", new_y="NEXT", align="L")
     for section in doc.sections:
-        if section.new_page:
+        if section.new_page or not _starts_on_this_page(pdf, section):
             pdf.add_page()
         pdf.ln(3)
         pdf.set_font("DejaVu", "B", 11.5)
         pdf.cell(0, 7, section.title, new_x="LMARGIN", new_y="NEXT")
         for block in section.blocks:
             if isinstance(block, Paragraph):
-                pdf.set_font("DejaVu", "", 7.5 if block.style else 8.5)
+                small = block.style == "small"
+                pdf.set_font("DejaVu", "", 6.5 if small else 7.5 if block.style else 8.5)
                 pdf.set_text_color(*((160, 80, 0) if block.style == "warning" else (60, 60, 60)))
-                pdf.multi_cell(0, 4, block.text, new_x="LMARGIN", new_y="NEXT")
+                pdf.multi_cell(0, 3 if small else 4, block.text, new_x="LMARGIN", new_y="NEXT", align="L")
                 pdf.set_text_color(0, 0, 0)
                 pdf.ln(1)
             elif isinstance(block, Bullets):
-                pdf.set_font("DejaVu", "", 8)
+                pdf.set_font("DejaVu", "", 6.5 if block.style else 8)
                 for item in block.items:
-                    pdf.multi_cell(0, 4, f"• {item}", new_x="LMARGIN", new_y="NEXT")
+                    pdf.multi_cell(0, 3.2 if block.style else 4, f"• {item}", new_x="LMARGIN", new_y="NEXT",
+                                   align="L")
                 pdf.ln(1)
             elif isinstance(block, Table):
                 _table(pdf, block)
             elif isinstance(block, Figure):
-                pdf.image(io.BytesIO(block.svg.encode()), w=pdf.epw)
+                width = pdf.epw * block.width
+                pdf.image(io.BytesIO(block.svg.encode()), x=pdf.l_margin + (pdf.epw - width) / 2, w=width)
                 pdf.set_font("DejaVu", "", 7)
-                pdf.multi_cell(0, 3.6, block.caption, new_x="LMARGIN", new_y="NEXT")
+                pdf.multi_cell(0, 3.6, block.caption, new_x="LMARGIN", new_y="NEXT", align="L")
                 pdf.ln(1)
     path = Path(path)
     pdf.output(str(path))

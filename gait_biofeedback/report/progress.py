@@ -57,7 +57,7 @@ def value_of(analysis: SessionAnalysis, source: str, side: str | None) -> tuple[
 
 def progress_section(labels: list[str], analyses: list[SessionAnalysis]) -> Section:
     """The progress page of sessions in the order given (the first is the baseline)."""
-    section = Section("Progress across sessions", new_page=True)
+    section = Section("Progress across sessions")
     header = ["parameter", *labels, "change from first", "flag"]
     rows, plots = [], []
     for label, name, source, side in ROWS:

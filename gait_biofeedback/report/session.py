@@ -3,7 +3,7 @@
 From what :func:`~gait_biofeedback.report.recording.read_recording` read of a recording of the graph's
 outputs (``joint_states``, ``gait/events``, ``gait/cycles``, ``activity/state``,
 ``calibration/sensor_to_segment``) and, for simulated sessions, of the ``/ground_truth/...`` topics
-replayed with them (io/session_bag.py), :func:`summarise` gives: the calibration
+written with them by the simulator (sim/recording.py), :func:`summarise` gives: the calibration
 and its error (helical angle to the true mounting, thesis Eq 19), joint-angle RMSE per joint
 (samples matched by stamp), gait-event sensitivity/precision/timing (thesis Eq 53), stride
 parameters, activity transitions and steps.

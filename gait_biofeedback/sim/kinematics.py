@@ -1,4 +1,4 @@
-"""Periodic joint-angle patterns of level walking for the simulator (core/simulator.py).
+"""Periodic joint-angle patterns of level walking for the simulator (sim/simulator.py).
 
 The sagittal hip and knee curves are Fourier series (7 harmonics) fitted here to key points of textbook
 normal gait (EXT: typical adult curves, e.g. Perry, Winter): hip +30° at initial contact (IC), -10° near

@@ -110,6 +110,10 @@ class FrameSchedule:
 
     def frame(self, i: int) -> bytes:
         """The bytes of frame ``i`` (in sending order)."""
+        return encode_frame(self.frame_samples(i), self._key)
+
+    def frame_samples(self, i: int) -> list[DeviceSample]:
+        """The samples of frame ``i`` (in sending order), for a fake device of another protocol."""
         seg = self._segments[self._owner[i]]
         s, truth = self.series[seg], self.truth[seg]
         j0 = int(self._first[i])
@@ -118,7 +122,7 @@ class FrameSchedule:
             mag = None if s.mag is None else tuple(s.mag[j].tolist())
             samples.append(DeviceSample(truth.sensor_id, int(truth.sequence[j]), int(truth.device_us[j]),
                                         tuple(s.acc[j].tolist()), tuple(s.gyr[j].tolist()), mag))
-        return encode_frame(samples, self._key)
+        return samples
 
     @property
     def samples(self) -> int:

@@ -111,7 +111,8 @@ def orientation_messages(segment: str, stamp_ns: np.ndarray, q: np.ndarray, gyr:
                          ) -> list[tuple[bytes, Stamped]]:
     """:func:`orientation_fields` of many samples (arrays: stamps (n,), q (n, 4) w, x, y, z, gyr, acc (n, 3),
     flags (n,), ``raw_cov`` (n, 37) the doubles of the raw message that released each), encoded in bulk
-    (:func:`~gait_biofeedback.wire.cdr.encode_stamped`): [(the bytes :func:`pack_imu` gives, the
+    (:func:`~gait_biofeedback.wire.cdr.encode_stamped`): [(the bytes
+    :func:`~gait_biofeedback.wire.cdr.pack_imu` gives, the
     :class:`Stamped` they decode to)]."""
     n = len(stamp_ns)
     if not n:

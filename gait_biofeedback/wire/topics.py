@@ -24,11 +24,11 @@ from gait_biofeedback_msgs.msg import (
 
 SENSOR_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100, reliability=ReliabilityPolicy.BEST_EFFORT,
                         durability=DurabilityPolicy.VOLATILE)
-"""Raw sensor streams (DESIGN.md: best effort, depth 100)."""
+"""Raw sensor streams (``docs/conventions.md``, Topics: best effort, depth 100)."""
 
 RELIABLE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000, reliability=ReliabilityPolicy.RELIABLE,
                           durability=DurabilityPolicy.VOLATILE)
-"""Derived streams: orientations, joint states, events, cues. Depth 1000, not DESIGN.md's 100: the
+"""Derived streams: orientations, joint states, events, cues. Depth 1000, not the 100 first designed: the
 orientation filter releases its start-up window (1 s) and the re-acquisition window after a gap
 (``recover_s``, 2 s: 400 samples at 200 Hz, 800 at 400 Hz) in one burst, and a KEEP_LAST history
 shallower than the burst drops its first samples."""

@@ -5,9 +5,9 @@ returns the states due: each released state that changed (posture, locomotion or
 the latest state every ``publish_period_s`` s, and at the end the states the stream still held
 (:meth:`ActivityStream.finish`). The period runs on one of two clocks (docs/conventions.md, Time):
 
-- ``"wall"`` (the live node): the caller's timer calls :meth:`periodic` every period, whatever the
+- ``"wall"`` (the live node): the caller's timer calls :meth:`ActivityRun.periodic` every period, whatever the
   stamps;
-- ``"recording"`` (``analyze``): :meth:`update` itself gives the latest state first when a trunk
+- ``"recording"`` (``analyze``): :meth:`ActivityRun.update` itself gives the latest state first when a trunk
   sample's stamp reaches the period's end; the first sample starts the period, a period that ends
   before any state waits for the first one, and each periodic state starts the next period.
 

@@ -509,7 +509,8 @@ def sagittal_stick_figure(angles: Mapping[str, float], lengths: BodyDimensions |
                           ) -> list[tuple[str, float, float, float, float]]:
     """2D stick figure [(segment, x0, y0, x1, y1)] (m) of the pelvis and legs from joint angles (rad,
     JointState names), pelvis upright at the origin, x anterior, y up (EXT: the pelvis orientation is
-    not in JointState, so the pelvis is drawn level). Uses :func:`core.skeleton.stick_figure` with
+    not in JointState, so the pelvis is drawn level). Uses
+    :func:`~gait_biofeedback.core.joints.skeleton.stick_figure` with
     segment orientations relative to the pelvis and an oblique projection so both legs and the pelvis
     width are visible (the right leg is drawn nearer, lower and to the left)."""
     orientations: dict[str, np.ndarray] = {"pelvis": np.array([1.0, 0.0, 0.0, 0.0])}

@@ -99,7 +99,8 @@ def stance_calibration(segment: str, gyr: np.ndarray, acc: np.ndarray, rate_hz: 
     stance phases ``STANCE_LIMITS`` (a stance rolls, and the feet are set down at slightly different
     pitches: ipol_gait's stance samples have 2–5 °/s RMS about their mean, the simulator's up to 1.13
     m/s²). Never raises: refused with a message when the walk has under ``MIN_STANCE_S`` of agreeing
-    stance phases (README *A walk without standing*: the figures on ipol_gait)."""
+    stance phases (``docs/benchmarks/gait_events.md``, *A walk without standing*: the figures on
+    ipol_gait)."""
     gyr, acc = np.asarray(gyr, dtype=float), np.asarray(acc, dtype=float)
     finite = np.all(np.isfinite(gyr), axis=1) & np.all(np.isfinite(acc), axis=1)
     flat = agreeing_stances(acc, stance_phases(gyr, acc, rate_hz) & finite, rate_hz)

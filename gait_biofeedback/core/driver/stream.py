@@ -37,7 +37,8 @@ from gait_biofeedback.core.notices import Notices
 from gait_biofeedback.core.params import ParameterError, param, require
 from gait_biofeedback.core.segments import SEGMENTS
 
-BACKENDS = ("udp", "serial", "simulated")
+VENDOR_BACKENDS = ("ximu3", "ngimu", "shimmer", "dot")
+BACKENDS = ("udp", "serial", "simulated", *VENDOR_BACKENDS)
 MAX_CANDIDATES = 4
 """Sources per sensor id whose samples are held at once. A new one takes the place of the one heard
 from longest ago that has not sent 2 agreeing samples; if none has, its samples are dropped."""
@@ -53,8 +54,11 @@ DEFAULT_SENSORS = tuple(f"{i}:{segment}" for i, segment in enumerate(SEGMENTS))
 class DriverParams:
     """Parameters of the ``imu_driver`` node."""
 
-    backend: str = param("udp", "where the samples come from: udp datagrams, a serial line, or the "
-                         "simulator paced in real time", choices=BACKENDS)
+    backend: str = param("udp", "where the samples come from: udp datagrams, a serial line, the "
+                         "simulator paced in real time, or a vendor's sensors (ximu3: x-io x-IMU3 through "
+                         "its SDK; ngimu: x-io NGIMU over OSC on 'address':'port'; shimmer: Shimmer3 through "
+                         "pyshimmer; dot: Movella DOT over Bluetooth LE; docs/connecting_sensors.md)",
+                         choices=BACKENDS)
     address: str = param("127.0.0.1", "udp: address to listen on (127.0.0.1 = this computer only; "
                          "0.0.0.0 = every network interface, for sensors on the clinic's network)")
     port: int = param(5600, "udp: port to listen on (0 = any free port; the log says which)",
@@ -64,8 +68,21 @@ class DriverParams:
     scenario: str = param("demo", "simulated: the simulator's scenario (gait-biofeedback simulate)")
     sim_rate_hz: float = param(100.0, "simulated: sampling rate", "Hz", low=10.0, high=2000.0)
     sim_loop: bool = param(True, "simulated: start the scenario again at its end (the sensors reboot)")
+    device_rate_hz: float = param(100.0, "shimmer, dot: sampling rate set on each device (shimmer: 32768 Hz "
+                                  "over a whole number, the nearest is taken; dot: 1, 4, 10, 12, 15, 20, 30 "
+                                  "or 60)", "Hz", low=1.0, high=1024.0)
+    shimmer_accelerometer: str = param("wide_range", "shimmer: the accelerometer streamed: the digital "
+                                       "wide-range one (LSM303DLHC, range as configured on the device) or "
+                                       "the analog low-noise one (KXRB5-2042, +-2 g: clips at heel strike)",
+                                       choices=("wide_range", "low_noise"))
     sensors: tuple[str, ...] = param(DEFAULT_SENSORS, "sensor id → segment, as 'ID:SEGMENT' (the ids "
                                      "the sensors send; segments: pelvis, left_thigh, ... chest)")
+    devices: tuple[str, ...] = param((), "vendor backends: device → segment, as 'DEVICE_ID=SEGMENT', the "
+                                     "device as its vendor names it (ximu3: its serial number or its "
+                                     "connection, e.g. 'tcp:192.168.1.20:7000'; ngimu: its address 'IP' or "
+                                     "'IP:PORT'; shimmer: its serial port, e.g. '/dev/rfcomm0'; dot: its BLE "
+                                     "address, e.g. 'D4:22:CD:00:12:34'); the segment's sensor id is the one "
+                                     "'sensors' gives it")
     reorder_window_s: float = param(0.05, "how long a sample after a gap waits for the missing ones "
                                     "(reordered on the way) before they are counted lost", "s",
                                     low=0.0, high=1.0)
@@ -74,7 +91,7 @@ class DriverParams:
     clock_window_s: float = param(60.0, "device time → ROS time: offset and drift fitted over this long",
                                   "s", low=5.0, high=3600.0)
     frame_key_file: str = param("", "file holding the session key the sensors sign their frames with "
-                                "(GBI2, README: Frame format; mode 0600); '' = frames are not signed")
+                                "(GBI2, docs/guide/live_sensors.md; mode 0600); '' = frames are not signed")
     stale_after_s: float = param(1.0, "a mapped sensor silent for this long is reported missing, and "
                                  "another source that sends a confirmed chain may then take its id", "s",
                                  low=0.05, high=60.0)
@@ -82,6 +99,13 @@ class DriverParams:
 
     def __post_init__(self) -> None:
         self.mapping()  # refuse a malformed mapping now
+        self.device_ids()
+        if self.backend in VENDOR_BACKENDS:
+            require(bool(self.devices), f"backend '{self.backend}' needs parameter 'devices': each device as "
+                    "'DEVICE_ID=SEGMENT' (docs/connecting_sensors.md)")
+            require(not self.frame_key_file, f"parameter 'frame_key_file' signs our own frames; backend "
+                    f"'{self.backend}' takes the vendor's, which are not signed (they are bound to their "
+                    "device instead): leave it empty")
         require(self.clock_bin_s < self.clock_window_s,
                 f"parameter 'clock_bin_s' ({self.clock_bin_s:g} s) must be shorter than 'clock_window_s' "
                 f"({self.clock_window_s:g} s)")
@@ -104,6 +128,28 @@ class DriverParams:
             if sid_value in out or segment in out.values():
                 raise ParameterError(f"parameter 'sensors': {entry!r} maps a sensor id or a segment twice")
             out[sid_value] = segment
+        return out
+
+    def device_ids(self) -> dict[str, int]:
+        """Vendor device id → the sensor id of its segment (``devices`` and ``sensors``); ParameterError
+        for a malformed entry, an unknown or unmapped segment, or a device or segment given twice."""
+        ids = {segment: sid for sid, segment in self.mapping().items()}
+        out: dict[str, int] = {}
+        for entry in self.devices:
+            device, _, segment = entry.rpartition("=")
+            device, segment = device.strip(), segment.strip()
+            if not device or not segment:
+                raise ParameterError(f"parameter 'devices': {entry!r} is not 'DEVICE_ID=SEGMENT' "
+                                     "(e.g. '/dev/rfcomm0=left_shank')")
+            if segment not in SEGMENTS:
+                raise ParameterError(f"parameter 'devices': {entry!r} names no segment; segments: "
+                                     f"{', '.join(SEGMENTS)}")
+            if segment not in ids:
+                raise ParameterError(f"parameter 'devices': {entry!r}: {segment} has no sensor id in "
+                                     "'sensors' (add 'ID:SEGMENT' there)")
+            if device in out or ids[segment] in out.values():
+                raise ParameterError(f"parameter 'devices': {entry!r} maps a device or a segment twice")
+            out[device] = ids[segment]
         return out
 
 

@@ -65,7 +65,7 @@ chosen on ipol_gait subjects 1-5 and confirmed on 6-9 (medians IC 0 / 0, TC 0 / 
 points in 48 of 52 trials; benchmarks/gait_events.py ``--halves``): against motion capture the heel
 strike is then +29 ms and stance 2.4 points low (a heel-strike cap of 20 ms keeps both references
 within 20 ms, but puts ipol's stance 1-2 points high and its healthy walkers' double support above the
-normative band: the README's "Gait events"). ``event_margin = 0`` gives Algorithm 1's extremum stamps.
+normative band: ``docs/benchmarks/gait_events.md``). ``event_margin = 0`` gives Algorithm 1's extremum stamps.
 A pending IC is dropped by :meth:`GaitEventDetector.reset` and given out by :meth:`~GaitEventDetector.flush`.
 
 Samples and events are identified by their stamps (int ns, ``docs/conventions.md``); Algorithm 1 itself

@@ -38,7 +38,7 @@ orientation filter's ``reorder_window_s`` (30 ms) comes before this stage. The f
 behind its newest sample, is then at IC - 10 ms. Through ``analyze`` on gaitmap_example
 (``benchmarks/spatial.py --cli-only``): provisional stride length +0.2 ± 3.7 cm (mean abs 2.4 cm)
 on 51 of 61 strides, published 49 ms after the IC; the smoothed values of record −0.2 ± 2.9 cm at
-278-459 ms (README *Latency* for other ``provisional_after_s``).
+278-459 ms (``docs/benchmarks/spatial.md``, Latency, for other ``provisional_after_s``).
 """
 
 from __future__ import annotations
@@ -85,6 +85,12 @@ class SpatialPairing:
         self._asked: int | None = None  # closing IC of the held stride that had no provisional value
         self._revise: deque[GaitCycle] = deque()  # out with provisional values
         self._strides: deque[SpatialStride] = deque(maxlen=8)
+
+    @property
+    def waiting(self) -> bool:
+        """A stride or a revision is held: :meth:`due` looks at the trajectory strides and may ask for a
+        provisional value."""
+        return bool(self._held or self._revise)
 
     def add_cycle(self, cycle: GaitCycle) -> None:
         self._held.append(cycle)

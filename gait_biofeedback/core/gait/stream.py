@@ -12,8 +12,9 @@
   the same sample); ``from_ns = 0``, or a stamp the foot has already passed, takes effect at once. A
   new calibration resets the foot's detector and strides.
 - Bad input: a non-finite or zero quaternion is skipped; a stamp going backwards or a gap
-  > ``max_gap_s`` s resets that foot (detector and strides), counted and said (:attr:`notices`).
-  A stream that stopped (the node's wall-clock check) is reported with :meth:`stream_stopped`.
+  > ``max_gap_s`` s resets that foot (detector and strides), counted and said
+  (:attr:`GaitEventStream.notices`). A stream that stopped (the node's wall-clock check) is reported
+  with :meth:`GaitEventStream.stream_stopped`.
 - Rate: each foot's rate is measured from its first stamps
   (:class:`~gait_biofeedback.core.rate.RateCheck`); more than 10 % off ``rate_hz``, the detector
   counts its windows at the measured rate, and says so.
@@ -66,8 +67,8 @@ from gait_biofeedback.core.notices import Notices
 from gait_biofeedback.core.params import param, require, same_as
 from gait_biofeedback.core.rate import RateCheck
 from gait_biofeedback.core.segments import SIDES
-from gait_biofeedback.core.spatial.stream import FootTrajectoryParams, FootTrajectoryStream
-from gait_biofeedback.core.spatial.strides import heading_change
+from gait_biofeedback.core.spatial.stream import MIN_RUN, FootTrajectoryParams, FootTrajectoryStream
+from gait_biofeedback.core.spatial.strides import SpatialStride, heading_change
 from gait_biofeedback.core.stamps import NS_PER_S
 
 FOOT_SIDES = SIDES
@@ -168,6 +169,19 @@ def standing_reference(q: np.ndarray) -> np.ndarray:
     return quat.from_matrix(quat.as_matrix(quat.conjugate(q)) @ segment_in_world)
 
 
+_HELD = ()  # update_batch's gyro and acceleration of a row: in its _FootRows
+Released = tuple[int, GaitCycle]  # a stride released and the row of update_batch it came out at
+
+
+class _FootRows:
+    """:meth:`GaitEventStream.update_batch`'s foot rows: rows ``start`` to ``end`` are not yet given to the
+    foot trajectory."""
+
+    def __init__(self, side: str, stamps: np.ndarray, gyr: np.ndarray, acc: np.ndarray) -> None:
+        self.side, self.stamps, self.gyr, self.acc = side, stamps, gyr, acc
+        self.start = self.end = 0
+
+
 class GaitEventStream:
     """Gait events and strides of the feet in ``params.sides`` (see module docstring)."""
 
@@ -202,6 +216,7 @@ class GaitEventStream:
         # each foot's recent orientations, for the heading change of a stride without spatial values
         self._orientations: dict[str, deque[tuple[int, tuple[float, ...]]]] = {s: deque() for s in self.sides}
         self._history_ns = round((p.max_stride_s + p.spatial_wait_s + 1.0) * NS_PER_S)
+        self._batch: _FootRows | None = None  # update_batch's foot rows not yet given to the foot
 
     def _foot(self, rate_hz: float) -> FootTrajectoryStream:
         return FootTrajectoryStream(rate_hz, self.params.foot_trajectory)
@@ -236,6 +251,7 @@ class GaitEventStream:
     def reset(self, side: str, why: str, release: bool = True) -> None:
         """Forget ``side``'s detector state and open strides (counted; noted for /diagnostics);
         ``release``: the strides waiting for their spatial values go out without them."""
+        self._sync(side)
         self.detectors[side].reset()
         self.tracker.reset(side)
         if release:
@@ -310,14 +326,15 @@ class GaitEventStream:
         counts["samples"] += 1
         foot = self.feet.get(side)
         if foot is not None and gyr is not None and acc is not None:
-            for stride in foot.update(stamp_ns, gyr, acc):
-                self.pairing[side].add_stride(stride)
-            for notice in foot.notices.pop():
-                self.notices.say(notice.level, f"{side} foot trajectory: {notice.text}")
+            if self._batch is not None:
+                self._batch.end += 1  # given to the foot when something needs it (_sync)
+            else:
+                self._foot_strides(side, foot.update(stamp_ns, gyr, acc))
         if not all(math.isfinite(v) for v in q) or tuple(q) == (0.0, 0.0, 0.0, 0.0):
             return []
         rate_note = self.rates[side].update(stamp_ns)
         if rate_note:
+            self._sync(side)
             self.detectors[side].set_rate(self.rates[side].rate_hz)
             self.detectors[side].reset()
             if foot is not None:
@@ -351,9 +368,68 @@ class GaitEventStream:
         event = self.detectors[side].update(stamp_ns, q)
         events = [] if event is None else [self._event(side, event, recovering)]
         pairing = self.pairing[side]
+        if pairing.waiting:
+            self._sync(side)
         self._release(side, pairing.due(stamp_ns, self.feet[side].provisional) if self.feet
                       else pairing.release("spatial values off"))
         return events
+
+    def _foot_strides(self, side: str, strides: list[SpatialStride]) -> None:
+        """The strides the foot trajectory closed, and its notices."""
+        for stride in strides:
+            self.pairing[side].add_stride(stride)
+        for notice in self.feet[side].notices.pop():
+            self.notices.say(notice.level, f"{side} foot trajectory: {notice.text}")
+
+    def _sync(self, side: str) -> None:
+        """:meth:`update_batch`: the foot rows held back given to the foot now (its array function), as
+        :meth:`update` would have given them one by one: called before anything that depends on the
+        foot's state or strides (a due stride, a reset, a new rate, a notice)."""
+        rows = self._batch
+        if rows is None or rows.side != side or rows.end == rows.start:
+            return
+        a, b = rows.start, rows.end
+        rows.start = b
+        foot = self.feet[side]
+        if b - a < MIN_RUN:  # a row or a few (a stride held: the foot row by row): no arrays' overhead
+            self._foot_strides(side, [stride for k in range(a, b) for stride in
+                                      foot.update(int(rows.stamps[k]), rows.gyr[k], rows.acc[k])])
+            return
+        strides = foot.update_batch(rows.stamps[a:b], rows.gyr[a:b], rows.acc[a:b])
+        self._foot_strides(side, [stride for _, stride in strides])
+
+    def update_batch(self, side: str, stamps_ns: np.ndarray, q: np.ndarray,
+                     recovering: np.ndarray | None = None, gyr: np.ndarray | None = None,
+                     acc: np.ndarray | None = None) -> tuple[list[tuple[int, GaitEvent]], list[Released]]:
+        """:meth:`update` of each row of ``side``'s foot (stamps int ns (n,), q (n, 4), recovering (n,),
+        gyr and acc (n, 3)), as the stage's array function: (each event confirmed, each stride released,
+        with its row), the state, counts and notices equal to :meth:`update`'s row by row. The foot
+        trajectory's rows go through its array function in runs, given to it whenever the events' logic
+        needs its state (a held stride due, a reset, a new rate, a notice); the events' logic runs per
+        row."""
+        n = len(stamps_ns)
+        stamps = np.asarray(stamps_ns, np.int64)
+        quaternions = np.asarray(q, float).tolist()
+        flags = [False] * n if recovering is None else np.asarray(recovering, bool).tolist()
+        events: list[tuple[int, GaitEvent]] = []
+        cycles: list[Released] = []
+        held = None if gyr is None or acc is None else _HELD
+        if gyr is None or acc is None:
+            rows = None
+        else:
+            rows = _FootRows(side, stamps, np.asarray(gyr, float), np.asarray(acc, float))
+            self._batch = rows
+        try:
+            for k, stamp_ns in enumerate(stamps.tolist()):
+                row_events, released = self.update(side, stamp_ns, tuple(quaternions[k]), flags[k], held,
+                                                   held)
+                events += [(k, event) for event in row_events]
+                cycles += [(k, cycle) for cycle in released]
+            self._sync(side)
+            cycles += [(n - 1, cycle) for cycle in self.take_released(side)]
+        finally:
+            self._batch = None
+        return events, cycles
 
     def _event(self, side: str, event: GaitEvent, recovering: bool) -> GaitEvent:
         counts = self.counts[side]
@@ -362,6 +438,7 @@ class GaitEventStream:
         counts[event.kind] += 1
         cycle = self.tracker.add(event, self._doubtful[side])
         if cycle is not None:
+            self._sync(side)  # the foot's notices before this one
             counts["strides"] += 1
             if not cycle.plausible:
                 counts["implausible_strides"] += 1

@@ -6,7 +6,7 @@ accelerations, sensors 10–25 cm from the joint). At the hip it is not on real 
 rotates, so the hip centre's horizontal acceleration is the pelvis' own 1–2 m/s², while the thigh sensor
 sees it through ``Γ r`` terms of 5–10 m/s² over 20 cm of soft tissue. On the qmt walk (real, 6D) the
 kinematic hip offset wandered by 80° within 30 s while the knees held theirs within a few degrees
-(README, joint angles), and with it the hip angles (internal rotation −57…+17°).
+(docs/benchmarks/joint_angles.md), and with it the hip angles (internal rotation −57…+17°).
 
 Method (READING, chosen here; Lehmann, Laidig, Deimel & Seel 2020 bound a 3-DoF joint's heading by its
 range of motion; here the bound is made a mean): the hip rotates about its medio-lateral axis far more
@@ -21,7 +21,8 @@ one side, tells little). It needs no motion (standing and sitting inform it too)
 What it cannot see: the slow part of the hip's internal rotation (its mean over ``time_constant``) is
 held at the standing value, which the standing offset already defines as zero; the course within a
 stride (±5° in healthy gait) is measured. A patient walking with the hip turned out against standing
-reads as neutral: the README says so. Adduction tilts the axis without turning its heading.
+reads as neutral: docs/benchmarks/joint_angles.md says so. Adduction tilts the axis without turning its
+heading.
 The calibration gives the axes: before one is in force the estimate waits, and a new one restarts it.
 The filters' own heading corrections (9D, step 3 of the joint-centre module) are read the same way.
 """

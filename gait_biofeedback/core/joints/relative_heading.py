@@ -25,9 +25,9 @@ treat it):
    the newest sample by ``highpass_s / 2``). A causal mean (an exponential one of time constant 0.5 s,
    before) passes more of the slow leakage: on dfjimu_weygers it biased δ by 2–5° on most 2- and
    3-DoF recordings (median relative-orientation RMSE 3.8°, 2.6° centred). READING: the span is a
-   compromise between data sets (README, joint angles): shorter removes more leakage (dfjimu's hand-moved
-   joints: 2.3° at 0.3–0.5 s), longer keeps more of walking's stride-frequency accelerations (a 0.6 s
-   mean removed keeps half of a 1 Hz component; at 0.3 s the qmt walk's hips never establish).
+   compromise between data sets (docs/benchmarks/joint_angles.md): shorter removes more leakage (dfjimu's
+   hand-moved joints: 2.3° at 0.3–0.5 s), longer keeps more of walking's stride-frequency accelerations
+   (a 0.6 s mean removed keeps half of a 1 Hz component; at 0.3 s the qmt walk's hips never establish).
 3. **Heading turns the gyro does not explain** (our addition): a filter's world frame turns whenever
    the filter corrects its heading from its magnetometer (disturbed or not: a magnet that becomes the
    filter's new reference turns it by tens of degrees within seconds), and δ turns with it at once,
@@ -40,7 +40,8 @@ treat it):
    filters whose heading comes from a magnetometer (``magnetic``) are read so; a 6D filter's
    corrections twist its heading by a few degrees a minute as well, but compensating them made
    dfjimu_weygers worse (median 2.61° → 2.83°), so there step 2 alone follows them. With a magnet
-   near the thigh (simulator) the knee's error fell from 2.06° to 1.01°, the 6D figure (README).
+   near the thigh (simulator) the knee's error fell from 2.06° to 1.01°, the 6D figure
+   (docs/benchmarks/joint_angles.md).
 4. **Established** once the products summed since the start weigh ``min_information`` (m²/s⁴·s) and
    agree (``|Σ|`` / ``Σ|·|`` ≥ ``min_coherence``). Before that the estimate is not used (live: that
    joint's angles are not published; offline: :func:`estimate_relative_heading` holds the first

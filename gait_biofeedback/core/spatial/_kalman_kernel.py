@@ -6,11 +6,22 @@ loops over the matrices' entries: numpy spent about 60 us per sample on some twe
 15 x 15 arrays (a tenth of ``analyze``), compiled this takes a few. Compiled by
 :func:`gait_biofeedback.core.jit.fast`; plain Python gives the same numbers (only +, -, *, / in a fixed
 order), much more slowly.
+
+The whole per-sample step (issue 46) is here too: :func:`foot_step` (strap-down propagation, shock
+gain, covariance, measurements and injection over a state array) and :func:`foot_run`, the same over
+whole arrays. They repeat :mod:`gait_biofeedback.core.orientation.filters._scalar`'s quaternion
+arithmetic term for term, so that the numbers are those of the numpy code before them, but for the
+shock gain's norm: ``sqrt(x² + y² + z²)`` here, numpy's a BLAS dot that may fuse multiply-adds
+(the machine's; ~1e-15 relative).
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+
+from gait_biofeedback.core.orientation.filters._scalar import half_turn
 
 N = 15  # error state: attitude, position, velocity, gyro bias, accelerometer bias
 NAV = 9  # the states the process noise drives
@@ -133,4 +144,133 @@ def measure(p: np.ndarray, rows: np.ndarray, residual: np.ndarray, variance: np.
             for k in range(m):
                 t += hp[k, i] * variance[k] * hp[k, j]
             p_post[i, j] += t
+    return 0
+
+
+# ---- the whole per-sample step (issue 46) ------------------------------------------------------
+# nominal state ``s`` (float64): q (w, x, y, z), r, v, b (gyro, accelerometer), the stance so far and
+# the last stance's duration (s; NaN so far: in a swing), the previous sample's gyro and acceleration
+Q, R, V, B, RUN, STANCE, INPUT = 0, 4, 7, 10, 16, 17, 18
+N_STATE = 24
+# parameters ``kp``: Q_c's diagonal (9), the shock threshold, shock_stance_s, flat floor (1.0 / 0.0)
+K_DENSITY, K_SHOCK, K_SHOCK_STANCE, K_FLAT = 0, 9, 10, 11
+N_KP = 12
+GRAVITY = 9.8  # m/s², :data:`.kalman.GRAVITY`
+SHOCK_SCALE = 2.0  # m/s², :data:`.kalman.SHOCK_SCALE`
+
+
+def _turn(s: np.ndarray, wx: float, wy: float, wz: float, dt: float) -> tuple:
+    """``q ⊗ exp(½ ω dt)`` of the state's ``q``
+    (:func:`gait_biofeedback.core.orientation.filters._scalar.gyro_step`)."""
+    c, k = half_turn(wx, wy, wz, dt)
+    pw, px, py, pz = s[Q], s[Q + 1], s[Q + 2], s[Q + 3]
+    qx, qy, qz = wx * k, wy * k, wz * k
+    return (pw * c - px * qx - py * qy - pz * qz, pw * qx + px * c + py * qz - pz * qy,
+            pw * qy - px * qz + py * c + pz * qx, pw * qz + px * qy - py * qx + pz * c)
+
+
+def _set_q(s: np.ndarray, w: float, x: float, y: float, z: float) -> None:
+    """The state's ``q`` = the unit quaternion along (w, x, y, z)
+    (:func:`gait_biofeedback.core.orientation.filters._scalar.normalized`)."""
+    n = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
+    s[Q], s[Q + 1], s[Q + 2], s[Q + 3] = w * n, x * n, y * n, z * n
+
+
+def shock_gain(fx: float, fy: float, fz: float, shock: float) -> float:
+    """The factor of ``R_a`` for the specific force ``f`` (:func:`.kalman.shock_gain`)."""
+    excess = abs(math.sqrt(fx * fx + fy * fy + fz * fz) - GRAVITY) - shock
+    return 1.0 + (excess / SHOCK_SCALE) ** 2 if excess > 0.0 else 1.0
+
+
+def foot_measure(s: np.ndarray, p_prior: np.ndarray, kp: np.ndarray, rows: np.ndarray, variance: np.ndarray,
+                 zero_velocity: bool, p_post: np.ndarray, dx: np.ndarray) -> int:
+    """The measurements of a sample (as :meth:`.kalman.FootKalman.start` and
+    :meth:`~.kalman.FootKalman.update` measure): at zero velocity ``v = 0`` and with a flat floor
+    ``r_z = 0`` (Suh Eq 13-14, Joseph form) into ``p_post`` and ``dx``, injected into ``s``; else
+    ``p_post`` = ``p_prior`` and ``dx`` = 0."""
+    if not zero_velocity:
+        for i in range(N):
+            dx[i] = 0.0
+            for j in range(N):
+                p_post[i, j] = p_prior[i, j]
+        return 0
+    residual = np.empty(rows.shape[0])
+    for i in range(3):
+        residual[i] = -s[V + i]
+    if kp[K_FLAT]:
+        residual[3] = -s[R + 2]
+    measure(p_prior, rows, residual, variance, dx, p_post)
+    w, x, y, z = _turn(s, dx[0], dx[1], dx[2], 1.0)
+    _set_q(s, w, x, y, z)
+    for i in range(3):
+        s[R + i] = s[R + i] + dx[3 + i]
+        s[V + i] = s[V + i] + dx[6 + i]
+    for i in range(6):
+        s[B + i] = s[B + i] + dx[9 + i]
+    return 0
+
+
+def foot_step(s: np.ndarray, p: np.ndarray, kp: np.ndarray, rows: np.ndarray, variance: np.ndarray, gx: float,
+              gy: float, gz: float, ax: float, ay: float, az: float, dt: float, zero_velocity: bool,
+              phi: np.ndarray, q_noise: np.ndarray, p_prior: np.ndarray, p_post: np.ndarray,
+              dx: np.ndarray) -> int:
+    """One sample of the foot's filter (:meth:`.kalman.FootKalman.update`): the strap-down step of q, r,
+    v over ``dt`` with the previous sample's bias-corrected gyro and acceleration (the specific force
+    turned to the world at the half step), the covariance ``p`` → ``p_prior`` (``phi``, ``q_noise``:
+    the transition; the accelerometer's density times the shock gain after a stance of at least
+    ``shock_stance_s``), then this sample's measurements (:func:`foot_measure`); its ``gyr``/``acc``
+    act over the next interval."""
+    wx, wy, wz = s[INPUT] - s[B], s[INPUT + 1] - s[B + 1], s[INPUT + 2] - s[B + 2]
+    fx, fy, fz = s[INPUT + 3] - s[B + 3], s[INPUT + 4] - s[B + 4], s[INPUT + 5] - s[B + 5]
+    gain = shock_gain(fx, fy, fz, kp[K_SHOCK]) if s[STANCE] >= kp[K_SHOCK_STANCE] else 1.0
+    density = np.empty(NAV)
+    for i in range(NAV):
+        density[i] = kp[K_DENSITY + i]
+    if gain != 1.0:
+        for i in range(6, 9):
+            density[i] *= gain
+    w, x, y, z = s[Q], s[Q + 1], s[Q + 2], s[Q + 3]
+    rot = np.empty((3, 3))
+    rot[0, 0], rot[0, 1] = 1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z)
+    rot[0, 2], rot[1, 0] = 2.0 * (x * z + w * y), 2.0 * (x * y + w * z)
+    rot[1, 1], rot[1, 2] = 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - w * x)
+    rot[2, 0], rot[2, 1] = 2.0 * (x * z - w * y), 2.0 * (y * z + w * x)
+    rot[2, 2] = 1.0 - 2.0 * (x * x + y * y)
+    omega = np.empty(3)
+    omega[0], omega[1], omega[2] = wx, wy, wz
+    f = np.empty(3)
+    f[0], f[1], f[2] = fx, fy, fz
+    propagate(p, omega, f, rot, dt, density, phi, q_noise, p_prior)
+    w, x, y, z = _turn(s, wx, wy, wz, dt / 2.0)
+    acc_world = (
+        (1.0 - 2.0 * (y * y + z * z)) * fx + 2.0 * (x * y - w * z) * fy + 2.0 * (x * z + w * y) * fz,
+        2.0 * (x * y + w * z) * fx + (1.0 - 2.0 * (x * x + z * z)) * fy + 2.0 * (y * z - w * x) * fz,
+        2.0 * (x * z - w * y) * fx + 2.0 * (y * z + w * x) * fy + (1.0 - 2.0 * (x * x + y * y)) * fz
+        - GRAVITY)
+    w, x, y, z = _turn(s, wx, wy, wz, dt)
+    _set_q(s, w, x, y, z)
+    for i in range(3):
+        s[R + i] = s[R + i] + s[V + i] * dt + 0.5 * acc_world[i] * dt ** 2
+        s[V + i] = s[V + i] + acc_world[i] * dt
+    s[INPUT], s[INPUT + 1], s[INPUT + 2], s[INPUT + 3], s[INPUT + 4], s[INPUT + 5] = gx, gy, gz, ax, ay, az
+    if zero_velocity:
+        s[RUN] = (0.0 if math.isnan(s[RUN]) else s[RUN]) + dt  # each zero-velocity sample stands for dt
+    elif not math.isnan(s[RUN]):  # a stance ended at the previous sample
+        s[STANCE], s[RUN] = s[RUN], math.nan
+    return foot_measure(s, p_prior, kp, rows, variance, zero_velocity, p_post, dx)
+
+
+def foot_run(s: np.ndarray, p: np.ndarray, kp: np.ndarray, rows: np.ndarray, variance: np.ndarray,
+             gyr: np.ndarray, acc: np.ndarray, dt: np.ndarray, zero_velocity: np.ndarray, phi: np.ndarray,
+             q_noise: np.ndarray, p_prior: np.ndarray, p_post: np.ndarray, dx: np.ndarray,
+             states: np.ndarray) -> int:
+    """:func:`foot_step` of each row (gyro, acc (n, 3), dt, zero_velocity (n,)) from the covariance
+    ``p``: each row's transition into it, covariances, update and state (``states`` (n, 16): q, r, v,
+    b) in the row of the (n, ...) outputs."""
+    for j in range(gyr.shape[0]):
+        foot_step(s, p if j == 0 else p_post[j - 1], kp, rows, variance, gyr[j, 0], gyr[j, 1], gyr[j, 2],
+                  acc[j, 0], acc[j, 1], acc[j, 2], dt[j], zero_velocity[j], phi[j], q_noise[j], p_prior[j],
+                  p_post[j], dx[j])
+        for i in range(16):
+            states[j, i] = s[i]
     return 0

@@ -36,7 +36,7 @@ EXT, ``shock_stance_s``: the shock noise applies only in a swing whose stance be
 its shocks are many: with the shock noise in every swing pyshoe_vicon's 9 running trials scored a mean
 ARMSE of 0.139 m, without it 0.080 m. The foot-trajectory stage uses 0.05 s: running 0.077 m, and
 walking's stances (0.2-0.5 s) keep the noise (benchmarks/spatial.py; chosen on half of the trials,
-README).
+docs/benchmarks/spatial.md).
 
 Measurements at zero-velocity samples only: ``v = 0`` (Eq 13) and, with ``flat_floor``, ``r_z = 0``
 (Eq 14). The update is injected into the nominal state and the error mean reset (§3.3).
@@ -53,11 +53,12 @@ Every step is kept as a :class:`KalmanStep` for the smoothers (:mod:`.smoother`)
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from gait_biofeedback.core.jit import fast
+from gait_biofeedback.core.jit import fast, plain
 from gait_biofeedback.core.orientation.filters import _scalar as scalar
 from gait_biofeedback.core.orientation.filters.startup import attitude_from_vectors
 from gait_biofeedback.core.spatial import _kalman_kernel as kernel
@@ -109,56 +110,94 @@ _ROWS = np.array([6, 7, 8])  # the zero-velocity update's measured states: veloc
 _ROWS_FLOOR = np.array([6, 7, 8, 5])  # and with a flat floor the height
 
 
-def kernels() -> tuple:
-    """(propagate, measure) of :mod:`._kalman_kernel`, compiled (:func:`~gait_biofeedback.core.jit.fast`:
-    once per process, seconds on a first run, then loaded from numba's disk cache). The foot-trajectory
-    stream asks at its start, not at the first stance: a live node compiling mid-session stalled its
-    executor and lost samples."""
-    p, out = np.eye(STATES), np.empty((STATES, STATES))
-    warmup = (p, np.ones(3), np.ones(3), np.eye(3), 0.01, np.ones(9), out, out.copy(), out.copy())
-    return (fast(kernel, "propagate", warmup, helpers=["_product"]),
-            fast(kernel, "measure", (p, _ROWS_FLOOR, np.ones(4), np.ones(4), np.empty(STATES), out),
-                 helpers=["_product"]))
+def kernels(python: bool = False) -> tuple:
+    """(foot_step, foot_measure, foot_run) of :mod:`._kalman_kernel`, compiled
+    (:func:`~gait_biofeedback.core.jit.fast`: once per process, seconds on a first run, then loaded from
+    numba's disk cache), or their plain Python twins (``python``). The foot-trajectory stream asks at
+    its start, not at the first stance: a live node compiling mid-session stalled its executor and lost
+    samples."""
+    names = ("foot_step", "foot_measure", "foot_run")
+    if python:
+        return tuple(plain(kernel, name) for name in names)
+    s, p, kp = np.zeros(kernel.N_STATE), np.eye(STATES), np.zeros(kernel.N_KP)
+    s[kernel.Q] = 1.0
+    variance = np.ones(4)
+    one = (STATES, STATES)
+    helpers = ["_product", "propagate", "measure", "half_turn", "_turn", "_set_q", "shock_gain",
+               "foot_measure"]
+    step = fast(kernel, "foot_step", (s, p, kp, _ROWS_FLOOR, variance, 0.1, 0.0, 0.0, 0.0, 0.0, 9.8, 0.01,
+                                      True, *(np.empty(one) for _ in range(4)), np.empty(STATES)), helpers)
+    measure = fast(kernel, "foot_measure", (s, p, kp, _ROWS_FLOOR, variance, True, np.empty(one),
+                                            np.empty(STATES)), helpers[:-1])
+    rows = (np.zeros((1, 3)), np.ones((1, 3)), np.full(1, 0.01), np.ones(1, bool),
+            *(np.empty((1, *one)) for _ in range(4)), np.empty((1, STATES)), np.empty((1, 16)))
+    run = fast(kernel, "foot_run", (s, p, kp, _ROWS_FLOOR, variance, *rows), [*helpers, "foot_step"])
+    return step, measure, run
+
+
+def floats(v: np.ndarray | Sequence[float]) -> list[float]:
+    """A 3-vector's values as Python floats (what a kernel's scalar arguments take)."""
+    return v.ravel().tolist() if isinstance(v, np.ndarray) else [float(x) for x in v]
 
 
 def shock_gain(f: np.ndarray, noise: KalmanNoise) -> float:
-    """The factor of ``R_a`` for the specific force ``f`` (module docstring, shocks)."""
-    excess = abs(float(np.linalg.norm(f)) - GRAVITY) - noise.acc_shock
-    return 1.0 + (excess / SHOCK_SCALE) ** 2 if excess > 0.0 else 1.0
+    """The factor of ``R_a`` for the specific force ``f`` (module docstring, shocks; its norm
+    ``sqrt(x² + y² + z²)``, as the kernel's)."""
+    return kernel.shock_gain(*(float(v) for v in f), noise.acc_shock)
 
 
 class FootKalman:
     """The filter of one foot. :meth:`start` sets the initial state at a stance sample;
     :meth:`update` propagates over ``dt`` with the previous sample's gyro and acceleration and applies
-    the measurements of the new sample. :attr:`last` is the last :class:`KalmanStep` (its ``phi`` is
-    set by the next update); :attr:`steps` keeps them all when ``keep``."""
+    the measurements of the new sample (one call of the compiled kernel
+    :func:`._kalman_kernel.foot_step`); :meth:`update_batch` runs the same kernel over whole arrays.
+    :attr:`last` is the last :class:`KalmanStep` (its ``phi`` is set by the next update); :attr:`steps`
+    keeps them all when ``keep``."""
 
     def __init__(self, noise: KalmanNoise | None = None, flat_floor: bool = True, keep: bool = True) -> None:
         self.noise = noise or KalmanNoise()
         self.flat_floor = flat_floor
         self.keep = keep
         self.steps: list[KalmanStep] = []
-        self._run_s: float | None = None  # s: the stance in progress so far (None: in a swing)
-        self._stance_s = math.inf  # s: the last stance's duration (the first stance: unknown, long)
         self.last: KalmanStep | None = None
-        self._kernels = kernels()
+        self._step, self._measure_kernel, self._run = kernels()
         n = self.noise
-        self._density = np.array((n.gyro,) * 3 + (n.position,) * 3 + (n.acc,) * 3)  # Q_c's diagonal
+        self._s = np.zeros(kernel.N_STATE)
+        self._s[kernel.RUN], self._s[kernel.STANCE] = math.nan, math.inf  # the first stance counts as long
+        self._kp = np.array((n.gyro,) * 3 + (n.position,) * 3 + (n.acc,) * 3  # Q_c's diagonal
+                            + (n.acc_shock, n.shock_stance_s, 1.0 if flat_floor else 0.0))
         self._zero_velocity = ((_ROWS_FLOOR, np.array((n.zero_velocity,) * 3 + (n.floor,))) if flat_floor
                                else (_ROWS, np.array((n.zero_velocity,) * 3)))  # measured states, R
+
+    @property
+    def q(self) -> tuple[float, float, float, float]:
+        return tuple(self._s[kernel.Q:kernel.Q + 4].tolist())
+
+    @property
+    def r(self) -> np.ndarray:
+        return self._s[kernel.R:kernel.R + 3].copy()
+
+    @property
+    def v(self) -> np.ndarray:
+        return self._s[kernel.V:kernel.V + 3].copy()
+
+    @property
+    def b(self) -> np.ndarray:
+        return self._s[kernel.B:kernel.B + 6].copy()
 
     def start(self, vertical: np.ndarray, gyr: np.ndarray, acc: np.ndarray, zero_velocity: bool = True,
               bias: np.ndarray | None = None) -> KalmanStep:
         """First sample: attitude from ``vertical`` (an acceleration at rest, e.g. a stance's mean),
         the sample's own ``gyr``/``acc`` (they act over the next interval), the 6 biases' prior."""
         n = self.noise
-        self.q = tuple(attitude_from_vectors(vertical).tolist())  # TRIAD, heading zero
-        self.r = np.zeros(3)
-        self.v = np.zeros(3)
-        self.b = np.zeros(6) if bias is None else np.asarray(bias, float).copy()
+        q = tuple(attitude_from_vectors(vertical).tolist())  # TRIAD, heading zero
+        self._s[kernel.Q:kernel.Q + 4] = q
+        self._s[kernel.R:kernel.B] = 0.0
+        self._s[kernel.B:kernel.B + 6] = 0.0 if bias is None else np.asarray(bias, float)
+        self._s[kernel.INPUT:kernel.INPUT + 6] = np.concatenate([np.ravel(gyr), np.ravel(acc)])
         tilt = n.acc / GRAVITY**2
         # the attitude error is local (sensor frame): the heading variance is about the world z
-        rot = np.array(scalar.matrix(self.q))
+        rot = np.array(scalar.matrix(q))
         att_world = np.diag([tilt, tilt, n.heading_init])
         self.p = np.zeros((STATES, STATES))
         self.p[0:3, 0:3] = rot.T @ att_world @ rot
@@ -166,62 +205,63 @@ class FootKalman:
         self.p[6:9, 6:9] = np.eye(3) * n.velocity_init
         self.p[9:12, 9:12] = np.eye(3) * n.gyro_bias_init
         self.p[12:15, 12:15] = np.eye(3) * n.acc_bias_init
-        self._input = (np.asarray(gyr, float), np.asarray(acc, float))
-        return self._measure(zero_velocity)
+        p_prior, dx = self.p, np.zeros(STATES)
+        self.p = np.empty((STATES, STATES)) if zero_velocity else p_prior
+        self._measure_kernel(self._s, p_prior, self._kp, *self._zero_velocity, zero_velocity, self.p, dx)
+        return self._keep(p_prior, dx, zero_velocity)
 
     def update(self, gyr: np.ndarray, acc: np.ndarray, dt: float, zero_velocity: bool) -> KalmanStep:
         """Propagate from the previous sample over ``dt`` and measure at this one, whose ``gyr``/``acc``
         act over the next interval."""
-        self._propagate(*self._input, dt)
-        self._input = (np.asarray(gyr, float), np.asarray(acc, float))
-        if zero_velocity:
-            self._run_s = (self._run_s or 0.0) + dt  # each zero-velocity sample stands for dt
-        elif self._run_s is not None:  # a stance ended at the previous sample
-            self._stance_s, self._run_s = self._run_s, None
-        return self._measure(zero_velocity)
+        gx, gy, gz = floats(gyr)
+        ax, ay, az = floats(acc)
+        one = (STATES, STATES)
+        phi, q_noise, p_prior = np.empty(one), np.empty(one), np.empty(one)
+        p_post = np.empty((STATES, STATES)) if zero_velocity else p_prior
+        dx = np.empty(STATES)
+        self._step(self._s, self.p, self._kp, *self._zero_velocity, gx, gy, gz, ax, ay, az, float(dt),
+                   bool(zero_velocity), phi, q_noise, p_prior, p_post, dx)
+        self.last.phi, self.last.q_noise = phi, q_noise
+        self.p = p_post
+        return self._keep(p_prior, dx, zero_velocity)
 
-    def _propagate(self, gyr: np.ndarray, acc: np.ndarray, dt: float) -> None:
-        omega = gyr - self.b[:3]
-        f = acc - self.b[3:]
-        rot = np.array(scalar.matrix(self.q))
-        gain = shock_gain(f, self.noise) if self._stance_s >= self.noise.shock_stance_s else 1.0
-        density = self._density
-        if gain != 1.0:
-            density = density.copy()
-            density[6:9] *= gain
-        phi, q_noise, p = (np.empty((STATES, STATES)) for _ in range(3))
-        self._kernels[0](self.p, omega, f, rot, dt, density, phi, q_noise, p)
-        self.last.phi = phi
-        self.last.q_noise = q_noise
-        wx, wy, wz = omega.tolist()
-        acc_world = np.array(scalar.to_world(scalar.gyro_step(self.q, wx, wy, wz, dt / 2.0), *f.tolist()))
-        acc_world[2] -= GRAVITY
-        self.q = scalar.normalized(scalar.gyro_step(self.q, wx, wy, wz, dt))
-        self.r = self.r + self.v * dt + 0.5 * acc_world * dt**2
-        self.v = self.v + acc_world * dt
-        self.p = p
-
-    def _measure(self, zero_velocity: bool) -> KalmanStep:
-        p_prior = self.p
-        dx = np.zeros(STATES)
-        if zero_velocity:
-            rows, variance = self._zero_velocity
-            residual = np.append(-self.v, -self.r[2]) if self.flat_floor else -self.v
-            self.p = np.empty((STATES, STATES))
-            self._kernels[1](p_prior, rows, residual, variance, dx, self.p)  # Joseph form
-            self._inject(dx)
-        step = KalmanStep(self.q, self.r, self.v, self.b, p_prior, self.p, dx, zero_velocity)
+    def _keep(self, p_prior: np.ndarray, dx: np.ndarray, zero_velocity: bool) -> KalmanStep:
+        s = self._s
+        step = KalmanStep(tuple(s[kernel.Q:kernel.Q + 4].tolist()), s[kernel.R:kernel.R + 3].copy(),
+                          s[kernel.V:kernel.V + 3].copy(), s[kernel.B:kernel.B + 6].copy(), p_prior, self.p,
+                          dx, bool(zero_velocity))
         self.last = step
         if self.keep:
             self.steps.append(step)
         return step
 
-    def _inject(self, dx: np.ndarray) -> None:
-        self.q = scalar.normalized(scalar.gyro_step(self.q, *dx[0:3].tolist(), 1.0))
-        self.r = self.r + dx[3:6]
-        self.v = self.v + dx[6:9]
-        self.b = self.b + dx[9:15]
-
+    def update_batch(self, gyr: np.ndarray, acc: np.ndarray, dt: np.ndarray,
+                     zero_velocity: np.ndarray) -> list[KalmanStep]:
+        """:meth:`update` of each row (gyro, acc (n, 3), dt (n,) s, zero_velocity (n,)) in one compiled
+        loop: their steps, equal to :meth:`update`'s. Each step's arrays are views of (n, ...) blocks."""
+        n = len(dt)
+        if n == 0:
+            return []
+        phi, q_noise, p_prior, p_post = (np.empty((n, STATES, STATES)) for _ in range(4))
+        dx, states = np.empty((n, STATES)), np.empty((n, 16))
+        zv = np.asarray(zero_velocity, bool)
+        self._run(self._s, self.p, self._kp, *self._zero_velocity, np.ascontiguousarray(gyr, float),
+                  np.ascontiguousarray(acc, float), np.asarray(dt, float), zv, phi, q_noise, p_prior, p_post,
+                  dx, states)
+        quaternions = states[:, 0:4].tolist()
+        zv_list = zv.tolist()
+        out = []
+        last = self.last
+        for j in range(n):
+            last.phi, last.q_noise = phi[j], q_noise[j]
+            last = KalmanStep(tuple(quaternions[j]), states[j, 4:7], states[j, 7:10], states[j, 10:16],
+                              p_prior[j], p_post[j] if zv_list[j] else p_prior[j], dx[j], zv_list[j])
+            out.append(last)
+        self.last = last
+        self.p = last.p_post
+        if self.keep:
+            self.steps += out
+        return out
 
 
 def filter_recording(gyr: np.ndarray, acc: np.ndarray, rate_hz: float, zero_velocity: np.ndarray,

@@ -18,7 +18,8 @@ Memory: the window holds one stride; a standing stance keeps its last ``KEEP_STA
 a live stride after standing reports that as its ``stance_start`` (offline: the whole standing).
 
 Bad input: a non-finite sample is skipped and counted; a stamp going back, or a gap over ``max_gap_s``
-s, restarts the foot at its next stance (counted in :attr:`counts`, said in :attr:`notices`). A shorter
+s, restarts the foot at its next stance (counted in :attr:`FootTrajectoryStream.counts`, said in
+:attr:`FootTrajectoryStream.notices`). A shorter
 gap (lost samples: a radio, a loaded DDS queue) is filled by linear interpolation of gyro and
 acceleration at the sample rate, so that the filter and the detector windows keep their step, and
 counted (``interpolated``). Interpolation only halves the error: on the simulator's walk at 100 Hz one
@@ -37,6 +38,12 @@ are within 4.1 cm of the lossless ones (0.8 cm p95); at 200 Hz 28 % and 0.7 cm
 
 A swing longer than ``max_swing_s`` s (no stance seen: running, a sensor off the foot, a shuffle) gives a
 stride with NaN values and a flag, never a number integrated over seconds.
+
+Kernels and array function (issue 46): the detector's and the filter's per-sample arithmetic are
+compiled kernels (:mod:`._zero_velocity_kernel`, :mod:`._kalman_kernel`) that
+:meth:`FootTrajectoryStream.update` calls once per sample, and :meth:`FootTrajectoryStream.update_batch`
+runs over whole arrays wherever the stream's control logic does not act, with the same outputs bit for
+bit (``test/test_foot_kernel.py``).
 """
 
 from __future__ import annotations
@@ -84,6 +91,8 @@ from gait_biofeedback.core.stamps import NS_PER_S, lost_between
 
 SMOOTHERS = ("suh", "rts", "none")
 KEEP_STANDING_S = 2 * MAX_STANCE_S  # s of a standing stance kept live (still "standing" for the next stride)
+MIN_RUN = 16  # rows: a shorter run of ordinary samples goes through update() (the arrays' overhead)
+MAX_RUN = 2048  # rows per compiled run: the filter's steps of a run are views of one block of arrays
 
 
 @dataclass(frozen=True)
@@ -119,7 +128,7 @@ class FootTrajectoryParams:
     flat_floor: bool = param(True, "every stance at height 0 (Suh Eq 14): level ground only, turn off on "
                              "stairs and ramps")
     gyro_noise: float = param(1e-5, "gyro white-noise density R_g (Suh Table 1: 1e-3, far above a MEMS "
-                              "gyro's; README)", "rad^2/s", low=1e-9, high=1.0)
+                              "gyro's; docs/benchmarks/spatial.md)", "rad^2/s", low=1e-9, high=1.0)
     acc_noise: float = param(1e-2, "accelerometer white-noise density R_a (Suh Table 1)", "m^2/s^3",
                              low=1e-9, high=10.0)
     acc_shock: float = param(30.0, "a specific force this far off gravity is a shock (heel strike): the "
@@ -223,6 +232,79 @@ class FootTrajectoryStream:
         self._last_ns, self._last = stamp_ns, (gyr, acc)
         return out + self._feed((number, stamp_ns, gyr, acc, False))
 
+    def update_batch(self, stamps_ns: np.ndarray, gyr: np.ndarray,
+                     acc: np.ndarray) -> list[tuple[int, SpatialStride]]:
+        """:meth:`update` of each row (stamps int ns (n,), gyro, acc (n, 3)), as the stream's array
+        function (vqf's ``updateBatch``): the strides that closed, each with the index of the row whose
+        :meth:`update` returned it, the counts, notices and state equal to :meth:`update`'s. Runs of
+        ordinary rows (finite, each stamp 0 < step <= ``max_gap_s`` after the one before, no sample lost
+        between) go through the compiled kernels as arrays (:meth:`_steady_run`): the detector's, then
+        the filter's over the samples it decided; the stance and stride bookkeeping per decided sample
+        and the closing of strides stay Python. The other rows go through :meth:`update`."""
+        stamps = np.asarray(stamps_ns, np.int64)
+        gyr, acc = np.asarray(gyr, float), np.asarray(acc, float)
+        n = len(stamps)
+        require(gyr.shape == acc.shape == (n, 3), "update_batch: stamps (n,), gyr and acc (n, 3)")
+        finite = np.isfinite(gyr).all(axis=1) & np.isfinite(acc).all(axis=1)
+        steady = np.zeros(n, bool)  # row k follows row k - 1 as an ordinary sample
+        if n > 1:
+            gap = np.diff(stamps)
+            steady[1:] = (finite[1:] & finite[:-1] & (gap > 0) & (gap <= self.params.max_gap_s * NS_PER_S)
+                          & (np.round(gap * self.rate_hz / NS_PER_S) <= 1))
+        breaks = np.append(np.flatnonzero(~steady), n)
+        out: list[tuple[int, SpatialStride]] = []
+        i = 0
+        while i < n:
+            end = min(int(breaks[np.searchsorted(breaks, i, side="right")]), i + MAX_RUN)
+            if end - i >= MIN_RUN and finite[i] and self._ordinary(int(stamps[i])):
+                out += self._steady_run(i, stamps[i:end].tolist(), gyr[i:end], acc[i:end])
+                i = end
+                continue
+            out += [(i, stride) for stride in self.update(int(stamps[i]), gyr[i], acc[i])]
+            i += 1
+        return out
+
+    def _ordinary(self, stamp_ns: int) -> bool:
+        """A finite sample at ``stamp_ns`` would be an ordinary one: no restart, no lost sample."""
+        if self._last_ns is None:
+            return False
+        gap = stamp_ns - self._last_ns
+        return 0 < gap <= self.params.max_gap_s * NS_PER_S and not lost_between(self._last_ns, stamp_ns,
+                                                                                   self.rate_hz)
+
+    def _steady_run(self, first: int, stamps: list[int], gyr: np.ndarray,
+                    acc: np.ndarray) -> list[tuple[int, SpatialStride]]:
+        """Rows ``first`` on, ordinary samples (:meth:`update_batch`), through the compiled kernels."""
+        m = len(stamps)
+        number0 = self.counts["samples"]
+        self.counts["samples"] += m
+        decisions, released = self._zv.update_batch(gyr, acc)
+        release_at = np.repeat(np.arange(first, first + m), released).tolist()
+        self._last_ns, self._last = stamps[-1], (gyr[-1].copy(), acc[-1].copy())
+        held = self._pending
+        decided = len(decisions)
+        run = [(number0 + k, stamps[k], gyr[k], acc[k], False) for k in range(max(0, decided - len(held)))]
+        samples = held[:decided] + run
+        self._pending = held[decided:] + [(number0 + k, stamps[k], gyr[k], acc[k], False)
+                                          for k in range(len(run), m)]
+        zv = decisions.tolist()
+        out: list[tuple[int, SpatialStride]] = []
+        j = 0
+        while j < decided and self._kf is None:
+            out += [(release_at[j], stride) for stride in self._decided(samples[j], zv[j])]
+            j += 1
+        if j == decided:
+            return out
+        rest = samples[j:]
+        previous = [self._stamps[-1]] + [sample[1] for sample in rest[:-1]]
+        dt = [(sample[1] - before) / NS_PER_S for sample, before in zip(rest, previous, strict=True)]
+        steps = self._kf.update_batch(np.array([sample[2] for sample in rest]),
+                                      np.array([sample[3] for sample in rest]), np.array(dt), decisions[j:])
+        for sample, step, zero_velocity, at in zip(rest, steps, zv[j:], release_at[j:], strict=True):
+            self._record(sample[0], sample[1], sample[4], step)
+            out += [(at, stride) for stride in self._advance(zero_velocity)]
+        return out
+
     def _fill(self, number: int, stamp_ns: int, gyr: np.ndarray, acc: np.ndarray) -> list[SpatialStride]:
         """Linearly interpolated samples for the ones lost after the sample ``number`` (reported as
         theirs) and before this one."""
@@ -273,8 +355,7 @@ class FootTrajectoryStream:
         bias = np.concatenate([np.mean([s[2] for s in rest], axis=0), np.zeros(3)]) if long_enough else None
         self._kf = FootKalman(self.params.noise, self.params.flat_floor, keep=False)
         number, ns, gyr, acc0, filled = rest[0]
-        self._kf.start(acc, gyr, acc0, True, bias)
-        self._record(number, ns, filled)
+        self._record(number, ns, filled, self._kf.start(acc, gyr, acc0, True, bias))
         self._in_stance, self._stance_start, self._closed = True, 0, False
         out: list[SpatialStride] = []
         for sample in rest[1:]:
@@ -283,8 +364,7 @@ class FootTrajectoryStream:
             out += self._step(*then)
         return out
 
-    def _record(self, number: int, ns: int, filled: bool) -> None:
-        step = self._kf.last
+    def _record(self, number: int, ns: int, filled: bool, step) -> None:
         self._steps.append(step)
         self._stamps.append(ns)
         self._numbers.append(number)
@@ -296,8 +376,11 @@ class FootTrajectoryStream:
     def _step(self, sample, zero_velocity: bool) -> list[SpatialStride]:
         number, ns, gyr, acc, filled = sample
         dt = (ns - self._stamps[-1]) / NS_PER_S
-        self._kf.update(gyr, acc, dt, zero_velocity)
-        self._record(number, ns, filled)
+        self._record(number, ns, filled, self._kf.update(gyr, acc, dt, zero_velocity))
+        return self._advance(zero_velocity)
+
+    def _advance(self, zero_velocity: bool) -> list[SpatialStride]:
+        """The stance and stride bookkeeping of the step just recorded: the strides it closed."""
         k = len(self._steps) - 1
         out: list[SpatialStride] = []
         if zero_velocity:
@@ -426,9 +509,8 @@ def estimate_foot_trajectory(gyr: np.ndarray, acc: np.ndarray, rate_hz: float,
     require(gyr.shape == acc.shape and gyr.ndim == 2 and gyr.shape[1] == 3, "gyr and acc: (N, 3) each")
     stream = FootTrajectoryStream(rate_hz, p, keep_all=True)
     period_ns = NS_PER_S / rate_hz
-    live: list[SpatialStride] = []
-    for k in range(len(gyr)):
-        live += stream.update(round(k * period_ns), gyr[k], acc[k])
+    stamps = np.array([round(k * period_ns) for k in range(len(gyr))], np.int64)
+    live = [stride for _, stride in stream.update_batch(stamps, gyr, acc)]
     live += stream.flush()
     n = len(gyr)
     out = {name: np.full((n, width), np.nan) for name, width in (("position", 3), ("velocity", 3),

@@ -1,7 +1,7 @@
 """Spatial parameters of one stride from a smoothed foot trajectory (gait.md §4.8, EXT).
 
-Suh 2014 reports no stride parameter; these definitions are the project's (README, *Spatial
-parameters*):
+Suh 2014 reports no stride parameter; these definitions are the project's (``docs/benchmarks/spatial.md``,
+*Spatial parameters*):
 
 - A stride runs from one zero-velocity interval (stance) to the next. Each stance's position is the
   mean position over its samples, and its orientation is that of the sample next to the swing.

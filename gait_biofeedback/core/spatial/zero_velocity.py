@@ -90,6 +90,8 @@ from collections.abc import Callable
 
 import numpy as np
 
+from gait_biofeedback.core.jit import fast, plain
+
 GYRO_LIMIT = 0.2  # rad/s, B_g
 JERK_LIMIT = 40.0  # m/s³, B_a = 0.4 m/s² per 10 ms
 WINDOW_S = 0.1  # s, N_g = N_a = 10 samples at 100 Hz
@@ -199,10 +201,124 @@ def valley_statistic(gyr: np.ndarray, acc: np.ndarray, rate_hz: float) -> np.nda
                      for k in range(n)])
 
 
-class ZeroVelocityDetector:
-    """Streaming zero-velocity detection. ``update(gyr, acc)`` takes sample ``k`` and returns the
-    decision for sample ``k - h`` (None for the first ``h`` samples); :meth:`flush` gives the last
-    ``h`` decisions at the end, judged on the part of their window that exists.
+
+def detector_kernels(python: bool = False) -> tuple:
+    """(update, flush, run) of :mod:`._zero_velocity_kernel`, compiled (once per process, then from
+    numba's disk cache: :func:`~gait_biofeedback.core.jit.fast`), or its plain Python twins (``python``)."""
+    from gait_biofeedback.core.spatial import _zero_velocity_kernel as zk
+
+    if python:
+        return tuple(plain(zk, name) for name in ("update", "flush", "run"))
+    state = _DetectorState(100.0, GYRO_LIMIT, JERK_LIMIT, WINDOW_S, "shoe", SHOE_ACC, SHOE_GYRO, True,
+                           VALLEY_MAX, VALLEY_SWING, VALLEY_GAP_S, ADAPTIVE_SCALE, ADAPTIVE_WINDOW_S)
+    out = np.zeros(state.ring.shape[0] + 4, np.int64)
+    helpers = ["_block", "_split", "_pairwise_1", "_pairwise_2", "_pairwise_3", "_pairwise", "_shoe",
+               "_percentile", "_gait_scale", "_judge", "_valley_value", "_fixed_in", "_judge_valley",
+               "_marked", "_release"]
+    update = fast(zk, "update", (*state.arrays, 0.1, 0.0, 0.0, 0.0, 0.0, 9.8, out, 0), helpers)
+    run = fast(zk, "run", (*state.arrays, np.zeros((3, 3)), np.ones((3, 3)), out, np.zeros(3, np.int64)),
+               [*helpers, "update"])
+    flush = fast(zk, "flush", (state.p, state.z, state.ring, state.win, state.status, out, 0), helpers)
+    return update, flush, run
+
+
+class _DetectorState:
+    """The kernel's parameters and ring buffers (:mod:`._zero_velocity_kernel`) of one detector."""
+
+    def __init__(self, rate_hz: float, gyro_limit: float, jerk_limit: float, window_s: float, detector: str,
+                 acc_scale: float, gyro_scale: float, valley: bool, valley_max: float, valley_swing: float,
+                 valley_gap_s: float, adaptive_scale: float, adaptive_window_s: float) -> None:
+        from gait_biofeedback.core.spatial import _zero_velocity_kernel as zk
+
+        if detector not in DETECTORS:
+            raise ValueError(f"detector: one of {', '.join(DETECTORS)}, not {detector!r}")
+        gait = GaitScale(rate_hz, adaptive_scale, adaptive_window_s) if adaptive_scale else None
+        rule_half = window_half(rate_hz, window_s)
+        test_half = window_half(rate_hz, ADAPTIVE_SHOE_WINDOW_S) if gait else 0
+        self.half = max(rule_half, test_half)
+        lag = acc_lag(rate_hz)
+        vhalf = valley_half(rate_hz)
+        before, after = round(VALLEY_BEFORE_S * rate_hz), round(VALLEY_AFTER_S * rate_hz)
+        gap = round(valley_gap_s * rate_hz)
+        # the release needs the samples back to next - s - max(before, gap); it waits at most
+        # s + max(s + after, h + gap) + 1 samples (_zero_velocity_kernel._judge_valley)
+        ring = (2 * vhalf + max(before, gap) + max(vhalf + after, self.half + gap) + 8) if valley else 1
+        every, span = (gait.every, gait.span) if gait else (1, 1)
+        p = np.zeros(zk.N_PARAMS)
+        for index, value in (
+                (zk.P_RULE_HALF, rule_half), (zk.P_TEST_HALF, test_half), (zk.P_HALF, self.half),
+                (zk.P_LAG, lag),
+                (zk.P_GYRO_LIMIT, gyro_limit), (zk.P_ACC_LIMIT, jerk_limit * lag / rate_hz),
+                (zk.P_ACC_SCALE, acc_scale), (zk.P_GYRO_SCALE, gyro_scale), (zk.P_SHOE, detector == "shoe"),
+                (zk.P_GAIT, gait is not None), (zk.P_ADAPTIVE, adaptive_scale), (zk.P_EVERY, every),
+                (zk.P_SPAN, span), (zk.P_VALLEY, valley), (zk.P_VALLEY_MAX, valley_max),
+                (zk.P_VALLEY_SWING, valley_swing), (zk.P_VHALF, vhalf), (zk.P_BEFORE, before),
+                (zk.P_AFTER, after), (zk.P_GAP, gap), (zk.P_GAIT_ACC, ADAPTIVE_GAIT_ACC),
+                (zk.P_SCALE_LOW, ADAPTIVE_GYRO_SCALE_RANGE[0]),
+                (zk.P_SCALE_HIGH, ADAPTIVE_GYRO_SCALE_RANGE[1]),
+                (zk.P_KAPPA, ADAPTIVE_ACC_PER_GYRO), (zk.P_VALLEY_KAPPA, VALLEY_ACC_PER_GYRO),
+                (zk.P_PERCENTILE, ADAPTIVE_PERCENTILE)):
+            p[index] = value
+        self.p = p
+        self.z = np.zeros(zk.N_COUNTERS, np.int64)
+        self.scale = np.array([ADAPTIVE_FIRST_GYRO_SCALE])
+        self.acc_ring = np.zeros((lag, 3))
+        self.win = np.zeros((2 * self.half + 1, 8))
+        self.past = np.zeros((span + every + 1, 2))
+        self.ring = np.zeros((ring, 3))
+        self.status = np.full((ring, 2), -1.0)
+        self.arrays = (self.p, self.z, self.scale, self.acc_ring, self.win, self.past, self.ring, self.status)
+
+
+class StanceDetector:
+    """Streaming zero velocity: the fixed rule (Suh Eq 4 or SHOE, module docstring; with
+    ``adaptive_scale`` the gait-scaled test too) and, with ``valley``, the valley rule. ``update(gyr,
+    acc)`` returns the decisions of the next samples in order (none, one or several: the look-ahead is
+    variable); :meth:`flush` the rest at the end; :meth:`update_batch` the decisions whole arrays
+    release. Equal to :func:`detect_zero_velocity` sample for sample. The arithmetic is the compiled
+    kernel :mod:`._zero_velocity_kernel` over this object's ring buffers."""
+
+    def __init__(self, rate_hz: float, gyro_limit: float = GYRO_LIMIT, jerk_limit: float = JERK_LIMIT,
+                 window_s: float = WINDOW_S, detector: str = "suh", acc_scale: float = SHOE_ACC,
+                 gyro_scale: float = SHOE_GYRO, valley: bool = False, valley_max: float = VALLEY_MAX,
+                 valley_swing: float = VALLEY_SWING, valley_gap_s: float = VALLEY_GAP_S,
+                 adaptive_scale: float = 0.0, adaptive_window_s: float = ADAPTIVE_WINDOW_S) -> None:
+        self.state = _DetectorState(rate_hz, gyro_limit, jerk_limit, window_s, detector, acc_scale,
+                                    gyro_scale, valley, valley_max, valley_swing, valley_gap_s,
+                                    adaptive_scale, adaptive_window_s)
+        self.valley = valley
+        self.half = self.state.half  # the fixed rule's look-ahead
+        self._update, self._flush, self._run = detector_kernels()
+        self._out = np.zeros(self.state.ring.shape[0] + self.half + 4, np.int64)
+
+    def _codes(self, gyr: np.ndarray, acc: np.ndarray) -> np.ndarray:
+        gx, gy, gz = gyr.ravel().tolist() if isinstance(gyr, np.ndarray) else (float(v) for v in gyr)
+        ax, ay, az = acc.ravel().tolist() if isinstance(acc, np.ndarray) else (float(v) for v in acc)
+        n = self._update(*self.state.arrays, gx, gy, gz, ax, ay, az, self._out, 0)
+        return self._out[:n]
+
+    def update(self, gyr: np.ndarray, acc: np.ndarray) -> list[bool]:
+        return [code >= 2 for code in self._codes(gyr, acc).tolist()]
+
+    def flush(self) -> list[bool]:
+        s = self.state
+        n = self._flush(s.p, s.z, s.ring, s.win, s.status, self._out, 0)
+        return [code >= 2 for code in self._out[:n].tolist()]
+
+    def update_batch(self, gyr: np.ndarray, acc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`update` of each row of ``gyr``/``acc`` (n, 3) in one compiled loop: (the decisions
+        released, in order; how many each row released)."""
+        gyr, acc = np.ascontiguousarray(gyr, float), np.ascontiguousarray(acc, float)
+        out = np.zeros(len(gyr) + len(self._out), np.int64)
+        released = np.zeros(len(gyr), np.int64)
+        n = self._run(*self.state.arrays, gyr, acc, out, released)
+        return out[:n] >= 2, released
+
+
+class ZeroVelocityDetector(StanceDetector):
+    """Streaming zero-velocity detection, the fixed rule alone. ``update(gyr, acc)`` takes sample ``k``
+    and returns the decision for sample ``k - h`` (None for the first ``h`` samples); :meth:`flush` gives
+    the last ``h`` decisions at the end, judged on the part of their window that exists.
 
     ``detector="suh"``: Suh Eq 4 (module docstring) with ``gyro_limit``, ``jerk_limit``, ``window_s``.
     ``detector="shoe"``: Skog et al. 2010's SHOE (the stance hypothesis optimal detector), here
@@ -218,70 +334,27 @@ class ZeroVelocityDetector:
                  window_s: float = WINDOW_S, detector: str = "suh", acc_scale: float = SHOE_ACC,
                  gyro_scale: float = SHOE_GYRO, adaptive_scale: float = 0.0,
                  adaptive_window_s: float = ADAPTIVE_WINDOW_S) -> None:
-        if detector not in DETECTORS:
-            raise ValueError(f"detector: one of {', '.join(DETECTORS)}, not {detector!r}")
-        self.detector = detector
-        self.rule_half = window_half(rate_hz, window_s)
-        self.gait = GaitScale(rate_hz, adaptive_scale, adaptive_window_s) if adaptive_scale else None
-        self.test_half = window_half(rate_hz, ADAPTIVE_SHOE_WINDOW_S) if self.gait else 0
-        self.half = max(self.rule_half, self.test_half)
-        self.lag = acc_lag(rate_hz)
-        self.gyro_limit = gyro_limit
-        self.acc_limit = jerk_limit * self.lag / rate_hz
-        self.acc_scale, self.gyro_scale = acc_scale, gyro_scale
-        self._acc: deque[np.ndarray] = deque(maxlen=self.lag)
-        self._window: deque[tuple[bool, np.ndarray, np.ndarray, float]] = deque(maxlen=2 * self.half + 1)
-        self._seen = 0
-
-    def _quiet_sample(self, gyr: np.ndarray, acc: np.ndarray) -> bool:
-        still = bool(np.linalg.norm(gyr) <= self.gyro_limit)
-        if len(self._acc) == self.lag:
-            still = still and bool(np.linalg.norm(acc - self._acc[0]) <= self.acc_limit)
-        self._acc.append(acc)
-        return still
-
-    def _judge(self, window: list[tuple[bool, np.ndarray, np.ndarray, float]], k: int) -> tuple[bool, bool]:
-        """(the fixed rule's decision, the decision) of sample ``k`` of ``window`` (the samples there
-        are around it, cut at the data's ends)."""
-        rule = window[max(0, k - self.rule_half):k + self.rule_half + 1]
-        if self.detector == "suh":
-            still = all(w[0] for w in rule)
-        else:
-            still = _shoe_statistic(np.array([w[1] for w in rule]), np.array([w[2] for w in rule]),
-                                    self.acc_scale, self.gyro_scale) <= 1.0
-        if not still or self.gait is None:
-            return still, still
-        test = window[max(0, k - self.test_half):k + self.test_half + 1]
-        scale = window[k][3]
-        return still, _shoe_statistic(np.array([w[1] for w in test]), np.array([w[2] for w in test]),
-                                      ADAPTIVE_ACC_PER_GYRO * scale, scale) <= 1.0
+        super().__init__(rate_hz, gyro_limit, jerk_limit, window_s, detector, acc_scale, gyro_scale,
+                         adaptive_scale=adaptive_scale, adaptive_window_s=adaptive_window_s)
 
     def update_both(self, gyr: np.ndarray, acc: np.ndarray) -> tuple[bool, bool] | None:
         """(the fixed rule's decision, the decision) of sample ``k - h``; None for the first ``h``."""
-        gyr, acc = np.array(gyr, dtype=float), np.array(acc, dtype=float)
-        quiet = self._quiet_sample(gyr, acc)
-        scale = self.gait.update(acc, not quiet) if self.gait else 0.0
-        self._window.append((quiet, gyr, acc, scale))
-        self._seen += 1
-        if self._seen <= self.half:
-            return None
-        window = list(self._window)
-        return self._judge(window, len(window) - 1 - self.half)
+        codes = self._codes(gyr, acc).tolist()
+        return (bool(codes[0] % 2), codes[0] >= 2) if codes else None
 
     def flush_both(self) -> list[tuple[bool, bool]]:
         """:meth:`update_both`'s pairs for the samples still waiting for their look-ahead."""
-        window = list(self._window)
-        waiting = min(self.half, self._seen)
-        return [self._judge(window, len(window) - waiting + j) for j in range(waiting)]
+        s = self.state
+        n = self._flush(s.p, s.z, s.ring, s.win, s.status, self._out, 0)
+        return [(bool(code % 2), code >= 2) for code in self._out[:n].tolist()]
 
-    def update(self, gyr: np.ndarray, acc: np.ndarray) -> bool | None:
+    def update(self, gyr: np.ndarray, acc: np.ndarray) -> bool | None:  # type: ignore[override]
         both = self.update_both(gyr, acc)
         return None if both is None else both[1]
 
     def flush(self) -> list[bool]:
         """Decisions for the samples still waiting for their look-ahead."""
         return [decision for _, decision in self.flush_both()]
-
 
 def detect_zero_velocity(gyr: np.ndarray, acc: np.ndarray, rate_hz: float, gyro_limit: float = GYRO_LIMIT,
                          jerk_limit: float = JERK_LIMIT, window_s: float = WINDOW_S, detector: str = "suh",
@@ -368,121 +441,3 @@ def _quiet_samples(gyr: np.ndarray, acc: np.ndarray, rate_hz: float, gyro_limit:
     return quiet
 
 
-
-class StanceDetector:
-    """Streaming zero velocity: the fixed rule (:class:`ZeroVelocityDetector`) and, with ``valley``, the
-    valley rule (module docstring). ``update(gyr, acc)`` returns the decisions of the next samples in
-    order (none, one or several: the look-ahead is variable); :meth:`flush` the rest at the end.
-    Equal to :func:`detect_zero_velocity` sample for sample."""
-
-    def __init__(self, rate_hz: float, gyro_limit: float = GYRO_LIMIT, jerk_limit: float = JERK_LIMIT,
-                 window_s: float = WINDOW_S, detector: str = "suh", acc_scale: float = SHOE_ACC,
-                 gyro_scale: float = SHOE_GYRO, valley: bool = False, valley_max: float = VALLEY_MAX,
-                 valley_swing: float = VALLEY_SWING, valley_gap_s: float = VALLEY_GAP_S,
-                 adaptive_scale: float = 0.0, adaptive_window_s: float = ADAPTIVE_WINDOW_S) -> None:
-        self.fixed = ZeroVelocityDetector(rate_hz, gyro_limit, jerk_limit, window_s, detector, acc_scale,
-                                          gyro_scale, adaptive_scale, adaptive_window_s)
-        self.valley = valley
-        self.valley_max, self.valley_swing = valley_max, valley_swing
-        self.half = valley_half(rate_hz)
-        self.before, self.after = round(VALLEY_BEFORE_S * rate_hz), round(VALLEY_AFTER_S * rate_hz)
-        self.gap = round(valley_gap_s * rate_hz)
-        self._raw: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=2 * self.half + 1)
-        self._seen = 0  # samples in
-        self._base = 0  # absolute index of _c[0] and _f[0]
-        self._c: list[float] = []  # valley statistic, from _base on
-        self._f: list[bool] = []  # decisions of the fixed rule and the gait-scaled test, from _base on
-        self._r: list[bool] = []  # the fixed rule's alone (the valley's gap), from _base on
-        self._status: dict[int, bool] = {}  # decided valleys (True: accepted)
-        self._next = 0  # the next sample to decide
-        self._end: int | None = None  # number of samples, once flushed
-
-    def update(self, gyr: np.ndarray, acc: np.ndarray) -> list[bool]:
-        gyr, acc = np.array(gyr, dtype=float), np.array(acc, dtype=float)
-        both = self.fixed.update_both(gyr, acc)
-        if not self.valley:
-            return [] if both is None else [both[1]]
-        if both is not None:
-            self._r.append(both[0])
-            self._f.append(both[1])
-        self._raw.append((gyr, acc))
-        self._seen += 1
-        if self._seen > self.half:  # sample seen - 1 - half has its whole window
-            self._c.append(self._value(self._seen - 1 - self.half))
-        return self._release()
-
-    def flush(self) -> list[bool]:
-        pairs = self.fixed.flush_both()
-        if not self.valley:
-            return [decision for _, decision in pairs]
-        self._r += [rule for rule, _ in pairs]
-        self._f += [decision for _, decision in pairs]
-        for k in range(self._base + len(self._c), self._seen):
-            self._c.append(self._value(k))
-        self._end = self._seen
-        return self._release()
-
-    def _value(self, k: int) -> float:
-        """``c`` of sample ``k``, whose window ends at the newest sample (cut at sample 0)."""
-        raw = list(self._raw)
-        first = max(0, k - self.half) - (self._seen - len(raw))
-        window = raw[first:k + self.half + 1 - (self._seen - len(raw))]
-        return valley_value(np.array([w[0] for w in window]), np.array([w[1] for w in window]))
-
-    def _release(self) -> list[bool]:
-        out = []
-        while self._next - self._base < len(self._f):
-            k = self._next
-            decision = self._f[k - self._base] or self._marked(k)
-            if decision is None:
-                break
-            out.append(bool(decision))
-            self._next += 1
-        self._trim()
-        return out
-
-    def _marked(self, k: int) -> bool | None:
-        """True if an accepted valley covers ``k``, False if none can, None while undecided."""
-        waiting = False
-        for m in range(max(0, k - self.half), k + self.half + 1):
-            status = self._valley(m)
-            if status:
-                return True
-            waiting = waiting or status is None
-        return None if waiting else False
-
-    def _valley(self, m: int) -> bool | None:
-        if m in self._status:
-            return self._status[m]
-        status = self._judge(m)
-        if status is not None:
-            self._status[m] = status
-        return status
-
-    def _judge(self, m: int) -> bool | None:
-        known_c, known_f = self._base + len(self._c), self._base + len(self._f)
-        if m >= known_c:
-            return False if self._end is not None else None
-        c = self._c
-        value = c[m - self._base]
-        if value > self.valley_max:
-            return False
-        lo = max(0, m - self.before)
-        if m == lo or max(c[lo - self._base:m - self._base]) < self.valley_swing:
-            return False
-        if min(c[lo - self._base:min(known_c, m + self.after + 1) - self._base]) < value:
-            return False
-        rule = self._r[max(0, m - self.gap) - self._base:min(known_f, m + self.gap + 1) - self._base]
-        if any(rule):
-            return False
-        whole = self._end is not None or (m + self.after < known_c and m + self.gap < known_f)
-        return True if whole else None
-
-    def _trim(self) -> None:
-        """Forget what no undecided sample can need."""
-        keep = self._next - self.half - self.gap - self.before - 1
-        cut = keep - self._base
-        if cut > 4 * (self.gap + self.before):
-            del self._c[:cut], self._f[:cut], self._r[:cut]
-            self._base = keep
-            self._status = {m: v for m, v in self._status.items() if m >= keep - self.half}

@@ -5,7 +5,8 @@ Every filter: ``cls(rate_hz, **params)``, ``reset(q=None)``, ``initialize(acc, m
 sensor → world ENU, ``gyro_bias()`` (cheap per-sample bias estimate) and ``state() -> dict`` for
 diagnostics; :class:`InertialCF` also has ``update_tuple`` (same numbers, returns a tuple). Batch:
 :func:`estimate_orientation`. ``DEFAULT_ALGORITHM`` is the most accurate one in
-``benchmarks/orientation.py`` among those within the per-sample cost budget (see README).
+``benchmarks/orientation.py`` among those within the per-sample cost budget
+(``docs/benchmarks/orientation.md``).
 """
 
 from __future__ import annotations

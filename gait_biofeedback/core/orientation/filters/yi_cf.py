@@ -1,6 +1,6 @@
 """Yi et al. 2018 [P1]: FQA + gyro complementary filter with an adaptive fusion coefficient.
 
-Orientation.md §8. Per sample:
+orientation.md §8. Per sample:
 1. FQA (Yun 2008, [P1 (6)–(14)]) from the accelerometer (+ magnetometer): elevation, roll and azimuth
    quaternions by half-angle formulas, q_FQA = q_z ⊗ q_y ⊗ q_x.
    READING (frame): derived here for the project's ENU world (static accelerometer reads +up):

@@ -1,6 +1,6 @@
 """Zihajehzadeh et al. 2014 [P2]: cascaded two-step Kalman filter (tilt KF → yaw KF).
 
-Orientation.md §9, ENU world. Step 1 (tilt, [P2 (5)–(17)]): state x₁ = third row of R (world up in
+orientation.md §9, ENU world. Step 1 (tilt, [P2 (5)–(17)]): state x₁ = third row of R (world up in
 the sensor frame); A₁ = I − Δt [ω×] (7), 𝒬₁ = −Δt² [x₁×] Σ_G [x₁×] (15); measurement
 z₁ = ā − c_a a⁺(k−1) (13) with C₁ = g I (9), ℛ₁ = (σ_A² + c_a²‖a⁺‖²/3) I (16, READING: × I₃);
 a⁺ = ā − g x₁⁺ (14). Step 2 (yaw, [P2 (18)–(28)]): state x₂ = first row of R (world east in the
