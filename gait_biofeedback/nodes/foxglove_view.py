@@ -66,8 +66,12 @@ class FoxgloveView(GuardedNode):
     def __init__(self, context: Context | None = None, params: FoxgloveParams | None = None,
                  **overrides: object) -> None:
         super().__init__(self.NODE_NAME, context=context, parameter_overrides=node_overrides(overrides))
-        import foxglove
-        from foxglove.channels import FrameTransformsChannel, SceneUpdateChannel
+        try:
+            import foxglove
+            from foxglove.channels import FrameTransformsChannel, SceneUpdateChannel
+        except ImportError as err:
+            raise RuntimeError(f"the Foxglove live view needs the PyPI package foxglove-sdk ({err}): "
+                               "`make setup` installs it (requirements.txt)") from err
 
         p: FoxgloveParams = declare_parameters(self, FoxgloveParams, params)
         self.params = p
