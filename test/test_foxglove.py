@@ -328,8 +328,22 @@ def test_a_foxglove_client_gets_the_channels_and_the_body_of_a_live_replay_at_th
     assert whole[-1]["right_foot"][:2] == ("right_shank", (0.0, -0.43, 0.0))
     angles = [json.loads(p) for t, _, p in client.messages if t == "/joint_angles"]
     assert len(angles) >= len(whole) and -90.0 < angles[-1]["left_knee_flexion_deg"] < 10.0
-    assert any(t == "/body" for t, _, _ in client.messages)
-    assert any(t == "/gait/events" for t, _, _ in client.messages)
+    # the scene: a box per segment locked to its frame; each foot green after an initial contact and
+    # orange after a terminal one (the walk has both on both sides). SceneUpdate fields (foxglove's
+    # SceneUpdate/SceneEntity/CubePrimitive/Color.proto): entities 2; frame_id 2, id 3, frame_locked 5,
+    # cubes 8; color 3; r, g, b, a 1-4
+    stance, swing = (0.15, 0.75, 0.3), (1.0, 0.55, 0.1)
+    foot_colours: dict[str, set] = {"left_foot": set(), "right_foot": set()}
+    for payload in (p for t, _, p in client.messages if t == "/body"):
+        entities = [dict(_protobuf_fields(e)) for n, e in _protobuf_fields(payload) if n == 2]
+        assert sorted(e[3].decode() for e in entities) == sorted(SEGMENTS8)
+        assert all(e[2] == e[3] and e.get(5) == 1 for e in entities)
+        for e in entities:
+            if e[3].decode() in foot_colours:
+                colour = dict(_protobuf_fields(dict(_protobuf_fields(e[8]))[3]))
+                foot_colours[e[3].decode()].add(tuple(round(colour.get(k, 0.0), 3) for k in (1, 2, 3)))
+    assert all({stance, swing} <= seen for seen in foot_colours.values()), foot_colours
+    assert sum(t == "/gait/events" for t, _, _ in client.messages) >= 8
 
     # the recorder wrote the same frames as /tf, one per joint state, decoded by rosbags
     with AnyReader([tmp_path / "rec"], default_typestore=rosbags_typestore()) as recording:
