@@ -15,6 +15,7 @@ NODES = {
     "calibration": "gait_biofeedback.nodes.calibration:main",
     "joint_angles": "gait_biofeedback.nodes.joint_angles:main",
     "biofeedback": "gait_biofeedback.nodes.biofeedback:main",
+    "foxglove": "gait_biofeedback.nodes.foxglove_view:main",
 }
 
 setup(

@@ -14,17 +14,29 @@ Two parts:
 
 A last table times the per-message conversions (rclpy objects vs :mod:`gait_biofeedback.wire.cdr`).
 
+``--foxglove`` adds the Foxglove live view (``replay --foxglove``) to every row; ``--viewer`` also
+connects a viewer subscribed to every channel, in another process (its CPU is not counted: only what
+the graph's process spends serving it). ``--full-only``: only the row of the whole chain;
+``--calibrated-seconds``: a shorter calibrated window (from 36 s).
+
     .venv/bin/python benchmarks/graph_load.py [--seconds 15] [--speed 1] [--part all|start|calibrated|codec]
     .venv/bin/python benchmarks/graph_load.py --part rates   # 8 sensors at 100, 200, 400 Hz
+    .venv/bin/python benchmarks/graph_load.py --part calibrated --full-only --calibrated-seconds 15 \
+        [--foxglove [--viewer]]
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import re
 import resource
+import socket
+import subprocess
+import sys
 import tempfile
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 from gait_biofeedback.cli import DEMO_BAG
@@ -58,21 +70,70 @@ def demo_calibration(bag: Path, session_dir: Path) -> None:
     write_calibration_file(session_dir / CALIBRATION_FILE, attempt.calibration, "benchmark")
 
 
+VIEWER = """
+import json, sys, time
+from websockets.sync.client import connect
+deadline = time.monotonic() + 30
+while True:
+    try:
+        ws = connect(sys.argv[1], subprotocols=["foxglove.sdk.v1", "foxglove.websocket.v1"])
+        break
+    except OSError:
+        if time.monotonic() > deadline:
+            raise
+        time.sleep(0.05)
+with ws:
+    seen = set()
+    while True:
+        frame = ws.recv()
+        if isinstance(frame, str) and json.loads(frame)["op"] == "advertise":
+            new = [c["id"] for c in json.loads(frame)["channels"] if c["id"] not in seen]
+            seen.update(new)
+            subscriptions = [{"id": i, "channelId": i} for i in new]
+            ws.send(json.dumps({"op": "subscribe", "subscriptions": subscriptions}))
+"""
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@contextlib.contextmanager
+def viewer(port: int | None) -> Iterator[None]:
+    """A Foxglove viewer of every channel on ``port`` in another process (None: none)."""
+    if port is None:
+        yield
+        return
+    process = subprocess.Popen([sys.executable, "-c", VIEWER, f"ws://127.0.0.1:{port}"],
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        yield
+    finally:
+        process.kill()
+        process.wait()
+
+
 def run_rows(bag: Path, stages: list[list[str]], start: float, stop: float, speed: float,
-             session_dir: Path | None, rate_hz: float = 100.0) -> None:
+             session_dir: Path | None, rate_hz: float = 100.0, foxglove: bool = False,
+             with_viewer: bool = False) -> None:
     seconds = stop - start
     expected = round(seconds * rate_hz) * 8
     print(f"{'nodes (each row adds one)':36s}{'CPU % of a core':>16s}{'raw kept':>10s}{'orient.':>9s}")
     for stage in stages:
         with tempfile.TemporaryDirectory() as tmp:
             out = Path(tmp) / "out"
-            before = cpu_seconds()
-            replay_through_graph(bag, out, speed=speed, nodes=stage, start_offset_s=start, stop_offset_s=stop,
-                                 node_parameters={"calibration": {"session_dir": str(session_dir or
-                                                                                     Path(tmp) / "s"),
-                                                                  "reload_calibration": True},
-                                                  "biofeedback": {"port": 0}})
-            cpu = cpu_seconds() - before
+            port = free_port() if foxglove else None
+            with viewer(port if with_viewer else None):
+                before = cpu_seconds()
+                replay_through_graph(bag, out, speed=speed, nodes=stage, start_offset_s=start,
+                                     stop_offset_s=stop, foxglove=port,
+                                     node_parameters={"calibration": {"session_dir": str(session_dir or
+                                                                                         Path(tmp) / "s"),
+                                                                      "reload_calibration": True},
+                                                      "biofeedback": {"port": 0}})
+                cpu = cpu_seconds() - before
             counts = BagReader(out).message_counts()
             said = overload_said(out)
         raw = sum(n for t, n in counts.items() if t.endswith("/imu/data_raw"))
@@ -150,7 +211,16 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=15.0)
     parser.add_argument("--speed", type=float, default=1.0)
     parser.add_argument("--part", choices=["all", "start", "calibrated", "codec", "rates"], default="all")
+    parser.add_argument("--foxglove", action="store_true", help="the Foxglove live view in every row")
+    parser.add_argument("--viewer", action="store_true", help="with --foxglove: a viewer of every channel")
+    parser.add_argument("--full-only", action="store_true", help="only the row of the whole chain")
+    parser.add_argument("--calibrated-seconds", type=float,
+                        default=CALIBRATED_WINDOW[1] - CALIBRATED_WINDOW[0])
     args = parser.parse_args()
+    view = {"foxglove": args.foxglove, "with_viewer": args.foxglove and args.viewer}
+    if args.foxglove:
+        print("with the Foxglove live view" + (" and a viewer of every channel" if args.viewer else
+                                                " (no viewer connected)"))
     if args.part == "rates":
         sustained_rates(args.seconds, args.speed)
         return
@@ -158,15 +228,17 @@ def main() -> None:
     if args.part in ("all", "start"):
         print(f"demo session, first {args.seconds:g} s at {args.speed:g}x, not calibrated; "
               f"{round(args.seconds * 100) * 8} raw IMU samples expected")
-        run_rows(bag, STAGES, 0.0, args.seconds, args.speed, None)
+        run_rows(bag, STAGES[-1:] if args.full_only else STAGES, 0.0, args.seconds, args.speed, None, **view)
     if args.part in ("all", "calibrated"):
-        start, stop = CALIBRATED_WINDOW
+        start = CALIBRATED_WINDOW[0]
+        stop = start + args.calibrated_seconds
         with tempfile.TemporaryDirectory() as tmp:
             session = Path(tmp) / "session"
             demo_calibration(bag, session)
             print(f"\ndemo session, {start:g}-{stop:g} s at {args.speed:g}x, calibrated (joint angles and "
                   f"gait events running); {round((stop - start) * 100) * 8} raw IMU samples expected")
-            run_rows(bag, CALIBRATED_STAGES, start, stop, args.speed, session)
+            run_rows(bag, CALIBRATED_STAGES[-1:] if args.full_only else CALIBRATED_STAGES, start, stop,
+                     args.speed, session, **view)
     if args.part in ("all", "codec"):
         print()
         time_codec(bag)

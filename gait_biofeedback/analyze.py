@@ -14,7 +14,8 @@ same message-conversion helpers, in the same order the nodes use them:
    :meth:`CalibrationNode.calibrate_at <gait_biofeedback.nodes.calibration.CalibrationNode.calibrate_at>`
    does in a replay → ``/calibration/sensor_to_segment``;
 3. joint angles: :class:`~gait_biofeedback.core.joints.stream.JointAngleStream` → ``/joint_states``,
-   ``/skeleton``;
+   ``/skeleton``, and the body's segment frames ``/tf`` (:mod:`~gait_biofeedback.core.joints.body_pose`,
+   one per joint state, encoded in bulk before each write of the output);
 4. gait events and strides: :class:`~gait_biofeedback.core.gait.stream.GaitEventStream` →
    ``/gait/events``, ``/gait/cycles``, ``/gait/stride_space``;
 5. activity on the chest's raw IMU: :class:`~gait_biofeedback.core.activity.run.ActivityRun` (the
@@ -51,9 +52,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import Imu, JointState
 
+from gait_biofeedback.core import quaternion as quat
 from gait_biofeedback.core.activity.output import ActivityState
 from gait_biofeedback.core.activity.run import ActivityRun
 from gait_biofeedback.core.activity.stream import ActivityParams
@@ -71,7 +74,13 @@ from gait_biofeedback.core.calibration.stream import (
 from gait_biofeedback.core.gait.stream import GaitEventsParams, GaitEventStream
 from gait_biofeedback.core.joints.alignment import said as stamps_off
 from gait_biofeedback.core.joints.angles import segment_pair
-from gait_biofeedback.core.joints.stream import STREAM_SEGMENTS, JointAnglesParams, JointAngleStream
+from gait_biofeedback.core.joints.body_pose import angle_rows, body_transforms
+from gait_biofeedback.core.joints.stream import (
+    STREAM_SEGMENTS,
+    JointAnglesParams,
+    JointAngleStream,
+    SyncedAngles,
+)
 from gait_biofeedback.core.orientation.stream import INFORMATION, OrientationParams
 from gait_biofeedback.core.params import spec_by_name
 from gait_biofeedback.core.rate import TOLERANCE as RATE_TOLERANCE
@@ -97,6 +106,7 @@ from gait_biofeedback.wire.imu import (
     raw_sample,
 )
 from gait_biofeedback.wire.joints import JOINT_STATE_TYPE, joint_state_bytes, skeleton_msg
+from gait_biofeedback.wire.tf import TF_TOPIC, TF_TYPE, tf_messages
 
 
 @dataclass
@@ -142,6 +152,7 @@ SWING_TOLERANCE_TEXT = {k: f"{math.degrees(v):.0f}°" if "angle" in k else
 SESSION_CONDITIONS = ("losing samples", "6D", "no gyro")
 """Orientation conditions ``analyze`` also sums up in its warnings (the others are said as they happen)."""
 CALIBRATED_LIMBS = ("_thigh", "_shank", "_foot")
+_NO_QUATERNION = np.full(4, np.nan)
 """Segments whose calibration the joint angles and gait events need (a recording without any: ``auto``
 is not looked for)."""
 
@@ -516,6 +527,34 @@ def _analyze(ordered: LogOrderWriter | None, reader: BagReader, run: Orientation
 
     waiting: dict[str, list[int]] = {}  # joint → [first, last] stamp it was left out for want of a heading
 
+    body_rows: list[tuple] = []  # (log ns, stamp, pelvis q, its r, angles, chest q, its r) per instant
+    chest_q: list[np.ndarray] = [_NO_QUATERNION]  # the chest sensor's newest orientation
+
+    def body_frames() -> None:
+        """The ``/tf`` of the instants held, encoded in one go (the writer asks before it writes)."""
+        if not body_rows:
+            return
+        log, ns, pelvis, pelvis_r, angles, chest, chest_r = zip(*body_rows, strict=True)
+        body_rows.clear()
+        pelvis_q = quat.multiply(np.array(pelvis), np.array(pelvis_r))
+        chest_seg = quat.multiply(np.array(chest), np.array(chest_r))
+        frames = tf_messages(np.array(ns), *body_transforms(pelvis_q, angle_rows(angles), chest_seg,
+                                                            j_params.body))
+        for log_ns, data in zip(log, frames, strict=True):
+            if data:
+                ordered.batched(log_ns, TF_TOPIC, TF_TYPE, data, True)
+        result.counts[TF_TOPIC] = result.counts.get(TF_TOPIC, 0) + sum(map(bool, frames))
+
+    if ordered is not None:
+        ordered.prepare = body_frames
+
+    def hold_body(synced: SyncedAngles, log_ns: int) -> None:
+        r = synced.rotations
+        if ordered is None or "pelvis" not in synced.sensor_quats or "pelvis" not in r:
+            return
+        body_rows.append((log_ns, synced.ns, synced.sensor_quats["pelvis"], r["pelvis"], synced.angles,
+                          chest_q[0], r.get("chest", _NO_QUATERNION)))
+
     def publish_joints(emitted: list, log_ns: int) -> None:
         nonlocal emitted_joints
         for synced in emitted:
@@ -525,12 +564,15 @@ def _analyze(ordered: LogOrderWriter | None, reader: BagReader, run: Orientation
             if synced.angles:
                 emit_data(topics.JOINT_STATES.absolute(), joint_state_bytes(synced.angles, synced.ns,
                           synced.recovering), log_ns, JointState, JOINT_STATE_TYPE)
+                hold_body(synced, log_ns)
             emitted_joints += 1
             every = j_params.skeleton_every
             if every > 0 and emitted_joints % every == 0:
                 emit(topics.SKELETON.absolute(), skeleton_msg(synced, j_params.body), log_ns)
 
     def downstream(segment: str, imu: Stamped, log_ns: int) -> None:
+        if segment == "chest":
+            chest_q[0] = orientation_sample(imu)[3]
         if segment in buffer.buffers:
             buffer.add(segment, *orientation_sample(imu), heading=has_heading(imu))
             if buffer.scheduled:

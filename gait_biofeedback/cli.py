@@ -13,6 +13,7 @@ from gait_biofeedback.core.words import plural
 
 DEMO_BAG = Path("bags/demo_walk")
 DEMO_OUTPUT = Path("output/demo_session")
+FOXGLOVE_PORT = 8765  # Foxglove's default WebSocket port
 
 DESCRIPTION = """\
 Wearable-IMU gait biofeedback (ROS 2 Jazzy). Typical use:
@@ -185,7 +186,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         raise ValueError("--frame-key-file is the driver's: give --driver too")
     end = time.monotonic() + args.duration if args.duration > 0 else None
     return run_live(_node_list(args.nodes), args.record, params, driver=bool(args.driver),
-                    until=None if end is None else (lambda: time.monotonic() > end))
+                    until=None if end is None else (lambda: time.monotonic() > end), foxglove=args.foxglove)
 
 
 def cmd_stream_sim(args: argparse.Namespace) -> int:
@@ -392,7 +393,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
             result = replay_through_graph(args.bag, args.record, speed=args.speed, start_offset_s=args.start,
                                           stop_offset_s=args.stop, progress=bar.update,
                                           nodes=_node_list(args.nodes), node_parameters=params,
-                                          calibrate_at=pressed)
+                                          calibrate_at=pressed, foxglove=args.foxglove)
         walk_file = Path(folder) / "calibration_from_the_walk.yaml"
         if walk_file.exists() and args.record and result.calibration_file is None:
             result.calibration_file = Path(args.record) / "calibration.yaml"  # kept with the recording
@@ -627,6 +628,12 @@ def _calibration_arguments(p: argparse.ArgumentParser) -> None:
                    help="calibration.yaml (as the calibration node saves it) in force from the start")
 
 
+def _foxglove_argument(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--foxglove", type=int, nargs="?", const=FOXGLOVE_PORT, default=None, metavar="PORT",
+                   help=f"serve the Foxglove live view (body in 3D, joint angles, events, cues, diagnostics) "
+                   f"on 127.0.0.1:PORT [{FOXGLOVE_PORT}; 0 = any free port]; docs/foxglove.md")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="gait-biofeedback", description=DESCRIPTION,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -677,6 +684,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--stop", type=float, default=0.0, help="stop at this many s (0 = the end)")
     p.add_argument("--params", default=None, help="ROS 2 parameter file, e.g. config/session.yaml")
     p.add_argument("--nodes", help="comma-separated processing nodes (default: all)")
+    _foxglove_argument(p)
     _calibration_arguments(p)
     p.set_defaults(func=cmd_replay)
 
@@ -784,6 +792,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--params", default=None, help="ROS 2 parameter file, e.g. config/session.yaml")
     p.add_argument("--nodes", help="comma-separated processing nodes (default: all; '' = none)")
     p.add_argument("--duration", type=float, default=0.0, help="stop after this many s (0 = at Ctrl-C)")
+    _foxglove_argument(p)
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser("stream-sim", help="send a recording as live sensors would, over UDP",

@@ -174,12 +174,15 @@ def running_graph(
     args: list[str] | None = None,
     use_sim_time: bool = False,
     driver: bool = False,
+    foxglove: int | None = None,
 ) -> Iterator[RunningGraph]:
     """Context, executor, recorder (when ``output`` is given) and the processing ``nodes`` (default:
     all), created in data-flow order; the recorder is subscribed to every output before this
     yields. ``driver``: an ``imu_driver`` (parameters ``node_parameters["imu_driver"]``) comes first
     and starts receiving only once the recorder and the nodes listen to it. ``use_sim_time``: every
-    node follows ``/clock`` (a replayer's). With ``output``, the calibration and the dashboard's link
+    node follows ``/clock`` (a replayer's). ``foxglove``: the Foxglove live view
+    (:mod:`~gait_biofeedback.nodes.foxglove_view`) on this port (0: any free one), started with the
+    processing nodes (``graph.nodes["foxglove"]``). With ``output``, the calibration and the dashboard's link
     are saved in it unless the stage's ``session_dir`` is set. SIGINT and SIGTERM end every spin loop (see
     :func:`stop_on_signals`). Everything is destroyed (files closed, bags summarised) and rclpy shut
     down on exit, whatever happened."""
@@ -188,11 +191,13 @@ def running_graph(
     unknown = [n for n in chosen if n not in factories]
     if unknown:
         raise ValueError(f"unknown node(s) {unknown}; this build has {sorted(factories)}")
-    params = node_parameters or {}
+    params = dict(node_parameters or {})
+    if foxglove is not None:
+        params["foxglove"] = {**params.get("foxglove", {}), "port": int(foxglove)}
     # every stage's parameters checked once, here, before anything starts; the nodes take them as they are
     stages = {name: stage_parameters(name, params.get(name))
               for name in {*chosen, *params, *(["recorder"] if output is not None else []),
-                           *(["imu_driver"] if driver else [])}}
+                           *(["imu_driver"] if driver else [])}}  # a foxglove port is in params
     if output is not None:
         for name in ("calibration", "biofeedback"):
             if name in stages and not stages[name].session_dir:
@@ -206,7 +211,8 @@ def running_graph(
     with stop_on_signals():
         try:
             claim = refuse_other_graph(context, [*chosen, *(["recorder"] if output is not None else []),
-                                                 *(["imu_driver"] if driver else [])])
+                                                 *(["imu_driver"] if driver else []),
+                                                 *(["foxglove"] if foxglove is not None else [])])
             if output is not None:
                 recorder = Recorder(context, replace(stages["recorder"], output=str(output)), **ros)
                 graph.recorder = graph.add(recorder)
@@ -217,6 +223,12 @@ def running_graph(
                     ImuDriverNode(context, stages["imu_driver"], start=False, **ros))
             for name in chosen:
                 graph.nodes[name] = graph.add(factories[name](context, stages[name], **ros))
+            if foxglove is not None:
+                from gait_biofeedback.nodes.foxglove_view import FoxgloveView
+
+                view = graph.nodes["foxglove"] = graph.add(FoxgloveView(context, stages["foxglove"], **ros))
+                print(f"Foxglove live view: {view.url} (Foxglove: Open connection, Foxglove WebSocket; "
+                      "layout config/foxglove_layout.json)", flush=True)
             if graph.recorder is not None:
                 _wait_until_recorded(graph.recorder, list(graph.nodes.values()))
             if driver:
@@ -248,6 +260,7 @@ def replay_through_graph(
     node_parameters: dict[str, dict] | None = None,
     actions: Sequence[Action] = (),
     calibrate_at: Sequence[tuple[float, str] | tuple[float, str, dict]] = (),
+    foxglove: int | None = None,
 ) -> ReplayResult:
     """Replay ``bag`` through the processing ``nodes`` (default: all that exist) and record every
     topic to ``output`` (None: no recording). ``actions`` run on the executor thread when the replay
@@ -265,7 +278,7 @@ def replay_through_graph(
     for t, protocol, *options in calibrate_at:
         press = _calibration_request(start_ns + round(t * 1e9), protocol, **(options[0] if options else {}))
         actions = [*actions, (t, press)]
-    with running_graph(nodes, output, node_parameters, use_sim_time=True) as graph:
+    with running_graph(nodes, output, node_parameters, use_sim_time=True, foxglove=foxglove) as graph:
         replayer = graph.add(ImuReplayer(
             graph.context, bag=str(bag), speed=float(speed), start_offset_s=float(start_offset_s),
             stop_offset_s=float(stop_offset_s), wait_for_subscribers_s=5.0, publish_clock=True,
@@ -371,10 +384,11 @@ def _calibration_request(stamp_ns: int, protocol: str, **options: object
 
 def run_live(nodes: Sequence[str] | None = None, output: str | Path | None = None,
              node_parameters: dict[str, dict] | None = None, args: list[str] | None = None,
-             driver: bool = False, until: Callable[[], bool] | None = None) -> int:
-    """The processing graph (and the recorder, and with ``driver`` the imu_driver) on live topics until
-    Ctrl-C / SIGTERM (or ``until()``)."""
-    with running_graph(nodes, output, node_parameters, args, driver=driver) as graph:
+             driver: bool = False, until: Callable[[], bool] | None = None,
+             foxglove: int | None = None) -> int:
+    """The processing graph (and the recorder, with ``driver`` the imu_driver, with ``foxglove`` the
+    Foxglove live view on that port) on live topics until Ctrl-C / SIGTERM (or ``until()``)."""
+    with running_graph(nodes, output, node_parameters, args, driver=driver, foxglove=foxglove) as graph:
         names = ", ".join(graph.nodes) or "no processing nodes"
         print(f"running {names}" + (f", recording to {output}" if output else "") + "; Ctrl-C stops")
         with suppress(KeyboardInterrupt):

@@ -33,7 +33,7 @@ from gait_biofeedback.core.params import (
     unknown_name,
 )
 from gait_biofeedback.core.safe_yaml import YamlRefusedError, describe, load_yaml_file, shown
-from gait_biofeedback.io.params import RecorderParams, ReplayerParams
+from gait_biofeedback.io.params import FoxgloveParams, RecorderParams, ReplayerParams
 
 NODE_PARAMETERS: dict[str, type] = {
     "imu_driver": DriverParams,
@@ -45,6 +45,7 @@ NODE_PARAMETERS: dict[str, type] = {
     "activity_monitor": ActivityParams,
     "biofeedback": BiofeedbackParams,
     "recorder": RecorderParams,
+    "foxglove": FoxgloveParams,
 }
 """Node name → its parameters' dataclass (the node classes declare their ROS parameters from it)."""
 

@@ -60,9 +60,10 @@ def test_simulated_and_analyzed_bags_decode(simulated, tmp_path):
     out = tmp_path / "offline"
     assert main(["analyze", str(simulated), "-o", str(out), "--calibrate-at", "13:walking"]) == 0
     outputs = {"/joint_states", "/skeleton", "/gait/events", "/gait/cycles", "/gait/stride_space",
-               "/activity/state", "/calibration/sensor_to_segment", "/pelvis/imu/data"}
+               "/activity/state", "/calibration/sensor_to_segment", "/pelvis/imu/data", "/tf"}
     counts = _decodes_everywhere(out, outputs)
     assert counts["/joint_states"] > 0
+    assert counts["/tf"] == counts["/joint_states"]  # the body's frames, one per joint state
 
 
 def test_imported_csv_decodes(tmp_path):

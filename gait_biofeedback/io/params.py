@@ -5,7 +5,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from gait_biofeedback.core.params import param, require
+from gait_biofeedback.core.body import BodyDimensions, StickFigureDimensions
+from gait_biofeedback.core.params import param, require, same_as
 
 COMPRESSIONS = ("zstd", "lz4", "none")
 
@@ -36,8 +37,8 @@ class ReplayerParams:
 
 
 @dataclass(frozen=True)
-class RecorderParams:
-    """Parameters of the ``recorder`` node."""
+class RecorderParams(StickFigureDimensions):
+    """Parameters of the ``recorder`` node; the body dimensions place the segment frames of ``/tf``."""
 
     output: str = param("", "bag folder to write ('' = recordings/session_<time>)")
     topics: tuple[str, ...] = param((), "topics to record (empty = every topic, discovered as it appears)")
@@ -51,3 +52,19 @@ class RecorderParams:
     compression: str = param("zstd", "chunk compression", choices=COMPRESSIONS)
     discovery_period_s: float = param(0.5, "how often new topics are looked for", "s", low=0.05, high=60.0)
     autostart: bool = param(True, "record from the start (else wait for recorder/start)")
+    body_frames: bool = param(True, "write the segment frames as /tf (tf2_msgs/TFMessage) beside each "
+                              "joint_states, from the recorded angles and pelvis orientation (a /tf on the "
+                              "network is then not recorded)")
+
+
+@dataclass(frozen=True)
+class FoxgloveParams(StickFigureDimensions):
+    """Parameters of the ``foxglove`` node (the Foxglove live view); the body dimensions place and draw
+    the segments."""
+
+    host: str = param("127.0.0.1", "address the Foxglove WebSocket server binds (keep 127.0.0.1 unless "
+                      "behind an authenticating proxy: the view has no login)")
+    port: int = param(8765, "Foxglove WebSocket port (0 = any free port)", low=0, high=65535)
+    trunk_length_m: float = same_as(BodyDimensions, "trunk_length_m")
+    scene_period_s: float = param(1.0, "the body's 3D scene is sent again this often, for viewers that "
+                                  "connect later", "s", low=0.1, high=60.0)

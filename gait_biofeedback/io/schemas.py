@@ -26,6 +26,11 @@ PRIMITIVE_TYPES = frozenset(
         "int32", "uint32", "int64", "uint64", "string", "wstring",
     }
 )  # fmt: skip
+BUILT_IN_DEFINITIONS: dict[tuple[str, str], str] = {
+    ("tf2_msgs", "TFMessage"): "geometry_msgs/TransformStamped[] transforms\n",
+}
+"""Definitions of standard types the PyPI ROS wheels do not ship, used when no .msg file is found: the
+body's ``/tf`` (:mod:`gait_biofeedback.wire.tf`; ROS 2 Jazzy geometry2, tf2_msgs/msg/TFMessage.msg)."""
 _FIELD_TYPE = re.compile(r"^\s*([A-Za-z][\w/]*)")
 _CONSTANT = re.compile(r"\s*\w+\s*=")
 
@@ -75,6 +80,8 @@ def _interface_file(package: str, name: str, suffix: str) -> Path | None:
 def msg_text(package: str, name: str) -> str:
     """Text of ``share/<package>/msg/<name>.msg``."""
     path = _interface_file(package, name, ".msg")
+    if path is None and (package, name) in BUILT_IN_DEFINITIONS:
+        return BUILT_IN_DEFINITIONS[package, name]
     if path is None:
         searched = ", ".join(str(d) for d in share_dirs())
         raise ValueError(

@@ -3,6 +3,8 @@
 Messages are published as the recorded CDR bytes (no deserialisation), each at
 ``start_wall + (log_time - first_log_time) / speed`` from a dedicated thread, so the executor
 thread stays free for the rest of the graph and timing does not depend on its load.
+Every topic is replayed (or the ``topics`` asked for), but for one whose type has no Python package
+here (a recording's ``/tf``, tf2_msgs): it is named in a warning and :attr:`ImuReplayer.skipped`.
 Topics are published under the node's namespace: a recorded ``/left_foot/imu/data_raw`` goes out
 as ``left_foot/imu/data_raw`` (relative), so ``-r __ns:=/patient1`` works unchanged.
 
@@ -57,6 +59,15 @@ class ImuReplayer(GuardedNode):
         if missing:
             raise ValueError(f"imu_replayer: topics {missing} are not in {bag}; it has {sorted(available)}")
         self.topics = {t: available[t] for t in (wanted or available)}
+        self.skipped: dict[str, str] = {}  # topic → type of the recorded topics not replayed
+        if not wanted:  # all of them: those whose type this environment cannot publish are left out
+            self.skipped = {t: n for t, n in self.topics.items() if not _installed(n)}
+            for topic in self.skipped:
+                del self.topics[topic]
+            if self.skipped:
+                self.get_logger().warning(
+                    "not replayed (no Python package of their type here): " + ", ".join(
+                        f"{t} ({n})" for t, n in sorted(self.skipped.items())))
         self._topic_publishers = {
             topic: self.create_publisher(message_class(type_name), topic.lstrip("/"),
                                          topics.qos_of_recorded(topic))
@@ -191,6 +202,16 @@ def replay_arrivals(context: Context, bag: str | Path, speed: float, segment: st
         executor.shutdown()
     return stamps, arrivals
 
+
+
+def _installed(type_name: str) -> bool:
+    """The rclpy class of ``type_name`` imports here (a recording's ``/tf`` is tf2_msgs, which the PyPI
+    ROS wheels lack)."""
+    try:
+        message_class(type_name)
+    except ValueError:
+        return False
+    return True
 
 def main(args: list[str] | None = None) -> int:
     """Console script: replay until the recording ends (or forever with loop:=true)."""

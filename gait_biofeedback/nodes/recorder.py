@@ -37,7 +37,9 @@ from gait_biofeedback.io.params import RecorderParams
 from gait_biofeedback.nodes.common import GuardedNode
 from gait_biofeedback.nodes.parameters import declare_parameters, node_overrides
 from gait_biofeedback.wire import diagnostics, topics
+from gait_biofeedback.wire.body import BodyFrameTracker
 from gait_biofeedback.wire.cdr import header_stamp_ns
+from gait_biofeedback.wire.tf import TF_TOPIC, TF_TYPE, tf_message
 from gait_biofeedback.wire.topics import RELIABLE_QOS, SENSOR_QOS
 
 ALWAYS_EXCLUDED = ("/parameter_events", "/rosout", "/clock")
@@ -59,6 +61,9 @@ class Recorder(GuardedNode):
         self._base_output = p.output
         self.requested = [t if t.startswith("/") else self.resolve_topic_name(t) for t in p.topics if t]
         self.excluded = {*ALWAYS_EXCLUDED, *(t for t in p.exclude if t)}
+        if p.body_frames:
+            self.excluded.add(TF_TOPIC)  # written from the body's frames, not recorded twice
+        self._body = BodyFrameTracker(p.body, self.resolve_topic_name) if p.body_frames else None
         self._writer_options = {
             "compression": p.compression,
             "flush_period_s": p.flush_period_s,
@@ -270,6 +275,8 @@ class Recorder(GuardedNode):
                 continue
             try:
                 self.writer.write_serialized(*item)
+                if self._body is not None and item[0] in self._body.topics:
+                    self._write_body(item[0], item[2], item[3])
             except OSError as err:
                 self._write_failed(err)
             except Exception as err:  # e.g. a type the writer cannot describe: that message only
@@ -281,6 +288,15 @@ class Recorder(GuardedNode):
                 # let messages gather: a put that has to wake this thread costs the executor thread
                 # ~10 µs (GIL hand-over), one per message at ~2,600 messages/s
                 time.sleep(BATCH_WAIT)
+
+    def _write_body(self, topic: str, data: bytes, log_ns: int) -> None:
+        """The body's frames completed by this message, as ``/tf`` at its log time (writer thread)."""
+        pose = self._body.feed(topic, data)
+        if pose is None:
+            return
+        tf = tf_message(*pose)
+        if tf:
+            self.writer.write_serialized(TF_TOPIC, TF_TYPE, tf, log_ns, padded=True)
 
     def _missing_raw(self) -> tuple[float, str]:
         """The largest share of raw samples missing from one topic since the last report, and the topic."""

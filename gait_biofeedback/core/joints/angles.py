@@ -63,6 +63,12 @@ def segment_pair(side: str, joint: str) -> tuple[str, str]:
     return (prox if prox == "pelvis" else f"{side}_{prox}", f"{side}_{dist}")
 
 
+def angle_signs(joint: str, side: str) -> tuple[float, float, float]:
+    """Signs (flexion, adduction, internal rotation) taking the clinical angles of ``joint`` on ``side``
+    to the Cardan angles (a, b, c) of ``R_z(a) R_x(b) R_y(c)`` (module docstring)."""
+    return _signs(joint, side)
+
+
 def _signs(joint: str, side: str) -> tuple[float, float, float]:
     _check(joint, side)
     s_fe = -1.0 if joint == "knee" else 1.0
