@@ -48,7 +48,7 @@ def test_the_highest_priority_wins_over_a_larger_deviation():
     # left: hip extension 2 deg (0.2 band widths below 5-20), knee in swing 40 deg (1 width below 55-70)
     stride = [cue("hip_extension_peak_stance", "left", 2 * DEG),
               cue("knee_flexion_peak_swing", "left", 40 * DEG), cue("cadence", "", 80 / 60)]
-    got = InstructionSelector(SHIPPED).update(stride)
+    got = InstructionSelector(SHIPPED, paretic_side="left").update(stride)
     assert (got.rule.id, got.text, got.new) == ("push_off_hip_extension", "Push off more with your left leg",
                                                 True)
     assert got.cue.quantity == "hip_extension_peak_stance"
@@ -86,7 +86,7 @@ def test_the_focus_holds_for_its_strides_then_the_higher_priority_takes_it():
 
 
 def test_a_focus_is_not_dropped_on_the_other_foot_s_stride():
-    selector = InstructionSelector(SHIPPED, hold_strides=1)
+    selector = InstructionSelector(SHIPPED, hold_strides=1, paretic_side="left")
     left = selector.update([cue("hip_extension_peak_stance", "left", 0.0)])
     right = selector.update([cue("cadence", "", 110 / 60)])  # a right stride: nothing of the left hip
     assert left.rule.id == right.rule.id == "push_off_hip_extension" and not right.new and right.held == 2
@@ -95,7 +95,9 @@ def test_a_focus_is_not_dropped_on_the_other_foot_s_stride():
 def test_the_paretic_side_is_the_one_fed_back():
     left_hip = cue("hip_extension_peak_stance", "left", 0.0)
     right_heel = cue("ankle_dorsiflexion_at_ic", "right", -12 * DEG)
-    assert InstructionSelector(SHIPPED, paretic_side="none").update([left_hip, right_heel]).text == \
+    # the shipped rules for these are stroke rules (side: paretic): without a paretic side, none fires
+    assert InstructionSelector(SHIPPED, paretic_side="none").update([left_hip, right_heel]) is None
+    assert InstructionSelector(SHIPPED, paretic_side="left").update([left_hip, right_heel]).text == \
         "Push off more with your left leg"
     assert InstructionSelector(SHIPPED, paretic_side="right").update([left_hip, right_heel]).text == \
         "Land on your right heel"
@@ -118,7 +120,8 @@ def test_the_shipped_knowledge_base_loads_and_a_rule_on_an_unmeasured_quantity_n
     assert all(r.source for r in SHIPPED)
     # every quantity measured here, far below its band: the trailing-limb rule (95) is never chosen
     stride = [cue(q, "left", low - 2 * (high - low)) for q, (low, high, _) in BANDS.items()]
-    assert InstructionSelector(SHIPPED).update(stride).rule.id == "push_off_hip_extension"
+    chosen = InstructionSelector(SHIPPED, paretic_side="left").update(stride)
+    assert chosen.rule.id == "push_off_hip_extension"
 
 
 @pytest.mark.parametrize(("change", "message"), [
@@ -200,7 +203,7 @@ def test_the_words_come_on_a_new_focus_and_then_after_every_few_feedbacks_withou
 
 def test_no_feedback_on_a_stride_without_a_new_value_of_the_focus():
     """A left-hip focus: the right foot's stride (its cues stamped at its own closing IC) gives nothing."""
-    selector = InstructionSelector(SHIPPED, hold_strides=1)
+    selector = InstructionSelector(SHIPPED, hold_strides=1, paretic_side="left")
     plan = FeedbackSchedule(InstructionParams(feedback_schedule="every_stride"))
     left = [cue("hip_extension_peak_stance", "left", 0.0, stride=1, t_s=1.0)]
     right = [cue("cadence", "", 110 / 60, stride=1, t_s=1.55)]

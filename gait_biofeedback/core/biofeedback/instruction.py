@@ -15,10 +15,12 @@ keeps one focus:
   stays, in band (the schedule decides whether to say so), until another rule takes it;
 * with ``paretic_side`` set, per-side quantities are fed back on the paretic side only, unless a rule
   names the other side (``non_paretic`` or that side); a rule on a bilateral quantity (a symmetry)
-  names the leg its words speak of, and fires only for the paretic leg then.
+  names the leg its words speak of, and fires only for the paretic leg then;
+* a rule for the ``paretic`` or ``non_paretic`` side is a stroke rule: without a paretic side it never
+  fires (a healthy walker at 6 cm of foot lift was told "Lift your right foot higher as you swing it").
 
-A rule may name a quantity no stage of this version measures (the stroke quantities of issue 49
-item 2, :data:`PLANNED_QUANTITIES`): it never fires. Any other unknown name is refused, as a typo.
+A rule naming a quantity no stage measures is refused, as a typo; one whose quantity a session does
+not measure (a kit without thigh sensors: no trailing limb angle) simply never fires.
 """
 
 from __future__ import annotations
@@ -35,10 +37,6 @@ from gait_biofeedback.core.safe_yaml import load_yaml_file, shown
 from gait_biofeedback.core.segments import SIDES
 from gait_biofeedback.resources import config_path
 
-PLANNED_QUANTITIES = ("trailing_limb_angle", "propulsion", "knee_hyperextension_stance", "foot_strike_angle",
-                      "swing_foot_clearance", "paretic_step_length_asymmetry",
-                      "paretic_stance_time_asymmetry")
-"""Per-stride quantities of issue 49 item 2, which rules may name before a stage measures them."""
 DIRECTIONS = ("below", "above")
 RULE_SIDES = ("any", "paretic", "non_paretic", *SIDES)
 _REQUIRED = ("id", "quantity", "direction", "priority", "text", "source")
@@ -91,10 +89,9 @@ def _rule(raw: Any, index: int) -> Rule:
     if not _ID.fullmatch(rule_id):
         raise KnowledgeBaseError(f"{where}: id {shown(rule_id, 40)} must be lower-case letters, digits "
                                  "and _ (at most 64)")
-    if quantity not in QUANTITIES and quantity not in PLANNED_QUANTITIES:
-        known = sorted(QUANTITIES) + list(PLANNED_QUANTITIES)
+    if quantity not in QUANTITIES:
         raise KnowledgeBaseError(f"{where}: unknown quantity {shown(quantity, 40)}; "
-                                 f"known: {', '.join(known)}")
+                                 f"known: {', '.join(sorted(QUANTITIES))}")
     if direction not in DIRECTIONS:
         raise KnowledgeBaseError(f"{where}: direction {shown(direction, 40)}; use below or above (the band)")
     side = raw.get("side", "any")
@@ -180,6 +177,8 @@ class InstructionSelector:
     def _leg(self, rule: Rule, cue: Cue) -> str | None:
         """The leg ``rule``'s words speak of for ``cue`` ('' for none), None when it does not apply."""
         paretic = self.paretic_side
+        if paretic == "none" and rule.side in ("paretic", "non_paretic"):
+            return None  # a stroke rule (module docstring)
         other = "" if paretic == "none" else SIDES[1 - SIDES.index(paretic)]
         if cue.side:  # a per-side quantity
             if rule.side in SIDES:
