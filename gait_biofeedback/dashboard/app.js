@@ -380,8 +380,11 @@ function drawFigure() {
   g.beginPath(); g.moveTo(0, oy + 0.98 * scale); g.lineTo(w, oy + 0.98 * scale); g.stroke();
   if (!data.figure) {
     g.fillStyle = "#666"; g.font = "14px sans-serif";
-    wrapText(g, calibrated() ? "waiting for joint angles" :
-      "The stick figure appears once a calibration is in force (joint angles need it).", 16, h / 2 - 20, w - 32, 20);
+    const c = state.calibrationInForce;
+    const legs = !c || c.valid.some((seg) => seg.endsWith("_thigh") || seg.endsWith("_shank"));
+    wrapText(g, !calibrated() ? "The stick figure appears once a calibration is in force (joint angles need it)." :
+      legs ? "waiting for joint angles" : "No joint angles with this kit: every joint needs a thigh or shank " +
+      "sensor, and the calibrated ones are " + c.valid.join(", ").replace(/_/g, " ") + ".", 16, h / 2 - 20, w - 32, 20);
     return;
   }
   // far (left) leg first, then pelvis, then the near (right) leg
