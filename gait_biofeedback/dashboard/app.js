@@ -143,6 +143,12 @@ function setReadOnly(readOnly) {
 function showCalibrationInForce(c) {
   state.calibrationInForce = c || null;
   const el = document.getElementById("calibration-in-force");
+  if (!c && state.noLegs) {
+    el.textContent = "This kit has no leg or foot sensor: no calibration is needed, and there are no gait or " +
+      "joint-angle values to feed back (activity only: posture, transitions, steps).";
+    el.className = "ok";
+    return;
+  }
   if (!c) {
     el.textContent = "Not calibrated yet: no feedback. Stand still, do the calibration moves, then press Calibrate.";
     el.className = "fail";
@@ -382,7 +388,8 @@ function drawFigure() {
     g.fillStyle = "#666"; g.font = "14px sans-serif";
     const c = state.calibrationInForce;
     const legs = !c || c.valid.some((seg) => seg.endsWith("_thigh") || seg.endsWith("_shank"));
-    wrapText(g, !calibrated() ? "The stick figure appears once a calibration is in force (joint angles need it)." :
+    wrapText(g, state.noLegs ? "No joint angles with this kit: it has no leg sensor." :
+      !calibrated() ? "The stick figure appears once a calibration is in force (joint angles need it)." :
       legs ? "waiting for joint angles" : "No joint angles with this kit: every joint needs a thigh or shank " +
       "sensor, and the calibrated ones are " + c.valid.join(", ").replace(/_/g, " ") + ".", 16, h / 2 - 20, w - 32, 20);
     return;
@@ -568,6 +575,9 @@ function renderProgress() {
   document.getElementById("progress-standing-bar").style.width = (done ? 100 : Math.min(100, s / need * 100)) + "%";
   const counts = SIDES.filter((side) => v[side + "_cycles"] !== "" && v[side + "_cycles"] !== undefined)
     .map((side) => side + " " + v[side + "_cycles"]);
+  const noLegs = done && !counts.length;  // a trunk-only kit: nothing to calibrate
+  if (noLegs !== !!state.noLegs) { state.noLegs = noLegs; showCalibrationInForce(state.calibrationInForce); }
+  box.hidden = noLegs;
   document.getElementById("progress-moves").textContent = done ?
     "Moves since the standing: " + (counts.join(", ") || "no leg sensor") + " (hip flexion: " +
     v.hip_flexion_cycles_needed + " per leg; walking: " + v.walking_swings_needed + " steps per leg)" :
@@ -581,7 +591,8 @@ function updateAudio() {
   const mute = state.muted ? " (sound off)" : "";
   if (state.ended) { el.textContent = "session ended: no sound"; el.removeAttribute("title"); return; }
   if (!calibrated()) {
-    el.textContent = "not calibrated yet: no feedback"; el.removeAttribute("title"); return;
+    el.textContent = state.noLegs ? "no feedback: this kit measures activity only" : "not calibrated yet: no feedback";
+    el.removeAttribute("title"); return;
   }
   if (!s || !(s.rate > 0)) {
     el.textContent = (data.cues.size ? "in the target range: no sound" : "no stride evaluated yet: no sound") + mute;
