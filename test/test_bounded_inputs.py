@@ -10,10 +10,10 @@ import itertools
 import json
 import os
 import re
+import signal
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 import tracemalloc
 from pathlib import Path
@@ -30,23 +30,37 @@ from gait_biofeedback.parameters import load_params_file
 REPO = Path(__file__).resolve().parents[1]
 
 
+_LAUNCHER = """
+import os, sys
+pid = os.fork()
+if pid == 0:
+    os.execv(sys.executable, [sys.executable, "-m", "gait_biofeedback.cli", *sys.argv[2:]])
+_, status, usage = os.wait4(pid, 0)
+with open(sys.argv[1], "w") as f:
+    f.write(str(usage.ru_maxrss))
+sys.exit(os.waitstatus_to_exitcode(status))
+"""
+
+
 def _cli_child(*argv: str, timeout: float = 60.0) -> tuple[int, str, str, float, float]:
     """``gait-biofeedback ARGV`` in a child process: (exit code, stdout, stderr, s, peak RSS MB of that
-    child alone, from wait4)."""
+    child alone, from wait4). A process's peak RSS counts what its parent held when it forked it (the
+    pages it inherited, kept across exec): forked from a pytest worker of 600 MB, the CLI would show
+    600 MB whatever it did. So a small launcher process forks it and reports its peak."""
     t0 = time.monotonic()
-    with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
-        proc = subprocess.Popen([sys.executable, "-m", "gait_biofeedback.cli", *argv], cwd=REPO,
-                                stdout=out, stderr=err)
-        timer = threading.Timer(timeout, proc.kill)
-        timer.start()
+    with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err, \
+            tempfile.NamedTemporaryFile("r") as peak:
+        proc = subprocess.Popen([sys.executable, "-c", _LAUNCHER, peak.name, *argv], cwd=REPO, stdout=out,
+                                stderr=err, start_new_session=True)
         try:
-            _, status, usage = os.wait4(proc.pid, 0)
-        finally:
-            timer.cancel()
-        proc.returncode = os.waitstatus_to_exitcode(status)
+            proc.wait(timeout)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)  # the launcher and the CLI it forked
+            proc.wait()
         out.seek(0)
         err.seek(0)
-        return proc.returncode, out.read(), err.read(), time.monotonic() - t0, usage.ru_maxrss / 1024
+        kb = peak.read().strip()
+        return proc.returncode, out.read(), err.read(), time.monotonic() - t0, float(kb or "nan") / 1024
 
 
 def _alias_bomb(levels: int = 9) -> str:
