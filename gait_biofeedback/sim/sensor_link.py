@@ -145,39 +145,48 @@ class SendReport:
     worst_lateness_s: float
 
 
-def send_udp(schedule: FrameSchedule, host: str, port: int, lead_s: float = 0.2,
-             progress: Callable[[float], None] | None = None,
-             stop: Callable[[], bool] | None = None) -> SendReport:
-    """Send ``schedule`` to ``host:port`` in real time (the first sample is taken ``lead_s`` after the
-    call). ``progress(fraction)`` is called about once a second; ``stop()`` ends it early."""
-    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+def play_frames(schedule: FrameSchedule, send_frame: Callable[[int], None], lead_s: float = 0.2,
+                progress: Callable[[float], None] | None = None,
+                stop: Callable[[], bool] | None = None) -> SendReport:
+    """``send_frame(i)`` for each frame of ``schedule`` not dropped, at its send time in real time (the
+    first sample taken ``lead_s`` after the call). ``progress(fraction)`` is called about once a
+    second; ``stop()``, asked every 256 frames, ends it early."""
     t0 = time.time_ns() + round(lead_s * 1e9)
     frames = worst = 0
     next_progress = 0
-    try:
-        n = len(schedule.send_ns)
-        for i in range(n):
-            due = t0 + int(schedule.send_ns[i])
+    n = len(schedule.send_ns)
+    for i in range(n):
+        due = t0 + int(schedule.send_ns[i])
+        now = time.time_ns()
+        if due > now + 200_000:
+            time.sleep((due - now) * 1e-9)
             now = time.time_ns()
-            if due > now + 200_000:
-                time.sleep((due - now) * 1e-9)
-                now = time.time_ns()
-            while now < due:
-                now = time.time_ns()
-            worst = max(worst, now - due)
-            if progress is not None and now >= next_progress:
-                progress(i / n)
-                next_progress = now + 1_000_000_000
-                if stop is not None and stop():
-                    break
-            if schedule.dropped[i]:
-                continue
-            sock.sendto(schedule.frame(i), (host, port))
-            frames += 1
-    finally:
-        sock.close()
+        while now < due:
+            now = time.time_ns()
+        worst = max(worst, now - due)
+        if progress is not None and now >= next_progress:
+            progress(i / n)
+            next_progress = now + 1_000_000_000
+        if stop is not None and i % 256 == 0 and stop():
+            break
+        if schedule.dropped[i]:
+            continue
+        send_frame(i)
+        frames += 1
     sent = sum(int((~t.dropped).sum()) for t in schedule.truth.values())
     return SendReport(t0, sent, schedule.samples_dropped, frames, worst * 1e-9)
+
+
+def send_udp(schedule: FrameSchedule, host: str, port: int, lead_s: float = 0.2,
+             progress: Callable[[float], None] | None = None,
+             stop: Callable[[], bool] | None = None) -> SendReport:
+    """Send ``schedule``'s frames to ``host:port`` in real time (:func:`play_frames`)."""
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        return play_frames(schedule, lambda i: sock.sendto(schedule.frame(i), (host, port)), lead_s, progress,
+                           stop)
+    finally:
+        sock.close()
 
 
 def simulated_schedules(scenario: str, rate_hz: float, ids: Mapping[str, int], loop: bool,

@@ -24,11 +24,10 @@ import math
 import socket
 import struct
 import threading
-import time
 from collections.abc import Callable, Mapping
 
 from gait_biofeedback.core.driver.protocol import DeviceSample
-from gait_biofeedback.sim.sensor_link import FrameSchedule, SendReport
+from gait_biofeedback.sim.sensor_link import FrameSchedule, SendReport, play_frames
 
 STANDARD_GRAVITY = 9.80665
 TESLA_PER_AU = 50e-6
@@ -256,28 +255,14 @@ class FakeNgimus:
 
 def play(schedule: FrameSchedule, send: Callable[[DeviceSample], bool], lead_s: float = 0.2,
          stop: Callable[[], bool] | None = None) -> SendReport:
-    """Send ``schedule``'s samples through ``send`` in real time (its frames' send times, the first
-    sample taken ``lead_s`` after the call; dropped frames not sent), as ``send_udp`` does."""
-    t0 = time.time_ns() + round(lead_s * 1e9)
-    frames = worst = 0
-    for i in range(len(schedule.send_ns)):
-        due = t0 + int(schedule.send_ns[i])
-        now = time.time_ns()
-        if due > now + 200_000:
-            time.sleep((due - now) * 1e-9)
-            now = time.time_ns()
-        while now < due:
-            now = time.time_ns()
-        worst = max(worst, now - due)
-        if stop is not None and i % 256 == 0 and stop():
-            break
-        if schedule.dropped[i]:
-            continue
+    """Send ``schedule``'s samples through ``send`` in real time, frame by frame at its send times
+    (:func:`~gait_biofeedback.sim.sensor_link.play_frames`; dropped frames not sent)."""
+
+    def send_frame(i: int) -> None:
         for sample in schedule.frame_samples(i):
             send(sample)
-        frames += 1
-    sent = sum(int((~t.dropped).sum()) for t in schedule.truth.values())
-    return SendReport(t0, sent, schedule.samples_dropped, frames, worst * 1e-9)
+
+    return play_frames(schedule, send_frame, lead_s, stop=stop)
 
 
 def ximu3_devices(sensor_ids: list[int], ascii_mode: bool = False) -> dict[int, FakeXImu3]:

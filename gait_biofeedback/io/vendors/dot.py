@@ -31,9 +31,9 @@ import time
 from collections.abc import Callable
 
 from gait_biofeedback.core.driver.protocol import DeviceSample
+from gait_biofeedback.io.vendors import Received, drain
 from gait_biofeedback.io.vendors import dot_payload as dp
 
-Received = list[tuple[list[DeviceSample], int, str]]
 _MAX_QUEUED = 100_000
 _DEG = 3.141592653589793 / 180.0
 
@@ -231,14 +231,7 @@ class DotLink:
         self._queue.put(([sample], arrival, s.source))
 
     def receive(self, timeout_s: float) -> Received:
-        out: Received = []
-        try:
-            out.append(self._queue.get(timeout=timeout_s))
-            while len(out) < 4096:
-                out.append(self._queue.get_nowait())
-        except queue.Empty:
-            pass
-        return out
+        return drain(self._queue, timeout_s)
 
     @property
     def problem(self) -> str | None:

@@ -28,9 +28,9 @@ import time
 import numpy as np
 
 from gait_biofeedback.core.driver.protocol import DeviceSample
+from gait_biofeedback.io.vendors import Received, drain
 from gait_biofeedback.io.vendors import shimmer_protocol as sp
 
-Received = list[tuple[list[DeviceSample], int, str]]
 BAUD = 115200
 _MAX_QUEUED = 100_000
 """Samples waiting for the driver at most (8 devices at 200 Hz for a minute); more are dropped, counted."""
@@ -227,14 +227,7 @@ class ShimmerLink:
         now = time.monotonic()
         for d in self.devices:
             d.watch(now)
-        out: Received = []
-        try:
-            out.append(self._queue.get(timeout=timeout_s))
-            while len(out) < 4096:
-                out.append(self._queue.get_nowait())
-        except queue.Empty:
-            pass
-        return out
+        return drain(self._queue, timeout_s)
 
     @property
     def problem(self) -> str | None:
