@@ -152,9 +152,9 @@ SWING_TOLERANCE_TEXT = {k: f"{math.degrees(v):.0f}°" if "angle" in k else
 SESSION_CONDITIONS = ("losing samples", "6D", "no gyro")
 """Orientation conditions ``analyze`` also sums up in its warnings (the others are said as they happen)."""
 CALIBRATED_LIMBS = ("_thigh", "_shank", "_foot")
-_NO_QUATERNION = np.full(4, np.nan)
 """Segments whose calibration the joint angles and gait events need (a recording without any: ``auto``
 is not looked for)."""
+_NO_QUATERNION = np.full(4, np.nan)  # the chest's orientation before its first sample
 
 
 def parse_calibrate_at(text: str) -> tuple[float | None, str]:
