@@ -240,8 +240,7 @@ def write_report(
                 content.strides_section(data, analysis)]
     why_none = "" if data.strides else content.no_strides_reason(data)
     sections = [
-        overview.summary(data, analysis, norms, shown=content.shown, band_text=content.band_text,
-                         has_curves=curves, no_strides=why_none),
+        overview.summary(data, analysis, norms, has_curves=curves, no_strides=why_none),
         *([progress_section(labels, analyses)] if len(sessions) > 1 else []),
         *gait,
         content.activity_section(data),

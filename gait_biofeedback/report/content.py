@@ -21,7 +21,6 @@ from gait_biofeedback.report.analysis import GPS_MISSING, NO_CURVES, TABLE, Sess
 from gait_biofeedback.report.document import Bullets, Figure, Paragraph, Section, Table
 from gait_biofeedback.report.extract import LEVELS, SessionData
 from gait_biofeedback.report.norms import BAKER_2009, BAKER_2012, MCID, NormBand
-from gait_biofeedback.report.overview import kit_segments
 from gait_biofeedback.report.session import SessionReport, calibration_outcome
 
 # parameter → (label, display factor from SI, display unit, decimals)
@@ -154,7 +153,7 @@ def spatiotemporal(analysis: SessionAnalysis, norms: dict[str, NormBand]) -> Sec
 
 def no_strides_reason(data: SessionData) -> str:
     """Why a recording has no stride, in one sentence."""
-    if any(seg.endswith("_foot") for seg in kit_segments(data)):
+    if any(seg.endswith("_foot") for seg in data.kit()):
         return "no strides: the foot sensors gave no gait events (no walking, or no calibration in force)."
     return "not measured: this kit has no foot sensor, and gait events and strides come from the feet."
 
@@ -288,7 +287,7 @@ def calibration_section(data: SessionData, report: SessionReport) -> list[Sectio
     line; a simulated session keeps its table, for the error to the true mounting)."""
     section = Section("Calibration quality")
     if not data.calibration:
-        legs = [seg for seg in kit_segments(data) if seg.endswith(("_thigh", "_shank", "_foot"))]
+        legs = [seg for seg in data.kit() if seg.endswith(("_thigh", "_shank", "_foot"))]
         if not legs:  # a trunk sensor alone needs none: information, in the summary
             return []
         return [section.add(

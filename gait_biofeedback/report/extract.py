@@ -132,6 +132,10 @@ class SessionData:
     def seconds(self, ns: int) -> float:
         return (ns - self.start_ns) / 1e9
 
+    def kit(self) -> set[str]:
+        """The segments whose IMU topics the recording has."""
+        return {seg for t in self.counts if (seg := topics.segment_of(t)) is not None}
+
 
 def _level(raw) -> int:
     return raw[0] if isinstance(raw, (bytes, bytearray)) else int(raw)

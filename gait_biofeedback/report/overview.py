@@ -16,20 +16,15 @@ import numpy as np
 from gait_biofeedback.core.biofeedback.advice import quantity_label
 from gait_biofeedback.core.segments import SIDES
 from gait_biofeedback.report.analysis import SessionAnalysis
+from gait_biofeedback.report.content import DISPLAY, band_text, shown
 from gait_biofeedback.report.document import Bullets, Section
 from gait_biofeedback.report.extract import SessionData
 from gait_biofeedback.report.figures import TRANSITIONS
 from gait_biofeedback.report.norms import NormBand
 from gait_biofeedback.report.session import calibration_outcome
-from gait_biofeedback.wire.topics import segment_of
 
 TRUNK = ("chest", "pelvis")
 LEG_JOINT_SEGMENTS = ("thigh", "shank", "foot")
-
-
-def kit_segments(data: SessionData) -> set[str]:
-    """The segments whose IMU topics the recording has."""
-    return {seg for t in data.counts if (seg := segment_of(t)) is not None}
 
 
 def _median(analysis: SessionAnalysis, name: str) -> float:
@@ -42,14 +37,12 @@ def _against(value_text: str, band: NormBand, value: float, band_text: str) -> s
     return f"{value_text} ({word} the normal {band_text})" if word else value_text
 
 
-def _walking(analysis: SessionAnalysis, norms: dict[str, NormBand], shown, band_text) -> list[str]:
+def _walking(analysis: SessionAnalysis, norms: dict[str, NormBand]) -> list[str]:
     parts = []
-    for name, label, factor, unit, decimals in (("gait_speed", "gait speed", 1.0, "m/s", 2),
-                                                ("cadence", "cadence", 60.0, "steps/min", 0),
-                                                ("stride_length", "stride length", 1.0, "m", 2)):
+    for name in ("gait_speed", "cadence", "stride_length"):
         value = _median(analysis, name)
         if math.isfinite(value):
-            text = f"{label} {factor * value:.{decimals}f} {unit}"
+            text = f"{DISPLAY[name][0]} {shown(name, value, unit=True)}"
             parts.append(_against(text, norms[name], value, band_text(name, norms[name])))
     if not parts:
         return []
@@ -70,7 +63,7 @@ def _symmetry(analysis: SessionAnalysis, norms: dict[str, NormBand]) -> list[str
             "symmetric."]
 
 
-def _stance(analysis: SessionAnalysis, norms: dict[str, NormBand], shown, band_text) -> list[str]:
+def _stance(analysis: SessionAnalysis, norms: dict[str, NormBand]) -> list[str]:
     sides = []
     for side in SIDES:
         mean, _, n = analysis.table["stance_fraction"][side]
@@ -145,7 +138,7 @@ def _trust(data: SessionData) -> list[str]:
         if lacking:
             line += f"; {', '.join(lacking)}: needs sensors this kit does not have"
         lines.append(line + ".")
-    elif not any(seg.endswith(LEG_JOINT_SEGMENTS) for seg in kit_segments(data)):
+    elif not any(seg.endswith(LEG_JOINT_SEGMENTS) for seg in data.kit()):
         lines.append("Calibration: none needed: this kit has no leg or foot sensor, and the activity monitor "
                      "finds its own upright reference.")
     problems = sorted(name for name, s in data.diagnostics.items() if not s.fine(data.duration_s))
@@ -158,18 +151,18 @@ def _trust(data: SessionData) -> list[str]:
     return lines
 
 
-def summary(data: SessionData, analysis: SessionAnalysis, norms: dict[str, NormBand], *, shown, band_text,
-            has_curves: bool, no_strides: str = "") -> Section:
+def summary(data: SessionData, analysis: SessionAnalysis, norms: dict[str, NormBand], *, has_curves: bool,
+            no_strides: str = "") -> Section:
     """The first section (module docstring); ``no_strides``: why there are no strides, when there are
-    none. ``shown``/``band_text``: the report's display of a value and of a band."""
-    kit = kit_segments(data)
+    none."""
+    kit = data.kit()
     items: list[str] = []
     if not analysis.used:
         items.append(f"Gait: {no_strides or 'no steady, straight strides to describe.'}")
     else:
-        items += _walking(analysis, norms, shown, band_text)
+        items += _walking(analysis, norms)
         items += _symmetry(analysis, norms)
-        items += _stance(analysis, norms, shown, band_text)
+        items += _stance(analysis, norms)
     items += _joints(analysis, has_curves, kit)
     items += _activity(data, analysis, kit)
     items += _feedback(data, analysis)
