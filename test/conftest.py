@@ -134,7 +134,8 @@ def find_chromium() -> str | None:
 def spinning(context, *nodes):
     """The project's executor (``make_executor``) on ``context`` with ``nodes`` added. Leaving the block,
     whatever happened in it, destroys those nodes in the order given, then any node the block added to
-    the executor itself (a late subscriber, a replayer started later), and shuts the executor down."""
+    the executor itself (a late subscriber, a replayer started later), and shuts the executor down; a
+    node the block removed from the executor is the block's to destroy (a graph stopped mid-test)."""
     from gait_biofeedback.nodes.common import make_executor
 
     executor = make_executor(context)
@@ -143,10 +144,30 @@ def spinning(context, *nodes):
             executor.add_node(node)
         yield executor
     finally:
-        added = [n for n in executor.get_nodes() if not any(n is given for given in nodes)]
-        for node in (*nodes, *added):
+        running = executor.get_nodes()
+        added = [n for n in running if not any(n is given for given in nodes)]
+        for node in (*(n for n in nodes if any(n is r for r in running)), *added):
             node.destroy_node()
         executor.shutdown()
+
+
+@contextlib.contextmanager
+def spinning_in_background(context, *nodes):
+    """:func:`spinning`, the executor spun by a thread of its own until the block is left (the thread
+    stops before the nodes are destroyed): for tests that drive a node from outside, e.g. a browser."""
+    import threading
+
+    from gait_biofeedback.nodes.common import spin_until
+
+    with spinning(context, *nodes) as executor:
+        stop = threading.Event()
+        spinner = threading.Thread(target=lambda: spin_until(executor, stop.is_set), daemon=True)
+        spinner.start()
+        try:
+            yield executor
+        finally:
+            stop.set()
+            spinner.join(10)
 
 
 

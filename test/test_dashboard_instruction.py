@@ -9,11 +9,11 @@ sounds its fallback tones instead. The screenshot's path is printed (``pytest -s
 
 from __future__ import annotations
 
-import threading
+import contextlib
 import time
 
 import pytest
-from conftest import find_chromium
+from conftest import find_chromium, spinning_in_background
 from test_dashboard_layout import _cycle, _fits, _text, _until
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(90),
@@ -36,7 +36,7 @@ def test_the_page_shows_and_speaks_the_instruction_and_the_dose_is_published(ros
     from test_dashboard_browser import Browser
 
     from gait_biofeedback.nodes.biofeedback import BiofeedbackNode
-    from gait_biofeedback.nodes.common import make_executor, publisher, spin_until, subscribe
+    from gait_biofeedback.nodes.common import publisher, subscribe
     from gait_biofeedback.wire import topics
     from gait_biofeedback.wire.calibration import mounting_msg
 
@@ -46,15 +46,8 @@ def test_the_page_shows_and_speaks_the_instruction_and_the_dose_is_published(ros
     cycles, calibration = (publisher(source, t) for t in (topics.GAIT_CYCLES, topics.CALIBRATION))
     given = []
     subscribe(source, topics.GIVEN, given.append)
-    executor = make_executor(ros_context)
-    for node in (bio, source):
-        executor.add_node(node)
-    stop = threading.Event()
-    spinner = threading.Thread(target=lambda: spin_until(executor, stop.is_set), daemon=True)
-    spinner.start()
-    browser = None
-    try:
-        browser = Browser(bio.server.url, 1280, 800)
+    with spinning_in_background(ros_context, bio, source), \
+            contextlib.closing(Browser(bio.server.url, 1280, 800)) as browser:
         browser.wait_for(lambda s: s.get("connected") and s.get("hello"), timeout=15)
         assert browser.evaluate(STUB_SPEECH) is True
         cycles.publish(_cycle("left", 1, 10.0))  # before a calibration: no feedback
@@ -105,11 +98,3 @@ def test_the_page_shows_and_speaks_the_instruction_and_the_dose_is_published(ros
         time.sleep(0.3)  # a frame or two after the stride's
         assert browser.state()["instructionsReceived"] == 3 and len(given) == 3
         print("\nscreenshots:\n" + "\n".join(shots))
-    finally:
-        stop.set()
-        spinner.join(10)
-        if browser is not None:
-            browser.close()
-        for node in (bio, source):
-            node.destroy_node()
-        executor.shutdown()

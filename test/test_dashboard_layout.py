@@ -10,12 +10,12 @@ temporary folder whose paths are printed (``pytest -s``).
 
 from __future__ import annotations
 
+import contextlib
 import math
-import threading
 import time
 
 import pytest
-from conftest import find_chromium
+from conftest import find_chromium, spinning_in_background
 
 pytestmark = [pytest.mark.ros, pytest.mark.timeout(90),
               pytest.mark.skipif(find_chromium() is None, reason="chromium not installed: run "
@@ -77,7 +77,7 @@ def test_states_values_and_layout_in_headless_chromium(ros_context, tmp_path):
 
     from gait_biofeedback.core.calibration.progress import Progress
     from gait_biofeedback.nodes.biofeedback import BiofeedbackNode
-    from gait_biofeedback.nodes.common import make_executor, publisher, spin_until
+    from gait_biofeedback.nodes.common import publisher
     from gait_biofeedback.wire import diagnostics, topics
     from gait_biofeedback.wire.calibration import mounting_msg
 
@@ -85,16 +85,9 @@ def test_states_values_and_layout_in_headless_chromium(ros_context, tmp_path):
     source = Node("hand_made_inputs", context=ros_context)
     cycles, diag, calibration = (publisher(source, t) for t in (topics.GAIT_CYCLES, topics.DIAGNOSTICS,
                                                                  topics.CALIBRATION))
-    executor = make_executor(ros_context)
-    for node in (bio, source):
-        executor.add_node(node)
-    stop = threading.Event()
-    spinner = threading.Thread(target=lambda: spin_until(executor, stop.is_set), daemon=True)
-    spinner.start()
-    browser = None
     shots = []
-    try:
-        browser = Browser(bio.server.url, *SIZES[0])
+    with spinning_in_background(ros_context, bio, source) as executor, \
+            contextlib.closing(Browser(bio.server.url, *SIZES[0])) as browser:
         browser.wait_for(lambda s: s.get("connected") and s.get("hello"), timeout=15)
         # before any calibration: the progress, the strides and temporal values, and no feedback
         progress = Progress(2.04, 3.0, False, {"left": 0, "right": 0})
@@ -137,7 +130,6 @@ def test_states_values_and_layout_in_headless_chromium(ros_context, tmp_path):
         # the graph stops: the page says so and keeps the last values
         executor.remove_node(bio)
         bio.destroy_node()
-        bio = None
         state = browser.wait_for(lambda s: s.get("ended"), timeout=10)
         assert "Session ended" in _text(browser, "session-state") and not state["connected"]
         assert _text(browser, "stat-strides") == "3 / 3" and _text(browser, "stat-cadence") == "80 steps/min"
@@ -145,12 +137,3 @@ def test_states_values_and_layout_in_headless_chromium(ros_context, tmp_path):
         assert audio == "session ended: no sound"
         shots += _fits(browser, tmp_path, "ended")
         print("\nscreenshots:\n" + "\n".join(shots))
-    finally:
-        stop.set()
-        spinner.join(10)
-        if browser is not None:
-            browser.close()
-        for node in (bio, source):
-            if node is not None:
-                node.destroy_node()
-        executor.shutdown()
